@@ -1,0 +1,20 @@
+"""What a world is: the scenario schema, TOML loading and validation, the built-in library.
+
+The bottom package of pefsim: it imports nothing from ``estimators``, ``planner`` or ``sim``.
+"""
+
+from scenarios.errors import (
+    OutputError, PefsimError, PlanningError, ScenarioError, SimulationError,
+)
+from scenarios.load import builtin_names, from_dict, load, loads, resolve
+from scenarios.schema import (
+    Dock, Marker, MonteCarloSpec, NoiseModel, Obstacle, PefModel, PlacementSpec, PlanningSpec,
+    RobotSpec, RouteNetwork, Scenario, SensorSpec, Task, Weights, Workspace,
+)
+
+__all__ = [
+    "Dock", "Marker", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError", "PefModel",
+    "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteNetwork",
+    "Scenario", "ScenarioError", "SensorSpec", "SimulationError", "Task", "Weights", "Workspace",
+    "builtin_names", "from_dict", "load", "loads", "resolve",
+]

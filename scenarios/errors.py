@@ -1,0 +1,31 @@
+"""The one exception tree of pefsim.
+
+Every error a user can cause derives from :class:`PefsimError`; the CLI prints its message
+on one line and exits with code 2. Anything else is a bug and shows a traceback.
+"""
+
+from __future__ import annotations
+
+
+class PefsimError(Exception):
+    """Root of all errors caused by input (files, arguments, infeasible requests)."""
+
+
+class ScenarioError(PefsimError):
+    """A scenario file is malformed or inconsistent.
+
+    The message names the file, the key path and the offending value, e.g.
+    ``warehouse.toml: markers[3].position: expected [x, y] inside the workspace, got [31.0, 2.0]``.
+    """
+
+
+class PlanningError(PefsimError):
+    """The planner cannot satisfy a request (no admissible route, unreachable dock, ...)."""
+
+
+class SimulationError(PefsimError):
+    """An episode cannot run as asked (unknown task, no visible markers at the start, ...)."""
+
+
+class OutputError(PefsimError):
+    """A result cannot be written (unwritable path, conflicting output directory, ...)."""

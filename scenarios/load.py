@@ -1,0 +1,287 @@
+"""Loading and validating scenario files (TOML) into :class:`~scenarios.schema.Scenario`.
+
+Every error names the file, the key path and the value, on one line, e.g.
+``warehouse.toml: markers[3].position: expected [x, y] inside the workspace, got [31.0, 2.0]``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import fields, replace
+from pathlib import Path
+from typing import Any
+
+from scenarios.errors import ScenarioError
+from scenarios.fields import Table, show
+from scenarios.schema import (
+    Dock, Marker, MonteCarloSpec, NoiseModel, Obstacle, PefModel, PlacementSpec, PlanningSpec,
+    RobotSpec, RouteNetwork, Scenario, SensorSpec, Task, Weights, Workspace,
+)
+
+LIBRARY = Path(__file__).resolve().parent / "library"
+CRITERIA = tuple(f.name for f in fields(Weights))
+
+
+def builtin_names() -> list[str]:
+    """Names of the built-in scenarios (files in ``scenarios/library``), sorted."""
+    return sorted(p.stem for p in LIBRARY.glob("*.toml"))
+
+
+def resolve(name_or_path: str | Path) -> Path:
+    """A path for a scenario given as a path or a built-in name."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        if not p.is_file():
+            raise ScenarioError(f"{p}: no such scenario file")
+        return p
+    candidate = LIBRARY / f"{name_or_path}.toml"
+    if candidate.is_file():
+        return candidate
+    raise ScenarioError(
+        f"{name_or_path}: not a file and not a built-in scenario (built-in: {', '.join(builtin_names())})")
+
+
+def load(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario from a path or a built-in name."""
+    path = resolve(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from None
+    return loads(text, source=str(path))
+
+
+def loads(text: str, source: str = "<string>") -> Scenario:
+    """Parse and validate scenario TOML ``text``; ``source`` names it in errors."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
+    return from_dict(data, source)
+
+
+def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
+    """Read a [sensor] table; with ``required`` False every key is an override of ``base``."""
+    d = base if not required else SensorSpec()
+    noise = t.string("noise", d.noise.value, choices=tuple(m.value for m in NoiseModel))
+    spec = SensorSpec(
+        relative_error=t.number("relative_error", d.relative_error, low=0.0, high=0.5),
+        absolute_error=t.number("absolute_error", d.absolute_error, low=0.0),
+        noise=NoiseModel(noise),
+        bearing_error=math.radians(t.number("bearing_error_deg", math.degrees(d.bearing_error),
+                                            low=0.0, high=45.0)),
+        max_range=t.number("max_range", d.max_range, low=0.0, low_open=True),
+        measurement_time=t.number("measurement_time", d.measurement_time, low=0.0),
+        markers_per_fix=t.integer("markers_per_fix", d.markers_per_fix, low=2),
+        fix_rate_hz=t.number("fix_rate_hz", d.fix_rate_hz, low=0.0, low_open=True),
+    )
+    if spec.relative_error == 0.0 and spec.absolute_error == 0.0:
+        t.fail(t.key("absolute_error"), "expected relative_error or absolute_error > 0", 0.0)
+    return spec
+
+
+def _robot(t: Table, base: RobotSpec) -> RobotSpec:
+    pos = {"low": 0.0, "low_open": True}
+    spec = RobotSpec(
+        wheel_radius=t.number("wheel_radius", base.wheel_radius, **pos),
+        wheel_base=t.number("wheel_base", base.wheel_base, **pos),
+        radius=t.number("radius", base.radius, **pos),
+        max_speed=t.number("max_speed", base.max_speed, **pos),
+        max_yaw_rate=t.number("max_yaw_rate", base.max_yaw_rate, **pos),
+        encoder_ticks=t.integer("encoder_ticks", base.encoder_ticks, low=1),
+        wheel_radius_error=t.number("wheel_radius_error", base.wheel_radius_error, low=-0.2, high=0.2),
+        odometry_noise=t.number("odometry_noise", base.odometry_noise, low=0.0, high=0.5),
+        mass=t.number("mass", base.mass, **pos),
+        max_wheel_torque=t.number("max_wheel_torque", base.max_wheel_torque, **pos),
+    )
+    return spec
+
+
+def _planning(t: Table) -> PlanningSpec:
+    d = PlanningSpec()
+    model = t.string("pef_model", d.pef_model.value, choices=tuple(m.value for m in PefModel))
+    w = t.table("weights", {})
+    weights = Weights(**{c: w.number(c, getattr(Weights(), c), low=0.0) for c in CRITERIA})
+    w.done()
+    order = t.raw("order", [])
+    if not isinstance(order, list) or any(o not in CRITERIA for o in order):
+        t.fail(t.key("order"), "expected a list of criteria among " + ", ".join(CRITERIA), order)
+    return PlanningSpec(
+        eps_max=t.number("eps_max", low=0.0, low_open=True),
+        pef_model=PefModel(model),
+        gdop_level=t.number("gdop_level", d.gdop_level, low=0.0, low_open=True, high=0.999999),
+        resolution=t.number("resolution", d.resolution, low=0.0, low_open=True),
+        weights=weights,
+        order=tuple(order),
+    )
+
+
+def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
+    """Validate a parsed TOML document and build the :class:`Scenario`."""
+    file = Path(source).name if source.endswith(".toml") else source
+    root = Table(data, file)
+    name = root.string("name")
+    seed = root.integer("seed", 0, low=0)
+    description = root.string("description", "")
+
+    ws_t = root.table("workspace")
+    workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True))
+    ws_t.done()
+
+    obstacles = []
+    for t in root.array_of_tables("obstacles"):
+        obstacles.append(Obstacle(
+            center=t.vector("center", 2, what="[x, y]"),
+            size=t.vector("size", 2, what="[length, width] in metres", positive=True),
+            yaw=math.radians(t.number("yaw_deg", 0.0)),
+        ))
+        t.done()
+
+    def free_point(t: Table, key: str, p: tuple[float, ...], what: str) -> None:
+        if not workspace.contains(p):
+            t.fail(t.key(key), f"expected {what} inside the workspace", list(p))
+        for j, ob in enumerate(obstacles):
+            if ob.contains(p, margin=-1e-6):
+                t.fail(t.key(key), f"expected {what} outside obstacles (inside obstacles[{j}])", list(p))
+
+    markers = []
+    for t in root.array_of_tables("markers"):
+        mid = t.string("id")
+        pos = t.vector("position", 2, what="[x, y]")
+        free_point(t, "position", pos, "[x, y]")
+        if any(m.id == mid for m in markers):
+            t.fail(t.key("id"), "expected a unique marker id", mid)
+        markers.append(Marker(mid, pos))
+        t.done()
+
+    s_t = root.table("sensor")
+    sensor = _sensor(s_t, SensorSpec(), required=True)
+    sensor_actual = sensor
+    if s_t.has("actual"):
+        a_t = s_t.table("actual")
+        sensor_actual = _sensor(a_t, sensor, required=False)
+        a_t.done()
+    s_t.done()
+    if sensor.markers_per_fix > len(markers):
+        s_t.fail(s_t.key("markers_per_fix"),
+                 f"expected at most the number of markers ({len(markers)})", sensor.markers_per_fix)
+
+    r_t = root.table("robot", {})
+    robot = _robot(r_t, RobotSpec())
+    robot_actual = robot
+    if r_t.has("actual"):
+        a_t = r_t.table("actual")
+        robot_actual = _robot(a_t, robot)
+        a_t.done()
+    r_t.done()
+
+    p_t = root.table("planning")
+    planning = _planning(p_t)
+    p_t.done()
+    if planning.pef_model is PefModel.PARALLELOGRAM and sensor.markers_per_fix != 2:
+        p_t.fail(p_t.key("pef_model"),
+                 f"parallelogram needs sensor.markers_per_fix = 2 (use \"strips\" for k = {sensor.markers_per_fix})",
+                 planning.pef_model.value)
+
+    docks = []
+    for t in root.array_of_tables("docks"):
+        dname = t.string("name")
+        pose = t.vector("pose", 3, what="[x, y, yaw_deg]")
+        free_point(t, "pose", pose[:2], "[x, y, yaw_deg]")
+        if any(d.name == dname for d in docks):
+            t.fail(t.key("name"), "expected a unique dock name", dname)
+        docks.append(Dock(dname, (pose[0], pose[1], math.radians(pose[2]))))
+        t.done()
+    dock_names = {d.name for d in docks}
+
+    routes = None
+    if root.has("routes"):
+        routes = _routes(root.table("routes"), workspace, docks, free_point)
+
+    tasks = []
+    for t in root.array_of_tables("tasks"):
+        a, b = t.string("from"), t.string("to")
+        for key, v in (("from", a), ("to", b)):
+            if v not in dock_names:
+                t.fail(t.key(key), "expected a dock name (" + ", ".join(sorted(dock_names)) + ")", v)
+        if a == b:
+            t.fail(t.key("to"), "expected a dock other than 'from'", b)
+        tasks.append(Task(a, b))
+        t.done()
+
+    mc_t = root.table("montecarlo", {})
+    montecarlo = MonteCarloSpec(
+        runs=mc_t.integer("runs", MonteCarloSpec().runs, low=1),
+        success_target=mc_t.number("success_target", MonteCarloSpec().success_target, low=0.0, high=1.0),
+    )
+    mc_t.done()
+
+    pl_t = root.table("placement", {})
+    cands = []
+    for i, c in enumerate(pl_t.raw("candidates", [])):
+        key = f"{pl_t.key('candidates')}[{i}]"
+        p = pl_t.check_vector(key, c, 2, what="[x, y]")
+        if not workspace.contains(p):
+            pl_t.fail(key, "expected [x, y] inside the workspace", list(p))
+        cands.append(p)
+    placement = PlacementSpec(
+        candidates=tuple(cands),
+        spacing=pl_t.number("spacing", PlacementSpec().spacing, low=0.0, low_open=True),
+        cover=pl_t.string("cover", PlacementSpec().cover, choices=("routes", "free")),
+    )
+    pl_t.done()
+    root.done()
+
+    return Scenario(
+        name=name, seed=seed, description=description, workspace=workspace,
+        obstacles=tuple(obstacles), markers=tuple(markers), sensor=sensor,
+        sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
+        docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
+        placement=placement, source=source,
+    )
+
+
+def _routes(t: Table, workspace: Workspace, docks: list[Dock], free_point) -> RouteNetwork:
+    nodes_t = t.table("nodes")
+    nodes: dict[str, tuple[float, float]] = {}
+    for name in list(nodes_t.data):
+        p = nodes_t.vector(name, 2, what="[x, y]")
+        free_point(nodes_t, name, p, "[x, y]")
+        nodes[name] = (p[0], p[1])
+    nodes_t.done()
+    for d in docks:
+        # A dock that is also a node must sit where the dock is: routes start at docks.
+        if d.name in nodes and math.dist(nodes[d.name], d.position) > 1e-9:
+            nodes_t.fail(nodes_t.key(d.name), f"expected the position of dock {d.name} {list(d.position)}",
+                         list(nodes[d.name]))
+    segs_raw = t.raw("segments")
+    if not isinstance(segs_raw, list):
+        t.fail(t.key("segments"), "expected a list of [node, node] pairs", segs_raw)
+    segments = []
+    for i, s in enumerate(segs_raw):
+        key = f"{t.key('segments')}[{i}]"
+        if not (isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)):
+            t.fail(key, "expected [node, node]", s)
+        for x in s:
+            if x not in nodes:
+                t.fail(key, f"expected node names (unknown node {show(x)})", s)
+        if s[0] == s[1]:
+            t.fail(key, "expected two different nodes", s)
+        segments.append((s[0], s[1]))
+    traffic_t = t.table("traffic", {})
+    seg_keys = {f"{a}-{b}" for a, b in segments} | {f"{b}-{a}" for a, b in segments}
+    traffic = {}
+    for k in list(traffic_t.data):
+        if k not in seg_keys:
+            traffic_t.fail(traffic_t.key(f'"{k}"'), "expected a segment \"a-b\" of routes.segments",
+                           traffic_t.data[k])
+        traffic[k] = traffic_t.number(k, low=0.0, high=1.0)
+    traffic_t.done()
+    t.done()
+    return RouteNetwork(nodes=nodes, segments=tuple(segments), traffic=traffic)
+
+
+def with_overrides(scenario: Scenario, **changes: Any) -> Scenario:
+    """A copy of ``scenario`` with top-level fields replaced (for tests and sweeps)."""
+    return replace(scenario, **changes)

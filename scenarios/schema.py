@@ -1,0 +1,303 @@
+"""The scenario model: frozen dataclasses for every part of a scenario file.
+
+Units are SI throughout (metres, seconds, radians). Files may give angles in degrees where
+the key ends in ``_deg``; the loader converts them, so every angle held here is in radians.
+Construction does not validate: :mod:`scenarios.load` checks every value against the file
+and key it came from before building these objects.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+
+class NoiseModel(str, Enum):
+    """How range (and bearing) errors are realised in simulation.
+
+    ``uniform``: uniform in ±ρ (the paper's bounded, set-membership view).
+    ``gaussian``: normal with σ = ρ/3.
+    """
+
+    UNIFORM = "uniform"
+    GAUSSIAN = "gaussian"
+
+
+class PefModel(str, Enum):
+    """The error model that turns a marker subset into a predicted error τ (metres).
+
+    ``exact``: diameter of the exact fault area (intersection of annuli), by polygon clipping.
+    ``parallelogram``: long diagonal of the linearised two-marker parallelogram (k = 2).
+    ``strips``: diameter of the intersection of k linearised strips.
+    ``gdop``: largest error inside the p-level confidence ellipse of the least-squares fix.
+    """
+
+    EXACT = "exact"
+    PARALLELOGRAM = "parallelogram"
+    STRIPS = "strips"
+    GDOP = "gdop"
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Rectangular workspace, origin lower-left, x right, y up; ``size`` = (width, height) [m]."""
+
+    size: tuple[float, float]
+
+    @property
+    def width(self) -> float:
+        return self.size[0]
+
+    @property
+    def height(self) -> float:
+        return self.size[1]
+
+    def contains(self, p: tuple[float, float] | np.ndarray) -> bool:
+        """True if point ``p`` (x, y) [m] lies in the closed workspace rectangle."""
+        return 0.0 <= p[0] <= self.size[0] and 0.0 <= p[1] <= self.size[1]
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A box obstacle: ``center`` (x, y) [m], ``size`` (length along its x, width) [m], ``yaw`` [rad]."""
+
+    center: tuple[float, float]
+    size: tuple[float, float]
+    yaw: float = 0.0
+
+    def corners(self) -> np.ndarray:
+        """Corners, shape (4, 2) [m], counter-clockwise."""
+        hx, hy = self.size[0] / 2.0, self.size[1] / 2.0
+        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        rot = np.array([[c, -s], [s, c]])
+        return local @ rot.T + np.asarray(self.center)
+
+    def contains(self, p: tuple[float, float] | np.ndarray, margin: float = 0.0) -> bool:
+        """True if point ``p`` lies inside the box grown by ``margin`` [m] on every side."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        dx, dy = p[0] - self.center[0], p[1] - self.center[1]
+        lx, ly = c * dx + s * dy, -s * dx + c * dy
+        return abs(lx) <= self.size[0] / 2 + margin and abs(ly) <= self.size[1] / 2 + margin
+
+
+@dataclass(frozen=True)
+class Marker:
+    """A landmark (laser reflector, anchor) at a known ``position`` (x, y) [m]."""
+
+    id: str
+    position: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """The laser marker sensor.
+
+    Attributes
+    ----------
+    relative_error : float
+        Re, range error bound per metre of range [m/m].
+    absolute_error : float
+        ρ0, range error bound independent of range [m].
+    noise : NoiseModel
+        How errors are realised in simulation.
+    bearing_error : float
+        ξ, bound of the bearing error [rad]; 0 means ranges only.
+    max_range : float
+        Markers farther than this cannot be measured [m].
+    measurement_time : float
+        Time one marker measurement takes [s]; the robot moves meanwhile.
+    markers_per_fix : int
+        k, markers measured per fix.
+    fix_rate_hz : float
+        Highest rate at which fixes can start [Hz].
+    """
+
+    relative_error: float = 6.7e-5
+    absolute_error: float = 0.002
+    noise: NoiseModel = NoiseModel.UNIFORM
+    bearing_error: float = 0.0
+    max_range: float = 25.0
+    measurement_time: float = 0.02
+    markers_per_fix: int = 2
+    fix_rate_hz: float = 5.0
+
+    def range_bound(self, r: np.ndarray | float) -> np.ndarray | float:
+        """ρ(r) = Re·r + ρ0 [m], the bound of the range error at range ``r`` [m]."""
+        return self.relative_error * r + self.absolute_error
+
+    @property
+    def uses_bearing(self) -> bool:
+        return self.bearing_error > 0.0
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """A differential-drive robot.
+
+    Attributes
+    ----------
+    wheel_radius : float
+        Nominal wheel radius [m].
+    wheel_base : float
+        Distance between the wheel contact points [m].
+    radius : float
+        Radius of the robot's footprint, used to inflate obstacles [m].
+    max_speed : float
+        Highest forward speed [m/s].
+    max_yaw_rate : float
+        Highest turning rate [rad/s].
+    encoder_ticks : int
+        Encoder ticks per wheel revolution (odometry quantisation).
+    wheel_radius_error : float
+        Systematic relative error of the right wheel's radius against the nominal one (the
+        left wheel has the opposite sign), the classic UMBmark odometry error [-].
+    odometry_noise : float
+        Relative standard deviation of each wheel's travelled distance per increment
+        (slip, floor), used by the filter's process noise [-].
+    mass : float
+        Chassis mass [kg].
+    max_wheel_torque : float
+        Torque limit of each wheel motor [N m].
+    """
+
+    wheel_radius: float = 0.1
+    wheel_base: float = 0.5
+    radius: float = 0.4
+    max_speed: float = 1.0
+    max_yaw_rate: float = 1.5
+    encoder_ticks: int = 2048
+    wheel_radius_error: float = 0.002
+    odometry_noise: float = 0.01
+    mass: float = 20.0
+    max_wheel_torque: float = 20.0
+
+
+@dataclass(frozen=True)
+class Weights:
+    """Weights of the route criteria (normalised criteria are multiplied by these)."""
+
+    accuracy: float = 1.0
+    length: float = 1.0
+    traffic: float = 0.5
+    clearance: float = 0.5
+    smoothness: float = 0.1
+
+
+@dataclass(frozen=True)
+class PlanningSpec:
+    """Planning parameters: ``eps_max`` [m], PEF model, GDOP probability, grid resolution [m]."""
+
+    eps_max: float = 0.05
+    pef_model: PefModel = PefModel.PARALLELOGRAM
+    gdop_level: float = 0.95
+    resolution: float = 0.1
+    weights: Weights = field(default_factory=Weights)
+    order: tuple[str, ...] = ()
+    """Lexicographic criteria order; empty means weighted sum."""
+
+
+@dataclass(frozen=True)
+class Dock:
+    """A named pose: ``pose`` = (x [m], y [m], yaw [rad])."""
+
+    name: str
+    pose: tuple[float, float, float]
+
+    @property
+    def position(self) -> tuple[float, float]:
+        return (self.pose[0], self.pose[1])
+
+
+@dataclass(frozen=True)
+class RouteNetwork:
+    """A route network (paper fig. 7): named nodes, undirected segments, traffic per segment.
+
+    ``traffic`` maps a segment key ``"a-b"`` (either order) to a density in [0, 1].
+    """
+
+    nodes: dict[str, tuple[float, float]]
+    segments: tuple[tuple[str, str], ...]
+    traffic: dict[str, float] = field(default_factory=dict)
+
+    def traffic_of(self, a: str, b: str) -> float:
+        """Traffic density of segment a–b (0 when not listed)."""
+        return self.traffic.get(f"{a}-{b}", self.traffic.get(f"{b}-{a}", 0.0))
+
+
+@dataclass(frozen=True)
+class Task:
+    """An episode's errand: drive from dock ``start`` to dock ``goal`` (TOML keys ``from``/``to``)."""
+
+    start: str
+    goal: str
+
+
+@dataclass(frozen=True)
+class PlacementSpec:
+    """Marker placement inputs: explicit candidate sites, or sampling along walls/obstacles."""
+
+    candidates: tuple[tuple[float, float], ...] = ()
+    spacing: float = 2.0
+    cover: str = "routes"
+    """``routes`` (the route network, or free-space routes between the tasks' docks) or ``free``."""
+
+
+@dataclass(frozen=True)
+class MonteCarloSpec:
+    """Monte-Carlo defaults: number of runs and the fraction that must stay under ε_max."""
+
+    runs: int = 200
+    success_target: float = 0.95
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A whole world: workspace, obstacles, markers, sensor, robot, planning and errands.
+
+    ``sensor`` and ``robot`` are the *declared* models (planner and filter use them);
+    ``sensor_actual`` and ``robot_actual`` are what the simulated hardware really does
+    (equal to the declared ones unless the file has ``[sensor.actual]``/``[robot.actual]``).
+    """
+
+    name: str
+    seed: int
+    description: str
+    workspace: Workspace
+    obstacles: tuple[Obstacle, ...]
+    markers: tuple[Marker, ...]
+    sensor: SensorSpec
+    sensor_actual: SensorSpec
+    robot: RobotSpec
+    robot_actual: RobotSpec
+    planning: PlanningSpec
+    docks: tuple[Dock, ...]
+    routes: RouteNetwork | None
+    tasks: tuple[Task, ...]
+    montecarlo: MonteCarloSpec
+    placement: PlacementSpec = field(default_factory=PlacementSpec)
+    source: str = "<memory>"
+    """Where the scenario came from (a path or ``builtin:NAME``), used in error messages."""
+
+    def marker_positions(self) -> np.ndarray:
+        """Marker positions, shape (M, 2) [m], in file order."""
+        return np.array([m.position for m in self.markers], dtype=float).reshape(-1, 2)
+
+    def marker_ids(self) -> list[str]:
+        return [m.id for m in self.markers]
+
+    def dock(self, name: str) -> Dock:
+        """The dock called ``name``; raises ``KeyError`` when there is none."""
+        for d in self.docks:
+            if d.name == name:
+                return d
+        raise KeyError(name)
+
+    def obstacle_corners(self) -> np.ndarray:
+        """Corners of all obstacles, shape (n_obstacles, 4, 2) [m]."""
+        if not self.obstacles:
+            return np.zeros((0, 4, 2))
+        return np.stack([o.corners() for o in self.obstacles])
