@@ -1,0 +1,2 @@
+"""What measurements tell: measurement models, fault areas (set-membership), snapshot fixes,
+the EKF (filterpy) and consistency statistics. Depends only on ``scenarios``."""
