@@ -49,7 +49,9 @@ def load(name_or_path: str | Path) -> Scenario:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
-    return loads(text, source=str(path))
+    # Errors name the file as the user gave it; a built-in one by its file name alone.
+    shown = path.name if path.parent == LIBRARY else str(name_or_path)
+    return loads(text, source=shown)
 
 
 def loads(text: str, source: str = "<string>") -> Scenario:
@@ -58,7 +60,7 @@ def loads(text: str, source: str = "<string>") -> Scenario:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
-    return from_dict(data, source)
+    return replace(from_dict(data, source), text=text)
 
 
 def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
@@ -119,8 +121,7 @@ def _planning(t: Table) -> PlanningSpec:
 
 def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     """Validate a parsed TOML document and build the :class:`Scenario`."""
-    file = Path(source).name if source.endswith(".toml") else source
-    root = Table(data, file)
+    root = Table(data, source)
     name = root.string("name")
     seed = root.integer("seed", 0, low=0)
     description = root.string("description", "")
@@ -138,12 +139,13 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         ))
         t.done()
 
-    def free_point(t: Table, key: str, p: tuple[float, ...], what: str) -> None:
+    def free_point(t: Table, key: str, value: tuple[float, ...], what: str) -> None:
+        p = value[:2]  # a dock's value is (x, y, yaw): only the position must be free
         if not workspace.contains(p):
-            t.fail(t.key(key), f"expected {what} inside the workspace", list(p))
+            t.fail(t.key(key), f"expected {what} inside the workspace", list(value))
         for j, ob in enumerate(obstacles):
             if ob.contains(p, margin=-1e-6):
-                t.fail(t.key(key), f"expected {what} outside obstacles (inside obstacles[{j}])", list(p))
+                t.fail(t.key(key), f"expected {what} outside obstacles (inside obstacles[{j}])", list(value))
 
     markers = []
     for t in root.array_of_tables("markers"):
@@ -188,7 +190,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     for t in root.array_of_tables("docks"):
         dname = t.string("name")
         pose = t.vector("pose", 3, what="[x, y, yaw_deg]")
-        free_point(t, "pose", pose[:2], "[x, y, yaw_deg]")
+        free_point(t, "pose", pose, "[x, y, yaw_deg]")
         if any(d.name == dname for d in docks):
             t.fail(t.key("name"), "expected a unique dock name", dname)
         docks.append(Dock(dname, (pose[0], pose[1], math.radians(pose[2]))))

@@ -280,7 +280,9 @@ class Scenario:
     montecarlo: MonteCarloSpec
     placement: PlacementSpec = field(default_factory=PlacementSpec)
     source: str = "<memory>"
-    """Where the scenario came from (a path or ``builtin:NAME``), used in error messages."""
+    """Where the scenario came from (the path as given, or ``NAME.toml`` for a built-in), for messages."""
+    text: str = ""
+    """The TOML text it was loaded from (Monte-Carlo keeps it beside the results)."""
 
     def marker_positions(self) -> np.ndarray:
         """Marker positions, shape (M, 2) [m], in file order."""
