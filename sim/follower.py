@@ -1,0 +1,123 @@
+"""Pure-pursuit path follower for a differential-drive robot, driven by the *estimated* pose.
+
+The follower never sees the true pose: what the robot believes is what it steers by, so
+localisation errors become tracking errors exactly as on a real AGV.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class FollowerCommand:
+    """One control output: forward speed ``v`` [m/s], yaw rate ``omega`` [rad/s], ``done``."""
+
+    v: float
+    omega: float
+    done: bool
+    s: float
+    """Arc length of the path point nearest to the estimated pose [m]."""
+
+
+@dataclass
+class PurePursuit:
+    """Pure pursuit with a speed profile, turn slow-down, acceleration limit and goal stop.
+
+    Parameters
+    ----------
+    path : (N, 2) float
+        Reference path [m], densely sampled (spacing well below the lookahead).
+    speed : (N,) float
+        Reference speed at each path point [m/s].
+    max_speed, max_yaw_rate : float
+        Limits [m/s], [rad/s].
+    max_accel : float
+        Limit on the change of forward speed [m/s^2]; keeps wheel slip small.
+    lookahead_min, lookahead_gain : float
+        Lookahead distance = max(lookahead_min, lookahead_gain * v) [m], [s].
+    goal_tolerance : float
+        The follower is done when the estimate is this close to the last path point [m].
+    """
+
+    path: np.ndarray
+    speed: np.ndarray
+    max_speed: float
+    max_yaw_rate: float
+    max_accel: float = 0.5
+    lookahead_min: float = 0.3
+    lookahead_gain: float = 0.8
+    goal_tolerance: float = 0.05
+    rotate_in_place_above: float = math.radians(60.0)
+    _index: int = field(default=0, init=False)
+    _v: float = field(default=0.0, init=False)
+    _s: np.ndarray = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.path = np.asarray(self.path, dtype=float)
+        seg = np.hypot(*np.diff(self.path, axis=0).T)
+        self._s = np.concatenate([[0.0], np.cumsum(seg)])
+
+    def reset(self) -> None:
+        self._index = 0
+        self._v = 0.0
+
+    @property
+    def length(self) -> float:
+        return float(self._s[-1])
+
+    def _nearest_ahead(self, p: np.ndarray) -> int:
+        # Search a window ahead of the last index so that a path passing near itself (a
+        # U-turn around an obstacle) cannot make the follower jump ahead or back.
+        lo = self._index
+        hi = min(len(self.path), lo + 200)
+        d2 = np.sum((self.path[lo:hi] - p) ** 2, axis=1)
+        self._index = lo + int(np.argmin(d2))
+        return self._index
+
+    def command(self, pose: np.ndarray, dt: float) -> FollowerCommand:
+        """Command for estimated ``pose`` (x, y, theta) over the next ``dt`` seconds."""
+        p = np.asarray(pose[:2], dtype=float)
+        i = self._nearest_ahead(p)
+        goal = self.path[-1]
+        dist_goal = float(np.hypot(*(goal - p)))
+        remaining = self.length - self._s[i]
+        if dist_goal < self.goal_tolerance and remaining < 2 * self.lookahead_min:
+            self._v = 0.0
+            return FollowerCommand(0.0, 0.0, True, float(self._s[i]))
+
+        look = max(self.lookahead_min, self.lookahead_gain * self._v)
+        j = int(np.searchsorted(self._s, self._s[i] + look))
+        target = self.path[min(j, len(self.path) - 1)]
+        dx, dy = target - p
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        lx, ly = c * dx + s * dy, -s * dx + c * dy  # target in the robot frame
+        alpha = math.atan2(ly, lx)
+        ld2 = lx * lx + ly * ly
+
+        if abs(alpha) > self.rotate_in_place_above:
+            self._v = 0.0
+            omega = math.copysign(self.max_yaw_rate, alpha) * min(1.0, abs(alpha) / 0.5)
+            return FollowerCommand(0.0, omega, False, float(self._s[i]))
+
+        kappa = 2.0 * ly / ld2 if ld2 > 1e-12 else 0.0
+        v_ref = min(float(self.speed[i]), self.max_speed)
+        if abs(kappa) > 1e-9:
+            v_ref = min(v_ref, self.max_yaw_rate / abs(kappa))
+        # stop at the goal: the speed from which max_accel brakes to zero within the distance left
+        # brake with 80 % of the deceleration limit so the limit itself never truncates the profile
+        v_ref = min(v_ref, math.sqrt(1.6 * self.max_accel * max(dist_goal - 0.5 * self.goal_tolerance, 0.0)))
+        v_ref = max(v_ref, 0.02)  # creep instead of stalling short of the goal
+        dv = self.max_accel * dt
+        self._v = float(np.clip(v_ref, self._v - dv, self._v + dv))
+        omega = float(np.clip(self._v * kappa, -self.max_yaw_rate, self.max_yaw_rate))
+        return FollowerCommand(self._v, omega, False, float(self._s[i]))
+
+
+def wheel_speeds(v: float, omega: float, wheel_radius: float, wheel_base: float) -> tuple[float, float]:
+    """Wheel angular speeds (left, right) [rad/s] for body speeds ``v`` [m/s], ``omega`` [rad/s]."""
+    half = 0.5 * wheel_base * omega
+    return (v - half) / wheel_radius, (v + half) / wheel_radius
