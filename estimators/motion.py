@@ -1,0 +1,244 @@
+"""Differential-drive odometry motion model: pose propagation, Jacobians, process noise.
+
+The state is the planar pose ``(x [m], y [m], theta [rad])``. The input over one control
+step is the travel of each wheel, ``(d_left, d_right)`` [m], as the wheel encoders report it.
+Over a step the wheels are assumed to turn at constant speeds, so the robot moves along an
+arc of a circle; the exact end pose is
+
+    ds = (d_left + d_right) / 2            travel of the axle midpoint [m]
+    dtheta = (d_right - d_left) / b        heading change [rad], b = wheel base
+    x' = x + ds * sinc(dtheta/2) * cos(theta + dtheta/2)
+    y' = y + ds * sinc(dtheta/2) * sin(theta + dtheta/2)
+    theta' = theta + dtheta
+
+with ``sinc(h) = sin(h)/h`` (the chord of the arc is ``ds * sinc``; midpoint integration is
+the same formula with ``sinc = 1``). A straight line and a turn on the spot are exact, and
+two half steps compose to the full step.
+
+Process noise: each wheel's travel error over a step is modelled as independent, zero-mean,
+with variance (``wheel_variances``)
+
+    var_w = (odometry_noise * |d_w|)**2            slip / floor, relative std per increment
+          + (2 pi wheel_radius / encoder_ticks)**2 / 12   encoder quantisation (uniform in a tick)
+          + VARIANCE_FLOOR                          keeps Q from vanishing at standstill
+          [+ (wheel_radius_error * |d_w|)**2]       optional, see below
+
+and the pose covariance grows by ``Q = G diag(var_left, var_right) G^T``. The quantisation term
+is a white approximation: a real encoder's count error is bounded and does not accumulate, so
+over many steps this term is pessimistic. The optional systematic term treats the DECLARED
+wheel-radius error bound (``RobotSpec.wheel_radius_error``) as a one-sigma white error per
+increment. A systematic error actually adds up linearly (n steps give n times the error, not
+sqrt(n) times), so the term does not model the accumulated drift of a biased wheel; it only
+widens the filter so a robot whose actual wheels differ from the nominal ones is not
+over-trusted. It is off by default.
+
+Hot paths are numba kernels (``cache=True``); the first call in a fresh environment compiles.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from scenarios.schema import RobotSpec
+
+VARIANCE_FLOOR = 1e-12
+"""Smallest per-wheel travel variance per step [m^2] (1 µm std)."""
+
+_SERIES_LIMIT = 1e-2
+"""Below this |dtheta/2| [rad] sinc and its derivative use their Taylor series (the closed
+forms lose digits to cancellation); truncation error < 3e-16."""
+
+
+@numba.njit(cache=True)
+def _arc_terms(theta, d_left, d_right, wheel_base):
+    """Intermediate terms of one arc step: ds, dtheta, h, sinc(h), sinc'(h), cos, sin(theta+h)."""
+    ds = 0.5 * (d_left + d_right)
+    dtheta = (d_right - d_left) / wheel_base
+    h = 0.5 * dtheta
+    if abs(h) < _SERIES_LIMIT:
+        h2 = h * h
+        k = 1.0 - h2 / 6.0 + h2 * h2 / 120.0
+        dk = h * (-1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0)
+    else:
+        s = math.sin(h)
+        k = s / h
+        dk = (h * math.cos(h) - s) / (h * h)
+    phi = theta + h
+    return ds, dtheta, h, k, dk, math.cos(phi), math.sin(phi)
+
+
+@numba.njit(cache=True)
+def _propagate_rows(states, d_left, d_right, wheel_base, out):
+    for i in range(states.shape[0]):
+        ds, dtheta, _, k, _, c, s = _arc_terms(states[i, 2], d_left[i], d_right[i], wheel_base)
+        out[i, 0] = states[i, 0] + ds * k * c
+        out[i, 1] = states[i, 1] + ds * k * s
+        out[i, 2] = states[i, 2] + dtheta
+
+
+@numba.njit(cache=True)
+def _jacobians_into(theta, d_left, d_right, wheel_base, F, G):
+    ds, _, _, k, dk, c, s = _arc_terms(theta, d_left, d_right, wheel_base)
+    F[0, 0] = 1.0
+    F[0, 1] = 0.0
+    F[0, 2] = -ds * k * s
+    F[1, 0] = 0.0
+    F[1, 1] = 1.0
+    F[1, 2] = ds * k * c
+    F[2, 0] = 0.0
+    F[2, 1] = 0.0
+    F[2, 2] = 1.0
+    # d(ds)/d(d_w) = 1/2 for both wheels; dh/d(d_w) = -1/(2b) (left), +1/(2b) (right).
+    for j in range(2):
+        dh = (-0.5 if j == 0 else 0.5) / wheel_base
+        G[0, j] = 0.5 * k * c + ds * dk * dh * c - ds * k * s * dh
+        G[1, j] = 0.5 * k * s + ds * dk * dh * s + ds * k * c * dh
+        G[2, j] = 2.0 * dh
+
+
+@numba.njit(cache=True)
+def propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right):
+    """Propagate a pose estimate and its covariance through one arc step, in place.
+
+    ``x <- f(x, d)`` and ``P <- F P F^T + G diag(var_left, var_right) G^T``, the EKF predict
+    step of this motion model. The heading is left unwrapped.
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (3,), float64, C-contiguous
+        Pose (x [m], y [m], theta [rad]); overwritten.
+    P : numpy.ndarray, shape (3, 3), float64, C-contiguous
+        Pose covariance [m^2, m rad, rad^2]; overwritten.
+    d_left, d_right : float
+        Measured wheel travel over the step [m].
+    wheel_base : float
+        Distance between the wheels [m].
+    var_left, var_right : float
+        Variance of each wheel's travel error over the step [m^2] (already scaled).
+    """
+    F = np.empty((3, 3))
+    G = np.empty((3, 2))
+    _jacobians_into(x[2], d_left, d_right, wheel_base, F, G)
+    ds, dtheta, _, k, _, c, s = _arc_terms(x[2], d_left, d_right, wheel_base)
+    x[0] += ds * k * c
+    x[1] += ds * k * s
+    x[2] += dtheta
+    # Explicit loops: for 3x3 numba's BLAS-backed `@` costs more than the arithmetic.
+    FP = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            FP[i, j] = F[i, 0] * P[0, j] + F[i, 1] * P[1, j] + F[i, 2] * P[2, j]
+    for i in range(3):
+        for j in range(i, 3):
+            v = (FP[i, 0] * F[j, 0] + FP[i, 1] * F[j, 1] + FP[i, 2] * F[j, 2]
+                 + G[i, 0] * var_left * G[j, 0] + G[i, 1] * var_right * G[j, 1])
+            # Writing one triangle into both keeps P exactly symmetric over thousands of steps.
+            P[i, j] = v
+            P[j, i] = v
+
+
+def propagate(state, d_left, d_right, wheel_base: float) -> np.ndarray:
+    """Pose after one arc step of a differential-drive robot (exact for constant wheel speeds).
+
+    Parameters
+    ----------
+    state : array_like, shape (3,) or (N, 3)
+        Pose(s) (x [m], y [m], theta [rad]).
+    d_left, d_right : float or array_like, shape (N,)
+        Travel of the left and right wheel over the step [m]; broadcast against the poses.
+    wheel_base : float
+        Distance between the wheels [m].
+
+    Returns
+    -------
+    numpy.ndarray, shape like ``state``
+        New pose(s); the heading is ``theta + dtheta``, not wrapped.
+    """
+    states = np.asarray(state, dtype=float)
+    rows = np.ascontiguousarray(states.reshape(-1, 3))
+    n = rows.shape[0]
+    dl = np.ascontiguousarray(np.broadcast_to(np.asarray(d_left, dtype=float), (n,)))
+    dr = np.ascontiguousarray(np.broadcast_to(np.asarray(d_right, dtype=float), (n,)))
+    out = np.empty_like(rows)
+    _propagate_rows(rows, dl, dr, float(wheel_base), out)
+    return out.reshape(states.shape)
+
+
+def jacobians(state, d_left: float, d_right: float, wheel_base: float) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of :func:`propagate` at one pose.
+
+    Parameters
+    ----------
+    state : array_like, shape (3,)
+        Pose (x [m], y [m], theta [rad]).
+    d_left, d_right : float
+        Wheel travel over the step [m].
+    wheel_base : float
+        Distance between the wheels [m].
+
+    Returns
+    -------
+    F : numpy.ndarray, shape (3, 3)
+        d f / d state.
+    G : numpy.ndarray, shape (3, 2)
+        d f / d (d_left, d_right) [m/m, rad/m].
+    """
+    F = np.empty((3, 3))
+    G = np.empty((3, 2))
+    _jacobians_into(float(state[2]), float(d_left), float(d_right), float(wheel_base), F, G)
+    return F, G
+
+
+def wheel_variances(d_left, d_right, robot: RobotSpec, include_systematic: bool = False):
+    """Variance of each wheel's travel error over one step (see the module docstring).
+
+    Parameters
+    ----------
+    d_left, d_right : float or numpy.ndarray
+        Measured wheel travel over the step [m].
+    robot : RobotSpec
+        The declared robot (``odometry_noise``, ``wheel_radius``, ``encoder_ticks``,
+        ``wheel_radius_error``).
+    include_systematic : bool
+        Add ``(wheel_radius_error * |d_w|)**2``, the declared systematic wheel-radius error
+        bound taken as a one-sigma white error per step.
+
+    Returns
+    -------
+    var_left, var_right : float or numpy.ndarray
+        Travel variances [m^2], same shape as the inputs.
+    """
+    tick = 2.0 * math.pi * robot.wheel_radius / robot.encoder_ticks
+    base_var = tick * tick / 12.0 + VARIANCE_FLOOR
+    rel_var = robot.odometry_noise**2
+    if include_systematic:
+        rel_var += robot.wheel_radius_error**2
+    return rel_var * d_left * d_left + base_var, rel_var * d_right * d_right + base_var
+
+
+def process_cov(state, d_left: float, d_right: float, robot: RobotSpec,
+                include_systematic: bool = False) -> np.ndarray:
+    """Process noise ``Q = G diag(var_left, var_right) G^T`` of one step.
+
+    Parameters
+    ----------
+    state : array_like, shape (3,)
+        Pose the step starts from (x [m], y [m], theta [rad]).
+    d_left, d_right : float
+        Measured wheel travel over the step [m].
+    robot : RobotSpec
+        The declared robot.
+    include_systematic : bool
+        See :func:`wheel_variances`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+        Covariance added to the pose over the step [m^2, m rad, rad^2].
+    """
+    _, G = jacobians(state, d_left, d_right, robot.wheel_base)
+    var_left, var_right = wheel_variances(d_left, d_right, robot, include_systematic)
+    return (G * np.array([var_left, var_right])) @ G.T
