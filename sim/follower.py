@@ -109,7 +109,7 @@ class PurePursuit:
             v_ref = min(v_ref, self.max_yaw_rate / abs(kappa))
         # stop at the goal: the speed from which max_accel brakes to zero within the distance left
         # brake with 80 % of the deceleration limit so the limit itself never truncates the profile
-        v_ref = min(v_ref, math.sqrt(1.6 * self.max_accel * max(dist_goal - 0.5 * self.goal_tolerance, 0.0)))
+        v_ref = min(v_ref, math.sqrt(1.6 * self.max_accel * max(dist_goal - self.goal_tolerance, 0.0)))
         v_ref = max(v_ref, 0.02)  # creep instead of stalling short of the goal
         dv = self.max_accel * dt
         self._v = float(np.clip(v_ref, self._v - dv, self._v + dv))
