@@ -1,0 +1,42 @@
+"""TUM trajectory export (``t x y z qx qy qz qw``), readable by evo and other trajectory tools."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from scenarios import OutputError
+
+
+def tum_rows(t: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """TUM rows, shape (T, 8), for times ``t`` (T,) [s] and planar poses ``pose`` (T, 3).
+
+    The robot is planar: z = 0 and the orientation is a rotation about z by theta.
+    """
+    half = 0.5 * pose[:, 2]
+    zeros = np.zeros_like(t)
+    return np.column_stack([t, pose[:, 0], pose[:, 1], zeros, zeros, zeros, np.sin(half), np.cos(half)])
+
+
+def write_tum(directory: str | Path, t: np.ndarray, true_pose: np.ndarray, est_pose: np.ndarray) -> tuple[Path, Path]:
+    """Write ``groundtruth.txt`` and ``estimate.txt`` (the same timestamps in both) into ``directory``.
+
+    Returns the two paths. Raises :class:`OutputError` if the directory cannot be written.
+    """
+    d = Path(directory)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        paths = (d / "groundtruth.txt", d / "estimate.txt")
+        header = "# timestamp tx ty tz qx qy qz qw"
+        for path, pose in zip(paths, (true_pose, est_pose)):
+            # 9 decimals: nanoseconds and nanometres, so the RMSE recomputed from the files matches
+            np.savetxt(path, tum_rows(t, pose), fmt="%.9f", header=header, comments="")
+    except OSError as exc:
+        raise OutputError(f"{d}: cannot write TUM trajectories: {exc.strerror or exc}") from None
+    return paths
+
+
+def read_tum(path: str | Path) -> np.ndarray:
+    """Read a TUM file into an array of shape (T, 8)."""
+    return np.loadtxt(path, comments="#", ndmin=2)
