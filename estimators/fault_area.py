@@ -1,0 +1,404 @@
+"""The exact fault area of a fix: every position consistent with its measurements.
+
+A range ``r_i`` with error bound ``rho_i`` confines the robot to the annulus
+``{p : | |p - M_i| - r_i | <= rho_i}``; a world bearing ``beta_i`` (direction robot -> marker)
+with bound ``xi`` confines it to the wedge with apex ``M_i`` and directions
+``beta_i + pi +- xi``. The fault area is the intersection (DESIGN §1), polygonised with shapely.
+
+Polygonisation
+--------------
+Annuli can be metres wide while the fault area is millimetres, so no annulus is polygonised
+whole. The intersection is taken inside a square *window* around a seed point (the weighted
+least-squares solution from the prior), first sized from the linearised region and grown
+until the selected component no longer touches the window's edge (then it is a whole
+component of the exact set). Inside the window each annulus is an annular sector covering
+the window's angular span as seen from the marker.
+
+Every arc is replaced by a polygonal line that lies *outside* the exact set: the outer
+circle by a circumscribed polyline, the inner circle by an inscribed one. The polygon thus
+*contains* the exact fault area and no point of it is farther than ``tolerance`` from it
+(the default tolerance is ``1e-3 * min(rho)``). Area is overestimated by at most
+``perimeter * tolerance`` (relative ``<= 2e-3`` for a two-range parallelogram).
+
+Empty sets
+----------
+Inconsistent measurements (no position satisfies all bounds, possible with gaussian noise)
+give a :class:`FaultArea` with an empty polygon, ``area = 0``, ``diameter = nan`` and a
+``nan`` centroid; no exception.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import shapely
+from shapely.geometry import Polygon
+
+from estimators.measurements import (
+    range_jacobian,
+    ranges,
+    solve_position,
+    world_bearing,
+    world_bearing_jacobian,
+)
+
+DEFAULT_TOLERANCE_FRACTION = 1e-3
+"""Default polygonisation tolerance as a fraction of the smallest range bound rho."""
+
+_GROWTH = 4.0          # window growth factor when the component touches the window edge
+_MAX_WINDOWS = 12      # 4**12 ~ 1.7e7: from micrometres to kilometres
+_HULL_ABOVE = 64       # vertex count above which the diameter goes through the convex hull
+
+
+@dataclass(frozen=True)
+class FaultArea:
+    """A (polygonised) fault area.
+
+    Attributes
+    ----------
+    polygon : shapely.geometry.Polygon
+        Outer approximation of the exact set (empty when the measurements are inconsistent).
+    area : float
+        Area of ``polygon`` [m^2]; 0 when empty.
+    diameter : float
+        Largest distance between two points of the area [m] (max pairwise distance of the
+        convex-hull vertices); nan when empty.
+    centroid : ndarray, shape (2,)
+        Centroid of ``polygon`` [m]; nan when empty.
+    tolerance : float
+        Polygonisation tolerance [m]: the polygon lies within this distance of the exact set.
+    """
+
+    polygon: Polygon
+    area: float
+    diameter: float
+    centroid: np.ndarray
+    tolerance: float
+
+    @property
+    def is_empty(self) -> bool:
+        """True when no position is consistent with the measurements."""
+        return self.polygon.is_empty
+
+    def contains(self, point: np.ndarray) -> bool:
+        """Tell whether ``point`` (2,) [m] lies in the polygon (boundary included)."""
+        return (not self.is_empty) and bool(shapely.intersects_xy(self.polygon, point[0], point[1]))
+
+
+def _empty(tol: float) -> FaultArea:
+    return FaultArea(Polygon(), 0.0, math.nan, np.full(2, math.nan), tol)
+
+
+@numba.njit(cache=True)
+def _max_pairwise_distance(xy):
+    best = 0.0
+    n = xy.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            dx = xy[i, 0] - xy[j, 0]
+            dy = xy[i, 1] - xy[j, 1]
+            d2 = dx * dx + dy * dy
+            if d2 > best:
+                best = d2
+    return math.sqrt(best)
+
+
+def _from_polygon(poly: Polygon, tol: float) -> FaultArea:
+    xy = shapely.get_coordinates(poly.exterior)
+    if len(xy) > _HULL_ABOVE:
+        xy = shapely.get_coordinates(shapely.convex_hull(poly))
+    c = poly.centroid
+    return FaultArea(poly, float(poly.area), float(_max_pairwise_distance(xy)), np.array([c.x, c.y]), tol)
+
+
+@numba.njit(cache=True)
+def _arc_into(out, start, mx, my, radius, phi0, phi1, tol, outside, closed_circle):
+    """Write a polyline within ``tol`` of the arc phi0..phi1 [rad] into ``out[start:]``.
+
+    ``outside``: circumscribed (segments tangent to the circle, vertices outside it), else
+    inscribed (vertices on the circle, segments inside it). Returns the next free row.
+    """
+    span = phi1 - phi0
+    if outside:
+        step_max = 2.0 * math.acos(radius / (radius + tol))
+    else:
+        step_max = 2.0 * math.acos(max(1.0 - tol / radius, -1.0))
+    n = max(1, int(math.ceil(span / step_max - 1e-12)))
+    if closed_circle:
+        n = max(n, 8)
+    step = span / n
+    rad = radius / math.cos(step / 2.0) if outside else radius
+    m = n if closed_circle else n + 1
+    if start + m > out.shape[0]:
+        return -(start + m)          # too small: caller retries with this size
+    for j in range(m):
+        phi = phi0 + step * j
+        out[start + j, 0] = mx + rad * math.cos(phi)
+        out[start + j, 1] = my + rad * math.sin(phi)
+    return start + m
+
+
+def _arc(mx, my, radius, phi0, phi1, tol, outside, closed_circle=False):
+    buf = np.empty((64, 2))
+    end = _arc_into(buf, 0, mx, my, radius, phi0, phi1, tol, outside, closed_circle)
+    if end < 0:
+        buf = np.empty((-end, 2))
+        end = _arc_into(buf, 0, mx, my, radius, phi0, phi1, tol, outside, closed_circle)
+    return buf[:end]
+
+
+def _annulus_piece(marker, r, rho, center, half, tol):
+    """Polygon holding the annulus inside the window; None if it does not constrain it.
+
+    Returns the string "empty" when the annulus misses the window.
+    """
+    reach = half * math.sqrt(2.0)          # circumradius of the window
+    mx, my = float(marker[0]), float(marker[1])
+    dist = math.hypot(center[0] - mx, center[1] - my)
+    r_out, r_in = r + rho, r - rho
+    if r_out < dist - reach or r_in > dist + reach:
+        return "empty"
+    if r_in <= dist - reach and r_out >= dist + reach:
+        return None
+    if dist > reach:
+        phi_c = math.atan2(center[1] - my, center[0] - mx)
+        delta = math.asin(reach / dist)
+        outer = _arc(mx, my, r_out, phi_c - delta, phi_c + delta, tol, True)
+        if r_in > 0.0:
+            inner = _arc(mx, my, r_in, phi_c - delta, phi_c + delta, tol, False)[::-1]
+        else:
+            inner = np.array([[mx, my]])
+        return shapely.polygons(np.concatenate([outer, inner]))
+    outer = _arc(mx, my, r_out, 0.0, 2.0 * math.pi, tol, True, True)
+    if r_in > 0.0:
+        inner = _arc(mx, my, r_in, 0.0, 2.0 * math.pi, tol, False, True)
+        return shapely.polygons(outer, holes=[inner])
+    return shapely.polygons(outer)
+
+
+def _wedge_piece(marker, beta, xi, center, half):
+    """Polygon holding the wedge apex ``marker``, directions beta + pi +- xi, over the window."""
+    if xi >= math.pi:
+        return None
+    mx, my = float(marker[0]), float(marker[1])
+    far = math.hypot(abs(center[0] - mx) + half, abs(center[1] - my) + half)
+    n = max(1, math.ceil(2.0 * xi / (math.pi / 4.0)))
+    step = 2.0 * xi / n
+    length = 2.0 * far / math.cos(step / 2.0)   # the far chords stay beyond the window
+    phi = beta + math.pi - xi + step * np.arange(n + 1)
+    ring = np.empty((n + 2, 2))
+    ring[0] = mx, my
+    ring[1:, 0] = mx + length * np.cos(phi)
+    ring[1:, 1] = my + length * np.sin(phi)
+    return shapely.polygons(ring)
+
+
+def _local_region(markers, meas, rho, bearings, xi, center, half, tol):
+    """Intersection of the pieces that constrain the window; None when empty.
+
+    Every piece is exact (up to ``tol``) only inside the window; the caller checks that the
+    selected component lies inside it. Returns the window itself when nothing constrains it.
+    """
+    pieces = []
+    for i in range(markers.shape[0]):
+        piece = _annulus_piece(markers[i], meas[i], rho[i], center, half, tol)
+        if isinstance(piece, str):
+            return None
+        if piece is not None:
+            pieces.append(piece)
+        if bearings is not None:
+            piece = _wedge_piece(markers[i], bearings[i], xi, center, half)
+            if piece is not None:
+                pieces.append(piece)
+    if not pieces:
+        return shapely.box(center[0] - half, center[1] - half, center[0] + half, center[1] + half)
+    geom = pieces[0]
+    for piece in pieces[1:]:
+        geom = shapely.intersection(geom, piece)
+        if geom.is_empty:
+            return None
+    return geom
+
+
+_POLYGON = 3   # shapely.GeometryType.POLYGON
+
+
+def _pick(geom, prior):
+    """Return the polygon part of ``geom`` containing ``prior``, else the nearest; None if none."""
+    if geom is None or geom.is_empty:
+        return None
+    if shapely.get_type_id(geom) == _POLYGON:
+        return geom if geom.area > 0.0 else None
+    parts = [g for g in shapely.get_parts(geom) if isinstance(g, Polygon) and g.area > 0.0]
+    if not parts:
+        return None
+    if len(parts) == 1:
+        return parts[0]
+    inside = shapely.intersects_xy(parts, prior[0], prior[1])
+    if np.any(inside):
+        return parts[int(np.argmax(inside))]
+    return parts[int(np.argmin(shapely.distance(parts, shapely.points(prior))))]
+
+
+def _initial_half_width(markers, seed, rho, bearings, xi):
+    """Half-width [m] of a window that holds the linearised fault area around ``seed``.
+
+    In the linearisation every point q of the region satisfies sum_j (h_j.(q-s))^2/b_j^2 <= n
+    relative to the weighted least-squares point s, hence |q - s|^2 <= n * lambda_max(P)
+    with P = (H^T W H)^-1; twice that radius leaves room for the curvature.
+    """
+    jac = range_jacobian(seed, markers) / rho[:, None]
+    if bearings is not None:
+        jac = np.vstack([jac, world_bearing_jacobian(seed, markers) / xi])
+    (a, b), (_, c) = (jac.T @ jac).tolist()
+    eig_min = 0.5 * (a + c) - math.hypot(0.5 * (a - c), b)
+    n = jac.shape[0]
+    if eig_min <= 1e-12 * (a + c):
+        return math.inf
+    return 2.0 * math.sqrt(n / eig_min)
+
+
+def _component(markers, meas, rho, bearings, xi, seed, prior, tol):
+    """Find the fault-area component nearest ``prior`` in growing windows around ``seed``."""
+    dist = ranges(seed, markers)
+    # A window holding a whole outer disk makes the clip inactive: no need to grow past it.
+    half_cap = float(np.min(dist + meas + rho)) * 1.01
+    half = min(max(_initial_half_width(markers, seed, rho, bearings, xi), 20.0 * tol), half_cap)
+    for _ in range(_MAX_WINDOWS):
+        comp = _pick(_local_region(markers, meas, rho, bearings, xi, seed, half, tol), prior)
+        if half >= half_cap:
+            return comp
+        if comp is not None:
+            # Inside the window's interior, the component's edges are all annulus/wedge edges:
+            # it is a whole component of the exact set.
+            inner = half * (1.0 - 1e-9)
+            bx0, by0, bx1, by1 = comp.bounds
+            if (bx0 > seed[0] - inner and by0 > seed[1] - inner
+                    and bx1 < seed[0] + inner and by1 < seed[1] + inner):
+                return comp
+        half = min(half * _GROWTH, half_cap)
+    return comp
+
+
+def _mirror_polygon(poly, markers):
+    """Reflection of ``poly`` across the line through the (collinear) markers."""
+    a = markers[0]
+    d = markers[-1] - a
+    d = d / math.hypot(d[0], d[1])
+    v = shapely.get_coordinates(poly.exterior) - a
+    refl = a + 2.0 * (v @ d)[:, None] * d - v
+    holes = [a + 2.0 * ((h - a) @ d)[:, None] * d - (h - a)
+             for h in (shapely.get_coordinates(r) for r in poly.interiors)]
+    return shapely.polygons(refl[::-1], holes=[h[::-1] for h in holes] or None)
+
+
+def _collinear(markers):
+    """Tell whether all markers lie on one line (always so for two)."""
+    if markers.shape[0] < 3:
+        return markers.shape[0] == 2
+    d = markers[1:] - markers[0]
+    i = int(np.argmax(np.einsum("ij,ij->i", d, d)))
+    cross = d[:, 0] * d[i, 1] - d[:, 1] * d[i, 0]
+    return bool(np.all(np.abs(cross) <= 1e-12 * float(d[i] @ d[i])))
+
+
+def _validate(markers, meas, rho, bearings, xi):
+    k = markers.shape[0]
+    if meas.shape != (k,) or rho.shape != (k,):
+        raise ValueError(f"fault area: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
+    if np.any(rho <= 0.0):
+        raise ValueError(f"fault area: rho must be > 0, got {rho}")
+    if bearings is not None:
+        if bearings.shape != (k,):
+            raise ValueError(f"fault area: bearings {bearings.shape} must be ({k},)")
+        if not xi > 0.0:
+            raise ValueError(f"fault area: bearing_error must be > 0 with bearings, got {xi}")
+
+
+def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior: np.ndarray,
+                     bearings: np.ndarray | None = None, bearing_error: float = 0.0,
+                     tolerance: float | None = None) -> FaultArea:
+    """Exact (polygonised) fault area of one fix.
+
+    Parameters
+    ----------
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+    ranges : ndarray, shape (k,)
+        Measured ranges [m].
+    rho : ndarray, shape (k,)
+        Range error bounds [m], > 0.
+    prior : ndarray, shape (2,)
+        A position guess [m]; selects the component (the two mirror regions of two ranges):
+        the one containing ``prior``, else the nearest to it.
+    bearings : ndarray, shape (k,), optional
+        Measured absolute (world-frame) directions from the robot to the markers [rad].
+    bearing_error : float
+        Bound xi of the bearing errors [rad]; must be > 0 when ``bearings`` are given.
+    tolerance : float, optional
+        Polygonisation tolerance [m]; default ``1e-3 * min(rho)``.
+
+    Returns
+    -------
+    FaultArea
+        Empty (area 0, diameter nan) when the measurements are inconsistent.
+    """
+    markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+    meas = np.asarray(ranges, dtype=float)
+    rho = np.asarray(rho, dtype=float)
+    prior = np.asarray(prior, dtype=float)
+    bearings = None if bearings is None else np.asarray(bearings, dtype=float)
+    xi = float(bearing_error)
+    _validate(markers, meas, rho, bearings, xi)
+    tol = DEFAULT_TOLERANCE_FRACTION * float(rho.min()) if tolerance is None else float(tolerance)
+
+    std = rho if bearings is None else np.concatenate([rho, np.full(len(rho), xi)])
+    seed = solve_position(markers, meas, std, prior, world_bearings=bearings).position
+    comp = _component(markers, meas, rho, bearings, xi, seed, prior, tol)
+    if (comp is not None and bearings is None and _collinear(markers)
+            and not shapely.intersects_xy(comp, prior[0], prior[1])):
+        # Ranges to collinear markers: the exact set is symmetric about the marker line, so
+        # the other candidate is the mirror image of this component (when it is a separate one).
+        mirrored = _mirror_polygon(comp, markers)
+        if not shapely.intersects(comp, mirrored):
+            pt = shapely.points(prior)
+            if shapely.distance(mirrored, pt) < shapely.distance(comp, pt):
+                comp = mirrored
+    return _empty(tol) if comp is None else _from_polygon(comp, tol)
+
+
+def fault_area_of_point(markers: np.ndarray, position: np.ndarray, rho: np.ndarray,
+                        bearing_error: float = 0.0, tolerance: float | None = None) -> FaultArea:
+    """Fault area of noise-free measurements taken at ``position`` (the planner's exact PEF).
+
+    Parameters
+    ----------
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+    position : ndarray, shape (2,)
+        True robot position [m].
+    rho : ndarray, shape (k,)
+        Range error bounds [m], > 0 (usually ``range_bound(sensor, ranges)``).
+    bearing_error : float
+        Bearing bound xi [rad]; 0 means ranges only.
+    tolerance : float, optional
+        Polygonisation tolerance [m]; default ``1e-3 * min(rho)``.
+
+    Returns
+    -------
+    FaultArea
+        The component containing ``position``.
+    """
+    markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+    position = np.asarray(position, dtype=float)
+    rho = np.asarray(rho, dtype=float)
+    meas = ranges(position, markers)
+    xi = float(bearing_error)
+    bearings = world_bearing(position, markers) if xi > 0.0 else None
+    _validate(markers, meas, rho, bearings, xi)
+    tol = DEFAULT_TOLERANCE_FRACTION * float(rho.min()) if tolerance is None else float(tolerance)
+    comp = _component(markers, meas, rho, bearings, xi, position, position, tol)
+    return _empty(tol) if comp is None else _from_polygon(comp, tol)

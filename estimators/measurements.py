@@ -1,0 +1,357 @@
+"""Measurement models of the marker sensor: ranges and bearings, their Jacobians and noise.
+
+A marker ``M_i`` seen from the robot at ``R`` gives the range ``r_i = |R - M_i|`` and, when
+the sensor measures angles, the bearing of the marker in the robot frame. Errors are bounded
+(DESIGN §1): ``|e_i| <= rho_i`` with ``rho_i = Re * r_i + rho0`` for ranges and ``+-xi`` for
+bearings, realised either uniform in the bound or gaussian with ``sigma = bound / 3``.
+
+This module also inverts the model (:func:`solve_position`, weighted Gauss-Newton): both the
+snapshot fix and the fault-area construction start from it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.schema import NoiseModel, SensorSpec
+
+# Below this range [m] a marker is "at" the robot: the range Jacobian is undefined there.
+_MIN_RANGE = 1e-12
+
+
+def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
+    """Wrap angles to (-pi, pi].
+
+    Parameters
+    ----------
+    a : array_like or float
+        Angles [rad], any shape.
+
+    Returns
+    -------
+    ndarray or float
+        Same shape, each angle moved by a multiple of 2*pi into (-pi, pi].
+    """
+    w = np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+    return float(w) if np.ndim(w) == 0 else w
+
+
+def ranges(points: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Distances from points to markers.
+
+    Parameters
+    ----------
+    points : ndarray, shape (..., 2)
+        Robot positions [m].
+    markers : ndarray, shape (M, 2)
+        Marker positions [m].
+
+    Returns
+    -------
+    ndarray, shape (..., M)
+        ``|points - markers_j|`` [m].
+    """
+    p = np.asarray(points, dtype=float)
+    m = np.asarray(markers, dtype=float).reshape(-1, 2)
+    d = p[..., None, :] - m
+    return np.hypot(d[..., 0], d[..., 1])
+
+
+def range_jacobian(position: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Jacobian of the ranges with respect to the robot position.
+
+    Parameters
+    ----------
+    position : ndarray, shape (2,)
+        Robot position R [m].
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+
+    Returns
+    -------
+    ndarray, shape (k, 2)
+        Rows ``u_i^T`` with ``u_i = (R - M_i) / r_i`` (unit vectors, dimensionless).
+    """
+    d = np.asarray(position, dtype=float) - np.asarray(markers, dtype=float).reshape(-1, 2)
+    r = np.hypot(d[:, 0], d[:, 1])
+    return d / np.maximum(r, _MIN_RANGE)[:, None]
+
+
+def world_bearing(position: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Directions from the robot to the markers in the world frame.
+
+    Parameters
+    ----------
+    position : ndarray, shape (2,)
+        Robot position [m].
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+
+    Returns
+    -------
+    ndarray, shape (k,)
+        ``atan2(M_i - R)`` [rad] in (-pi, pi].
+    """
+    d = np.asarray(markers, dtype=float).reshape(-1, 2) - np.asarray(position, dtype=float)
+    return np.arctan2(d[:, 1], d[:, 0])
+
+
+def world_bearing_jacobian(position: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Jacobian of :func:`world_bearing` with respect to the robot position.
+
+    Parameters
+    ----------
+    position : ndarray, shape (2,)
+        Robot position [m].
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+
+    Returns
+    -------
+    ndarray, shape (k, 2)
+        Rows ``(dy_i, -dx_i) / r_i^2`` with ``(dx_i, dy_i) = M_i - R`` [rad/m].
+    """
+    d = np.asarray(markers, dtype=float).reshape(-1, 2) - np.asarray(position, dtype=float)
+    r2 = np.maximum(np.einsum("ij,ij->i", d, d), _MIN_RANGE**2)
+    return np.column_stack([d[:, 1] / r2, -d[:, 0] / r2])
+
+
+def bearing(pose: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Bearings of the markers in the robot frame.
+
+    Parameters
+    ----------
+    pose : ndarray, shape (3,)
+        Robot pose (x [m], y [m], theta [rad]).
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+
+    Returns
+    -------
+    ndarray, shape (k,)
+        ``wrap(atan2(M_i - R) - theta)`` [rad] in (-pi, pi].
+    """
+    pose = np.asarray(pose, dtype=float)
+    return wrap_angle(world_bearing(pose[:2], markers) - pose[2])
+
+
+def bearing_jacobian(pose: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Jacobian of :func:`bearing` with respect to the pose (x, y, theta).
+
+    Parameters
+    ----------
+    pose : ndarray, shape (3,)
+        Robot pose (x [m], y [m], theta [rad]).
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+
+    Returns
+    -------
+    ndarray, shape (k, 3)
+        Rows ``(dy_i / r_i^2, -dx_i / r_i^2, -1)`` with ``(dx_i, dy_i) = M_i - R``.
+    """
+    pose = np.asarray(pose, dtype=float)
+    jp = world_bearing_jacobian(pose[:2], markers)
+    return np.column_stack([jp, -np.ones(jp.shape[0])])
+
+
+def range_bound(sensor: SensorSpec, r: np.ndarray | float) -> np.ndarray | float:
+    """Bound of the range error, ``rho = Re * r + rho0`` [m].
+
+    Parameters
+    ----------
+    sensor : SensorSpec
+        Gives ``Re`` (``relative_error``) and ``rho0`` (``absolute_error``).
+    r : array_like or float
+        True (or measured) ranges [m], any shape.
+
+    Returns
+    -------
+    ndarray or float
+        rho [m], same shape as ``r``.
+    """
+    return sensor.range_bound(np.asarray(r, dtype=float) if np.ndim(r) else float(r))
+
+
+def bound_std(bound: np.ndarray | float, noise: NoiseModel) -> np.ndarray | float:
+    """Return the standard deviation of an error realised from its bound.
+
+    Parameters
+    ----------
+    bound : array_like or float
+        Error bound (rho [m] or xi [rad]), any shape.
+    noise : NoiseModel
+        ``uniform`` in +-bound (std = bound / sqrt(3)) or ``gaussian`` (std = bound / 3).
+
+    Returns
+    -------
+    ndarray or float
+        The standard deviation, same shape and unit as ``bound``.
+    """
+    b = np.asarray(bound, dtype=float)
+    noise = NoiseModel(noise)
+    s = b / math.sqrt(3.0) if noise is NoiseModel.UNIFORM else b / 3.0
+    return float(s) if s.ndim == 0 else s
+
+
+def range_std(rho: np.ndarray | float, noise: NoiseModel) -> np.ndarray | float:
+    """Return the standard deviation of the realised range error [m] (see :func:`bound_std`)."""
+    return bound_std(rho, noise)
+
+
+def bearing_std(xi: np.ndarray | float, noise: NoiseModel) -> np.ndarray | float:
+    """Return the standard deviation of the realised bearing error [rad] (:func:`bound_std`)."""
+    return bound_std(xi, noise)
+
+
+def _draw(rng: np.random.Generator, bound: np.ndarray, noise: NoiseModel) -> np.ndarray:
+    noise = NoiseModel(noise)
+    if noise is NoiseModel.UNIFORM:
+        return rng.uniform(-1.0, 1.0, size=bound.shape) * bound
+    return rng.standard_normal(size=bound.shape) * (bound / 3.0)
+
+
+def draw_range_errors(rng: np.random.Generator, rho: np.ndarray, noise: NoiseModel) -> np.ndarray:
+    """Draw range errors for one fix.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The only source of randomness.
+    rho : ndarray, shape (k,)
+        Error bounds [m].
+    noise : NoiseModel
+        ``uniform`` in +-rho, or ``gaussian`` with sigma = rho / 3 (unbounded).
+
+    Returns
+    -------
+    ndarray, shape (k,)
+        Errors [m] to add to the true ranges.
+    """
+    return _draw(rng, np.asarray(rho, dtype=float), noise)
+
+
+def draw_bearing_errors(rng: np.random.Generator, xi: float, n: int, noise: NoiseModel) -> np.ndarray:
+    """Draw ``n`` bearing errors bounded by ``xi``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The only source of randomness.
+    xi : float
+        Bearing error bound [rad].
+    n : int
+        Number of bearings.
+    noise : NoiseModel
+        ``uniform`` in +-xi, or ``gaussian`` with sigma = xi / 3.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Errors [rad] to add to the true bearings.
+    """
+    return _draw(rng, np.full(int(n), float(xi)), noise)
+
+
+@dataclass(frozen=True)
+class LsqSolution:
+    """Result of :func:`solve_position`.
+
+    Attributes
+    ----------
+    position : ndarray, shape (2,)
+        Estimated position [m].
+    jacobian : ndarray, shape (n, 2)
+        Stacked measurement Jacobian at ``position`` (ranges first, then bearings).
+    residuals : ndarray, shape (n,)
+        Measured minus predicted at ``position`` (ranges [m], then wrapped bearings [rad]).
+    iterations : int
+        Gauss-Newton iterations taken.
+    converged : bool
+        True if the last step was shorter than the tolerance.
+    """
+
+    position: np.ndarray
+    jacobian: np.ndarray
+    residuals: np.ndarray
+    iterations: int
+    converged: bool
+
+
+def _stack(p, markers, meas_ranges, world_bearings):
+    res = meas_ranges - ranges(p, markers)
+    jac = range_jacobian(p, markers)
+    if world_bearings is not None:
+        res = np.concatenate([res, wrap_angle(world_bearings - world_bearing(p, markers))])
+        jac = np.vstack([jac, world_bearing_jacobian(p, markers)])
+    return res, jac
+
+
+def _normal_step(jw, rw):
+    """Gauss-Newton step from the weighted Jacobian (n, 2) and residuals (n,); 2x2 closed form."""
+    (a, b), (_, c) = (jw.T @ jw).tolist()
+    g0, g1 = (jw.T @ rw).tolist()
+    det = a * c - b * b
+    if not det > 1e-14 * (a * c + b * b):      # (near) singular: e.g. robot on the marker line
+        step, *_ = np.linalg.lstsq(jw, rw, rcond=None)
+        return step
+    return np.array([(c * g0 - b * g1) / det, (a * g1 - b * g0) / det])
+
+
+def solve_position(markers: np.ndarray, meas_ranges: np.ndarray, std: np.ndarray, prior: np.ndarray,
+                   world_bearings: np.ndarray | None = None, max_iter: int = 20,
+                   step_tol: float = 1e-10) -> LsqSolution:
+    """Weighted least-squares position from ranges (and world bearings), by Gauss-Newton.
+
+    Minimises ``sum(residual_j^2 / std_j^2)`` starting at ``prior``. Started on one side of
+    the line through two markers it converges to the solution on that side, which is how the
+    two-range mirror ambiguity is resolved toward the prior.
+
+    Parameters
+    ----------
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+    meas_ranges : ndarray, shape (k,)
+        Measured ranges [m].
+    std : ndarray, shape (k,) or (2k,)
+        Standard deviations of the range errors [m] (then of the bearing errors [rad]).
+    prior : ndarray, shape (2,)
+        Starting point [m].
+    world_bearings : ndarray, shape (k,), optional
+        Measured world-frame directions from the robot to the markers [rad].
+    max_iter : int
+        Iteration limit.
+    step_tol : float
+        Convergence when a step is shorter than this [m].
+
+    Returns
+    -------
+    LsqSolution
+    """
+    markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+    meas_ranges = np.asarray(meas_ranges, dtype=float)
+    w = 1.0 / np.asarray(std, dtype=float)
+    p = np.array(prior, dtype=float)
+    res, jac = _stack(p, markers, meas_ranges, world_bearings)
+    cost = float(np.sum((res * w) ** 2))
+    converged = False
+    it = 0
+    for it in range(1, max_iter + 1):  # noqa: B007 -- the count is reported
+        step = _normal_step(jac * w[:, None], res * w)
+        # Backtrack when a full step overshoots (far priors, near-singular geometry): plain
+        # Gauss-Newton can jump across the marker line to the mirror solution.
+        for _ in range(30):
+            q = p + step
+            res_q, jac_q = _stack(q, markers, meas_ranges, world_bearings)
+            cost_q = float(np.sum((res_q * w) ** 2))
+            if cost_q <= cost or math.hypot(step[0], step[1]) < step_tol:
+                break
+            step = 0.5 * step
+        p, res, jac, cost = q, res_q, jac_q, cost_q
+        if math.hypot(step[0], step[1]) < step_tol:
+            converged = True
+            break
+    return LsqSolution(position=p, jacobian=jac, residuals=res, iterations=it, converged=converged)
