@@ -1,0 +1,160 @@
+"""The laser marker sensor: visibility by ray tests against the physics world, noisy ranges.
+
+The laser sits at the robot centre (the axle midpoint) at ``PhysicsConfig.laser_height``,
+above the robot and below the top of the marker posts. A marker is visible when it is within
+``max_range`` and the first thing a ray from the laser to the marker's axis hits is its own
+post (or nothing): walls, obstacles and other markers' posts block it. A marker on a wall or
+obstacle face is therefore seen from the open side, where half its post stands out.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.errors import SimulationError
+from scenarios.schema import NoiseModel, SensorSpec
+from sim.physics.quiet import pb
+from sim.physics.world import PhysicsWorld
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One marker measurement.
+
+    Attributes
+    ----------
+    marker : int
+        Index of the marker (row of the sensor's marker array).
+    time : float
+        Simulated time of the measurement [s].
+    true_range : float
+        Horizontal distance from the robot centre to the marker [m].
+    measured_range : float
+        ``true_range`` plus noise [m].
+    range_bound : float
+        ρ = Re·r + ρ0 at the true range [m]: the bound of uniform noise, 3σ of gaussian noise.
+    true_bearing : float
+        Direction of the marker in the robot frame, in (-π, π] [rad].
+    measured_bearing : float or None
+        ``true_bearing`` plus noise, wrapped to (-π, π] [rad]; None when the sensor measures
+        ranges only.
+    bearing_bound : float
+        ξ [rad] (0 when ranges only).
+    true_pose : ndarray, shape (3,)
+        True robot pose at the measurement (x [m], y [m], theta [rad]).
+    """
+
+    marker: int
+    time: float
+    true_range: float
+    measured_range: float
+    range_bound: float
+    true_bearing: float
+    measured_bearing: float | None
+    bearing_bound: float
+    true_pose: np.ndarray
+
+
+def wrap_angle(a: float) -> float:
+    """Wrap an angle [rad] to (-π, π]."""
+    w = math.remainder(a, 2.0 * math.pi)
+    return math.pi if w == -math.pi else w
+
+
+def _draw(rng: np.random.Generator, noise: NoiseModel, bound: float) -> float:
+    if bound == 0.0:
+        return 0.0
+    if noise is NoiseModel.UNIFORM:
+        return float(rng.uniform(-bound, bound))
+    return float(rng.normal(0.0, bound / 3.0))
+
+
+class LaserSensor:
+    """Range (and bearing) measurements of markers in a :class:`PhysicsWorld`.
+
+    Parameters
+    ----------
+    world : PhysicsWorld
+        The world whose ray tests decide visibility.
+    spec : SensorSpec
+        The *actual* sensor (``scenario.sensor_actual``): noise, bounds, max range.
+    markers : (M, 2) array_like
+        Marker positions [m]. A marker standing where the world has a post is seen when the
+        ray hits that post; markers without a post are seen when nothing blocks the ray.
+    """
+
+    def __init__(self, world: PhysicsWorld, spec: SensorSpec, markers: np.ndarray) -> None:
+        self.world = world
+        self.spec = spec
+        self.markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+        posts = world.scenario.marker_positions()
+        # Which post (body id) belongs to each marker, matched by position; -2 never matches
+        # a pybullet body id (-1 means "no hit").
+        self._own_post = np.full(len(self.markers), -2, dtype=int)
+        for i, m in enumerate(self.markers):
+            if len(posts):
+                j = int(np.argmin(np.hypot(*(posts - m).T)))
+                if math.hypot(*(posts[j] - m)) < 1e-9:
+                    self._own_post[i] = world.post_ids[j]
+        h = world.config.laser_height
+        self._targets = [[float(x), float(y), h] for x, y in self.markers]
+
+    def origin(self) -> np.ndarray:
+        """Laser position (x, y, z) [m], shape (3,): the robot centre at the laser height."""
+        x, y, _ = self.world.true_pose()
+        return np.array([x, y, self.world.config.laser_height])
+
+    def _check_index(self, i: int) -> None:
+        if not 0 <= i < len(self.markers):
+            raise SimulationError(f"laser: marker index {i} out of range (0..{len(self.markers) - 1})")
+
+    def visible(self, i: int) -> bool:
+        """Tell whether marker ``i`` is within max range and its line of sight is clear."""
+        self._check_index(i)
+        origin = self.origin()
+        if math.hypot(*(self.markers[i] - origin[:2])) > self.spec.max_range:
+            return False
+        hit = pb.rayTest(origin.tolist(), self._targets[i], physicsClientId=self.world.client)[0]
+        return bool(hit[0] == -1 or hit[0] == self._own_post[i])
+
+    def visible_all(self) -> np.ndarray:
+        """Visibility of every marker, shape (M,) bool (one batched ray test)."""
+        m = len(self.markers)
+        if m == 0:
+            return np.zeros(0, dtype=bool)
+        origin = self.origin()
+        in_range = np.hypot(*(self.markers - origin[:2]).T) <= self.spec.max_range
+        hits = pb.rayTestBatch([origin.tolist()] * m, self._targets, physicsClientId=self.world.client)
+        body = np.array([h[0] for h in hits], dtype=int)
+        return in_range & ((body == -1) | (body == self._own_post))
+
+    def measure(self, i: int, rng: np.random.Generator) -> Measurement:
+        """Measure marker ``i`` now, drawing noise from ``rng``.
+
+        Range noise: uniform in ±ρ or gaussian with σ = ρ/3, ρ = Re·r + ρ0 at the true range.
+        Bearing (when the spec's bearing error ξ > 0): likewise with ξ. The range is drawn
+        first, then the bearing.
+
+        Raises
+        ------
+        SimulationError
+            If marker ``i`` is not visible (callers check :meth:`visible` first).
+        """
+        if not self.visible(i):
+            raise SimulationError(f"laser: marker {i} at {self.markers[i].tolist()} is not visible "
+                                  f"from {self.world.true_pose()[:2].round(3).tolist()}")
+        pose = self.world.true_pose()
+        dx, dy = self.markers[i] - pose[:2]
+        r = math.hypot(dx, dy)
+        rho = float(self.spec.range_bound(r))
+        measured = r + _draw(rng, self.spec.noise, rho)
+        bearing = wrap_angle(math.atan2(dy, dx) - pose[2])
+        xi = self.spec.bearing_error
+        measured_bearing = (wrap_angle(bearing + _draw(rng, self.spec.noise, xi))
+                            if self.spec.uses_bearing else None)
+        return Measurement(marker=i, time=self.world.time, true_range=r, measured_range=measured,
+                           range_bound=rho, true_bearing=bearing, measured_bearing=measured_bearing,
+                           bearing_bound=xi if self.spec.uses_bearing else 0.0, true_pose=pose)

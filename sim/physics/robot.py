@@ -1,0 +1,238 @@
+"""The differential-drive robot: its URDF (filled from the actual RobotSpec) and its motors.
+
+The systematic odometry error is physical here: the right wheel's radius is
+``r (1 + wheel_radius_error)`` and the left one's ``r (1 - wheel_radius_error)`` of the
+*actual* spec, while the odometry converts encoder angles with the *nominal* radius.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tempfile
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from string import Template
+
+import numpy as np
+
+from scenarios.errors import SimulationError
+from scenarios.schema import RobotSpec
+from sim.physics.config import PhysicsConfig
+from sim.physics.quiet import pb, silenced
+
+_CASTER_MASS_FRACTION = 0.01   # casters are light plastic balls; a share of the chassis mass [-]
+_WHEEL_GAP = 0.01              # clearance between chassis side and wheel [m]
+_FRONT_LOAD = 0.1              # share of the chassis weight the front caster carries [-]
+
+
+@dataclass(frozen=True)
+class RobotGeometry:
+    """Dimensions of the simulated robot, derived from a RobotSpec and a PhysicsConfig [m]."""
+
+    left_radius: float
+    right_radius: float
+    axle_height: float
+    chassis_length: float
+    chassis_width: float
+    chassis_height: float
+    com_x: float
+    """Chassis centre of mass ahead of the axle; puts a share of the weight on the front caster."""
+    com_z: float
+    """Height of the chassis' centre of mass relative to the axle (negative: below it)."""
+    caster_radius: float
+    caster_x: float
+    top_height: float
+    """Height of the highest point of the robot above the floor."""
+
+
+def robot_geometry(spec: RobotSpec, config: PhysicsConfig) -> RobotGeometry:
+    """Derive the robot's dimensions from its spec.
+
+    Parameters
+    ----------
+    spec : RobotSpec
+        The actual (simulated) robot.
+    config : PhysicsConfig
+        Wheel width, caster clearance.
+
+    Returns
+    -------
+    RobotGeometry
+    """
+    r, e, b, w = spec.wheel_radius, spec.wheel_radius_error, spec.wheel_base, config.wheel_width
+    if not 0.0 <= abs(e) < 0.5:
+        raise SimulationError(f"robot.wheel_radius_error: expected |e| < 0.5, got {e}")
+    chassis_width = b - w - 2.0 * _WHEEL_GAP
+    if chassis_width <= 0.0:
+        raise SimulationError(
+            f"robot.wheel_base: expected more than wheel width + gaps ({w + 2 * _WHEEL_GAP} m), got {b}")
+    caster_radius = 0.5 * r
+    # The chassis fits inside the footprint circle where it can (corners within spec.radius),
+    # but is long enough to hold both casters and no longer than 1.5 wheel bases.
+    half_outer = 0.5 * b + 0.5 * w
+    fit = 2.0 * math.sqrt(max(spec.radius ** 2 - half_outer ** 2, 0.0))
+    chassis_length = min(max(fit, 4.0 * caster_radius + 0.02), 1.5 * b)
+    chassis_height = r
+    return RobotGeometry(
+        left_radius=r * (1.0 - e), right_radius=r * (1.0 + e), axle_height=r,
+        chassis_length=chassis_length, chassis_width=chassis_width, chassis_height=chassis_height,
+        com_x=_FRONT_LOAD * (0.5 * chassis_length - caster_radius), com_z=-0.5 * r,
+        caster_radius=caster_radius, caster_x=0.5 * chassis_length - caster_radius,
+        top_height=max(r + 0.5 * chassis_height, 2.0 * r * (1.0 + abs(e))),
+    )
+
+
+@functools.lru_cache(maxsize=1)
+def _template() -> Template:
+    return Template(resources.files("sim.physics").joinpath("diffdrive.urdf").read_text())
+
+
+def urdf_text(spec: RobotSpec, config: PhysicsConfig) -> str:
+    """Fill the package template ``diffdrive.urdf`` from ``spec``: the robot's URDF.
+
+    Parameters
+    ----------
+    spec : RobotSpec
+        The actual (simulated) robot: radii, wheel base, wheel error, mass.
+    config : PhysicsConfig
+        Wheel width and friction, mass fractions, caster clearance.
+
+    Returns
+    -------
+    str
+        URDF XML.
+    """
+    g = robot_geometry(spec, config)
+    m = spec.mass
+    mw = config.wheel_mass_fraction * m
+    mc = _CASTER_MASS_FRACTION * m
+    L, W, H = g.chassis_length, g.chassis_width, g.chassis_height
+    w = config.wheel_width
+
+    def f(x: float) -> str:
+        return repr(float(x))
+
+    def wheel_inertia(radius: float) -> tuple[str, str]:
+        # Solid cylinder: about its axle (y) m r^2 / 2, about a diameter m (3 r^2 + w^2) / 12.
+        return f(mw * (3 * radius ** 2 + w ** 2) / 12.0), f(0.5 * mw * radius ** 2)
+
+    left_ixx, left_iyy = wheel_inertia(g.left_radius)
+    right_ixx, right_iyy = wheel_inertia(g.right_radius)
+    return _template().substitute(
+        axle_height=f(g.axle_height), caster_clearance=f(config.caster_clearance),
+        front_load=f"{_FRONT_LOAD:.0%}", wheel_width=f(w),
+        com_x=f(g.com_x), com_z=f(g.com_z), chassis_mass=f(m), chassis_z=f(0.0),
+        # Box inertia about its centre (the centre of mass sits lower, an approximation that
+        # only changes how the body pitches between the casters).
+        chassis_ixx=f(m * (W ** 2 + H ** 2) / 12.0), chassis_iyy=f(m * (L ** 2 + H ** 2) / 12.0),
+        chassis_izz=f(m * (L ** 2 + W ** 2) / 12.0),
+        chassis_length=f(L), chassis_width=f(W), chassis_height=f(H),
+        wheel_friction=f(config.wheel_friction), wheel_mass=f(mw),
+        left_ixx=left_ixx, left_iyy=left_iyy, right_ixx=right_ixx, right_iyy=right_iyy,
+        left_radius=f(g.left_radius), right_radius=f(g.right_radius),
+        left_z=f(g.left_radius - g.axle_height), right_z=f(g.right_radius - g.axle_height),
+        half_base=f(0.5 * spec.wheel_base), half_pi=f(0.5 * math.pi),
+        caster_mass=f(mc), caster_i=f(0.4 * mc * g.caster_radius ** 2), caster_radius=f(g.caster_radius),
+        caster_x=f(g.caster_x),
+        front_caster_z=f(g.caster_radius - g.axle_height),
+        back_caster_z=f(g.caster_radius - g.axle_height + config.caster_clearance),
+    )
+
+
+class DiffDriveRobot:
+    """The simulated robot in one pybullet client: wheel motors, encoders, true pose.
+
+    Parameters
+    ----------
+    client : int
+        pybullet physics client id (owned by the world).
+    spec : RobotSpec
+        The actual robot (``scenario.robot_actual``).
+    config : PhysicsConfig
+        Physics settings.
+    """
+
+    def __init__(self, client: int, spec: RobotSpec, config: PhysicsConfig) -> None:
+        self.client = client
+        self.spec = spec
+        self.geometry = robot_geometry(spec, config)
+        text = urdf_text(spec, config)
+        with tempfile.TemporaryDirectory(prefix="pefsim-") as tmp:
+            path = Path(tmp) / "diffdrive.urdf"
+            path.write_text(text)
+            with silenced():
+                self.body = pb.loadURDF(
+                    str(path), basePosition=[0.0, 0.0, self.geometry.axle_height],
+                    flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+        if self.body < 0:
+            raise SimulationError(f"robot URDF: pybullet could not load it (body id {self.body})")
+        names = {pb.getJointInfo(self.body, j, physicsClientId=client)[1].decode(): j
+                 for j in range(pb.getNumJoints(self.body, physicsClientId=client))}
+        self.wheel_joints = [names["left_wheel_joint"], names["right_wheel_joint"]]
+        for link in (-1, *names.values()):
+            # pybullet's default link damping (0.04) is an unphysical drag on a rolling robot.
+            pb.changeDynamics(self.body, link, linearDamping=0.0, angularDamping=0.0,
+                              physicsClientId=client)
+        # The base frame pybullet reports is the chassis' centre of mass, not the URDF link
+        # frame (the axle midpoint): keep the offset to convert between them.
+        self._com_local = np.array(
+            pb.getDynamicsInfo(self.body, -1, physicsClientId=client)[3], dtype=float)
+        self._torque = [spec.max_wheel_torque, spec.max_wheel_torque]
+
+    def reset(self, pose: tuple[float, float, float] | np.ndarray) -> None:
+        """Put the robot level at ``pose`` (x [m], y [m], theta [rad]), at rest, motors at zero."""
+        x, y, theta = (float(v) for v in pose)
+        c, s = math.cos(theta), math.sin(theta)
+        lx, ly, lz = self._com_local
+        com = [x + c * lx - s * ly, y + s * lx + c * ly, self.geometry.axle_height + lz]
+        quat = [0.0, 0.0, math.sin(0.5 * theta), math.cos(0.5 * theta)]
+        cid = self.client
+        pb.resetBasePositionAndOrientation(self.body, com, quat, physicsClientId=cid)
+        pb.resetBaseVelocity(self.body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=cid)
+        for j in self.wheel_joints:
+            pb.resetJointState(self.body, j, 0.0, 0.0, physicsClientId=cid)
+        self.set_wheel_speeds(0.0, 0.0)
+
+    def set_wheel_speeds(self, left: float, right: float) -> None:
+        """Command wheel rates ``left``, ``right`` [rad/s] (velocity control, torque-limited).
+
+        A positive rate drives the robot forward. The command holds until the next call.
+        """
+        pb.setJointMotorControlArray(
+            self.body, self.wheel_joints, pb.VELOCITY_CONTROL,
+            targetVelocities=[float(left), float(right)], forces=self._torque,
+            physicsClientId=self.client)
+
+    def wheel_angles(self) -> np.ndarray:
+        """Unwrapped wheel joint angles (left, right), shape (2,) [rad]."""
+        states = pb.getJointStates(self.body, self.wheel_joints, physicsClientId=self.client)
+        return np.array([states[0][0], states[1][0]])
+
+    def wheel_rates(self) -> np.ndarray:
+        """Wheel joint rates (left, right), shape (2,) [rad/s]."""
+        states = pb.getJointStates(self.body, self.wheel_joints, physicsClientId=self.client)
+        return np.array([states[0][1], states[1][1]])
+
+    def true_pose(self) -> np.ndarray:
+        """Return the true pose of the axle midpoint: (x [m], y [m], theta [rad]), shape (3,)."""
+        (px, py, pz), (qx, qy, qz, qw) = pb.getBasePositionAndOrientation(
+            self.body, physicsClientId=self.client)
+        # Rotate the centre-of-mass offset by the base orientation and subtract it.
+        lx, ly, lz = self._com_local
+        r00 = 1 - 2 * (qy * qy + qz * qz)
+        r01 = 2 * (qx * qy - qz * qw)
+        r02 = 2 * (qx * qz + qy * qw)
+        r10 = 2 * (qx * qy + qz * qw)
+        r11 = 1 - 2 * (qx * qx + qz * qz)
+        r12 = 2 * (qy * qz - qx * qw)
+        x = px - (r00 * lx + r01 * ly + r02 * lz)
+        y = py - (r10 * lx + r11 * ly + r12 * lz)
+        return np.array([x, y, math.atan2(r10, r00)])
+
+    def tilt(self) -> float:
+        """Angle between the chassis' up axis and the vertical [rad] (0 when level)."""
+        _, (qx, qy, _qz, _qw) = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        r22 = 1 - 2 * (qx * qx + qy * qy)
+        return math.acos(max(-1.0, min(1.0, r22)))

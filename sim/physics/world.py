@@ -1,0 +1,163 @@
+"""The PyBullet world of one scenario: floor, border walls, obstacles, marker posts, robot.
+
+One :class:`PhysicsWorld` owns one pybullet DIRECT client and passes its id on every call,
+so several worlds coexist in a process. Worlds are reset, not rebuilt, between runs: the
+state saved right after building is restored, which also drops Bullet's contact caches, so a
+reset world drives bit-identically to a fresh one.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from scenarios.errors import SimulationError
+from scenarios.schema import Scenario
+from sim.physics.config import PhysicsConfig
+from sim.physics.quiet import pb, silenced
+from sim.physics.robot import DiffDriveRobot
+
+
+class PhysicsWorld:
+    """A built scenario in its own pybullet client.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The world; the robot is built from ``scenario.robot_actual``.
+    config : PhysicsConfig, optional
+        Physics settings (time step, solver, geometry constants).
+    pose : (3,) array_like, optional
+        Initial robot pose (x [m], y [m], theta [rad]); default the first dock's pose, or the
+        workspace centre when there are no docks.
+
+    Attributes
+    ----------
+    client : int
+        The pybullet physics client id.
+    robot : DiffDriveRobot
+        The robot.
+    post_ids : ndarray of int, shape (M,)
+        pybullet body id of each marker's post, in marker order.
+    blocker_ids : ndarray of int
+        Body ids of the border walls and obstacles.
+    """
+
+    def __init__(self, scenario: Scenario, config: PhysicsConfig | None = None,
+                 pose: tuple[float, float, float] | np.ndarray | None = None) -> None:
+        self.scenario = scenario
+        self.config = config if config is not None else PhysicsConfig()
+        self.client = -1
+        with silenced():
+            self.client = pb.connect(pb.DIRECT)
+        if self.client < 0:
+            raise SimulationError(f"pybullet: could not connect a DIRECT client (got {self.client})")
+        try:
+            self._build()
+        except BaseException:
+            self.close()
+            raise
+        if pose is None:
+            pose = scenario.docks[0].pose if scenario.docks else (
+                0.5 * scenario.workspace.width, 0.5 * scenario.workspace.height, 0.0)
+        self.reset(pose)
+
+    # -- building -------------------------------------------------------------------------
+
+    def _build(self) -> None:
+        cfg, cid, sc = self.config, self.client, self.scenario
+        pb.setGravity(0.0, 0.0, -cfg.gravity, physicsClientId=cid)
+        pb.setPhysicsEngineParameter(
+            fixedTimeStep=cfg.time_step, numSolverIterations=cfg.solver_iterations,
+            numSubSteps=0, deterministicOverlappingPairs=1, physicsClientId=cid)
+
+        plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=cid)
+        self.floor_id = pb.createMultiBody(0.0, plane, physicsClientId=cid)
+        pb.changeDynamics(self.floor_id, -1, lateralFriction=cfg.floor_friction, physicsClientId=cid)
+
+        w, h, t = sc.workspace.width, sc.workspace.height, cfg.wall_thickness
+        # Walls lie outside the workspace rectangle; the left/right ones span the corners.
+        walls = [((w / 2, -t / 2), (w + 2 * t, t)), ((w / 2, h + t / 2), (w + 2 * t, t)),
+                 ((-t / 2, h / 2), (t, h)), ((w + t / 2, h / 2), (t, h))]
+        blockers = [self._box(c, s, 0.0, cfg.wall_height) for c, s in walls]
+        blockers += [self._box(o.center, o.size, o.yaw, cfg.wall_height) for o in sc.obstacles]
+        self.blocker_ids = np.array(blockers, dtype=int)
+
+        post = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=cfg.post_radius, height=cfg.post_height,
+                                       physicsClientId=cid)
+        self.post_ids = np.array([
+            pb.createMultiBody(0.0, post, basePosition=[mx, my, 0.5 * cfg.post_height], physicsClientId=cid)
+            for mx, my in sc.marker_positions()], dtype=int)
+
+        self.robot = DiffDriveRobot(cid, sc.robot_actual, cfg)
+        if self.robot.geometry.top_height >= cfg.laser_height:
+            raise SimulationError(
+                f"PhysicsConfig.laser_height: expected above the robot's top "
+                f"({self.robot.geometry.top_height:.3f} m), got {cfg.laser_height}")
+        self._built_state = pb.saveState(physicsClientId=cid)
+        self._steps = 0
+
+    def _box(self, center, size, yaw: float, height: float) -> int:
+        cid = self.client
+        shape = pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=[0.5 * size[0], 0.5 * size[1], 0.5 * height], physicsClientId=cid)
+        quat = [0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)]
+        return pb.createMultiBody(0.0, shape, basePosition=[center[0], center[1], 0.5 * height],
+                                  baseOrientation=quat, physicsClientId=cid)
+
+    # -- running --------------------------------------------------------------------------
+
+    def reset(self, pose: tuple[float, float, float] | np.ndarray) -> None:
+        """Put the robot at ``pose`` (x [m], y [m], theta [rad]) at rest and the clock at 0.
+
+        Restores the state saved after building (contacts included), then sets the robot's
+        base pose, velocities, wheel joint states and motor targets. Nothing is rebuilt.
+        """
+        pose = np.asarray(pose, dtype=float)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise SimulationError(f"reset pose: expected finite (x, y, theta), got {pose.tolist()}")
+        pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
+        self.robot.reset(pose)
+        self._steps = 0
+
+    def step(self, n: int = 1) -> None:
+        """Advance the physics by ``n`` time steps."""
+        cid = self.client
+        for _ in range(n):
+            pb.stepSimulation(physicsClientId=cid)
+        self._steps += n
+
+    @property
+    def time(self) -> float:
+        """Simulated time since the last reset [s]."""
+        return self._steps * self.config.time_step
+
+    @property
+    def steps(self) -> int:
+        """Physics steps since the last reset."""
+        return self._steps
+
+    def true_pose(self) -> np.ndarray:
+        """Return the robot's true pose (x [m], y [m], theta [rad]), shape (3,)."""
+        return self.robot.true_pose()
+
+    # -- lifetime -------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Disconnect the pybullet client (idempotent)."""
+        if self.client >= 0:
+            pb.disconnect(physicsClientId=self.client)
+            self.client = -1
+
+    def __enter__(self) -> PhysicsWorld:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - interpreter shutdown may have torn pybullet down
+            pass
