@@ -1,0 +1,89 @@
+"""Entity paths, timeline and styling of pefsim recordings (the contract; no rerun import).
+
+Entity paths are what other tools and users rely on to find data in a ``.rrd`` file; all
+spatial data is in metres in the workspace frame (origin lower-left, x right, y up).
+"""
+
+from __future__ import annotations
+
+APPLICATION_ID = "pefsim"
+TIMELINE = "sim_time"
+"""Duration timeline: simulation time since the episode started [s]."""
+
+# --- spatial, static -------------------------------------------------------------------
+WORLD = "world"
+WORKSPACE = "world/workspace"
+OBSTACLES = "world/obstacles"
+MARKERS = "world/markers"
+DOCKS = "world/docks"
+PEF = "world/pef"
+REGION = "world/region"
+CANDIDATES = "world/routes/candidates"
+CHOSEN = "world/routes/chosen"
+PATH = "world/routes/path"
+SCHEDULE = "world/schedule"
+
+# --- spatial, on the timeline ------------------------------------------------------------
+ROBOT_TRUE = "world/robot/true"
+ROBOT_ESTIMATE = "world/robot/estimate"
+TRUE_TRAIL = "world/robot/true/trail"
+ESTIMATE_TRAIL = "world/robot/estimate/trail"
+COVARIANCE = "world/robot/covariance"
+FIX_RAYS = "world/fix/rays"
+FIX_FAULT_AREA = "world/fix/fault_area"
+FIX_PREDICTED = "world/fix/predicted"
+FIX_SNAPSHOT = "world/fix/snapshot"
+FIX_TRUE = "world/fix/true"
+
+# --- scalars and text --------------------------------------------------------------------
+METRICS = "metrics"
+ERROR = "metrics/error"
+PREDICTED_TAU = "metrics/predicted_tau"
+EPS_MAX = "metrics/eps_max"
+PEF_TAU = "metrics/pef_tau"
+FAULT_DIAMETER = "metrics/fault_diameter"
+FIX_PREDICTED_TAU = "metrics/fix_predicted_tau"
+NEES = "metrics/nees"
+NEES_UPPER = "metrics/nees_upper"
+NIS = "metrics/nis"
+EVENTS = "events"
+SUMMARY = "summary"
+
+STATIC_ENTITIES = (WORKSPACE, OBSTACLES, MARKERS, DOCKS)
+"""Logged by :func:`sim.recording.log_static` for every scenario."""
+MAP_ENTITIES = (PEF, REGION)
+"""Logged when a PEF map is given."""
+PLAN_ENTITIES = (CANDIDATES, CHOSEN, PATH, SCHEDULE)
+"""Logged when a plan is given (``CHOSEN``/``PATH`` only when the plan has them)."""
+EPISODE_ENTITIES = (ROBOT_TRUE, ROBOT_ESTIMATE, TRUE_TRAIL, ESTIMATE_TRAIL, COVARIANCE,
+                    FIX_RAYS, FIX_FAULT_AREA, FIX_PREDICTED, FIX_SNAPSHOT, FIX_TRUE,
+                    ERROR, PREDICTED_TAU, EPS_MAX, PEF_TAU, FAULT_DIAMETER, FIX_PREDICTED_TAU,
+                    NEES, NEES_UPPER, NIS, EVENTS, SUMMARY)
+"""Logged by :func:`sim.recording.log_episode`."""
+
+# --- styling: RGB, and sizes in UI points (rerun draws negative radii in screen points) ----
+GREY = (150, 150, 150)
+OBSTACLE = (200, 120, 60)
+MARKER = (250, 220, 40)
+DOCK = (90, 160, 255)
+CANDIDATE_OK = (120, 120, 200)
+CANDIDATE_BAD = (200, 60, 60)
+CHOSEN_ROUTE = (80, 200, 255)
+PATH_ROUTE = (255, 255, 255)
+FIX_POINT = (255, 160, 0)
+SWITCH_POINT = (255, 60, 200)
+TRUE = (60, 220, 90)
+ESTIMATE = (255, 140, 40)
+REGION_LINE = (255, 255, 255)
+RAY = (250, 220, 40)
+CONTAINED = (0, 220, 220)
+NOT_CONTAINED = (255, 40, 40)
+PREDICTED = (230, 230, 230)
+SNAPSHOT = (220, 80, 255)
+EPS_LINE = (255, 60, 60)
+NIS_POINT = (120, 180, 255)
+
+LINE_PT = 1.0
+THICK_LINE_PT = 2.0
+POINT_PT = 4.0
+BIG_POINT_PT = 6.0

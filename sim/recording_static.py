@@ -1,0 +1,155 @@
+"""Static part of a recording: the workspace, markers, docks, PEF map and plan.
+
+Everything here is logged with ``static=True`` (it does not change during an episode), in
+metres in the workspace frame. Entity paths come from :mod:`sim.recording_entities`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from scenarios.schema import Scenario
+from sim import recording_entities as E
+from sim.recording_geometry import closed_ring, heading_vectors, level_contours, rectangle_ring
+
+TAU_DISPLAY_CAP = 2.0
+"""The heatmap shows τ clipped at this multiple of ε_max (τ = ∞ shows as the cap): the
+colours then resolve the range that matters, with ε_max in the middle of the colormap."""
+
+VIEW_FLIP = rr.Transform3D(scale=[1.0, -1.0, 1.0])
+"""Transform of ``world`` into the view's root: rerun's 2-D views draw +y downwards (image
+convention, rerun-io/rerun#1387), so the workspace (y up) is mirrored once here and all data
+under ``world`` stays in workspace coordinates."""
+
+
+def _ui(points: float) -> float:
+    return float(rr.Radius.ui_points(points))
+
+
+def log_scene(rec: rr.RecordingStream, scenario: Scenario) -> None:
+    """Log the view flip, workspace border, obstacles, markers (labelled) and docks.
+
+    Parameters
+    ----------
+    rec : rerun.RecordingStream
+        Target stream.
+    scenario : scenarios.schema.Scenario
+        The world to draw.
+    """
+    rec.log(E.WORLD, VIEW_FLIP, static=True)
+    ws = scenario.workspace
+    rec.log(E.WORKSPACE, rr.LineStrips2D([rectangle_ring(ws.width, ws.height)], colors=[E.GREY],
+                                         radii=_ui(E.THICK_LINE_PT)), static=True)
+    rings = [closed_ring(o.corners()) for o in scenario.obstacles]
+    rec.log(E.OBSTACLES, rr.LineStrips2D(rings, colors=[E.OBSTACLE] * len(rings),
+                                         radii=_ui(E.THICK_LINE_PT)), static=True)
+    rec.log(E.MARKERS, rr.Points2D(scenario.marker_positions(), labels=scenario.marker_ids(),
+                                   colors=[E.MARKER], radii=_ui(E.BIG_POINT_PT), show_labels=True),
+            static=True)
+    docks_xy = np.array([d.position for d in scenario.docks], dtype=float).reshape(-1, 2)
+    dock_yaw = np.array([d.pose[2] for d in scenario.docks], dtype=float)
+    rec.log(E.DOCKS,
+            rr.Points2D(docks_xy, labels=[d.name for d in scenario.docks], colors=[E.DOCK],
+                        radii=_ui(E.BIG_POINT_PT), show_labels=True),
+            rr.Arrows2D(origins=docks_xy, vectors=heading_vectors(dock_yaw, 2.0 * scenario.robot.radius),
+                        colors=[E.DOCK], radii=_ui(E.LINE_PT)),
+            static=True)
+
+
+def pef_image_transform(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return the translation and scale that put image pixel (col, row) on the grid cell (x[col], y[row]).
+
+    An image pixel (col, row) covers [col, col+1) x [row, row+1) in the image's own space,
+    so its centre is (col + 0.5, row + 0.5); ``translation + scale * centre`` must equal the
+    cell centre. Row 0 of the image is y[0] (the lowest row of the workspace).
+
+    Parameters
+    ----------
+    x : (nx,) float
+        Cell-centre x coordinates [m], evenly spaced.
+    y : (ny,) float
+        Cell-centre y coordinates [m], evenly spaced.
+
+    Returns
+    -------
+    translation : (3,) float
+        [m].
+    scale : (3,) float
+        Cell size per pixel [m], z = 1.
+    """
+    dx = float(x[1] - x[0]) if len(x) > 1 else float(y[1] - y[0]) if len(y) > 1 else 1.0
+    dy = float(y[1] - y[0]) if len(y) > 1 else dx
+    translation = np.array([x[0] - 0.5 * dx, y[0] - 0.5 * dy, 0.0])
+    return translation, np.array([dx, dy, 1.0])
+
+
+def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float) -> None:
+    """Log the τ heatmap (``world/pef``) and the ε_max contour (``world/region``).
+
+    Parameters
+    ----------
+    rec : rerun.RecordingStream
+        Target stream.
+    pef_map : planner.pef.PefMap or alike
+        Needs ``x`` (nx,), ``y`` (ny,) cell centres [m] and ``tau`` (ny, nx) [m], inf where
+        too few markers are visible.
+    eps_max : float
+        Allowed error [m]; the navigation region is ``{tau < eps_max}``.
+    """
+    x = np.asarray(pef_map.x, dtype=float)
+    y = np.asarray(pef_map.y, dtype=float)
+    tau = np.asarray(pef_map.tau, dtype=float)
+    cap = TAU_DISPLAY_CAP * eps_max
+    shown = np.where(np.isfinite(tau), np.minimum(tau, cap), cap).astype(np.float32)
+    translation, scale = pef_image_transform(x, y)
+    rec.log(E.PEF,
+            rr.DepthImage(shown, meter=1.0, colormap="viridis", depth_range=(0.0, cap)),
+            rr.Transform3D(translation=translation, scale=scale),
+            static=True)
+    lines = level_contours(x, y, tau, eps_max)
+    rec.log(E.REGION, rr.LineStrips2D(lines, colors=[E.REGION_LINE] * len(lines),
+                                      radii=_ui(E.THICK_LINE_PT)), static=True)
+
+
+def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario) -> None:
+    """Log candidate routes, the chosen route, the reference path and the fix schedule.
+
+    Parameters
+    ----------
+    rec : rerun.RecordingStream
+        Target stream.
+    plan : planner.plan.Plan or alike
+        Uses ``candidates`` (each ``.polyline`` (n, 2) [m], ``.admissible``, ``.id``),
+        ``chosen`` (index or None), ``path`` (N, 2) [m] or None and ``schedule.fixes``
+        (each ``.position`` (x, y) [m], ``.markers`` (marker indices), ``.tau`` [m],
+        ``.switch`` bool).
+    scenario : scenarios.schema.Scenario
+        For marker ids in the schedule's labels.
+    """
+    cands = list(plan.candidates or [])
+    rec.log(E.CANDIDATES,
+            rr.LineStrips2D([np.asarray(c.polyline, float) for c in cands],
+                            colors=[E.CANDIDATE_OK if c.admissible else E.CANDIDATE_BAD for c in cands],
+                            labels=[f"{c.id}{'' if c.admissible else ' (inadmissible)'}" for c in cands],
+                            radii=_ui(E.LINE_PT)),
+            static=True)
+    if plan.chosen is not None:
+        chosen = cands[plan.chosen]
+        rec.log(E.CHOSEN, rr.LineStrips2D([np.asarray(chosen.polyline, float)], colors=[E.CHOSEN_ROUTE],
+                                          labels=[f"chosen: {chosen.id}"], radii=_ui(E.THICK_LINE_PT)),
+                static=True)
+    if getattr(plan, "path", None) is not None:
+        rec.log(E.PATH, rr.LineStrips2D([np.asarray(plan.path, float)], colors=[E.PATH_ROUTE],
+                                        radii=_ui(E.LINE_PT)), static=True)
+    fixes = list(plan.schedule.fixes) if getattr(plan, "schedule", None) is not None else []
+    ids = scenario.marker_ids()
+    rec.log(E.SCHEDULE,
+            rr.Points2D(np.array([f.position for f in fixes], dtype=float).reshape(-1, 2),
+                        colors=[E.SWITCH_POINT if f.switch else E.FIX_POINT for f in fixes],
+                        radii=[_ui(E.BIG_POINT_PT if f.switch else E.POINT_PT) for f in fixes],
+                        labels=["+".join(ids[i] for i in f.markers) + f" τ={1000 * f.tau:.1f} mm"
+                                + (" (switch)" if f.switch else "") for f in fixes]),
+            static=True)
