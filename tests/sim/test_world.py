@@ -1,0 +1,188 @@
+"""PhysicsWorld: what it builds, reset vs fresh determinism, fast settings vs pybullet defaults."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+import scenarios
+from scenarios.errors import SimulationError
+from sim.physics.config import PhysicsConfig
+from sim.physics.quiet import pb, silenced
+from sim.physics.world import PhysicsWorld
+
+# An empty floor, so command sequences never touch a wall.
+FLAT = """
+name = "flat"
+[workspace]
+size = [30.0, 30.0]
+[[markers]]
+id = "a"
+position = [0.0, 0.0]
+[[markers]]
+id = "b"
+position = [30.0, 0.0]
+[sensor]
+[planning]
+eps_max = 0.05
+"""
+
+# (duration [s], left, right [rad/s]): straight, turn in place, arc, stop, arc (~20 s).
+SEQUENCE = [(5.0, 5.0, 5.0), (3.0, -2.0, 2.0), (3.0, 8.0, 4.0), (2.0, 0.0, 0.0), (7.0, 3.0, 6.0)]
+CONTROL_DT = 1.0 / 60.0
+
+
+def drive(world: PhysicsWorld, ramp: float | None = None) -> np.ndarray:
+    """Run SEQUENCE open-loop; return [x, y, theta, left angle, right angle] per control step.
+
+    ``ramp`` limits the change of the wheel-rate command to that many rad/s^2 (a follower's
+    acceleration limit); None applies each command as a step.
+    """
+    n_sub = round(CONTROL_DT / world.config.time_step)
+    cur = np.zeros(2)
+    rows = []
+    for duration, left, right in SEQUENCE:
+        target = np.array([left, right])
+        for _ in range(round(duration / CONTROL_DT)):
+            if ramp is None:
+                cur = target
+            else:
+                cur = cur + np.clip(target - cur, -ramp * CONTROL_DT, ramp * CONTROL_DT)
+            world.robot.set_wheel_speeds(*cur)
+            world.step(n_sub)
+            rows.append(np.r_[world.true_pose(), world.robot.wheel_angles()])
+    return np.array(rows)
+
+
+def first_difference(a: np.ndarray, b: np.ndarray) -> str:
+    bad = np.flatnonzero(np.any(a != b, axis=1))
+    if bad.size == 0:
+        return "identical"
+    return f"first differs at control step {bad[0]}: {a[bad[0]]} vs {b[bad[0]]}"
+
+
+def test_builds_floor_walls_obstacles_posts_robot_in_own_client():
+    sc = scenarios.load("warehouse")
+    with PhysicsWorld(sc) as w, PhysicsWorld(sc) as other:
+        assert w.client != other.client
+        n = pb.getNumBodies(physicsClientId=w.client)
+        assert n == 1 + 4 + len(sc.obstacles) + len(sc.markers) + 1
+        width, height = sc.workspace.size
+        # Walls lie outside the workspace rectangle and together cover its whole border.
+        boxes = [np.array(pb.getAABB(int(b), physicsClientId=w.client)) for b in w.blocker_ids[:4]]
+        for lo, hi in boxes:
+            outside = hi[0] <= 1e-6 or lo[0] >= width - 1e-6 or hi[1] <= 1e-6 or lo[1] >= height - 1e-6
+            assert outside, (lo, hi)
+        south, north, west, east = boxes
+        assert south[0][0] <= 0 and south[1][0] >= width and north[0][0] <= 0 and north[1][0] >= width
+        assert west[0][1] <= 0 and west[1][1] >= height and east[0][1] <= 0 and east[1][1] >= height
+        # Obstacles: the bounding box of the body equals that of the scenario's corners.
+        for body, corners in zip(w.blocker_ids[4:], sc.obstacle_corners(), strict=True):
+            lo, hi = np.array(pb.getAABB(int(body), physicsClientId=w.client))
+            np.testing.assert_allclose(lo[:2], corners.min(axis=0), atol=0.01)
+            np.testing.assert_allclose(hi[:2], corners.max(axis=0), atol=0.01)
+        # Posts stand on the markers and reach above the laser.
+        for body, m in zip(w.post_ids, sc.marker_positions(), strict=True):
+            lo, hi = np.array(pb.getAABB(int(body), physicsClientId=w.client))
+            np.testing.assert_allclose(0.5 * (lo[:2] + hi[:2]), m, atol=1e-6)
+            assert hi[2] > w.config.laser_height
+    assert pb.getConnectionInfo(physicsClientId=w.client)["isConnected"] == 0
+    w.close()  # idempotent
+
+
+def test_yawed_obstacle_matches_its_corners():
+    sc = scenarios.loads(FLAT + """
+[[obstacles]]
+center = [10.0, 10.0]
+size = [4.0, 1.0]
+yaw_deg = 30.0
+""")
+    with PhysicsWorld(sc, pose=(2.0, 2.0, 0.0)) as w:
+        corners = sc.obstacles[0].corners()
+        # A ray through the box along its long axis enters at the short face's midpoint.
+        mid = 0.5 * (corners[0] + corners[3])
+        start = mid - 2.0 * (corners[1] - corners[0]) / 4.0
+        hit = pb.rayTest([*start, 0.5], [10.0, 10.0, 0.5], physicsClientId=w.client)[0]
+        assert hit[0] == w.blocker_ids[4]
+        np.testing.assert_allclose(hit[3][:2], mid, atol=1e-4)
+
+
+def test_reset_puts_robot_at_pose_at_rest():
+    sc = scenarios.loads(FLAT)
+    with PhysicsWorld(sc) as w:
+        pose = np.array([12.0, 7.0, -2.5])
+        w.reset(pose)
+        np.testing.assert_allclose(w.true_pose(), pose, atol=1e-12)
+        assert w.time == 0.0
+        np.testing.assert_array_equal(w.robot.wheel_angles(), [0.0, 0.0])
+        w.step(240)
+        assert w.time == pytest.approx(1.0)
+        # Idle for 1 s: settles on its three support points by well under a millimetre.
+        assert np.hypot(*(w.true_pose()[:2] - pose[:2])) < 1e-3
+        assert w.robot.tilt() < 1e-3
+
+
+def test_same_commands_identical_trajectories_fresh_and_after_reset():
+    sc = scenarios.loads(FLAT)
+    start = (15.0, 15.0, 0.3)
+    with PhysicsWorld(sc, pose=start) as a, PhysicsWorld(sc, pose=start) as b:
+        ta, tb = drive(a), drive(b)
+        assert np.array_equal(ta, tb), first_difference(ta, tb)
+        # Drive elsewhere first, then reset: still bit-identical to the fresh run.
+        a.reset((5.0, 20.0, 2.0))
+        drive(a, ramp=3.0)
+        a.reset(start)
+        tc = drive(a)
+        assert np.array_equal(ta, tc), first_difference(ta, tc)
+        assert not np.array_equal(ta[0], ta[-1])  # it did move
+
+
+@pytest.mark.parametrize("ramp", [None, 5.0], ids=["step-commands", "ramped-commands"])
+def test_fast_config_tracks_reference(ramp):
+    # Default (fast) settings vs pybullet's defaults at 240 Hz: the same ~20 s open-loop
+    # command sequence must stay within 1 cm of the reference trajectory at every step.
+    fast = PhysicsConfig()
+    assert fast.solver_iterations < PhysicsConfig.reference().solver_iterations
+    sc = scenarios.loads(FLAT)
+    with PhysicsWorld(sc, fast, pose=(15.0, 15.0, 0.0)) as w:
+        t_fast = drive(w, ramp)
+    with PhysicsWorld(sc, PhysicsConfig.reference(), pose=(15.0, 15.0, 0.0)) as w:
+        t_ref = drive(w, ramp)
+    assert np.hypot(*(t_ref[-1, :2] - t_ref[0, :2])) > 1.0  # the sequence goes somewhere
+    dev = np.hypot(*(t_fast[:, :2] - t_ref[:, :2]).T)
+    assert dev.max() < 0.01, f"max deviation {dev.max():.4f} m at step {dev.argmax()}"
+
+
+def test_coarser_time_step_would_fail_the_same_check():
+    # Negative control for the check above: 60 Hz physics drifts more than 1 cm off.
+    sc = scenarios.loads(FLAT)
+    with PhysicsWorld(sc, PhysicsConfig(time_step=1.0 / 60.0), pose=(15.0, 15.0, 0.0)) as w:
+        t_coarse = drive(w)
+    with PhysicsWorld(sc, PhysicsConfig.reference(), pose=(15.0, 15.0, 0.0)) as w:
+        t_ref = drive(w)
+    assert np.hypot(*(t_coarse[:, :2] - t_ref[:, :2]).T).max() > 0.01
+
+
+def test_bad_inputs_raise_simulation_error():
+    with pytest.raises(SimulationError, match="solver_iterations"):
+        PhysicsConfig(solver_iterations=0)
+    with pytest.raises(SimulationError, match="laser_height"):
+        PhysicsConfig(laser_height=2.0, post_height=1.0)
+    sc = scenarios.loads(FLAT)
+    with pytest.raises(SimulationError, match="laser_height"):
+        PhysicsWorld(sc, PhysicsConfig(laser_height=0.1))
+    with PhysicsWorld(sc) as w, pytest.raises(SimulationError, match="reset pose"):
+        w.reset((1.0, float("nan"), 0.0))
+
+
+def test_silenced_swallows_c_level_output_and_world_build_is_quiet(capfd):
+    with silenced():
+        os.write(1, b"to stdout\n")
+        os.write(2, b"to stderr\n")
+    os.write(1, b"after\n")
+    with PhysicsWorld(scenarios.load("warehouse")) as w:
+        w.step(10)
+    out, err = capfd.readouterr()
+    assert out == "after\n" and err == ""
