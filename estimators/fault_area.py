@@ -95,14 +95,11 @@ def _empty(tol: float) -> FaultArea:
 @numba.njit(cache=True)
 def _max_pairwise_distance(xy):
     best = 0.0
-    n = xy.shape[0]
-    for i in range(n):
-        for j in range(i + 1, n):
+    for i in range(xy.shape[0]):
+        for j in range(i + 1, xy.shape[0]):
             dx = xy[i, 0] - xy[j, 0]
             dy = xy[i, 1] - xy[j, 1]
-            d2 = dx * dx + dy * dy
-            if d2 > best:
-                best = d2
+            best = max(best, dx * dx + dy * dy)
     return math.sqrt(best)
 
 
@@ -114,40 +111,67 @@ def _from_polygon(poly: Polygon, tol: float) -> FaultArea:
     return FaultArea(poly, float(poly.area), float(_max_pairwise_distance(xy)), np.array([c.x, c.y]), tol)
 
 
-@numba.njit(cache=True)
-def _arc_into(out, start, mx, my, radius, phi0, phi1, tol, outside, closed_circle):
-    """Write a polyline within ``tol`` of the arc phi0..phi1 [rad] into ``out[start:]``.
+def _arc(mx, my, radius, phi0, phi1, tol, outside, closed_circle=False):
+    """Polyline within ``tol`` of the circle arc from phi0 to phi1 [rad], shape (n, 2).
 
     ``outside``: circumscribed (segments tangent to the circle, vertices outside it), else
-    inscribed (vertices on the circle, segments inside it). Returns the next free row.
+    inscribed (vertices on the circle, segments inside it). ``closed_circle``: a whole circle,
+    the closing vertex left out.
     """
     span = phi1 - phi0
     if outside:
         step_max = 2.0 * math.acos(radius / (radius + tol))
     else:
         step_max = 2.0 * math.acos(max(1.0 - tol / radius, -1.0))
-    n = max(1, int(math.ceil(span / step_max - 1e-12)))
+    n = max(1, math.ceil(span / step_max - 1e-12))
     if closed_circle:
         n = max(n, 8)
     step = span / n
     rad = radius / math.cos(step / 2.0) if outside else radius
-    m = n if closed_circle else n + 1
-    if start + m > out.shape[0]:
-        return -(start + m)          # too small: caller retries with this size
-    for j in range(m):
-        phi = phi0 + step * j
-        out[start + j, 0] = mx + rad * math.cos(phi)
-        out[start + j, 1] = my + rad * math.sin(phi)
-    return start + m
+    phi = phi0 + step * np.arange(n if closed_circle else n + 1)
+    out = np.empty((phi.size, 2))
+    out[:, 0] = mx + rad * np.cos(phi)
+    out[:, 1] = my + rad * np.sin(phi)
+    return out
 
 
-def _arc(mx, my, radius, phi0, phi1, tol, outside, closed_circle=False):
-    buf = np.empty((64, 2))
-    end = _arc_into(buf, 0, mx, my, radius, phi0, phi1, tol, outside, closed_circle)
-    if end < 0:
-        buf = np.empty((-end, 2))
-        end = _arc_into(buf, 0, mx, my, radius, phi0, phi1, tol, outside, closed_circle)
-    return buf[:end]
+@numba.njit(cache=True)
+def _arc_steps(radius, span, tol, outside):
+    """Segment count and vertex radius of a polyline within ``tol`` of an arc of ``span`` [rad]."""
+    if outside:
+        step_max = 2.0 * math.acos(radius / (radius + tol))
+    else:
+        step_max = 2.0 * math.acos(max(1.0 - tol / radius, -1.0))
+    n = max(1, int(math.ceil(span / step_max - 1e-12)))
+    rad = radius / math.cos(0.5 * span / n) if outside else radius
+    return n, rad
+
+
+@numba.njit(cache=True)
+def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
+    """Build the closed ring (n, 2) of the annular sector phi0..phi1 [rad], radii r_in..r_out.
+
+    The outer arc is circumscribed, the inner one inscribed (``r_in <= 0``: apex at the
+    centre), so the ring contains the exact sector and stays within ``tol`` of it.
+    """
+    span = phi1 - phi0
+    n_out, rad_out = _arc_steps(r_out, span, tol, True)
+    if r_in > 0.0:
+        n_in, rad_in = _arc_steps(r_in, span, tol, False)
+        m_in = n_in + 1
+    else:
+        n_in, rad_in, m_in = 1, 0.0, 1
+    ring = np.empty((n_out + 1 + m_in + 1, 2))
+    for j in range(n_out + 1):
+        phi = phi0 + span * j / n_out
+        ring[j, 0] = mx + rad_out * math.cos(phi)
+        ring[j, 1] = my + rad_out * math.sin(phi)
+    for j in range(m_in):
+        phi = phi1 - span * j / n_in
+        ring[n_out + 1 + j, 0] = mx + rad_in * math.cos(phi)
+        ring[n_out + 1 + j, 1] = my + rad_in * math.sin(phi)
+    ring[-1] = ring[0]
+    return ring
 
 
 def _annulus_piece(marker, r, rho, center, half, tol):
@@ -166,12 +190,7 @@ def _annulus_piece(marker, r, rho, center, half, tol):
     if dist > reach:
         phi_c = math.atan2(center[1] - my, center[0] - mx)
         delta = math.asin(reach / dist)
-        outer = _arc(mx, my, r_out, phi_c - delta, phi_c + delta, tol, True)
-        if r_in > 0.0:
-            inner = _arc(mx, my, r_in, phi_c - delta, phi_c + delta, tol, False)[::-1]
-        else:
-            inner = np.array([[mx, my]])
-        return shapely.polygons(np.concatenate([outer, inner]))
+        return shapely.polygons(_sector_ring(mx, my, r_out, r_in, phi_c - delta, phi_c + delta, tol))
     outer = _arc(mx, my, r_out, 0.0, 2.0 * math.pi, tol, True, True)
     if r_in > 0.0:
         inner = _arc(mx, my, r_in, 0.0, 2.0 * math.pi, tol, False, True)
