@@ -13,7 +13,7 @@ import rerun as rr
 from scenarios.schema import Scenario
 from sim import recording_entities as E
 from sim.episode_types import EpisodeResult, FixLog, StepLog
-from sim.recording_geometry import covariance_ellipses, heading_vectors, predicted_fault_polygons
+from sim.recording_geometry import covariance_ellipses, heading_vectors, strip_polygons
 
 NEES_UPPER_LEVEL = 0.975
 """Upper quantile drawn as the NEES reference line: with a consistent filter a single-run
@@ -142,7 +142,7 @@ def log_fixes(rec: rr.RecordingStream, fixes: FixLog, scenario: Scenario,
         colors=[E.CONTAINED if c else E.NOT_CONTAINED for c in contained]))
 
     if predicted_polygons is None:
-        predicted_polygons = predicted_fault_polygons(true_xy, marker_xy, np.asarray(fixes.rho, dtype=float))
+        predicted_polygons = strip_polygons(true_xy, marker_xy, np.asarray(fixes.rho, dtype=float))
     rec.log(E.FIX_PREDICTED, rr.LineStrips2D.from_fields(colors=[E.PREDICTED], radii=_ui(E.LINE_PT)),
             static=True)
     rec.send_columns(E.FIX_PREDICTED, idx, rr.LineStrips2D.columns(

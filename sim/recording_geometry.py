@@ -58,15 +58,23 @@ def covariance_ellipses(centers: np.ndarray, pos_cov: np.ndarray, p: float,
         Closed rings (first point repeated last) [m].
     """
     k = chi2_2dof_radius(p)
-    eig_var, eig_vec = np.linalg.eigh(np.asarray(pos_cov, dtype=float))  # ascending eigenvalues
-    axes_std = np.sqrt(np.clip(eig_var, 0.0, None))                      # (T, 2) [m]
-    phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)
-    unit = np.stack([np.cos(phi), np.sin(phi)], axis=-1)                 # (S+1, 2)
-    # point = c + k * V diag(std) u, for every step at once
-    scaled = unit[None, :, :] * (k * axes_std)[:, None, :]               # (T, S+1, 2)
-    ring = np.einsum("tij,tsj->tsi", eig_vec, scaled)
-    ring += np.asarray(centers, dtype=float)[:, None, :]
-    ring[:, -1] = ring[:, 0]                                             # exact closure
+    cov = np.asarray(pos_cov, dtype=float)
+    a, b, c = cov[:, 0, 0], 0.5 * (cov[:, 0, 1] + cov[:, 1, 0]), cov[:, 1, 1]
+    # Closed-form eigen-decomposition of a symmetric 2x2 matrix (np.linalg.eigh on T tiny
+    # matrices costs more than the rest of the recording).
+    mean, half_gap = 0.5 * (a + c), np.hypot(0.5 * (a - c), b)
+    major_std = np.sqrt(np.clip(mean + half_gap, 0.0, None))[:, None]     # [m]
+    minor_std = np.sqrt(np.clip(mean - half_gap, 0.0, None))[:, None]
+    angle = 0.5 * np.arctan2(2.0 * b, a - c)[:, None]                    # major axis direction [rad]
+    cos_a, sin_a = np.cos(angle), np.sin(angle)
+    phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)[None, :]
+    along = k * major_std * np.cos(phi)                                   # (T, S+1) [m]
+    across = k * minor_std * np.sin(phi)
+    ctr = np.asarray(centers, dtype=float)
+    ring = np.empty(along.shape + (2,))
+    ring[..., 0] = ctr[:, 0:1] + cos_a * along - sin_a * across
+    ring[..., 1] = ctr[:, 1:2] + sin_a * along + cos_a * across
+    ring[:, -1] = ring[:, 0]                                              # exact closure
     return ring
 
 
@@ -94,7 +102,9 @@ def strip_polygons(positions: np.ndarray, marker_xy: np.ndarray, rho: np.ndarray
 
     This is the parallelogram of DESIGN section 1 for k = 2 and the centrally symmetric
     strip polygon for k > 2. Its vertices are the pairwise intersections of the strips'
-    boundary lines that satisfy every strip.
+    boundary lines that satisfy every strip. Same polygon as
+    :func:`estimators.linearized.strip_polygon` (the tests compare them), vectorised over
+    fixes: a loop over that function costs ~30x more for a recording's hundred fixes.
 
     Parameters
     ----------
@@ -144,40 +154,6 @@ def strip_polygons(positions: np.ndarray, marker_xy: np.ndarray, rho: np.ndarray
             continue
         order = np.argsort(np.arctan2(d[:, 1], d[:, 0]))
         rings.append(closed_ring(d[order] + pos[f]))
-    return rings
-
-
-def predicted_fault_polygons(positions: np.ndarray, marker_xy: np.ndarray,
-                             rho: np.ndarray) -> list[np.ndarray]:
-    """Predicted (linearised) fault area of each fix at its true position, as closed rings.
-
-    Uses :func:`estimators.linearized.strip_polygon` (the implementation the planner's PEF
-    shares) when it is importable, else the vectorised :func:`strip_polygons` here.
-
-    Parameters
-    ----------
-    positions : (F, 2) float
-        True positions of the fixes [m].
-    marker_xy : (F, k, 2) float
-        Positions of each fix's markers [m].
-    rho : (F, k) float
-        Range error bounds [m].
-
-    Returns
-    -------
-    list of F arrays (n_f, 2)
-        Closed rings [m]; empty (0, 2) where the strips do not bound a polygon.
-    """
-    try:
-        from estimators.linearized import strip_polygon, unit_rows
-    except ImportError:
-        return strip_polygons(positions, marker_xy, rho)
-    rings = []
-    for p, m, r in zip(np.asarray(positions, float), np.asarray(marker_xy, float), np.asarray(rho, float),
-                       strict=True):
-        u, _ = unit_rows(m, p)
-        vertices = strip_polygon(u, r).vertices
-        rings.append(closed_ring(vertices + p) if len(vertices) >= 3 else np.zeros((0, 2)))
     return rings
 
 
