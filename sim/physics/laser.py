@@ -5,6 +5,9 @@ above the robot and below the top of the marker posts. A marker is visible when 
 ``max_range`` and the first thing a ray from the laser to the marker's axis hits is its own
 post (or nothing): walls, obstacles and other markers' posts block it. A marker on a wall or
 obstacle face is therefore seen from the open side, where half its post stands out.
+Bullet's ray cast sees a post up to 1 mm fatter than ``post_radius`` for rays not along the
+world axes (its convex collision margin): a ray grazing another post within that band counts
+as blocked.
 """
 
 from __future__ import annotations
