@@ -140,6 +140,7 @@ class Localizer:
         self._variance_terms = motion.variance_terms(robot, include_systematic)
         self._kf = ExtendedKalmanFilter(dim_x=3, dim_z=1)
         self._kf.x = np.ascontiguousarray(x0_arr)
+        self._kf.x[2] = _wrap_scalar(self._kf.x[2])
         self._kf.P = np.ascontiguousarray(0.5 * (P0_arr + P0_arr.T))
         # Measurement model at the current state, filled before each filterpy update.
         self._H = np.zeros((1, 3))
@@ -152,7 +153,7 @@ class Localizer:
         return self._kf.x.copy()
 
     @property
-    def P(self) -> np.ndarray:  # noqa: N802 -- the conventional name of the covariance
+    def P(self) -> np.ndarray:
         """Pose covariance, shape (3, 3) [m^2, m rad, rad^2], a copy."""
         return self._kf.P.copy()
 
@@ -202,7 +203,7 @@ class Localizer:
                                   f"got {marker_index}")
         return self.markers[marker_index, 0], self.markers[marker_index, 1]
 
-    def _cached_H(self, _x):  # noqa: N802 -- filterpy's name for the measurement Jacobian
+    def _cached_H(self, _x):
         return self._H
 
     def _cached_hx(self, _x):

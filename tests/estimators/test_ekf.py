@@ -236,3 +236,8 @@ def test_negative_control_sensor_noisier_than_declared_fails(bearings):
     nis = consistency.nis_test(out.nis, 1, ALPHA)
     assert nees.verdict is consistency.Verdict.ABOVE, f"average NEES {nees.statistic:.3f} {nees.interval}"
     assert nis.verdict is consistency.Verdict.ABOVE, f"average NIS {nis.statistic:.3f} {nis.interval}"
+
+
+def test_initial_heading_is_wrapped():
+    loc = _localizer(x0=(1.0, 1.0, 7.0))
+    assert loc.x[2] == pytest.approx(7.0 - 2 * math.pi, abs=1e-15)
