@@ -122,7 +122,9 @@ class PhysicsWorld:
         self._steps = 0
 
     def step(self, n: int = 1) -> None:
-        """Advance the physics by ``n`` time steps."""
+        """Advance the physics by ``n`` (>= 0) time steps."""
+        if n < 0:
+            raise SimulationError(f"step: expected a non-negative number of steps, got {n}")
         cid = self.client
         for _ in range(n):
             pb.stepSimulation(physicsClientId=cid)

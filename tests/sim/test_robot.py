@@ -253,3 +253,22 @@ def test_integrate_arc_follows_the_circle():
     assert pose[2] == pytest.approx(0.4 + dtheta, abs=1e-12)
     straight = integrate_arc(np.array([0.0, 0.0, math.pi / 2]), 0.3, 0.3, b)
     np.testing.assert_allclose(straight, [0.0, 0.3, math.pi / 2], atol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["warehouse", "paper-two-markers"])
+def test_abrupt_reversals_at_full_speed_keep_the_robot_upright(name):
+    # Step commands between +-max wheel rate, forward/back and spinning both ways. The
+    # casters bound the pitch: back caster at clearance c and distance x_c behind the axle
+    # gives atan(c / x_c) (1.3 deg for the small paper robot); allow 25 % for contact
+    # penetration. A robot that tipped over or climbed a caster would exceed it.
+    sc = scenarios.load(name)
+    w_max = sc.robot_actual.max_speed / sc.robot_actual.wheel_radius
+    with PhysicsWorld(sc) as w:
+        bound = math.atan(w.config.caster_clearance / w.robot.geometry.caster_x)
+        tilt = 0.0
+        for left, right in [(1, 1), (-1, -1), (1, -1), (-1, 1), (1, 1), (0, 0)]:
+            w.robot.set_wheel_speeds(left * w_max, right * w_max)
+            for _ in range(60):
+                w.step(2)
+                tilt = max(tilt, w.robot.tilt())
+    assert 0.0 < tilt < 1.25 * bound
