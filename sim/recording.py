@@ -49,10 +49,11 @@ def blueprint() -> rrb.Blueprint:
         contents=[f"/{p}" for p in (E.NEES, E.NEES_UPPER, E.NIS)])
     events_view = rrb.TextLogView(name="Fixes and violations", origin=f"/{E.EVENTS}")
     summary_view = rrb.TextDocumentView(name="Summary", origin=f"/{E.SUMMARY}")
+    plan_view = rrb.TextDocumentView(name="Plan", origin=f"/{E.PLAN_TEXT}")
     return rrb.Blueprint(
         rrb.Horizontal(
             map_view,
-            rrb.Vertical(error_view, rrb.Tabs(consistency_view, events_view, summary_view),
+            rrb.Vertical(error_view, rrb.Tabs(consistency_view, events_view, summary_view, plan_view),
                          row_shares=[3, 2]),
             column_shares=[3, 2]),
         rrb.BlueprintPanel(state="collapsed"),

@@ -48,12 +48,13 @@ NEES_UPPER = "metrics/nees_upper"
 NIS = "metrics/nis"
 EVENTS = "events"
 SUMMARY = "summary"
+PLAN_TEXT = "plan"
 
 STATIC_ENTITIES = (WORKSPACE, OBSTACLES, MARKERS, DOCKS)
 """Logged by :func:`sim.recording.log_static` for every scenario."""
 MAP_ENTITIES = (PEF, REGION)
 """Logged when a PEF map is given."""
-PLAN_ENTITIES = (CANDIDATES, CHOSEN, PATH, SCHEDULE)
+PLAN_ENTITIES = (CANDIDATES, CHOSEN, PATH, SCHEDULE, PLAN_TEXT)
 """Logged when a plan is given (``CHOSEN``/``PATH`` only when the plan has them)."""
 EPISODE_ENTITIES = (ROBOT_TRUE, ROBOT_ESTIMATE, TRUE_TRAIL, ESTIMATE_TRAIL, COVARIANCE,
                     FIX_RAYS, FIX_FAULT_AREA, FIX_PREDICTED, FIX_SNAPSHOT, FIX_TRUE,

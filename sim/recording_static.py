@@ -114,6 +114,31 @@ def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float) -> None:
                                       radii=_ui(E.THICK_LINE_PT)), static=True)
 
 
+def plan_markdown(plan: Any) -> str:
+    """Markdown of a plan: the reason for the choice and a table of the candidates.
+
+    Parameters
+    ----------
+    plan : planner.plan.Plan or alike
+        Optional attributes (``start``, ``goal``, ``reason``, a candidate's ``length``,
+        ``max_tau``, ``why_not``) are shown when present.
+
+    Returns
+    -------
+    str
+        Markdown text.
+    """
+    rows = [f"# Plan {getattr(plan, 'start', '')} → {getattr(plan, 'goal', '')}", "",
+            str(getattr(plan, "reason", "") or ""), "",
+            "| route | admissible | length [m] | max τ [mm] | why not |", "|---|---|---|---|---|"]
+    for i, c in enumerate(plan.candidates or []):
+        name = f"**{c.id} (chosen)**" if i == plan.chosen else str(c.id)
+        length, max_tau = getattr(c, "length", float("nan")), getattr(c, "max_tau", float("nan"))
+        rows.append(f"| {name} | {'yes' if c.admissible else 'no'} | {length:.2f} | {1000 * max_tau:.2f} "
+                    f"| {getattr(c, 'why_not', '') or ''} |")
+    return "\n".join(rows) + "\n"
+
+
 def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario) -> None:
     """Log candidate routes, the chosen route, the reference path and the fix schedule.
 
@@ -144,6 +169,7 @@ def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario) -> None:
     if getattr(plan, "path", None) is not None:
         rec.log(E.PATH, rr.LineStrips2D([np.asarray(plan.path, float)], colors=[E.PATH_ROUTE],
                                         radii=_ui(E.LINE_PT)), static=True)
+    rec.log(E.PLAN_TEXT, rr.TextDocument(plan_markdown(plan), media_type="text/markdown"), static=True)
     fixes = list(plan.schedule.fixes) if getattr(plan, "schedule", None) is not None else []
     ids = scenario.marker_ids()
     rec.log(E.SCHEDULE,

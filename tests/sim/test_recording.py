@@ -290,6 +290,8 @@ def test_static_recording_has_no_timeline_data(tmp_path, warehouse, pef_map, epi
     assert labels[0] == warehouse.marker_ids()
     _, sched = back.column(E.SCHEDULE, "Points2D:positions", timeline=None)
     assert len(sched[0]) == len(episode.plan.schedule.fixes)
+    _, text = back.column(E.PLAN_TEXT, "TextDocument:text", timeline=None)
+    assert "| **direct (chosen)** | yes |" in text[0][0] and "| detour | no |" in text[0][0]
 
 
 @pytest.mark.parametrize("make_path", [
