@@ -14,11 +14,13 @@ until the selected component no longer touches the window's edge (then it is a w
 component of the exact set). Inside the window each annulus is an annular sector covering
 the window's angular span as seen from the marker.
 
-Every arc is replaced by a polygonal line that lies *outside* the exact set: the outer
-circle by a circumscribed polyline, the inner circle by an inscribed one. The polygon thus
-*contains* the exact fault area and no point of it is farther than ``tolerance`` from it
-(the default tolerance is ``1e-3 * min(rho)``). Area is overestimated by at most
-``perimeter * tolerance`` (relative ``<= 2e-3`` for a two-range parallelogram).
+Every arc is replaced by a polygonal line that lies *outside* the exact set, at most
+``tolerance`` from its circle: the outer circle by a circumscribed polyline, the inner
+circle by an inscribed one (wedges are polygons already). So the polygon *contains* the
+exact fault area and lies inside the exact fault area of the bounds ``rho_i + tolerance``.
+The default tolerance is ``1e-3 * min(rho)``. For two ranges meeting at angle alpha this
+overestimates the area by a relative ``<= tolerance (1/rho_1 + 1/rho_2) <= 2e-3`` and moves
+each corner by ``<= 2 tolerance / sin(alpha)``.
 
 Empty sets
 ----------
@@ -60,7 +62,8 @@ class FaultArea:
     Attributes
     ----------
     polygon : shapely.geometry.Polygon
-        Outer approximation of the exact set (empty when the measurements are inconsistent).
+        Outer approximation of the exact set (empty when the measurements are inconsistent):
+        contains it, and is contained in the exact set of the bounds ``rho + tolerance``.
     area : float
         Area of ``polygon`` [m^2]; 0 when empty.
     diameter : float
@@ -69,7 +72,7 @@ class FaultArea:
     centroid : ndarray, shape (2,)
         Centroid of ``polygon`` [m]; nan when empty.
     tolerance : float
-        Polygonisation tolerance [m]: the polygon lies within this distance of the exact set.
+        Polygonisation tolerance [m]: largest distance of a polygon edge beyond its circle.
     """
 
     polygon: Polygon
