@@ -71,10 +71,13 @@ def synthetic_episode(scenario, n_steps: int = 600, n_fixes: int = 30, seed: int
         ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
         ring = true_position[f] + 0.002 * np.column_stack([np.cos(ang), np.sin(ang)])
         polys.append(np.vstack([ring, ring[:1]]))
+    polys[5] = np.zeros((0, 2))  # inconsistent measurements: empty fault area, nan diameter
+    diameter = np.full(n_fixes, 0.004)
+    diameter[5] = np.nan
     fixes = FixLog(t=t[step_of_fix], markers=markers, ranges=ranges, rho=rho, true_position=true_position,
                    snapshot=true_position + rng.normal(0, 0.001, true_position.shape),
                    snapshot_cov=np.tile(np.eye(2) * 1e-6, (n_fixes, 1, 1)),
-                   fault_diameter=np.full(n_fixes, 0.004), fault_polygons=polys,
+                   fault_diameter=diameter, fault_polygons=polys,
                    contained=np.arange(n_fixes) % 7 != 3, predicted_tau=np.full(n_fixes, 0.005),
                    nis=rng.chisquare(k, n_fixes), n_accepted=np.full(n_fixes, k))
     plan = synthetic_plan(scenario, xy)
@@ -191,7 +194,7 @@ def test_one_fault_area_polygon_per_fix_with_its_vertices(readback, episode):
     np.testing.assert_array_equal(times, np.round(episode.fixes.t * 1e9).astype(np.int64))
     for row, poly in zip(rows, episode.fixes.fault_polygons, strict=True):
         assert len(row) == 1  # one polygon per fix
-        np.testing.assert_allclose(np.array(row[0]), poly, atol=1e-5)  # float32 in the file
+        np.testing.assert_allclose(np.array(row[0]).reshape(-1, 2), poly, atol=1e-5)  # float32 in the file
     _, colors = readback.column(E.FIX_FAULT_AREA, "LineStrips2D:colors")
     red = int.from_bytes(bytes([*E.NOT_CONTAINED, 255]), "big")
     assert [c[0] == red for c in colors] == list(~episode.fixes.contained)
@@ -279,6 +282,16 @@ def test_rerun_rrd_verify_accepts_the_file(episode_rrd):
     done = subprocess.run([sys.executable, "-m", "rerun", "rrd", "verify", str(episode_rrd)],
                           capture_output=True, text=True, env=env, timeout=60)
     assert done.returncode == 0, done.stderr
+
+
+def test_episode_without_fixes_records_its_steps(tmp_path, warehouse):
+    ep = synthetic_episode(warehouse, n_steps=20, n_fixes=6)
+    arrays = {name: value[:0] for name, value in vars(ep.fixes).items() if name != "fault_polygons"}
+    ep.fixes = FixLog(**arrays, fault_polygons=[])  # every per-fix array cut to F = 0
+    back = Readback(recording.write_episode_rrd(tmp_path / "nofix.rrd", warehouse, ep))
+    _, rows = back.column(E.ERROR, "Scalars:scalars")
+    assert np.array(rows)[:, 0].tolist() == ep.steps.error.tolist()
+    assert E.FIX_FAULT_AREA not in back.chunks
 
 
 def test_static_recording_has_no_timeline_data(tmp_path, warehouse, pef_map, episode):
