@@ -15,11 +15,10 @@ from sim import recording_entities as E
 from sim.episode_types import EpisodeResult, FixLog, StepLog
 from sim.recording_geometry import covariance_ellipses, heading_vectors, strip_polygons
 
-NEES_UPPER_LEVEL = 0.975
-"""Upper quantile drawn as the NEES reference line: with a consistent filter a single-run
-NEES of the 3-dof pose exceeds chi2_3(0.975) = 9.35 at 2.5 % of the steps."""
 CHI2_3DOF_975 = 9.348403604496148
-"""scipy.stats.chi2.ppf(0.975, 3), a constant so that recording does not import scipy."""
+"""NEES reference line, scipy.stats.chi2.ppf(0.975, 3) (a constant so recording does not import
+scipy): with a consistent filter the single-run NEES of the 3-dof pose exceeds it at 2.5 % of
+the steps."""
 
 
 def _ui(points: float) -> float:

@@ -17,7 +17,7 @@ from scipy import stats
 
 import scenarios
 from scenarios.errors import OutputError
-from sim import recording
+from sim import recording, recording_episode
 from sim import recording_entities as E
 from sim.episode_types import EpisodeResult, FixLog, StepLog
 from sim.recording_geometry import covariance_ellipses, level_contours, strip_polygons
@@ -294,6 +294,19 @@ def test_episode_without_fixes_records_its_steps(tmp_path, warehouse):
     assert E.FIX_FAULT_AREA not in back.chunks
 
 
+def test_events_warn_where_error_first_exceeds_eps_max_and_log_every_fix(tmp_path, warehouse):
+    ep = synthetic_episode(warehouse, n_steps=200, n_fixes=10)
+    ep.steps.error[:] = 0.5 * ep.eps_max
+    ep.steps.error[[50, 51, 52, 120]] = 2.0 * ep.eps_max  # two excursions above eps_max
+    back = Readback(recording.write_episode_rrd(tmp_path / "events.rrd", warehouse, ep))
+    times, texts = back.column(E.EVENTS, "TextLog:text")
+    _, levels = back.column(E.EVENTS, "TextLog:level")
+    rows = zip(times, texts, levels, strict=True)
+    violations = [(int(t), lv[0]) for t, tx, lv in rows if tx[0].startswith("error")]
+    assert violations == [(round(ep.steps.t[i] * 1e9), "WARN") for i in (50, 120)]  # rising edges only
+    assert sum(tx[0].startswith("fix ") for tx in texts) == 10
+
+
 def test_static_recording_has_no_timeline_data(tmp_path, warehouse, pef_map, episode):
     path = recording.write_static_rrd(tmp_path / "static.rrd", warehouse, pef_map=pef_map, plan=episode.plan)
     back = Readback(path)
@@ -336,6 +349,10 @@ def test_covariance_ellipse_is_the_p_level_contour():
     # scipy's quantile is independent of the closed form used in the module
     np.testing.assert_allclose(maha, stats.chi2.ppf(p, 2), rtol=1e-9)
     assert not np.allclose(maha, stats.chi2.ppf(0.5, 2), rtol=1e-2)  # another level is distinguishable
+
+
+def test_nees_reference_constant_is_the_chi2_quantile():
+    assert recording_episode.CHI2_3DOF_975 == pytest.approx(stats.chi2.ppf(0.975, 3), rel=1e-12)
 
 
 def test_strip_polygon_of_two_markers_is_the_papers_parallelogram():
