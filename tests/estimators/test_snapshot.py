@@ -1,0 +1,174 @@
+"""Tests of the snapshot (single-fix) weighted least-squares position.
+
+Noise-free recovery, covariance consistency (NEES with a negative control), the fix inside
+its own fault area, and the mirror choice by the prior.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from estimators.measurements import (
+    bearing,
+    draw_bearing_errors,
+    draw_range_errors,
+    range_bound,
+    range_std,
+    ranges,
+)
+from estimators.snapshot import snapshot_fix
+from scenarios.schema import NoiseModel, SensorSpec
+
+SENSOR = SensorSpec(relative_error=1e-3, absolute_error=0.002)
+XI = math.radians(0.5)
+
+
+def _random_fix(rng, k):
+    while True:
+        markers = rng.uniform([0, 0], [30, 20], size=(k, 2))
+        truth = rng.uniform([0, 0], [30, 20])
+        r = ranges(truth, markers)
+        if np.all(r > 1.0) and np.all(r < 25.0):
+            if k > 2:
+                return markers, truth, r
+            d = markers[1] - markers[0]
+            off_line = abs(d[0] * (truth[1] - markers[0, 1]) - d[1] * (truth[0] - markers[0, 0]))
+            if off_line / math.hypot(*d) > 0.1:     # 10 cm from the marker line
+                return markers, truth, r
+
+
+@pytest.mark.parametrize("k", [2, 3, 4])
+def test_noise_free_fix_is_the_truth(k):
+    rng = np.random.default_rng(k)
+    for _ in range(20):
+        markers, truth, r = _random_fix(rng, k)
+        fix = snapshot_fix(markers, r, range_bound(SENSOR, r), truth + rng.normal(0, 0.05, 2),
+                           NoiseModel.GAUSSIAN)
+        assert fix.converged
+        np.testing.assert_allclose(fix.position, truth, atol=1e-9)
+        np.testing.assert_allclose(fix.residuals, 0.0, atol=1e-9)
+        assert fix.fault_area.contains(truth)
+
+
+def test_noise_free_fix_with_bearings_is_the_truth():
+    rng = np.random.default_rng(9)
+    for _ in range(10):
+        markers, truth, r = _random_fix(rng, 2)
+        heading = rng.uniform(-np.pi, np.pi)
+        b = bearing(np.r_[truth, heading], markers)
+        fix = snapshot_fix(markers, r, range_bound(SENSOR, r), truth + [0.03, -0.02], NoiseModel.UNIFORM,
+                           bearings=b, bearing_error=XI, heading=heading)
+        np.testing.assert_allclose(fix.position, truth, atol=1e-9)
+        assert fix.residuals.shape == (4,)
+        assert fix.fault_area.contains(truth)
+
+
+# NEES of the 2-D error e = fix - truth with the predicted covariance P: if P is the true
+# covariance (and the model is linear enough, rho/r ~ 1e-3 here), e^T P^-1 e ~ chi2(2), so
+# the sum over N independent fixes ~ chi2(2N). Per geometry we accept the mean NEES inside
+# the two-sided chi2 interval with false-alarm 1e-3, i.e. chi2.ppf([5e-4, 1 - 5e-4], 2N)/N
+# (for N = 800: about [1.84, 2.17]); the three geometries together alarm with prob <= 3e-3.
+N_FIXES = 800
+ALPHA = 1e-3
+
+
+def _nees_bounds(n):
+    return stats.chi2.ppf(ALPHA / 2, 2 * n) / n, stats.chi2.ppf(1 - ALPHA / 2, 2 * n) / n
+
+
+GEOMETRIES = [
+    # (markers, truth, use bearings)
+    (np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([2.0, 3.0]), False),      # paper, k = 2
+    (np.array([[0.0, 0.0], [30.0, 0.0], [12.0, 20.0]]), np.array([9.0, 6.0]), False),
+    (np.array([[3.0, 17.0], [25.0, 15.0]]), np.array([14.0, 4.0]), True),   # ranges + bearings
+]
+
+
+@pytest.mark.parametrize("markers, truth, use_bearings", GEOMETRIES)
+def test_gaussian_fix_covariance_is_consistent(markers, truth, use_bearings):
+    """Check the mean NEES lies inside the chi2 interval.
+
+    Negative control: the same statistic rejects the covariance that a filter assuming
+    uniform errors (std = rho / sqrt(3)) would predict (three times too large, mean NEES
+    about 2/3).
+    """
+    rng = np.random.default_rng(2024)
+    r = ranges(truth, markers)
+    rho = range_bound(SENSOR, r)
+    heading = 0.4
+    true_b = bearing(np.r_[truth, heading], markers)
+    nees, nees_wrong = np.empty(N_FIXES), np.empty(N_FIXES)
+    # Under the uniform model every std is sqrt(3) times the gaussian one: P_wrong = 3 P.
+    scale_wrong = (range_std(1.0, NoiseModel.UNIFORM) / range_std(1.0, NoiseModel.GAUSSIAN)) ** 2
+    for j in range(N_FIXES):
+        z = r + draw_range_errors(rng, rho, NoiseModel.GAUSSIAN)
+        kwargs = {}
+        if use_bearings:
+            kwargs = dict(bearings=true_b + draw_bearing_errors(rng, XI, len(r), NoiseModel.GAUSSIAN),
+                          bearing_error=XI, heading=heading)
+        fix = snapshot_fix(markers, z, rho, truth + rng.normal(0, 0.01, 2), NoiseModel.GAUSSIAN, **kwargs)
+        e = fix.position - truth
+        nees[j] = e @ np.linalg.solve(fix.covariance, e)
+        nees_wrong[j] = e @ np.linalg.solve(scale_wrong * fix.covariance, e)
+    lo, hi = _nees_bounds(N_FIXES)
+    assert lo <= nees.mean() <= hi, (nees.mean(), lo, hi)
+    assert not lo <= nees_wrong.mean() <= hi, nees_wrong.mean()
+
+
+def test_two_range_fix_lies_in_its_own_fault_area():
+    """Check a two-range fix lies in its own fault area when the measured circles intersect.
+
+    The least-squares fix is then that intersection (zero residuals), the centre of the
+    fault area: inside, every time (uniform errors).
+
+    Findings (the first is asserted as a count, neither as a rate):
+    - near the marker line the measured circles may miss each other (gap g = m - z1 - z2 > 0
+      while the annuli still overlap); the weighted least-squares point then splits g in
+      proportion to rho_i^2 and can violate the larger bound when g nears rho1 + rho2, so it
+      is not guaranteed to be inside (here the one such fix of 300 was inside);
+    - with k >= 3 ranges the weighted least-squares point need not satisfy every
+      |residual_i| <= rho_i: in a seeded run of 500 random k = 3 fixes (1e-3 relative + 2 mm)
+      9 fell outside their fault area (largest |residual_i| / rho_i = 1.13).
+    """
+    rng = np.random.default_rng(77)
+    crossing = 0
+    for _ in range(300):
+        markers, truth, r = _random_fix(rng, 2)
+        rho = range_bound(SENSOR, r)
+        z = r + draw_range_errors(rng, rho, NoiseModel.UNIFORM)
+        fix = snapshot_fix(markers, z, rho, truth + rng.normal(0, 0.005, 2), NoiseModel.UNIFORM)
+        assert fix.fault_area.contains(truth)
+        m = np.linalg.norm(markers[1] - markers[0])
+        if z[0] + z[1] >= m and abs(z[0] - z[1]) <= m:      # the circles intersect
+            crossing += 1
+            np.testing.assert_allclose(fix.residuals, 0.0, atol=1e-9)
+            assert fix.fault_area.contains(fix.position)
+    assert crossing >= 290
+
+
+@pytest.mark.parametrize("prior_y, sign", [(0.4, 1.0), (-0.4, -1.0), (25.0, 1.0), (-25.0, -1.0)])
+def test_mirror_ambiguity_resolved_toward_prior(prior_y, sign):
+    markers = np.array([[0.0, 0.0], [5.0, 0.0]])
+    truth = np.array([1.5, 2.0])
+    r = ranges(truth, markers)
+    fix = snapshot_fix(markers, r, range_bound(SENSOR, r), np.array([4.0, prior_y]), NoiseModel.UNIFORM)
+    np.testing.assert_allclose(fix.position, truth * [1.0, sign], atol=1e-9)
+    assert np.sign(fix.fault_area.centroid[1]) == sign
+
+
+def test_singular_geometry_gives_infinite_covariance():
+    markers = np.array([[0.0, 0.0], [5.0, 0.0]])
+    truth = np.array([2.0, 0.0])   # on the marker line: H has rank 1
+    r = ranges(truth, markers)
+    fix = snapshot_fix(markers, r, range_bound(SENSOR, r), truth, NoiseModel.GAUSSIAN)
+    assert np.all(np.isinf(fix.covariance))
+    assert fix.fault_area.contains(truth)
+
+
+def test_bearings_need_the_heading():
+    markers = np.array([[0.0, 0.0], [5.0, 0.0]])
+    with pytest.raises(ValueError, match="heading"):
+        snapshot_fix(markers, np.array([3.0, 3.0]), np.array([0.01, 0.01]), np.array([2.5, 2.0]),
+                     NoiseModel.UNIFORM, bearings=np.zeros(2), bearing_error=XI)
