@@ -114,30 +114,6 @@ def _from_polygon(poly: Polygon, tol: float) -> FaultArea:
     return FaultArea(poly, float(poly.area), float(_max_pairwise_distance(xy)), np.array([c.x, c.y]), tol)
 
 
-def _arc(mx, my, radius, phi0, phi1, tol, outside, closed_circle=False):
-    """Polyline within ``tol`` of the circle arc from phi0 to phi1 [rad], shape (n, 2).
-
-    ``outside``: circumscribed (segments tangent to the circle, vertices outside it), else
-    inscribed (vertices on the circle, segments inside it). ``closed_circle``: a whole circle,
-    the closing vertex left out.
-    """
-    span = phi1 - phi0
-    if outside:
-        step_max = 2.0 * math.acos(radius / (radius + tol))
-    else:
-        step_max = 2.0 * math.acos(max(1.0 - tol / radius, -1.0))
-    n = max(1, math.ceil(span / step_max - 1e-12))
-    if closed_circle:
-        n = max(n, 8)
-    step = span / n
-    rad = radius / math.cos(step / 2.0) if outside else radius
-    phi = phi0 + step * np.arange(n if closed_circle else n + 1)
-    out = np.empty((phi.size, 2))
-    out[:, 0] = mx + rad * np.cos(phi)
-    out[:, 1] = my + rad * np.sin(phi)
-    return out
-
-
 @numba.njit(cache=True)
 def _arc_steps(radius, span, tol, outside):
     """Segment count and vertex radius of a polyline within ``tol`` of an arc of ``span`` [rad]."""
@@ -177,6 +153,16 @@ def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
     return ring
 
 
+def _circle(mx, my, radius, tol, outside):
+    """Open ring (n, 2) within ``tol`` of a whole circle, circumscribed if ``outside``."""
+    n, rad = _arc_steps(radius, 2.0 * math.pi, tol, outside)
+    n = max(n, 8)
+    if outside:
+        rad = radius / math.cos(math.pi / n)
+    phi = (2.0 * math.pi / n) * np.arange(n)
+    return np.column_stack([mx + rad * np.cos(phi), my + rad * np.sin(phi)])
+
+
 def _annulus_piece(marker, r, rho, center, half, tol):
     """Polygon holding the annulus inside the window; None if it does not constrain it.
 
@@ -194,11 +180,8 @@ def _annulus_piece(marker, r, rho, center, half, tol):
         phi_c = math.atan2(center[1] - my, center[0] - mx)
         delta = math.asin(reach / dist)
         return shapely.polygons(_sector_ring(mx, my, r_out, r_in, phi_c - delta, phi_c + delta, tol))
-    outer = _arc(mx, my, r_out, 0.0, 2.0 * math.pi, tol, True, True)
-    if r_in > 0.0:
-        inner = _arc(mx, my, r_in, 0.0, 2.0 * math.pi, tol, False, True)
-        return shapely.polygons(outer, holes=[inner])
-    return shapely.polygons(outer)
+    outer = _circle(mx, my, r_out, tol, True)
+    return shapely.polygons(outer, holes=[_circle(mx, my, r_in, tol, False)] if r_in > 0.0 else None)
 
 
 def _wedge_piece(marker, beta, xi, center, half):
@@ -308,7 +291,7 @@ def _component(markers, meas, rho, bearings, xi, seed, prior, tol):
 def _mirror_polygon(poly, markers):
     """Reflection of ``poly`` across the line through the (collinear) markers."""
     a = markers[0]
-    d = markers[-1] - a
+    d = markers[int(np.argmax(np.hypot(*(markers - a).T)))] - a
     d = d / math.hypot(d[0], d[1])
     v = shapely.get_coordinates(poly.exterior) - a
     refl = a + 2.0 * (v @ d)[:, None] * d - v
@@ -331,6 +314,8 @@ def _validate(markers, meas, rho, bearings, xi):
     k = markers.shape[0]
     if meas.shape != (k,) or rho.shape != (k,):
         raise ValueError(f"fault area: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
+    if not (np.all(np.isfinite(markers)) and np.all(np.isfinite(meas)) and np.all(np.isfinite(rho))):
+        raise ValueError(f"fault area: non-finite input: markers {markers}, ranges {meas}, rho {rho}")
     if np.any(rho <= 0.0):
         raise ValueError(f"fault area: rho must be > 0, got {rho}")
     if bearings is not None:
@@ -377,6 +362,8 @@ def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, p
     _validate(markers, meas, rho, bearings, xi)
     tol = DEFAULT_TOLERANCE_FRACTION * float(rho.min()) if tolerance is None else float(tolerance)
 
+    if np.any(meas + rho < 0.0):       # no point is at a negative distance
+        return _empty(tol)
     std = rho if bearings is None else np.concatenate([rho, np.full(len(rho), xi)])
     seed = solve_position(markers, meas, std, prior, world_bearings=bearings).position
     comp = _component(markers, meas, rho, bearings, xi, seed, prior, tol)

@@ -321,3 +321,18 @@ def test_rejects_bad_shapes_and_bounds():
                          bearings=np.zeros(2))
     with pytest.raises(ValueError, match="ranges"):
         exact_fault_area(markers, np.array([3.0]), np.array([0.01, 0.01]), np.zeros(2))
+
+
+def test_single_range_gives_the_whole_annulus():
+    """One range: the window grows until it holds the whole annulus (full-circle polygons).
+
+    Exact area 4 pi r rho; the outer approximation adds at most perimeter * tol, i.e. a
+    relative 2 pi (2r + 2rho) tol / (4 pi r rho) ~ tol / rho = 1e-3.
+    """
+    marker = np.array([[3.0, 4.0]])
+    r, rho = np.array([2.5]), np.array([0.01])
+    fa = exact_fault_area(marker, r, rho, np.array([3.0, 1.0]))
+    exact = 4 * math.pi * r[0] * rho[0]
+    assert exact <= fa.area <= exact * (1 + 1.01e-3 * (1 + rho[0] / r[0]))
+    assert fa.diameter == pytest.approx(2 * (r[0] + rho[0]), abs=3 * fa.tolerance)
+    np.testing.assert_allclose(fa.centroid, marker[0], atol=1e-9)
