@@ -94,6 +94,9 @@ class WorkerPayload:
     api: EpisodeApi
 
 
+_UNSET = object()
+
+
 class RunContext:
     """One worker's state: a physics world kept across runs, and the prepared tasks.
 
@@ -103,7 +106,7 @@ class RunContext:
     def __init__(self, payload: WorkerPayload) -> None:
         self.payload = payload
         self.world: Any = None
-        self._pef_map: Any = None
+        self._pef_map: Any = _UNSET
 
     def _world(self) -> Any:
         if self.world is None and self.payload.api.make_world is not None:
@@ -143,10 +146,8 @@ class RunContext:
         except ImportError as exc:
             return None, f"recordings skipped: {exc}"
         try:
-            if self._pef_map is None:
-                from planner.pef import PEF
-
-                self._pef_map = PEF(self.payload.scenario).grid()
+            if self._pef_map is _UNSET:
+                self._pef_map = recording_pef_map(self.payload.scenario)
             with tempfile.TemporaryDirectory(prefix="pefsim-rrd-") as tmp:
                 path = Path(tmp) / "run.rrd"
                 recording.write_episode_rrd(path, self.payload.scenario, result, pef_map=self._pef_map)
@@ -162,6 +163,16 @@ class RunContext:
 
     def close(self) -> None:
         self._drop_world()
+
+
+def recording_pef_map(scenario: Scenario) -> Any:
+    """Compute the PEF map drawn in recordings (once per worker), or None if the planner cannot."""
+    try:
+        from planner.pef import PEF
+
+        return PEF(scenario).grid()
+    except (ImportError, PefsimError):
+        return None
 
 
 def _one_line(exc: BaseException) -> str:

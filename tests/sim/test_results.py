@@ -69,7 +69,8 @@ def test_empty_fix_log_is_written(tmp_path, scenario):
     rec, result = _record(scenario, 0)
     f = result.fixes
     empty = type(f)(t=np.zeros(0), markers=np.zeros((0, 2), int), ranges=np.zeros(0), rho=np.zeros(0),
-                    true_position=np.zeros((0, 2)), snapshot=np.zeros((0, 2)), snapshot_cov=np.zeros((0, 2, 2)),
+                    true_position=np.zeros((0, 2)), snapshot=np.zeros((0, 2)),
+                    snapshot_cov=np.zeros((0, 2, 2)),
                     fault_diameter=np.zeros(0), fault_polygons=[], contained=np.zeros(0, bool),
                     predicted_tau=np.zeros(0), nis=np.zeros(0), n_accepted=np.zeros(0, int))
     rec.fixes = results.fix_columns(0, empty)
