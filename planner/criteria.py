@@ -196,7 +196,7 @@ def sample_polyline(polyline: np.ndarray, spacing: float) -> tuple[np.ndarray, n
 
 
 def fix_positions(s: np.ndarray, tau: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """Indices of the samples where the robot is estimated to take a fix.
+    """Estimate the sample indices where the robot takes a fix.
 
     Model: after a fix at a point with error τ the robot dead-reckons; its odometry drifts
     by about ``(odometry_noise + wheel_radius_error)`` per metre, so the next fix is due when
@@ -303,7 +303,7 @@ def normalise(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
 
 
 def weight_vector(weights: Weights) -> np.ndarray:
-    """The scenario's weights in :data:`CRITERIA` order, shape (5,)."""
+    """Return the weights in :data:`CRITERIA` order, shape (5,)."""
     return np.array([getattr(weights, c) for c in CRITERIA], dtype=float)
 
 

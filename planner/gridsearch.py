@@ -3,7 +3,8 @@
 The robot may occupy a cell when its centre is at least the robot radius (plus a cell's
 half-diagonal, so the whole cell is safe) from every obstacle and wall, and τ < ε_max there.
 Moving between neighbouring cells u, v costs ``step · (c_u + c_v) / 2`` with ``step`` the
-cell width, height or diagonal (``h·√2`` on a square grid) and the cell cost ``c = 1 + w · τ / ε_max``: on top of length, a route pays up to
+cell width, height or diagonal (``h·√2`` on a square grid) and the cell cost
+``c = 1 + w · τ / ε_max``: on top of length, a route pays up to
 ``w`` times its length for running close to the edge of the navigation region. A diagonal
 move needs both cells beside it free, so paths never cut an obstacle's corner.
 
@@ -269,7 +270,8 @@ def grid_astar(grid: Grid, cost: np.ndarray, allowed: np.ndarray, start: tuple[i
     cmin = float(cost[allowed].min())
     if not cmin > 0:
         raise ValueError(f"cell costs must be positive on allowed cells, got minimum {cmin}")
-    total, flat, expanded = _astar(cost, allowed, start[0], start[1], goal[0], goal[1], grid.hx, grid.hy, cmin)
+    total, flat, expanded = _astar(cost, allowed, start[0], start[1], goal[0], goal[1],
+                                   grid.hx, grid.hy, cmin)
     if not np.isfinite(total):
         return None
     cells = np.column_stack([flat // grid.shape[1], flat % grid.shape[1]])

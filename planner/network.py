@@ -63,7 +63,7 @@ class RouteGraph:
 
 
 def build_graph(network: RouteNetwork) -> RouteGraph:
-    """A :class:`RouteGraph` from the scenario's route network."""
+    """Build the :class:`RouteGraph` of the scenario's route network."""
     g = RouteGraph(pos=dict(network.nodes), adj={n: {} for n in network.nodes})
     for a, b in network.segments:
         g.add_segment(a, b, network.traffic_of(a, b))
@@ -165,7 +165,7 @@ def _dijkstra(graph: RouteGraph, start: str, goal: str, banned_nodes: set[str],
 
 
 def k_shortest_paths(graph: RouteGraph, start: str, goal: str, k: int) -> list[list[str]]:
-    """The ``k`` shortest simple paths by length (Yen 1971), shortest first.
+    """Find the ``k`` shortest simple paths by length (Yen 1971), shortest first.
 
     Returns fewer when the graph has fewer simple paths.
     """

@@ -231,7 +231,8 @@ def make_candidates(scenario: Scenario, specs: Sequence[RouteSpec], tau_fn: TauF
     while todo:
         polys = [specs[i].variants[level] for i in todo]
         paths = smoothing.round_corners_many(polys, ok, r_pref, r_min, res)
-        taus = np.split(tau_fn(np.vstack([p.points for p in paths])), np.cumsum([len(p.points) for p in paths])[:-1])
+        sizes = np.cumsum([len(p.points) for p in paths])[:-1]
+        taus = np.split(tau_fn(np.vstack([p.points for p in paths])), sizes)
         nxt = []
         for i, poly, path, tau in zip(todo, polys, paths, taus, strict=True):
             spec = specs[i]
@@ -310,7 +311,8 @@ def _distinct(cands: list[Candidate], tol: float) -> list[Candidate]:
         same = False
         for k in kept:
             pk = k.path.points
-            if len(pc) and len(pk) and max(cKDTree(pk).query(pc)[0].max(), cKDTree(pc).query(pk)[0].max()) < tol:
+            gap = max(cKDTree(pk).query(pc)[0].max(), cKDTree(pc).query(pk)[0].max())
+            if gap < tol:
                 same = True
                 break
         if not same:
@@ -319,7 +321,7 @@ def _distinct(cands: list[Candidate], tol: float) -> list[Candidate]:
 
 
 def _dock_cell(grid, allowed, p, name, scenario, tau_fn) -> tuple[int, int]:
-    """The allowed cell nearest a dock within two cells, or PlanningError saying why not."""
+    """Find the allowed cell nearest a dock (within two cells), or raise PlanningError saying why not."""
     r, c, _ = grid.cell_of(p[None])
     r, c = int(r[0]), int(c[0])
     best = None
@@ -341,7 +343,7 @@ def _dock_cell(grid, allowed, p, name, scenario, tau_fn) -> tuple[int, int]:
 
 
 def _free_infeasible(scenario, start, goal, grid, safe, tau_c, cells, tau_fn) -> PlanningError:
-    """The error for 'no free-space route': the best route ignoring τ, and where it fails."""
+    """Build the 'no free-space route' error: the best route ignoring τ, and where it fails."""
     eps = scenario.planning.eps_max
     open_cost = gridsearch.cell_cost(np.minimum(np.where(safe, tau_c, 0.0), 10 * eps), eps, 1.0)
     gp = gridsearch.grid_astar(grid, open_cost, safe, cells[0], cells[1])

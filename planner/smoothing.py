@@ -145,7 +145,7 @@ def shortcut(polyline: np.ndarray, ok: OkFn, spacing: float, lookahead: int = 40
 
 def _arc(corner: np.ndarray, d_in: np.ndarray, d_out: np.ndarray, radius: float,
          spacing: float) -> tuple[np.ndarray, float]:
-    """Samples of the arc rounding ``corner`` (entry tangent point first) and the tangent length."""
+    """Sample the arc rounding ``corner`` (entry tangent point first); also return the tangent length."""
     theta = math.atan2(d_in[0] * d_out[1] - d_in[1] * d_out[0], float(np.dot(d_in, d_out)))
     t = radius * math.tan(abs(theta) / 2.0)
     entry = corner - d_in * t
@@ -265,7 +265,7 @@ def _assemble(v: np.ndarray, dirs: np.ndarray | None, arcs: dict, spacing: float
 
 
 def speed_profile(path: SmoothPath, robot: RobotSpec, max_accel: float = MAX_ACCEL) -> np.ndarray:
-    """Reference speed along a path [m/s], shape (N,).
+    """Compute the reference speed along a path [m/s], shape (N,).
 
     ``v ≤ max_speed``, ``v ≤ max_yaw_rate / κ`` on arcs, ``v = 0`` at sharp-corner stops and
     at the goal, and ``|dv²/ds| ≤ 2 · max_accel`` everywhere after the start (a forward pass
