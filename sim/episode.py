@@ -1,0 +1,257 @@
+"""One episode: plan, drive on the estimate, measure, estimate, and record what happened.
+
+The loop runs at the control rate (a whole number of physics steps); fixes interrupt it at the
+physics step each measurement falls due, so every measurement happens at its own time while
+the robot keeps moving. Randomness comes from three generators spawned from the episode's
+seed: the start pose, the laser noise and the odometry slip noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios import PlanningError, Scenario, SimulationError
+from sim.episode_types import EpisodeResult, StepLog
+from sim.follower import PurePursuit, wheel_speeds
+
+CONTROL_STEPS = 4
+"""Physics steps per control step: 60 Hz control at pybullet's 240 Hz."""
+
+START_POS_STD = 0.001
+"""Standard deviation of the start position about the dock [m]: docks are calibrated."""
+START_YAW_STD = math.radians(0.1)
+"""Standard deviation of the start heading about the dock's [rad]."""
+
+
+@dataclass
+class Prepared:
+    """What an episode needs that does not depend on its seed: the plan and the PEF.
+
+    Build it once per scenario and task (:func:`prepare`) and pass it to every run.
+    """
+
+    task_index: int
+    plan: object  # planner.plan.Plan
+    pef: object  # planner.pef.PEF
+
+
+def check_task(scenario: Scenario, task_index: int) -> None:
+    """Raise :class:`SimulationError` unless ``task_index`` names a task of ``scenario``."""
+    n = len(scenario.tasks)
+    if not (isinstance(task_index, (int, np.integer)) and 0 <= task_index < n):
+        raise SimulationError(f"{scenario.source}: task {task_index}: expected a task index in 0..{n - 1} "
+                              f"({n} tasks)" if n else f"{scenario.source}: tasks: the scenario has no task")
+
+
+def prepare(scenario: Scenario, task_index: int = 0, pef=None) -> Prepared:
+    """Plan task ``task_index`` of ``scenario`` once (raises PlanningError if it cannot)."""
+    from planner.pef import PEF
+    from planner.plan import plan_task
+
+    check_task(scenario, task_index)
+    pef = pef if pef is not None else PEF(scenario)
+    plan = plan_task(scenario, task_index, pef=pef)
+    if plan.schedule is None:
+        raise PlanningError(f"{scenario.source}: task {task_index}: the plan has no measurement schedule")
+    return Prepared(task_index=task_index, plan=plan, pef=pef)
+
+
+def seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:
+    """The episode's SeedSequence from an int or a SeedSequence (used as is)."""
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, (bool, float)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SimulationError(f"seed: expected a non-negative integer, got {seed!r}")
+    return np.random.SeedSequence(int(seed))
+
+
+def _streams(ss: np.random.SeedSequence) -> tuple[np.random.Generator, ...]:
+    # Children are derived from (entropy, spawn_key) rather than ss.spawn(), which counts
+    # calls: the same seed must give the same streams however often it is used.
+    keys = ("start", "laser", "odometry")
+    return tuple(np.random.default_rng(np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, j)))
+                 for j, _ in enumerate(keys))
+
+
+def run_episode(scenario: Scenario, task_index: int = 0, seed: int | np.random.SeedSequence = 0,
+                world=None, prepared: Prepared | None = None, time_limit: float | None = None,
+                q_scale: float = 1.0) -> EpisodeResult:
+    """Drive task ``task_index`` once and return every array of interest.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    task_index : int
+        Index into ``scenario.tasks``.
+    seed : int or numpy.random.SeedSequence
+        Root of the episode's random streams.
+    world : sim.physics.world.PhysicsWorld, optional
+        A world built for ``scenario`` to reuse (it is reset); by default one is built and closed.
+    prepared : Prepared, optional
+        The plan and PEF from :func:`prepare` (computed here when not given).
+    time_limit : float, optional
+        Give up after this many simulated seconds [s]; default 3x the planned time + 30 s.
+    q_scale : float
+        Multiplies the filter's process noise (1 = the declared model; negative controls).
+
+    Returns
+    -------
+    EpisodeResult
+    """
+    from sim.physics.world import PhysicsWorld
+
+    check_task(scenario, task_index)
+    ss = seed_sequence(seed)
+    prepared = prepared if prepared is not None else prepare(scenario, task_index)
+    own_world = world is None
+    world = PhysicsWorld(scenario) if own_world else world
+    try:
+        return _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale)
+    finally:
+        if own_world:
+            world.close()
+
+
+def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> EpisodeResult:
+    from estimators.ekf import Localizer
+    from sim.fix_recorder import FixRecorder
+    from sim.physics.laser import LaserSensor
+    from sim.physics.odometry import WheelOdometry, integrate_arc
+
+    rng_start, rng_laser, rng_odo = _streams(ss)
+    task = scenario.tasks[task_index]
+    plan, pef = prepared.plan, prepared.pef
+    robot, actual = scenario.robot, scenario.robot_actual
+    k = scenario.sensor.markers_per_fix
+    dock = scenario.dock(task.start)
+
+    P0 = np.diag([START_POS_STD**2, START_POS_STD**2, START_YAW_STD**2])
+    true_start = np.array(dock.pose) + rng_start.multivariate_normal(np.zeros(3), P0)
+    world.reset(true_start)
+    laser = LaserSensor(world, scenario.sensor_actual, scenario.marker_positions())
+    n_visible = int(laser.visible_all().sum())
+    if n_visible < k:
+        raise SimulationError(
+            f"{scenario.source}: tasks[{task_index}]: {n_visible} marker(s) visible from dock {task.start} "
+            f"at {list(dock.position)}, a fix needs {k}")
+
+    loc = Localizer(robot, scenario.sensor, scenario.marker_positions(), np.array(dock.pose), P0,
+                    q_scale=q_scale)
+    odo = WheelOdometry(robot, world.robot.wheel_angles(), np.array(dock.pose))
+    fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
+    follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
+                           max_yaw_rate=robot.max_yaw_rate)
+    schedule = plan.schedule
+    fix_s = np.array([f.s for f in schedule.fixes])
+    min_gap = 1.0 / scenario.sensor.fix_rate_hz
+    slip_std = actual.odometry_noise  # the simulated floor's random slip, per unit of travel
+
+    dt_phys = world.config.time_step
+    dt_ctrl = CONTROL_STEPS * dt_phys
+    planned_time = float(np.sum(np.diff(plan.s) / np.maximum(plan.speed[1:], 0.05)))
+    t_max = time_limit if time_limit is not None else 3.0 * planned_time + 30.0
+    n_max = int(t_max / dt_ctrl) + 2
+    t_log = np.empty(n_max)
+    true_log = np.empty((n_max, 3))
+    est_log = np.empty((n_max, 3))
+    cov_log = np.empty((n_max, 3, 3))
+    s_log = np.empty(n_max)
+
+    def read_odometry() -> None:
+        travel = odo.update(world.robot.wheel_angles())
+        dl = travel.d_left + slip_std * abs(travel.d_left) * rng_odo.standard_normal()
+        dr = travel.d_right + slip_std * abs(travel.d_right) * rng_odo.standard_normal()
+        loc.predict(dl, dr)
+        state["dr"] = integrate_arc(state["dr"], dl, dr, robot.wheel_base)
+
+    state = {"dr": np.array(dock.pose, dtype=float)}
+    next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
+    s_now = 0.0
+    while n < n_max:
+        t = world.time
+        read_odometry()
+        x_est = loc.x
+        t_log[n], true_log[n], est_log[n], cov_log[n], s_log[n] = t, world.true_pose(), x_est, loc.P, s_now
+        n += 1
+        if done:
+            break
+        cmd = follower.command(x_est, dt_ctrl)
+        s_now, done = cmd.s, cmd.done
+        if done:
+            world.robot.set_wheel_speeds(0.0, 0.0)
+            continue
+        # Start the latest scheduled fix the robot has passed, when the laser is free again.
+        if fixes.pending is None and next_fix < len(fix_s) and s_now >= fix_s[next_fix] \
+                and t - last_fix_start >= min_gap - 1e-9:
+            f = int(np.searchsorted(fix_s, s_now, side="right")) - 1
+            subset = fixes.choose_subset(schedule.fixes[f].markers, x_est[:2])
+            if subset is None:
+                fixes.skipped += 1
+            else:
+                fixes.start(subset, t)
+                last_fix_start = t
+            next_fix = f + 1
+        wl, wr = wheel_speeds(cmd.v, cmd.omega, robot.wheel_radius, robot.wheel_base)
+        world.robot.set_wheel_speeds(wl, wr)
+        # Advance one control period, stopping at each physics step a measurement falls due.
+        end = world.steps + CONTROL_STEPS
+        while world.steps < end:
+            due = fixes.next_due
+            due_step = math.ceil(due / dt_phys - 1e-9) if due < math.inf else end
+            if due_step < end:
+                world.step(max(due_step - world.steps, 0))
+                read_odometry()
+                fixes.measure_due(state["dr"], world.true_pose(), world.time)
+            else:
+                world.step(end - world.steps)
+
+    steps = _step_log(t_log[:n], true_log[:n], est_log[:n], cov_log[:n], s_log[:n], schedule, pef)
+    fix_log = fixes.log()
+    goal = np.array(scenario.dock(task.goal).position)
+    reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=
+                   follower.goal_tolerance + scenario.planning.eps_max)
+    return EpisodeResult(
+        scenario_name=scenario.name, task_index=task_index, seed=_seed_repr(ss),
+        eps_max=scenario.planning.eps_max, steps=steps, fixes=fix_log, plan=plan,
+        summary=_summary(steps, fix_log, reached, scenario.planning.eps_max, ss, fixes.skipped))
+
+
+def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:
+    err_xy = true_pose[:, :2] - est_pose[:, :2]
+    dth = (true_pose[:, 2] - est_pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
+    e = np.column_stack([err_xy, dth])
+    nees = np.einsum("ti,ti->t", e, np.linalg.solve(est_cov, e[:, :, None])[:, :, 0])
+    predicted = np.interp(s_est, schedule.s, schedule.predicted_error)
+    pef_tau = pef.at(true_pose[:, :2]).tau
+    return StepLog(t=t, true_pose=true_pose, est_pose=est_pose, est_cov=est_cov,
+                   error=np.hypot(err_xy[:, 0], err_xy[:, 1]), predicted_tau=predicted,
+                   pef_tau=pef_tau, nees=nees)
+
+
+def _seed_repr(ss: np.random.SeedSequence) -> int | str:
+    if not ss.spawn_key:
+        return int(ss.entropy)
+    return f"{ss.entropy}:{'/'.join(str(k) for k in ss.spawn_key)}"
+
+
+def _summary(steps: StepLog, fixes, reached: bool, eps_max: float, ss, skipped: int) -> dict:
+    err = steps.error
+    acc = fixes.n_accepted.sum()
+    return {
+        "reached": reached,
+        "duration": float(steps.t[-1]),
+        "steps": int(len(steps.t)),
+        "fixes": int(len(fixes.t)),
+        "skipped_fixes": int(skipped),
+        "rmse": float(np.sqrt(np.mean(err**2))),
+        "max_error": float(err.max()),
+        "max_predicted_tau": float(np.max(steps.predicted_tau)),
+        "eps_max": float(eps_max),
+        "violations": int(np.sum(err > eps_max)),
+        "seed": _seed_repr(ss),
+        "mean_nees": float(np.mean(steps.nees)),
+        "mean_nis": float(fixes.nis.sum() / acc) if acc else math.nan,
+    }

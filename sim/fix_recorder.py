@@ -1,0 +1,192 @@
+"""One fix at a time: measure the chosen markers one after another, update the EKF, and judge
+the fix against its own exact fault area and the PEF's prediction.
+
+The robot keeps moving while it measures (``measurement_time`` per marker), so a fix's ranges
+are taken at different places. The snapshot fix brings them to the time of the last one with
+the dead-reckoned displacement since each measurement: a range taken at p_i to marker M_i is a
+range from p_end to the shifted marker M_i + (p_end - p_i).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from estimators.snapshot import snapshot_fix
+from sim.episode_types import FixLog
+
+
+@dataclass
+class _Pending:
+    """A fix under way: markers still to measure and what has been measured so far."""
+
+    markers: list[int]
+    due: list[float]
+    measured: list[int] = field(default_factory=list)
+    ranges: list[float] = field(default_factory=list)
+    bearings: list[float] = field(default_factory=list)
+    dr_at: list[np.ndarray] = field(default_factory=list)
+    nis: float = 0.0
+    accepted: int = 0
+
+
+class FixRecorder:
+    """Runs fixes during an episode and accumulates their :class:`FixLog`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    pef : planner.pef.PEF
+        The declared-model PEF (predicts τ for a fix's subset at the true position).
+    laser : sim.physics.laser.LaserSensor
+        The simulated (actual) sensor.
+    localizer : estimators.ekf.Localizer
+    rng : numpy.random.Generator
+        The sensor's noise stream.
+    """
+
+    def __init__(self, scenario, pef, laser, localizer, rng: np.random.Generator) -> None:
+        self.scenario = scenario
+        self.sensor = scenario.sensor  # declared: what the filter and the fault area assume
+        self.k = scenario.sensor.markers_per_fix
+        self.markers = scenario.marker_positions()
+        self.pef = pef
+        self.laser = laser
+        self.loc = localizer
+        self.rng = rng
+        self.pending: _Pending | None = None
+        self.skipped = 0
+        self._rows: list[dict] = []
+        self._polygons: list[np.ndarray] = []
+
+    # -- starting ------------------------------------------------------------------------
+
+    def choose_subset(self, scheduled: tuple[int, ...], est_xy: np.ndarray) -> list[int] | None:
+        """The scheduled subset if the laser sees all of it, else the best visible one by the
+        PEF at the *estimated* position (the robot does not know the truth); None if fewer than
+        k markers are visible."""
+        vis = self.laser.visible_all()
+        if all(vis[i] for i in scheduled):
+            return list(scheduled)
+        seen = np.flatnonzero(vis)
+        if len(seen) < self.k:
+            return None
+        best, best_tau = None, math.inf
+        for sub in itertools.combinations(seen.tolist(), self.k):
+            tau = float(self.pef.tau_subset(est_xy[None, :], np.array(sub))[0])
+            if tau < best_tau:
+                best, best_tau = list(sub), tau
+        return best if best is not None else list(seen[: self.k])
+
+    def start(self, subset: list[int], t: float) -> None:
+        mt = self.sensor.measurement_time
+        self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))])
+
+    @property
+    def next_due(self) -> float:
+        return self.pending.due[0] if self.pending else math.inf
+
+    def shift_bound(self, travelled: np.ndarray) -> np.ndarray:
+        """Bound on the odometry error of a shift over ``travelled`` metres (M,) [m].
+
+        Two encoder readings each off by up to one tick on each wheel, plus the declared
+        random slip (as a 3-sigma bound) and systematic wheel error over the distance.
+        """
+        r = self.scenario.robot
+        tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
+        return 2.0 * tick + (3.0 * r.odometry_noise + abs(r.wheel_radius_error)) * np.asarray(travelled)
+
+    # -- measuring -----------------------------------------------------------------------
+
+    def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float) -> None:
+        """Take the measurement that is due now (the caller has predicted the EKF up to ``t``)."""
+        p = self.pending
+        i = p.markers.pop(0)
+        p.due.pop(0)
+        if self.laser.visible(i):
+            m = self.laser.measure(i, self.rng)
+            res = self.loc.update_range(i, m.measured_range)
+            p.nis += res.nis if res.accepted else 0.0
+            p.accepted += int(res.accepted)
+            if m.measured_bearing is not None:
+                rb = self.loc.update_bearing(i, m.measured_bearing)
+                p.nis += rb.nis if rb.accepted else 0.0
+                p.accepted += int(rb.accepted)
+                p.bearings.append(m.measured_bearing)
+            p.measured.append(i)
+            p.ranges.append(m.measured_range)
+            p.dr_at.append(np.array(dr_pose, dtype=float))
+        if not p.markers:
+            self._finish(dr_pose, true_pose, t)
+
+    def _finish(self, dr_end: np.ndarray, true_pose: np.ndarray, t: float) -> None:
+        p, self.pending = self.pending, None
+        if len(p.measured) < 2:
+            self.skipped += 1  # a marker vanished behind an obstacle mid-fix: no fix
+            return
+        idx = np.array(p.measured)
+        # Dead reckoning drifts in heading without bound; only its displacement over the fix is
+        # trusted, turned into the world frame with the filter's heading.
+        rot = float(self.loc.x[2]) - float(dr_end[2])
+        c, s = math.cos(rot), math.sin(rot)
+        disp = np.array([dr_end[:2] - d[:2] for d in p.dr_at])
+        shifted = self.markers[idx] + disp @ np.array([[c, s], [-s, c]])
+        ranges = np.array(p.ranges)
+        rho = np.asarray(self.sensor.range_bound(ranges), dtype=float)
+        # The shift is itself measured: the fault area widens each range by a bound on the
+        # odometry error of its shift (DESIGN's set-membership view, applied to motion).
+        rho_fix = rho + self.shift_bound(np.hypot(disp[:, 0], disp[:, 1]))
+        bearings = np.array(p.bearings) if p.bearings else None
+        snap = snapshot_fix(shifted, ranges, rho_fix, prior=self.loc.x[:2], noise=self.sensor.noise,
+                            bearings=bearings, bearing_error=self.sensor.bearing_error,
+                            heading=float(self.loc.x[2]) if bearings is not None else None)
+        fa = snap.fault_area
+        truth = np.asarray(true_pose[:2], dtype=float)
+        markers_row = np.full(self.k, -1, dtype=int)
+        markers_row[: len(idx)] = idx
+        ranges_row = np.full(self.k, np.nan)
+        ranges_row[: len(idx)] = ranges
+        rho_row = np.full(self.k, np.nan)
+        rho_row[: len(idx)] = rho
+        self._rows.append(dict(
+            t=t, markers=markers_row, ranges=ranges_row, rho=rho_row, true_position=truth,
+            snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
+            contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted))
+        ring = (np.asarray(fa.polygon.exterior.coords) if not fa.is_empty else np.zeros((0, 2)))
+        self._polygons.append(ring)
+
+    def _predicted(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
+        """PEF τ of each fix's subset at its true position, one batched call per subset."""
+        out = np.full(len(markers), math.inf)
+        full = np.all(markers >= 0, axis=1)
+        if not full.any():
+            return out
+        subsets, which = np.unique(markers[full], axis=0, return_inverse=True)
+        rows = np.flatnonzero(full)
+        for j, sub in enumerate(subsets):
+            sel = rows[which.ravel() == j]
+            out[sel] = self.pef.tau_subset(truth[sel], sub)
+        return out
+
+    # -- result --------------------------------------------------------------------------
+
+    def log(self) -> FixLog:
+        rows, k = self._rows, self.k
+
+        def col(name, shape, dtype=float):
+            if not rows:
+                return np.zeros((0, *shape), dtype=dtype)
+            return np.array([r[name] for r in rows], dtype=dtype).reshape(len(rows), *shape)
+
+        markers = col("markers", (k,), int)
+        truth = col("true_position", (2,))
+        return FixLog(
+            t=col("t", ()), markers=col("markers", (k,), int), ranges=col("ranges", (k,)),
+            rho=col("rho", (k,)), true_position=col("true_position", (2,)),
+            snapshot=col("snapshot", (2,)), snapshot_cov=col("snapshot_cov", (2, 2)),
+            fault_diameter=col("fault_diameter", ()), fault_polygons=list(self._polygons),
+            contained=col("contained", (), bool), predicted_tau=self._predicted(markers, truth),
+            nis=col("nis", ()), n_accepted=col("n_accepted", (), int))
