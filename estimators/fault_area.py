@@ -290,14 +290,25 @@ def _component(markers, meas, rho, bearings, xi, seed, prior, tol):
 
 def _mirror_polygon(poly, markers):
     """Reflection of ``poly`` across the line through the (collinear) markers."""
-    a = markers[0]
-    d = markers[int(np.argmax(np.hypot(*(markers - a).T)))] - a
-    d = d / math.hypot(d[0], d[1])
+    a, d = _line_through(markers)
     v = shapely.get_coordinates(poly.exterior) - a
     refl = a + 2.0 * (v @ d)[:, None] * d - v
     holes = [a + 2.0 * ((h - a) @ d)[:, None] * d - (h - a)
              for h in (shapely.get_coordinates(r) for r in poly.interiors)]
     return shapely.polygons(refl[::-1], holes=[h[::-1] for h in holes] or None)
+
+
+def _line_through(markers):
+    a = markers[0]
+    d = markers[int(np.argmax(np.hypot(*(markers - a).T)))] - a
+    return a, d / math.hypot(d[0], d[1])
+
+
+def _side(xy, markers):
+    """Return +1 / -1 if all points ``xy`` (n, 2) are left / right of the marker line, else 0."""
+    a, d = _line_through(markers)
+    cross = d[0] * (xy[:, 1] - a[1]) - d[1] * (xy[:, 0] - a[0])
+    return 1 if np.all(cross > 0.0) else (-1 if np.all(cross < 0.0) else 0)
 
 
 def _collinear(markers):
@@ -367,15 +378,14 @@ def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, p
     std = rho if bearings is None else np.concatenate([rho, np.full(len(rho), xi)])
     seed = solve_position(markers, meas, std, prior, world_bearings=bearings).position
     comp = _component(markers, meas, rho, bearings, xi, seed, prior, tol)
-    if (comp is not None and bearings is None and _collinear(markers)
-            and not shapely.intersects_xy(comp, prior[0], prior[1])):
-        # Ranges to collinear markers: the exact set is symmetric about the marker line, so
-        # the other candidate is the mirror image of this component (when it is a separate one).
-        mirrored = _mirror_polygon(comp, markers)
-        if not shapely.intersects(comp, mirrored):
-            pt = shapely.points(prior)
-            if shapely.distance(mirrored, pt) < shapely.distance(comp, pt):
-                comp = mirrored
+    if comp is not None and bearings is None and _collinear(markers):
+        # Ranges to collinear markers: the exact set is symmetric about the marker line, so a
+        # component on one side has a mirror twin on the other. Reflection is an isometry and
+        # points on the prior's side are nearer to it: take the twin if the prior is across.
+        comp_side = _side(shapely.get_coordinates(comp.exterior), markers)
+        prior_side = _side(prior[None, :], markers)
+        if comp_side * prior_side < 0:
+            comp = _mirror_polygon(comp, markers)
     return _empty(tol) if comp is None else _from_polygon(comp, tol)
 
 

@@ -282,11 +282,14 @@ class LsqSolution:
 
 
 def _stack(p, markers, meas_ranges, world_bearings):
-    res = meas_ranges - ranges(p, markers)
-    jac = range_jacobian(p, markers)
+    d = p - markers
+    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), _MIN_RANGE)
+    res = meas_ranges - r
+    jac = d / r[:, None]
     if world_bearings is not None:
-        res = np.concatenate([res, wrap_angle(world_bearings - world_bearing(p, markers))])
-        jac = np.vstack([jac, world_bearing_jacobian(p, markers)])
+        pred = np.arctan2(-d[:, 1], -d[:, 0])
+        res = np.concatenate([res, wrap_angle(world_bearings - pred)])
+        jac = np.vstack([jac, np.column_stack([-d[:, 1], d[:, 0]]) / (r * r)[:, None]])
     return res, jac
 
 
@@ -306,9 +309,10 @@ def solve_position(markers: np.ndarray, meas_ranges: np.ndarray, std: np.ndarray
                    step_tol: float = 1e-10) -> LsqSolution:
     """Weighted least-squares position from ranges (and world bearings), by Gauss-Newton.
 
-    Minimises ``sum(residual_j^2 / std_j^2)`` starting at ``prior``. Started on one side of
-    the line through two markers it converges to the solution on that side, which is how the
-    two-range mirror ambiguity is resolved toward the prior.
+    Minimises ``sum(residual_j^2 / std_j^2)`` starting at ``prior``, halving steps that do not
+    decrease it. This usually stays on the prior's side of the line through two markers but
+    does not guarantee it: :func:`estimators.snapshot.snapshot_fix` and
+    :func:`estimators.fault_area.exact_fault_area` resolve the mirror ambiguity explicitly.
 
     Parameters
     ----------
@@ -341,17 +345,22 @@ def solve_position(markers: np.ndarray, meas_ranges: np.ndarray, std: np.ndarray
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 -- the count is reported
         step = _normal_step(jac * w[:, None], res * w)
+        if math.hypot(step[0], step[1]) < step_tol:
+            p = p + step
+            res, jac = _stack(p, markers, meas_ranges, world_bearings)
+            converged = True
+            break
         # Backtrack when a full step overshoots (far priors, near-singular geometry): plain
         # Gauss-Newton can jump across the marker line to the mirror solution.
         for _ in range(30):
             q = p + step
             res_q, jac_q = _stack(q, markers, meas_ranges, world_bearings)
             cost_q = float(np.sum((res_q * w) ** 2))
-            if cost_q <= cost or math.hypot(step[0], step[1]) < step_tol:
+            if cost_q <= cost:
                 break
             step = 0.5 * step
-        p, res, jac, cost = q, res_q, jac_q, cost_q
-        if math.hypot(step[0], step[1]) < step_tol:
+        else:               # no decrease along the step: p is a minimum to rounding
             converged = True
             break
+        p, res, jac, cost = q, res_q, jac_q, cost_q
     return LsqSolution(position=p, jacobian=jac, residuals=res, iterations=it, converged=converged)
