@@ -1,0 +1,317 @@
+"""numba kernels of the PEF: the best marker subset for each point under a linearised model.
+
+One kernel, :func:`best_subset`, serves arbitrary points and grids (a grid is its cell
+centres, flattened). Points are processed in blocks of :data:`BLOCK`; for each block the
+scaled range normals ``g = u / rho`` (and with bearings the tangential ``h = t / (r tan xi)``)
+of every marker are computed once, then every candidate subset is scored across the block's
+points in a branch-free inner loop that vectorises (SIMD across points, threads across blocks).
+
+Candidates are compared as fractions ``num / den`` by cross-multiplication
+(``num * best_den < best_num * den``), with neither square root nor division:
+
+- parallelogram: ``num = |g1|^2 + |g2|^2 + 2 |g1.g2|``, ``den = det(g1, g2)^2``; the squared
+  long diagonal is ``4 num / den`` (see :mod:`estimators.linearized`);
+- gdop: ``num = T + sqrt(T^2 - 4 D)``, ``den = 2 D`` with trace T and determinant D of the
+  information ``B = sum g g^T``, i.e. ``lambda_max(B^-1)``;
+- strips: the largest squared vertex norm of the strip polygon, a scalar O(s^3) loop per point
+  and subset in float64.
+
+Selection precision: for the parallelogram and gdop models the comparison runs in float32 (twice
+the SIMD width); the normals of a point are first scaled by the smallest half-width seen from
+it, so every number is O(1) and no product overflows. The winner's tau is then recomputed in
+float64 from scratch (:func:`subset_tau`), so tau is exact for the chosen subset and within
+~1e-6 relative of the float64 minimum.
+
+A marker not visible from a point gets NaN normals: every comparison with NaN is false, so a
+subset holding it is never chosen; a parallel pair has ``den = 0`` and is never chosen either;
+the initial best is ``1 / 0`` (infinite).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from estimators.linearized import info_lambda_max_inv_k, parallelogram_diagonal_k, strip_max_vertex_sq_k
+
+PARALLELOGRAM, STRIPS, GDOP = 0, 1, 2
+#: Points per block: a block's per-marker float32 normals stay in the L1/L2 cache.
+BLOCK = 256
+
+
+@numba.njit(cache=True, error_model="numpy")
+def subset_tau(model, px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
+    """Return the model's error [m] of marker subset ``sub`` (k,) at point (px, py), in float64.
+
+    ``nx``, ``ny``, ``b`` are scratch arrays of length >= 2k. Visibility is not checked here.
+    inf for a degenerate geometry.
+    """
+    k = sub.size
+    ns = 2 * k if (tan_xi > 0.0 and model != PARALLELOGRAM) else k
+    for t in range(k):
+        dx, dy = px - mx[sub[t]], py - my[sub[t]]
+        r = math.sqrt(dx * dx + dy * dy)
+        if r == 0.0:
+            return np.inf
+        nx[t], ny[t], b[t] = dx / r, dy / r, rel * r + ab
+        if ns > k:
+            nx[k + t], ny[k + t], b[k + t] = -dy / r, dx / r, r * tan_xi
+    if model == PARALLELOGRAM:
+        return parallelogram_diagonal_k(nx[0], ny[0], nx[1], ny[1], b[0], b[1])
+    if model == GDOP:
+        sxx, sxy, syy = 0.0, 0.0, 0.0
+        for t in range(ns):
+            w = 1.0 / (b[t] * b[t])
+            sxx += w * nx[t] * nx[t]
+            sxy += w * nx[t] * ny[t]
+            syy += w * ny[t] * ny[t]
+        # sigma = rho / 3: P = B^-1 / 9.
+        return math.sqrt(chi2_ppf * info_lambda_max_inv_k(sxx, sxy, syy) / 9.0)
+    for t in range(ns):
+        nx[t] /= b[t]
+        ny[t] /= b[t]
+    return 2.0 * math.sqrt(strip_max_vertex_sq_k(nx, ny, ns))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, scale):
+    """Compute float64 normals g = u / rho, h = t / (r tan xi) of one block (NaN where hidden).
+
+    ``scale`` = the smallest half-width seen from each point (inf where nothing is visible).
+
+    Branch-free (selects, numpy error model) so that the loops vectorise.
+    """
+    nan = np.nan
+    for c in range(w):
+        scale[c] = np.inf
+    for m in range(mx.size):
+        mxm, mym = mx[m], my[m]
+        for c in range(w):
+            dx, dy = px[lo + c] - mxm, py[lo + c] - mym
+            r2 = dx * dx + dy * dy
+            r = math.sqrt(r2)
+            rho = rel * r + ab
+            f = 1.0 / (rho * r)
+            ok = vis[m, lo + c] & (r2 > 0.0)
+            gx[m, c] = dx * f if ok else nan
+            gy[m, c] = dy * f if ok else nan
+            scale[c] = min(scale[c], rho) if ok else scale[c]
+        if tan_xi > 0.0:
+            for c in range(w):
+                dx, dy = px[lo + c] - mxm, py[lo + c] - mym
+                r2 = dx * dx + dy * dy
+                bw = math.sqrt(r2) * tan_xi
+                f = 1.0 / (bw * math.sqrt(r2))
+                ok = vis[m, lo + c] & (r2 > 0.0)
+                hx[m, c] = -dy * f if ok else nan
+                hy[m, c] = dx * f if ok else nan
+                scale[c] = min(scale[c], bw) if ok else scale[c]
+        else:
+            for c in range(w):
+                hx[m, c] = 0.0 if gx[m, c] == gx[m, c] else nan
+                hy[m, c] = hx[m, c]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _block_planes(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, model, r, scale, a0, a1, a2):
+    """float32 planes of one block for the vectorised models, scaled per point.
+
+    PARALLELOGRAM: (x, y, |g|^2) of ``g = s u / rho``; GDOP: the information entries
+    (xx, xy, yy) of ``s g`` and ``s h``; ``s`` = the smallest half-width seen from the point, so
+    that every entry is at most 1. NaN where hidden and in the padding beyond ``w``. Computed in
+    float32 (the planes only rank candidates); ``r`` (M, BLOCK) float32 is scratch.
+    """
+    nan = np.float32(np.nan)
+    rel32, ab32, tan32 = np.float32(rel), np.float32(ab), np.float32(tan_xi)
+    bearing = tan_xi > 0.0
+    for c in range(BLOCK):
+        scale[c] = np.inf
+    for m in range(mx.size):
+        mxm, mym = mx[m], my[m]
+        for c in range(w):
+            dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
+            rr = math.sqrt(dx * dx + dy * dy)
+            r[m, c] = rr
+            half = rel32 * rr + ab32
+            half = min(half, rr * tan32) if bearing else half
+            ok = vis[m, lo + c] & (rr > 0)
+            scale[c] = min(scale[c], half) if ok else scale[c]
+    for m in range(mx.size):
+        mxm, mym = mx[m], my[m]
+        if model == PARALLELOGRAM:
+            for c in range(w):
+                dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
+                rr = r[m, c]
+                ok = vis[m, lo + c] & (rr > 0)
+                f = scale[c] / ((rel32 * rr + ab32) * rr)
+                ux, uy = dx * f, dy * f
+                a0[m, c] = ux if ok else nan
+                a1[m, c] = uy if ok else nan
+                a2[m, c] = ux * ux + uy * uy if ok else nan
+        else:
+            for c in range(w):
+                dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
+                rr = r[m, c]
+                ok = vis[m, lo + c] & (rr > 0)
+                f = scale[c] / ((rel32 * rr + ab32) * rr)
+                f2 = scale[c] / (rr * tan32 * rr) if bearing else np.float32(0.0)
+                ux, uy, vx, vy = dx * f, dy * f, -dy * f2, dx * f2
+                a0[m, c] = ux * ux + vx * vx if ok else nan
+                a1[m, c] = ux * uy + vx * vy if ok else nan
+                a2[m, c] = uy * uy + vy * vy if ok else nan
+        for c in range(w, BLOCK):
+            a0[m, c], a1[m, c], a2[m, c] = nan, nan, nan
+
+
+@numba.njit(cache=True, inline="always")
+def _take(better, new, old):
+    return new if better else old
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs):
+    """Best pair per point of the block; pairs are scored two per sweep to halve the traffic."""
+    two = np.float32(2.0)
+    nsub = subsets.shape[0]
+    for s in range(0, nsub, 2):
+        t = min(s + 1, nsub - 1)  # an odd count scores the last pair twice (harmless)
+        i, j, k, m = subsets[s, 0], subsets[s, 1], subsets[t, 0], subsets[t, 1]
+        xi, yi, qi, xj, yj, qj = a0[i], a1[i], a2[i], a0[j], a1[j], a2[j]
+        xk, yk, qk, xm, ym, qm = a0[k], a1[k], a2[k], a0[m], a1[m], a2[m]
+        ss, st = np.int32(s), np.int32(t)
+        for c in range(BLOCK):
+            det1 = xi[c] * yj[c] - yi[c] * xj[c]
+            num1 = qi[c] + qj[c] + two * abs(xi[c] * xj[c] + yi[c] * yj[c])
+            den1 = det1 * det1
+            det2 = xk[c] * ym[c] - yk[c] * xm[c]
+            num2 = qk[c] + qm[c] + two * abs(xk[c] * xm[c] + yk[c] * ym[c])
+            den2 = det2 * det2
+            n0, d0, s0 = bn[c], bd[c], bs[c]
+            b1 = num1 * d0 < n0 * den1
+            n0, d0, s0 = _take(b1, num1, n0), _take(b1, den1, d0), _take(b1, ss, s0)
+            b2 = num2 * d0 < n0 * den2
+            bn[c], bd[c], bs[c] = _take(b2, num2, n0), _take(b2, den2, d0), _take(b2, st, s0)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _sweep_gdop(subsets, a0, a1, a2, bn, bd, bs, sxx, sxy, syy):
+    """Best subset per point of the block by lambda_max of the inverse information."""
+    zero, two, four = np.float32(0.0), np.float32(2.0), np.float32(4.0)
+    nsub, k = subsets.shape
+    for s in range(nsub):
+        m0 = subsets[s, 0]
+        for c in range(BLOCK):
+            sxx[c], sxy[c], syy[c] = a0[m0, c], a1[m0, c], a2[m0, c]
+        for t in range(1, k):
+            m = subsets[s, t]
+            for c in range(BLOCK):
+                sxx[c] += a0[m, c]
+                sxy[c] += a1[m, c]
+                syy[c] += a2[m, c]
+        ss = np.int32(s)
+        for c in range(BLOCK):
+            tr = sxx[c] + syy[c]
+            dt = sxx[c] * syy[c] - sxy[c] * sxy[c]
+            num = tr + math.sqrt(max(tr * tr - four * dt, zero))
+            den = two * dt
+            better = num * bd[c] < bn[c] * den
+            bn[c], bd[c] = _take(better, num, bn[c]), _take(better, den, bd[c])
+            bs[c] = _take(better, ss, bs[c])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _sweep_strips(subsets, gx, gy, hx, hy, w, bearing, bs):
+    """Best subset per point of the block by the strip-polygon diameter (float64, scalar)."""
+    nsub, k = subsets.shape
+    ns = 2 * k if bearing else k
+    sx = np.empty(ns)
+    sy = np.empty(ns)
+    bv = np.full(w, np.inf)
+    for s in range(nsub):
+        for c in range(w):
+            usable = True
+            for t in range(k):
+                m = subsets[s, t]
+                if math.isnan(gx[m, c]):
+                    usable = False
+                    break
+                sx[t], sy[t] = gx[m, c], gy[m, c]
+                if bearing:
+                    sx[k + t], sy[k + t] = hx[m, c], hy[m, c]
+            if usable:
+                v = strip_max_vertex_sq_k(sx, sy, ns)
+                if v < bv[c]:
+                    bv[c] = v
+                    bs[c] = s
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy")
+def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, tau, best):
+    """Best subset and its error for every point.
+
+    Parameters
+    ----------
+    px, py : ndarray, shape (N,)
+        Point coordinates [m].
+    mx, my : ndarray, shape (M,)
+        Marker coordinates [m].
+    vis : ndarray of bool, shape (M, N)
+        Marker visible from point.
+    rel, ab : float
+        Range bound ``rho = rel * r + ab`` [m/m, m].
+    tan_xi : float
+        tan of the bearing bound (0 = ranges only; used by STRIPS and GDOP).
+    model : int
+        PARALLELOGRAM (subsets must be pairs), STRIPS or GDOP.
+    subsets : ndarray of int64, shape (C, k)
+        Candidate marker subsets, C >= 1.
+    chi2_ppf : float
+        ``chi2.ppf(p, 2)`` for GDOP.
+    tau : ndarray, shape (N,)
+        Output: error of the best subset [m]; inf where no subset is usable.
+    best : ndarray of int64, shape (N,)
+        Output: row of ``subsets`` chosen, -1 where none.
+    """
+    n = px.size
+    nm = mx.size
+    k = subsets.shape[1]
+    nblk = (n + BLOCK - 1) // BLOCK
+    for blk in numba.prange(nblk):
+        lo = blk * BLOCK
+        w = min(BLOCK, n - lo)
+        bs = np.full(BLOCK, -1, dtype=np.int32)
+        if model == STRIPS:
+            gx = np.empty((nm, BLOCK))
+            gy = np.empty((nm, BLOCK))
+            hx = np.empty((nm, BLOCK))
+            hy = np.empty((nm, BLOCK))
+            scale = np.empty(BLOCK)
+            _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, scale)
+            _sweep_strips(subsets, gx, gy, hx, hy, w, tan_xi > 0.0, bs)
+        else:
+            r = np.empty((nm, BLOCK), dtype=np.float32)
+            scale = np.empty(BLOCK, dtype=np.float32)
+            a0 = np.empty((nm, BLOCK), dtype=np.float32)
+            a1 = np.empty((nm, BLOCK), dtype=np.float32)
+            a2 = np.empty((nm, BLOCK), dtype=np.float32)
+            _block_planes(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, model, r, scale, a0, a1, a2)
+            bn = np.ones(BLOCK, dtype=np.float32)
+            bd = np.zeros(BLOCK, dtype=np.float32)
+            if model == PARALLELOGRAM:
+                _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs)
+            else:
+                _sweep_gdop(subsets, a0, a1, a2, bn, bd, bs, np.empty(BLOCK, dtype=np.float32),
+                            np.empty(BLOCK, dtype=np.float32), np.empty(BLOCK, dtype=np.float32))
+        tx = np.empty(2 * k)
+        ty = np.empty(2 * k)
+        tb = np.empty(2 * k)
+        for c in range(w):
+            s = bs[c]
+            best[lo + c] = s
+            if s < 0:
+                tau[lo + c] = np.inf
+            else:
+                tau[lo + c] = subset_tau(model, px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab,
+                                         tan_xi, chi2_ppf, tx, ty, tb)
