@@ -40,8 +40,11 @@ import shapely
 from shapely.geometry import Polygon
 
 from estimators.measurements import (
+    collinear_markers,
+    marker_line_side,
     range_jacobian,
     ranges,
+    reflect_across_marker_line,
     solve_position,
     world_bearing,
     world_bearing_jacobian,
@@ -289,36 +292,10 @@ def _component(markers, meas, rho, bearings, xi, seed, prior, tol):
 
 
 def _mirror_polygon(poly, markers):
-    """Reflection of ``poly`` across the line through the (collinear) markers."""
-    a, d = _line_through(markers)
-    v = shapely.get_coordinates(poly.exterior) - a
-    refl = a + 2.0 * (v @ d)[:, None] * d - v
-    holes = [a + 2.0 * ((h - a) @ d)[:, None] * d - (h - a)
-             for h in (shapely.get_coordinates(r) for r in poly.interiors)]
-    return shapely.polygons(refl[::-1], holes=[h[::-1] for h in holes] or None)
-
-
-def _line_through(markers):
-    a = markers[0]
-    d = markers[int(np.argmax(np.hypot(*(markers - a).T)))] - a
-    return a, d / math.hypot(d[0], d[1])
-
-
-def _side(xy, markers):
-    """Return +1 / -1 if all points ``xy`` (n, 2) are left / right of the marker line, else 0."""
-    a, d = _line_through(markers)
-    cross = d[0] * (xy[:, 1] - a[1]) - d[1] * (xy[:, 0] - a[0])
-    return 1 if np.all(cross > 0.0) else (-1 if np.all(cross < 0.0) else 0)
-
-
-def _collinear(markers):
-    """Tell whether all markers lie on one line (always so for two)."""
-    if markers.shape[0] < 3:
-        return markers.shape[0] == 2
-    d = markers[1:] - markers[0]
-    i = int(np.argmax(np.einsum("ij,ij->i", d, d)))
-    cross = d[:, 0] * d[i, 1] - d[:, 1] * d[i, 0]
-    return bool(np.all(np.abs(cross) <= 1e-12 * float(d[i] @ d[i])))
+    """Reflect ``poly`` across the line through the (collinear) markers."""
+    shell = reflect_across_marker_line(shapely.get_coordinates(poly.exterior), markers)[::-1]
+    holes = [reflect_across_marker_line(shapely.get_coordinates(r), markers)[::-1] for r in poly.interiors]
+    return shapely.polygons(shell, holes=holes or None)
 
 
 def _validate(markers, meas, rho, bearings, xi):
@@ -350,8 +327,10 @@ def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, p
     rho : ndarray, shape (k,)
         Range error bounds [m], > 0.
     prior : ndarray, shape (2,)
-        A position guess [m]; selects the component (the two mirror regions of two ranges):
-        the one containing ``prior``, else the nearest to it.
+        A position guess [m]. The component returned is the one around the weighted
+        least-squares point found from ``prior`` (the one containing ``prior`` when several
+        meet there); for ranges to collinear markers (always with two) the exact set is
+        mirror-symmetric and the twin on ``prior``'s side of the marker line is returned.
     bearings : ndarray, shape (k,), optional
         Measured absolute (world-frame) directions from the robot to the markers [rad].
     bearing_error : float
@@ -378,13 +357,13 @@ def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, p
     std = rho if bearings is None else np.concatenate([rho, np.full(len(rho), xi)])
     seed = solve_position(markers, meas, std, prior, world_bearings=bearings).position
     comp = _component(markers, meas, rho, bearings, xi, seed, prior, tol)
-    if comp is not None and bearings is None and _collinear(markers):
+    if comp is not None and bearings is None and collinear_markers(markers):
         # Ranges to collinear markers: the exact set is symmetric about the marker line, so a
         # component on one side has a mirror twin on the other. Reflection is an isometry and
         # points on the prior's side are nearer to it: take the twin if the prior is across.
-        comp_side = _side(shapely.get_coordinates(comp.exterior), markers)
-        prior_side = _side(prior[None, :], markers)
-        if comp_side * prior_side < 0:
+        comp_side = marker_line_side(shapely.get_coordinates(comp.exterior), markers)
+        across = marker_line_side(prior, markers) * comp_side
+        if np.all(across < 0.0):        # (a component straddling the line is its own twin)
             comp = _mirror_polygon(comp, markers)
     return _empty(tol) if comp is None else _from_polygon(comp, tol)
 

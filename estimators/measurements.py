@@ -256,6 +256,71 @@ def draw_bearing_errors(rng: np.random.Generator, xi: float, n: int, noise: Nois
     return _draw(rng, np.full(int(n), float(xi)), noise)
 
 
+def collinear_markers(markers: np.ndarray) -> bool:
+    """Tell whether the markers lie on one line (always so for two; never for one).
+
+    Ranges alone then cannot tell a position from its mirror image across that line.
+
+    Parameters
+    ----------
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+    """
+    markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+    if markers.shape[0] < 3:
+        return markers.shape[0] == 2
+    d = markers[1:] - markers[0]
+    i = int(np.argmax(np.einsum("ij,ij->i", d, d)))
+    cross = d[:, 0] * d[i, 1] - d[:, 1] * d[i, 0]
+    return bool(np.all(np.abs(cross) <= 1e-12 * float(d[i] @ d[i])))
+
+
+def _marker_line(markers):
+    a = markers[0]
+    d = markers[int(np.argmax(np.hypot(*(markers - a).T)))] - a
+    return a, d / math.hypot(d[0], d[1])
+
+
+def marker_line_side(points: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Side of the line through collinear markers on which each point lies.
+
+    Parameters
+    ----------
+    points : ndarray, shape (..., 2)
+        Points [m].
+    markers : ndarray, shape (k, 2)
+        Collinear markers (k >= 2, see :func:`collinear_markers`) [m].
+
+    Returns
+    -------
+    ndarray, shape (...)
+        +1 left of the line (from the first marker toward the farthest one), -1 right, 0 on it.
+    """
+    a, d = _marker_line(np.asarray(markers, dtype=float).reshape(-1, 2))
+    p = np.asarray(points, dtype=float)
+    return np.sign(d[0] * (p[..., 1] - a[1]) - d[1] * (p[..., 0] - a[0]))
+
+
+def reflect_across_marker_line(points: np.ndarray, markers: np.ndarray) -> np.ndarray:
+    """Mirror images of points across the line through collinear markers.
+
+    Parameters
+    ----------
+    points : ndarray, shape (..., 2)
+        Points [m].
+    markers : ndarray, shape (k, 2)
+        Collinear markers (k >= 2) [m].
+
+    Returns
+    -------
+    ndarray, shape (..., 2)
+        Reflected points [m]; they have the same ranges to every marker.
+    """
+    a, d = _marker_line(np.asarray(markers, dtype=float).reshape(-1, 2))
+    v = np.asarray(points, dtype=float) - a
+    return a + 2.0 * (v @ d)[..., None] * d - v
+
+
 @dataclass(frozen=True)
 class LsqSolution:
     """Result of :func:`solve_position`.
@@ -356,7 +421,7 @@ def solve_position(markers: np.ndarray, meas_ranges: np.ndarray, std: np.ndarray
             q = p + step
             res_q, jac_q = _stack(q, markers, meas_ranges, world_bearings)
             cost_q = float(np.sum((res_q * w) ** 2))
-            if cost_q <= cost:
+            if cost_q <= cost * (1.0 + 1e-12):     # within rounding counts as no increase
                 break
             step = 0.5 * step
         else:               # no decrease along the step: p is a minimum to rounding

@@ -18,7 +18,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.fault_area import FaultArea, exact_fault_area
-from estimators.measurements import bearing_std, range_std, solve_position, wrap_angle
+from estimators.measurements import (
+    bearing_std,
+    collinear_markers,
+    marker_line_side,
+    range_std,
+    reflect_across_marker_line,
+    solve_position,
+    wrap_angle,
+)
 from scenarios.schema import NoiseModel
 
 
@@ -51,11 +59,6 @@ class SnapshotFix:
     converged: bool
 
 
-def _side(p, a, b):
-    """Sign of the cross product (b - a) x (p - a): which side of line a-b ``p`` is on."""
-    return math.copysign(1.0, (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]))
-
-
 def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior: np.ndarray,
                  noise: NoiseModel, bearings: np.ndarray | None = None, bearing_error: float = 0.0,
                  heading: float | None = None) -> SnapshotFix:
@@ -70,7 +73,8 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     rho : ndarray, shape (k,)
         Range error bounds [m] (> 0); the weights use ``range_std(rho, noise)``.
     prior : ndarray, shape (2,)
-        Starting point [m]; with two ranges the fix is on the prior's side of the marker line.
+        Starting point [m]. Ranges to collinear markers (always with two) fit a point and its
+        mirror image across the marker line equally well: the fix is on the prior's side.
     noise : NoiseModel
         How the errors are realised (sets std from the bounds).
     bearings : ndarray, shape (k,), optional
@@ -101,12 +105,10 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
 
     sol = solve_position(markers, meas, std, prior, world_bearings=world)
     position = sol.position
-    if world is None and k == 2 and _side(position, *markers) != _side(prior, *markers):
+    if (world is None and collinear_markers(markers)
+            and marker_line_side(position, markers) * marker_line_side(prior, markers) < 0):
         # Both mirror points fit equally well; the prior decides (DESIGN §1).
-        d = (markers[1] - markers[0]) / np.linalg.norm(markers[1] - markers[0])
-        v = position - markers[0]
-        position = markers[0] + 2.0 * (v @ d) * d - v
-        sol = solve_position(markers, meas, std, position)
+        sol = solve_position(markers, meas, std, reflect_across_marker_line(position, markers))
 
     jw = sol.jacobian / std[:, None]
     info = jw.T @ jw

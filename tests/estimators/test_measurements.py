@@ -187,3 +187,23 @@ def test_paper_eq14_jacobian_is_inverse_of_h(xy):
         return np.array([xx, math.sqrt(ab[0] ** 2 - xx**2)])
 
     np.testing.assert_allclose(_central_diff(eq1, np.array([a, b])), j_paper, rtol=1e-6, atol=1e-8)
+
+
+def test_solve_position_reaches_the_weighted_least_squares_optimum_on_noisy_data():
+    """Check Gauss-Newton stops at the optimum of inconsistent (noisy) data.
+
+    The minimum has nonzero residuals: the solver must stop there (converged, few
+    iterations) with the normal equations H^T W r = 0 satisfied relative to their terms.
+    """
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        markers, pose = _random_setup(rng, 3)
+        std = np.r_[np.full(3, 0.003), np.full(3, math.radians(0.3))]
+        z = ranges(pose[:2], markers) + rng.normal(0, std[:3])
+        wb = world_bearing(pose[:2], markers) + rng.normal(0, std[3:])
+        sol = solve_position(markers, z, std, pose[:2] + rng.normal(0, 0.05, 2), world_bearings=wb)
+        assert sol.converged and sol.iterations <= 10
+        w2 = 1.0 / std**2
+        grad = sol.jacobian.T @ (w2 * sol.residuals)
+        scale = np.abs(sol.jacobian.T) @ (w2 * np.abs(sol.residuals))
+        assert np.all(np.abs(grad) <= 1e-6 * scale)
