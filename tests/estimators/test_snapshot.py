@@ -172,3 +172,15 @@ def test_bearings_need_the_heading():
     with pytest.raises(ValueError, match="heading"):
         snapshot_fix(markers, np.array([3.0, 3.0]), np.array([0.01, 0.01]), np.array([2.5, 2.0]),
                      NoiseModel.UNIFORM, bearings=np.zeros(2), bearing_error=XI)
+
+
+def test_three_collinear_markers_keep_the_mirror_ambiguity_resolved_by_prior():
+    markers = np.array([[0.0, 1.0], [4.0, 3.0], [10.0, 6.0]])    # on y = 1 + x / 2
+    truth = np.array([6.0, 1.0])
+    mirror = np.array([3.6, 5.8])                               # its reflection in that line
+    r = ranges(truth, markers)
+    np.testing.assert_allclose(ranges(mirror, markers), r)
+    for prior, expected in ((truth + [0.3, 0.3], truth), (mirror + [0.3, -0.2], mirror)):
+        fix = snapshot_fix(markers, r, range_bound(SENSOR, r), prior, NoiseModel.GAUSSIAN)
+        np.testing.assert_allclose(fix.position, expected, atol=1e-9)
+        assert fix.fault_area.contains(expected)
