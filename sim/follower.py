@@ -35,8 +35,10 @@ class PurePursuit:
         Reference speed at each path point [m/s].
     max_speed, max_yaw_rate : float
         Limits [m/s], [rad/s].
-    max_accel : float
-        Limit on the change of forward speed [m/s^2]; keeps wheel slip small.
+    max_accel, max_yaw_accel : float
+        Limits on the change of forward speed [m/s^2] and of yaw rate [rad/s^2]: a stepped
+        wheel command slips on the floor (about 1 cm at 0.5 m/s in the physics), and slip is
+        odometry error the filter does not model.
     lookahead_min, lookahead_gain : float
         Lookahead distance = max(lookahead_min, lookahead_gain * v) [m], [s].
     goal_tolerance : float
@@ -48,12 +50,14 @@ class PurePursuit:
     max_speed: float
     max_yaw_rate: float
     max_accel: float = 0.5
+    max_yaw_accel: float = 2.0
     lookahead_min: float = 0.3
     lookahead_gain: float = 0.8
     goal_tolerance: float = 0.05
     rotate_in_place_above: float = math.radians(60.0)
     _index: int = field(default=0, init=False)
     _v: float = field(default=0.0, init=False)
+    _w: float = field(default=0.0, init=False)
     _s: np.ndarray = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -64,6 +68,7 @@ class PurePursuit:
     def reset(self) -> None:
         self._index = 0
         self._v = 0.0
+        self._w = 0.0
 
     @property
     def length(self) -> float:
@@ -86,7 +91,7 @@ class PurePursuit:
         dist_goal = float(np.hypot(*(goal - p)))
         remaining = self.length - self._s[i]
         if dist_goal < self.goal_tolerance and remaining < 2 * self.lookahead_min:
-            self._v = 0.0
+            self._v = self._w = 0.0
             return FollowerCommand(0.0, 0.0, True, float(self._s[i]))
 
         look = max(self.lookahead_min, self.lookahead_gain * self._v)
@@ -99,9 +104,12 @@ class PurePursuit:
         ld2 = lx * lx + ly * ly
 
         if abs(alpha) > self.rotate_in_place_above:
-            self._v = 0.0
-            omega = math.copysign(self.max_yaw_rate, alpha) * min(1.0, abs(alpha) / 0.5)
-            return FollowerCommand(0.0, omega, False, float(self._s[i]))
+            # turn on the spot, braking first if still rolling; the yaw rate is the one from
+            # which max_yaw_accel stops the turn exactly at alpha = 0
+            w_ref = 0.0 if self._v > 0.0 else math.copysign(
+                min(self.max_yaw_rate, math.sqrt(1.6 * self.max_yaw_accel * abs(alpha))), alpha)
+            v, omega = self._limit(0.0, w_ref, dt)
+            return FollowerCommand(v, omega, False, float(self._s[i]))
 
         kappa = 2.0 * ly / ld2 if ld2 > 1e-12 else 0.0
         v_ref = min(float(self.speed[i]), self.max_speed)
@@ -112,9 +120,17 @@ class PurePursuit:
         v_ref = min(v_ref, math.sqrt(1.6 * self.max_accel * max(dist_goal - self.goal_tolerance, 0.0)))
         v_ref = max(v_ref, 0.02)  # creep instead of stalling short of the goal
         dv = self.max_accel * dt
-        self._v = float(np.clip(v_ref, self._v - dv, self._v + dv))
-        omega = float(np.clip(self._v * kappa, -self.max_yaw_rate, self.max_yaw_rate))
-        return FollowerCommand(self._v, omega, False, float(self._s[i]))
+        v = min(max(v_ref, self._v - dv), self._v + dv)
+        v, omega = self._limit(v, v * kappa, dt)
+        return FollowerCommand(v, omega, False, float(self._s[i]))
+
+    def _limit(self, v_ref: float, w_ref: float, dt: float) -> tuple[float, float]:
+        """Apply the speed and acceleration limits to a command; remember it."""
+        dv, dw = self.max_accel * dt, self.max_yaw_accel * dt
+        self._v = min(max(v_ref, self._v - dv), self._v + dv)
+        w = min(max(w_ref, -self.max_yaw_rate), self.max_yaw_rate)
+        self._w = min(max(w, self._w - dw), self._w + dw)
+        return self._v, self._w
 
 
 def wheel_speeds(v: float, omega: float, wheel_radius: float, wheel_base: float) -> tuple[float, float]:
