@@ -120,7 +120,13 @@ def _pool_run(spec: Any) -> Any:
 
 
 def _new_pool(factory: WorkerFactory, payload: Any, workers: int) -> ProcessPoolExecutor:
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(START_METHOD),
+    context = multiprocessing.get_context(START_METHOD)
+    if START_METHOD == "forkserver":
+        # The server imports these once and every worker forks with them loaded, instead of
+        # each worker importing scipy, pybullet, ... anew (seconds each, all at once).
+        # Takes effect when the server starts (the first pool of this process).
+        context.set_forkserver_preload(["sim.montecarlo", *getattr(payload, "preload", ())])
+    return ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                initializer=_pool_init, initargs=(factory, payload))
 
 

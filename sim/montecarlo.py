@@ -50,6 +50,8 @@ class EpisodeApi:
     prepare: Callable[..., Any]
     run_episode: Callable[..., Any]
     make_world: Callable[..., Any] | None = None
+    preload: tuple[str, ...] = ()
+    """Modules worth importing once before workers start (see :mod:`sim.executors`)."""
 
 
 def default_api() -> EpisodeApi:
@@ -57,7 +59,9 @@ def default_api() -> EpisodeApi:
     from sim import episode
     from sim.physics.world import PhysicsWorld
 
-    return EpisodeApi(episode.prepare, episode.run_episode, PhysicsWorld)
+    # The episode imports its filter and fix code lazily; workers need them all anyway.
+    preload = ("sim.episode", "sim.physics.world", "estimators.ekf", "sim.fix_recorder", "planner.pef")
+    return EpisodeApi(episode.prepare, episode.run_episode, PhysicsWorld, preload)
 
 
 @dataclass(frozen=True)
@@ -92,6 +96,10 @@ class WorkerPayload:
     scenario: Scenario
     prepared: dict[int, Any]
     api: EpisodeApi
+
+    @property
+    def preload(self) -> tuple[str, ...]:
+        return self.api.preload
 
 
 _UNSET = object()
