@@ -103,8 +103,9 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                                col(steps, "error"), eps)
     out.append(Figure("worst_error_map", "Where the error was largest",
                       "Left: the position error function over the floor (white line: the navigation "
-                      "region's border τ = ε_max). Right: the largest error observed in each cell any run "
-                      "passed through, same colours; red squares exceeded ε_max.", figs.png_bytes(fig)))
+                      "region's border τ = ε_max; red: τ above ε_max). Right: the largest error observed "
+                      "in each cell any run passed through, same colours; red (outlined) cells exceeded "
+                      "ε_max.", figs.png_bytes(fig)))
     failed = ~succeeded(runs)
     n = np.arange(1, failed.size + 1)
     lower, upper = clopper_pearson(np.cumsum(failed), n)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 from typing import Any
 
+import matplotlib
 import numpy as np
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
@@ -168,7 +169,8 @@ def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarr
     """Draw the predicted PEF map beside the largest observed error per cell.
 
     Left: the PEF τ map with the navigation-region border τ = ε_max. Right: the largest
-    observed error per cell on the same colour scale, cells above ε_max outlined in red.
+    observed error per cell on the same colour scale. The scale ends at ε_max; values above it
+    are red (and outlined cells on the right).
 
     Parameters
     ----------
@@ -181,8 +183,9 @@ def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarr
     eps_max : float
         Allowed error [m].
     """
-    norm = Normalize(0.0, 2.0 * eps_max * 1e3)
-    cmap = "viridis"
+    # The scale ends at ε_max: everything over the limit shows in one alarm colour.
+    norm = Normalize(0.0, eps_max * 1e3)
+    cmap = matplotlib.colormaps["viridis"].with_extremes(over="tab:red")
     panels = 2 if pef_map is not None else 1
     fig = Figure(figsize=(6.0 * panels, 6.0 * scenario.workspace.height / scenario.workspace.width + 1.2))
     axes = np.atleast_1d(fig.subplots(1, panels))
@@ -207,12 +210,12 @@ def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarr
     image = image or mesh
     cell = ex[1] - ex[0]
     for j, i in zip(*np.nonzero(worst > eps_max), strict=True):
-        ax.add_patch(Rectangle((ex[i], ey[j]), cell, cell, fill=False, edgecolor=BAD_COLOUR, lw=1.2,
+        ax.add_patch(Rectangle((ex[i], ey[j]), cell, cell, fill=False, edgecolor="black", lw=1.0,
                                zorder=5))
     _scene(ax, scenario)
     n_bad = int(np.sum(worst > eps_max))
-    ax.set_title(f"Largest observed error per cell\n{n_bad} cells above ε_max (red)", fontsize=10)
-    fig.colorbar(image, ax=list(axes), label="error [mm] (scale ends at 2 ε_max)", shrink=0.85)
+    ax.set_title(f"Largest observed error per cell\n{n_bad} cells above ε_max (red, outlined)", fontsize=10)
+    fig.colorbar(image, ax=list(axes), label="error [mm]; red: above ε_max", shrink=0.85, extend="max")
     return fig
 
 
