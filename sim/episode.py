@@ -53,7 +53,18 @@ def prepare(scenario: Scenario, task_index: int = 0, pef=None) -> Prepared:
 
     check_task(scenario, task_index)
     pef = pef if pef is not None else PEF(scenario)
-    plan = plan_task(scenario, task_index, pef=pef)
+    task = scenario.tasks[task_index]
+    where = f"{scenario.source}: tasks[{task_index}] ({task.start} -> {task.goal})"
+    dock = scenario.dock(task.start)
+    k = scenario.sensor.markers_per_fix
+    seen = int(pef.visible(np.array([dock.position])).sum())
+    if seen < k:
+        raise SimulationError(f"{where}: {seen} marker(s) visible from dock {task.start} at "
+                              f"{list(dock.position)}, a fix needs {k}")
+    try:
+        plan = plan_task(scenario, task_index, pef=pef)
+    except PlanningError as exc:
+        raise PlanningError(f"{where}: {exc}") from None
     if plan.schedule is None:
         raise PlanningError(f"{scenario.source}: task {task_index}: the plan has no measurement schedule")
     return Prepared(task_index=task_index, plan=plan, pef=pef)
