@@ -136,12 +136,13 @@ def _cli(*args, cwd=None):
 
 @pytest.mark.parametrize("case,text,args,pattern", [
     ("unknown task", None, ["--task", "5"], r"task 5: expected a task index in 0\.\.0"),
-    ("no markers at start", HIDDEN, [], r"hidden\.toml: .*A"),
-    ("dock unreachable", HIDDEN.replace('size = [0.4, 3.9]', 'size = [0.4, 3.9]\n[[obstacles]]\n'
+    ("no markers at start", HIDDEN, [], r"hidden\.toml: tasks\[0\] \(A -> B\): 0 marker\(s\) visible from dock A"),
+    ("dock unreachable", HIDDEN.replace("max_range = 6.0", "max_range = 20.0").replace(
+        'center = [5.0, 2.0]\nsize = [0.4, 3.9]', 'center = [5.0, 9.0]\nsize = [0.4, 0.4]\n[[obstacles]]\n'
                                        'center = [8.0, 7.5]\nsize = [3.0, 0.3]\n[[obstacles]]\n'
                                        'center = [8.0, 4.5]\nsize = [3.0, 0.3]\n[[obstacles]]\n'
                                        'center = [6.6, 6.0]\nsize = [0.3, 3.2]'),
-     [], r"hidden\.toml: .*B"),
+     [], r"hidden\.toml: tasks\[0\] \(A -> B\): .*B"),
 ])
 def test_bad_input_is_one_line_exit_2(tmp_path, case, text, args, pattern):
     import re
