@@ -141,7 +141,9 @@ def _cli(*args, cwd=None):
         'center = [5.0, 2.0]\nsize = [0.4, 3.9]', 'center = [5.0, 9.0]\nsize = [0.4, 0.4]\n[[obstacles]]\n'
                                        'center = [8.0, 7.5]\nsize = [3.0, 0.3]\n[[obstacles]]\n'
                                        'center = [8.0, 4.5]\nsize = [3.0, 0.3]\n[[obstacles]]\n'
-                                       'center = [6.6, 6.0]\nsize = [0.3, 3.2]'),
+                                       'center = [6.6, 6.0]\nsize = [0.3, 3.2]').replace(
+        "[sensor]", '[[markers]]\nid = "M5"\nposition = [10.0, 5.0]\n[[markers]]\nid = "M6"\n'
+                    'position = [10.0, 7.0]\n[sensor]'),
      [], r"hidden\.toml: tasks\[0\] \(A -> B\): .*B"),
 ])
 def test_bad_input_is_one_line_exit_2(tmp_path, case, text, args, pattern):
