@@ -302,10 +302,11 @@ def _validate(markers, meas, rho, bearings, xi):
     k = markers.shape[0]
     if meas.shape != (k,) or rho.shape != (k,):
         raise ValueError(f"fault area: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
-    if not (np.all(np.isfinite(markers)) and np.all(np.isfinite(meas)) and np.all(np.isfinite(rho))):
-        raise ValueError(f"fault area: non-finite input: markers {markers}, ranges {meas}, rho {rho}")
-    if np.any(rho <= 0.0):
-        raise ValueError(f"fault area: rho must be > 0, got {rho}")
+    if not math.isfinite(float(markers.sum() + meas.sum() + rho.sum())):
+        raise ValueError(f"fault area: non-finite input: markers {markers.tolist()}, ranges {meas.tolist()}, "
+                         f"rho {rho.tolist()}")
+    if not float(rho.min()) > 0.0:
+        raise ValueError(f"fault area: rho must be > 0, got {rho.tolist()}")
     if bearings is not None:
         if bearings.shape != (k,):
             raise ValueError(f"fault area: bearings {bearings.shape} must be ({k},)")

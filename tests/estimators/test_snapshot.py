@@ -69,7 +69,7 @@ def test_noise_free_fix_with_bearings_is_the_truth():
 # covariance (and the model is linear enough, rho/r ~ 1e-3 here), e^T P^-1 e ~ chi2(2), so
 # the sum over N independent fixes ~ chi2(2N). Per geometry we accept the mean NEES inside
 # the two-sided chi2 interval with false-alarm 1e-3, i.e. chi2.ppf([5e-4, 1 - 5e-4], 2N)/N
-# (for N = 800: about [1.84, 2.17]); the three geometries together alarm with prob <= 3e-3.
+# (for N = 800: about [1.78, 2.24]); the three geometries together alarm with prob <= 3e-3.
 N_FIXES = 800
 ALPHA = 1e-3
 
