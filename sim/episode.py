@@ -17,8 +17,8 @@ from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode_types import EpisodeResult, StepLog
 from sim.follower import PurePursuit, wheel_speeds
 
-CONTROL_STEPS = 4
-"""Physics steps per control step: 60 Hz control at pybullet's 240 Hz."""
+CONTROL_STEPS = 8
+"""Physics steps per control step: 30 Hz control at pybullet's 240 Hz, a usual AGV control rate."""
 
 START_POS_STD = 0.001
 """Standard deviation of the start position about the dock [m]: docks are calibrated."""

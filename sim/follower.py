@@ -6,6 +6,7 @@ localisation errors become tracking errors exactly as on a real AGV.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 
@@ -55,6 +56,8 @@ class PurePursuit:
     lookahead_gain: float = 0.8
     goal_tolerance: float = 0.05
     rotate_in_place_above: float = math.radians(60.0)
+    window: int = 40
+    """Path points searched ahead of the last nearest one (the path is sampled every ~0.1 m)."""
     _index: int = field(default=0, init=False)
     _v: float = field(default=0.0, init=False)
     _w: float = field(default=0.0, init=False)
@@ -64,6 +67,12 @@ class PurePursuit:
         self.path = np.asarray(self.path, dtype=float)
         seg = np.hypot(*np.diff(self.path, axis=0).T)
         self._s = np.concatenate([[0.0], np.cumsum(seg)])
+        # The control loop runs this at tens of Hz for thousands of runs: plain floats and
+        # lists beat numpy's per-call overhead on these few-element operations.
+        self._xs = self.path[:, 0].tolist()
+        self._ys = self.path[:, 1].tolist()
+        self._sl = self._s.tolist()
+        self._speed = np.asarray(self.speed, dtype=float).tolist()
 
     def reset(self) -> None:
         self._index = 0
@@ -74,31 +83,34 @@ class PurePursuit:
     def length(self) -> float:
         return float(self._s[-1])
 
-    def _nearest_ahead(self, p: np.ndarray) -> int:
-        # Search a window ahead of the last index so that a path passing near itself (a
+    def _nearest_ahead(self, x: float, y: float) -> int:
+        # Search a short window ahead of the last index so that a path passing near itself (a
         # U-turn around an obstacle) cannot make the follower jump ahead or back.
+        xs, ys = self._xs, self._ys
         lo = self._index
-        hi = min(len(self.path), lo + 200)
-        d2 = np.sum((self.path[lo:hi] - p) ** 2, axis=1)
-        self._index = lo + int(np.argmin(d2))
-        return self._index
+        best, best_d2 = lo, math.inf
+        for j in range(lo, min(len(xs), lo + self.window)):
+            d2 = (xs[j] - x) ** 2 + (ys[j] - y) ** 2
+            if d2 < best_d2:
+                best, best_d2 = j, d2
+        self._index = best
+        return best
 
     def command(self, pose: np.ndarray, dt: float) -> FollowerCommand:
         """Command for estimated ``pose`` (x, y, theta) over the next ``dt`` seconds."""
-        p = np.asarray(pose[:2], dtype=float)
-        i = self._nearest_ahead(p)
-        goal = self.path[-1]
-        dist_goal = float(np.hypot(*(goal - p)))
-        remaining = self.length - self._s[i]
+        px, py, th = float(pose[0]), float(pose[1]), float(pose[2])
+        i = self._nearest_ahead(px, py)
+        s_i = self._sl[i]
+        dist_goal = math.hypot(self._xs[-1] - px, self._ys[-1] - py)
+        remaining = self._sl[-1] - s_i
         if dist_goal < self.goal_tolerance and remaining < 2 * self.lookahead_min:
             self._v = self._w = 0.0
-            return FollowerCommand(0.0, 0.0, True, float(self._s[i]))
+            return FollowerCommand(0.0, 0.0, True, s_i)
 
         look = max(self.lookahead_min, self.lookahead_gain * self._v)
-        j = int(np.searchsorted(self._s, self._s[i] + look))
-        target = self.path[min(j, len(self.path) - 1)]
-        dx, dy = target - p
-        c, s = math.cos(pose[2]), math.sin(pose[2])
+        j = min(bisect.bisect_left(self._sl, s_i + look), len(self._sl) - 1)
+        dx, dy = self._xs[j] - px, self._ys[j] - py
+        c, s = math.cos(th), math.sin(th)
         lx, ly = c * dx + s * dy, -s * dx + c * dy  # target in the robot frame
         alpha = math.atan2(ly, lx)
         ld2 = lx * lx + ly * ly
@@ -109,10 +121,10 @@ class PurePursuit:
             w_ref = 0.0 if self._v > 0.0 else math.copysign(
                 min(self.max_yaw_rate, math.sqrt(1.6 * self.max_yaw_accel * abs(alpha))), alpha)
             v, omega = self._limit(0.0, w_ref, dt)
-            return FollowerCommand(v, omega, False, float(self._s[i]))
+            return FollowerCommand(v, omega, False, s_i)
 
         kappa = 2.0 * ly / ld2 if ld2 > 1e-12 else 0.0
-        v_ref = min(float(self.speed[i]), self.max_speed)
+        v_ref = min(self._speed[i], self.max_speed)
         if abs(kappa) > 1e-9:
             v_ref = min(v_ref, self.max_yaw_rate / abs(kappa))
         # stop at the goal: the speed from which max_accel brakes to zero within the distance left
@@ -122,7 +134,7 @@ class PurePursuit:
         dv = self.max_accel * dt
         v = min(max(v_ref, self._v - dv), self._v + dv)
         v, omega = self._limit(v, v * kappa, dt)
-        return FollowerCommand(v, omega, False, float(self._s[i]))
+        return FollowerCommand(v, omega, False, s_i)
 
     def _limit(self, v_ref: float, w_ref: float, dt: float) -> tuple[float, float]:
         """Apply the speed and acceleration limits to a command; remember it."""
