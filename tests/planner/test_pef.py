@@ -1,6 +1,8 @@
-"""The PEF and its linearised kernels, cross-checked against independent computations:
-the exact fault area (polygon clipping), shapely strip intersections, Monte-Carlo least
-squares, plain numpy/scipy formulas; monotonicity; every built-in scenario."""
+"""The PEF and its linearised kernels, cross-checked against independent computations.
+
+The exact fault area (polygon clipping), shapely strip intersections, Monte-Carlo least
+squares, plain numpy/scipy formulas; monotonicity; every built-in scenario.
+"""
 
 from __future__ import annotations
 
@@ -15,7 +17,14 @@ from scipy import stats
 import scenarios
 from estimators.fault_area import fault_area_of_point
 from estimators.linearized import (
-    chi2_2dof_ppf, fix_strips, gdop, gdop_radius, lsq_covariance, parallelogram, strip_polygon, unit_rows,
+    chi2_2dof_ppf,
+    fix_strips,
+    gdop,
+    gdop_radius,
+    lsq_covariance,
+    parallelogram,
+    strip_polygon,
+    unit_rows,
 )
 from planner.pef import PEF, grid_centres
 from scenarios.errors import PlanningError
@@ -28,7 +37,7 @@ Z = stats.norm.ppf(1 - ALPHA / 2)  # 3.29
 
 def make_scenario(markers, obstacles=(), k=2, model="strips", size=(20.0, 10.0), max_range=40.0,
                   bearing_deg=0.0, rel=1e-3, ab=0.002, gdop_level=0.95):
-    """A scenario from marker positions and obstacle (center, size, yaw_deg) triples."""
+    """Build a scenario from marker positions and obstacle (center, size, yaw_deg) triples."""
     return scenarios.from_dict({
         "name": "test", "workspace": {"size": list(size)},
         "markers": [{"id": f"M{i}", "position": [float(p[0]), float(p[1])]} for i, p in enumerate(markers)],
@@ -40,7 +49,7 @@ def make_scenario(markers, obstacles=(), k=2, model="strips", size=(20.0, 10.0),
 
 
 def random_geometry(rng, k, min_sin=0.2):
-    """A robot position and k markers around it whose directions are not nearly parallel."""
+    """Draw a robot position and k markers around it whose directions are not nearly parallel."""
     while True:
         pos = rng.uniform(-1, 1, 2)
         ang = rng.uniform(0, 2 * np.pi, k)
@@ -88,14 +97,15 @@ def test_parallelogram_formulas_against_trigonometry():
         u1, u2 = np.array([1.0, 0.0]), np.array([np.cos(alpha), np.sin(alpha)])
         area, diag = parallelogram(u1, u2, r1, r2)
         assert area == pytest.approx(4 * r1 * r2 / np.sin(alpha))
-        assert diag == pytest.approx(2 / np.sin(alpha) * np.sqrt(r1**2 + r2**2 + 2 * r1 * r2 * abs(np.cos(alpha))))
+        ref = 2 / np.sin(alpha) * np.sqrt(r1**2 + r2**2 + 2 * r1 * r2 * abs(np.cos(alpha)))
+        assert diag == pytest.approx(ref)
     assert parallelogram([1.0, 0.0], [-1.0, 0.0], 0.01, 0.01)[1] == np.inf
 
 
 def _shapely_strips(normals, half_widths, big=1e3):
     """Intersection of the strips as a shapely polygon (independent of strip_polygon)."""
     poly = shapely.box(-big, -big, big, big)
-    for n, b in zip(normals, half_widths):
+    for n, b in zip(normals, half_widths, strict=True):
         t = np.array([-n[1], n[0]])
         corners = [b * n + big * t, b * n - big * t, -b * n - big * t, -b * n + big * t]
         poly = poly.intersection(shapely.Polygon(corners))
@@ -145,7 +155,7 @@ def test_adding_a_strip_or_a_row_never_increases_the_error():
         rad = [gdop_radius(u[:j], rho[:j], 0.95) for j in range(2, 6)]
         g = [gdop(u[:j]) for j in range(2, 6)]
         for seq in (diam, rad, g):
-            assert all(b <= a * (1 + 1e-12) for a, b in zip(seq, seq[1:]))
+            assert all(b <= a * (1 + 1e-12) for a, b in itertools.pairwise(seq))
 
 
 def _gauss_newton(markers, z, sigma, start, iterations=6):
@@ -418,7 +428,8 @@ def test_every_builtin_scenario_maps(name):
     assert np.all(np.isinf(pm.tau[~pm.free]))
     xx, yy = np.meshgrid(pm.x, pm.y)
     for ob in sc.obstacles:  # cells inside every obstacle are not free
-        inside = np.array([ob.contains(p) for p in zip(xx.ravel(), yy.ravel())]).reshape(xx.shape)
+        pts = zip(xx.ravel(), yy.ravel(), strict=True)
+        inside = np.array([ob.contains(p) for p in pts]).reshape(xx.shape)
         assert not pm.free[inside].any() and np.all(np.isinf(pm.tau[inside]))
     fin = np.isfinite(pm.tau)
     assert np.all(pm.best[fin] >= 0) and np.all(pm.best[~fin] == -1)

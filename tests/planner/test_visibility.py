@@ -1,5 +1,7 @@
-"""Visibility: range limit, occluding boxes, markers on faces, points inside obstacles, and the
-agreement of the grid path (shadow rasterisation) with the points path (segment clipping)."""
+"""Visibility: range limit, occluding boxes, markers on faces, points inside obstacles.
+
+And the agreement of the grid path (shadow rasterisation) with the points path (segment clipping).
+"""
 
 from __future__ import annotations
 
@@ -7,7 +9,13 @@ import numpy as np
 import pytest
 
 import scenarios
-from planner.visibility import box_params, scenario_visible_grid, scenario_visible_points, visible_grid, visible_points
+from planner.visibility import (
+    box_params,
+    scenario_visible_grid,
+    scenario_visible_points,
+    visible_grid,
+    visible_points,
+)
 from scenarios.schema import Obstacle
 
 WS = (20.0, 10.0)
