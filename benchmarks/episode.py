@@ -1,0 +1,104 @@
+"""Episode cost against the physics alone, the real-time factor, reset vs build, and recording.
+
+Every figure is a ratio against a baseline measured in this run, in this process, so the
+numbers compare across machines. Run: ``python benchmarks/episode.py [SCENARIO] [--repeat N]``.
+The last line is one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# Run as a script, this folder comes first on sys.path, and benchmarks/planner.py would shadow
+# the planner package.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+import scenarios  # noqa: E402
+from sim.episode import prepare, run_episode  # noqa: E402
+from sim.physics.world import PhysicsWorld  # noqa: E402
+
+
+def best_of(n: int, fn) -> float:
+    """Smallest wall time of ``n`` calls of ``fn`` [s] (the least disturbed by other load)."""
+    best = float("inf")
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scenario", nargs="?", default="paper-docks")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+
+    s = scenarios.load(args.scenario)
+    t0 = time.perf_counter()
+    prepared = prepare(s, 0)
+    t_prepare = time.perf_counter() - t0
+    world = PhysicsWorld(s)
+    result = run_episode(s, 0, seed=1, prepared=prepared, world=world)  # warm-up (numba, caches)
+    n_steps = world.steps
+    sim_time = result.summary["duration"]
+
+    def bare():
+        world.reset(s.docks[0].pose)
+        world.step(n_steps)
+
+    def episode():
+        run_episode(s, 0, seed=1, prepared=prepared, world=world)
+
+    rrd = os.path.join(tempfile.mkdtemp(), "episode.rrd")
+    pef_map = prepared.pef.grid()
+
+    def episode_rrd():
+        from sim.recording import write_episode_rrd
+
+        r = run_episode(s, 0, seed=1, prepared=prepared, world=world)
+        write_episode_rrd(rrd, s, r, pef_map=pef_map)
+
+    t_bare = best_of(args.repeat, bare)
+    t_episode = best_of(args.repeat, episode)
+    t_rrd = best_of(args.repeat, episode_rrd)
+    t_reset = best_of(20, lambda: world.reset(s.docks[0].pose))
+
+    def build():
+        PhysicsWorld(s).close()
+    t_build = best_of(5, build)
+    world.close()
+
+    out = {
+        "scenario": args.scenario,
+        "physics_steps": n_steps,
+        "sim_time_s": round(sim_time, 3),
+        "prepare_s": round(t_prepare, 3),
+        "bare_steps_s": round(t_bare, 4),
+        "episode_s": round(t_episode, 4),
+        "episode_over_bare": round(t_episode / t_bare, 3),
+        "episode_over_bare_target": 1.25,
+        "real_time_factor": round(sim_time / t_episode, 1),
+        "episode_rrd_s": round(t_rrd, 4),
+        "rrd_over_episode": round(t_rrd / t_episode, 3),
+        "rrd_over_episode_target": 1.3,
+        "reset_ms": round(1e3 * t_reset, 4),
+        "build_ms": round(1e3 * t_build, 3),
+        "build_over_reset": round(t_build / t_reset, 1),
+        "fixes": result.summary["fixes"],
+        "load_average": round(os.getloadavg()[0], 2),
+    }
+    w = max(len(k) for k in out)
+    for k, v in out.items():
+        print(f"{k:<{w}}  {v}")
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
