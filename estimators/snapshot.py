@@ -61,7 +61,8 @@ class SnapshotFix:
 
 def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior: np.ndarray,
                  noise: NoiseModel, bearings: np.ndarray | None = None, bearing_error: float = 0.0,
-                 heading: float | None = None) -> SnapshotFix:
+                 heading: float | None = None, extra_var: np.ndarray | None = None,
+                 fault_margin: np.ndarray | None = None) -> SnapshotFix:
     """Weighted least-squares position fix and its fault area.
 
     Parameters
@@ -83,6 +84,11 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
         Bound xi of the bearing errors [rad]; > 0 when ``bearings`` are given.
     heading : float, optional
         Robot heading [rad], required with ``bearings`` and taken as exact.
+    extra_var : ndarray, shape (k,), optional
+        Variance added to each range's error variance in the weights and the covariance
+        [m^2] (e.g. the odometry error of carrying a range taken earlier to the fix time).
+    fault_margin : ndarray, shape (k,), optional
+        Added to ``rho`` for the fault area only [m] (a bound on the same extra error).
 
     Returns
     -------
@@ -96,6 +102,8 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     if meas.shape != (k,) or rho.shape != (k,):
         raise ValueError(f"snapshot_fix: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
     std = np.asarray(range_std(rho, noise), dtype=float)
+    if extra_var is not None:
+        std = np.sqrt(std**2 + np.asarray(extra_var, dtype=float))
     world = None
     if bearings is not None:
         if heading is None:
@@ -116,7 +124,8 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
         covariance = np.full((2, 2), math.inf)
     else:
         covariance = np.linalg.inv(info)
-    area = exact_fault_area(markers, meas, rho, sol.position, bearings=world,
+    fault_rho = rho if fault_margin is None else rho + np.asarray(fault_margin, dtype=float)
+    area = exact_fault_area(markers, meas, fault_rho, sol.position, bearings=world,
                             bearing_error=bearing_error)
     return SnapshotFix(position=sol.position, covariance=covariance, fault_area=area,
                        residuals=sol.residuals, iterations=sol.iterations, converged=sol.converged)

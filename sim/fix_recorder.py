@@ -99,6 +99,16 @@ class FixRecorder:
         tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
         return 2.0 * tick + (3.0 * r.odometry_noise + abs(r.wheel_radius_error)) * np.asarray(travelled)
 
+    def shift_var(self, travelled: np.ndarray) -> np.ndarray:
+        """Variance of the odometry error of a shift over ``travelled`` metres (M,) [m^2]:
+        quantisation of two encoder readings, random slip, the systematic wheel error, and the
+        filter's heading uncertainty turning the shift."""
+        r = self.scenario.robot
+        tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
+        d = np.asarray(travelled)
+        per_metre = r.odometry_noise**2 + r.wheel_radius_error**2 + float(self.loc.P[2, 2])
+        return tick**2 / 12.0 + per_metre * d**2
+
     # -- measuring -----------------------------------------------------------------------
 
     def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float) -> None:
@@ -137,12 +147,14 @@ class FixRecorder:
         ranges = np.array(p.ranges)
         rho = np.asarray(self.sensor.range_bound(ranges), dtype=float)
         # The shift is itself measured: the fault area widens each range by a bound on the
-        # odometry error of its shift (DESIGN's set-membership view, applied to motion).
-        rho_fix = rho + self.shift_bound(np.hypot(disp[:, 0], disp[:, 1]))
+        # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
+        # the least-squares weights add its variance.
+        travelled = np.hypot(disp[:, 0], disp[:, 1])
         bearings = np.array(p.bearings) if p.bearings else None
-        snap = snapshot_fix(shifted, ranges, rho_fix, prior=self.loc.x[:2], noise=self.sensor.noise,
+        snap = snapshot_fix(shifted, ranges, rho, prior=self.loc.x[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=self.sensor.bearing_error,
-                            heading=float(self.loc.x[2]) if bearings is not None else None)
+                            heading=float(self.loc.x[2]) if bearings is not None else None,
+                            extra_var=self.shift_var(travelled), fault_margin=self.shift_bound(travelled))
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         markers_row = np.full(self.k, -1, dtype=int)
