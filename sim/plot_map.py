@@ -75,8 +75,7 @@ def plot_map(scenario: Scenario, pef_map: PefMap, eps_max: float, path: str | Pa
     # The map's axes get the width left by the colour bar; the height follows the aspect ratio.
     fig, ax = plt.subplots(figsize=(fig_w, max(3.5, min((fig_w - 2.0) * aspect + 1.5, 11.0))),
                            layout="constrained")
-    cmap = matplotlib.colormaps["RdYlBu_r"].copy()
-    cmap.set_bad(NO_FIX_GREY)
+    cmap = matplotlib.colormaps["RdYlBu_r"].with_extremes(bad=NO_FIX_GREY)
     shown = np.ma.masked_invalid(np.clip(tau_mm, lo, hi))
     cx, cy = pef_map.cell_size
     extent = (pef_map.x[0] - cx / 2, pef_map.x[-1] + cx / 2, pef_map.y[0] - cy / 2, pef_map.y[-1] + cy / 2)
