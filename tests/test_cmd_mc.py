@@ -9,7 +9,7 @@ import sys
 import pytest
 
 import scenarios
-from sim import cli
+from sim import cli, results
 from sim.montecarlo import sweep
 from tests.sim import fake_episode as fe
 
@@ -57,14 +57,25 @@ def test_ray_missing_tells_how_to_install(capsys, tmp_path, monkeypatch):
 
 @pytest.mark.skipif(importlib.util.find_spec("sim.episode") is None, reason="sim.episode not written yet")
 def test_real_sweep_end_to_end(capsys, tmp_path):
+    """The real episode through the CLI on 2 workers, then in-process: identical files."""
     out = tmp_path / "real"
-    code = cli.main(["mc", "paper-two-markers", "--runs", "2", "--workers", "1", "--out", str(out), "--json"])
+    code = cli.main(["mc", "paper-two-markers", "--runs", "2", "--workers", "2", "--out", str(out), "--json"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     summary = json.loads(captured.out)
-    assert summary["runs"] == 2 and summary["ok"] + summary["crashed"] == 2 and summary["crashed"] == 0
+    assert summary["runs"] == 2 and summary["crashed"] == 0 and summary["executed"] == 2
     assert summary["out"] == str(out) and summary["success_target"] == 0.95
     assert (out / "report.html").stat().st_size > 10_000 and (out / "runs.parquet").exists()
-    code = cli.main(["mc", "paper-two-markers", "--out", str(out), "--resume", "--json"])
+    steps = results.read_steps(out, columns=["run"])
+    assert steps.num_rows > 100 * 2 and results.read_fixes(out).num_rows > 2
+
+    serial = tmp_path / "serial"
+    sweep(scenarios.load("paper-two-markers"), serial, runs=2, workers=1, progress=False)
+    for read in (lambda d: results.read_runs(d).drop(["wall_time"]), results.read_steps, results.read_fixes):
+        a, b = read(out), read(serial)
+        for col in a.column_names:
+            assert a.column(col).equals(b.column(col)), f"{col} differs between 2 workers and 1"
+
+    code = cli.main(["mc", "paper-two-markers", "--out", str(out), "--resume", "--json", "--no-report"])
     again = json.loads(capsys.readouterr().out)
     assert code == 0 and again["executed"] == 0 and again["runs"] == 2

@@ -299,3 +299,16 @@ def test_summary_counts_match_the_rows(serial_sweep):
     assert summary.success_fraction == len(success) / len(rows)
     lo, hi = summary.success_ci
     assert lo <= summary.success_fraction <= hi
+
+
+def test_progress_bar_on_stderr_only_when_asked(capsys):
+    from sim.progress import progress_bar
+
+    with progress_bar(total=3, initial=1, enabled=True) as bar:
+        bar.update(2)
+        bar.write("note")
+    err = capsys.readouterr()
+    assert "3/3" in err.err and "note" in err.err and err.out == ""
+    with progress_bar(total=3) as bar:  # stderr is not a terminal under pytest
+        bar.update(3)
+    assert capsys.readouterr().err == ""
