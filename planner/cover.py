@@ -1,0 +1,267 @@
+"""The pair-cover problem of marker placement and its solvers (greedy, cutting planes + MILP).
+
+Sites are the variables ``z_j``; a row (a class of points with identical good pairs) is
+covered when both sites of one of its good pairs are chosen (and, for k > 2, at least k of the
+chosen sites are visible from it). Instead of pair variables, the exact solver describes
+"row r has a chosen good pair" by *independent-set cuts*: if T is a set of sites with no good
+pair of row r inside (an independent set of the row's good-pair graph G_r, vertices S_r), any
+cover must choose a site of ``S_r minus T``::
+
+    min sum_j z_j   s.t.   sum_{j in S_r minus T} z_j >= 1   for all r and independent T in G_r
+                           sum_{j in S_r} z_j >= 2,  sum_{j visible from r} z_j >= k,  z binary
+
+Taking every maximal T this is exact; the cuts are generated as needed (one per row and
+round, T grown greedily), so each LP/MILP has only the site variables and few hundred rows.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from scipy import optimize, sparse
+
+MILP_TIME_LIMIT = 30.0
+"""Default time limit of the exact solver's LP and MILP rounds together [s]."""
+
+@dataclass(frozen=True, eq=False)
+class PairCover:
+    """A pair-cover problem on unique point rows (R rows, P good pairs, E row-pair entries).
+
+    A row is covered by a set of sites when the set holds both sites of one of its entries
+    and at least k sites visible from the row.
+    """
+
+    weight: np.ndarray   # (R,) number of points with this row
+    row_of: np.ndarray   # (N_coverable,) row of each coverable point
+    row_ptr: np.ndarray  # (R + 1,) entries of row r: row_ptr[r]:row_ptr[r + 1]
+    ep: np.ndarray       # (E,) pair of each entry
+    ea: np.ndarray       # (E,) first site of each entry's pair
+    eb: np.ndarray       # (E,) second site
+    pj: np.ndarray       # (P,) first site of each pair
+    pl: np.ndarray       # (P,) second site
+    vis: np.ndarray      # (R, S) bool, sites visible from the row's points
+    n_sites: int
+
+    @property
+    def er(self) -> np.ndarray:
+        """Row of each entry, shape (E,)."""
+        return np.repeat(np.arange(len(self.weight)), np.diff(self.row_ptr))
+
+
+@numba.njit(cache=True)
+def _rows_covered(row_ptr, ea, eb, vis, k, chosen):
+    """Rows with a chosen good pair and at least k visible chosen sites, shape (R,) bool."""
+    n_rows = row_ptr.size - 1
+    out = np.zeros(n_rows, dtype=np.bool_)
+    for r in range(n_rows):
+        for e in range(row_ptr[r], row_ptr[r + 1]):
+            if chosen[ea[e]] and chosen[eb[e]]:
+                out[r] = True
+                break
+        if out[r] and k > 2:
+            out[r] = np.sum(vis[r] & chosen) >= k
+    return out
+
+
+@numba.njit(cache=True)
+def _greedy_kernel(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, chosen):
+    """Greedy completion of ``chosen`` (in place), then removal of redundant sites."""
+    n_rows, n_sites, n_pairs = row_ptr.size - 1, chosen.size, pj.size
+    covered = _rows_covered(row_ptr, ea, eb, vis, k, chosen)
+    stamp = np.full(n_sites, -1, dtype=np.int64)
+    while not covered.all():
+        gain1, gain2 = np.zeros(n_sites), np.zeros(n_pairs)
+        stamp[:] = -1
+        for r in range(n_rows):
+            if covered[r]:
+                continue
+            for e in range(row_ptr[r], row_ptr[r + 1]):
+                ca, cb = chosen[ea[e]], chosen[eb[e]]
+                new = eb[e] if ca else ea[e]
+                if ca != cb and stamp[new] != r:  # each (row, new site) counted once
+                    stamp[new] = r
+                    gain1[new] += weight[r]
+                elif not ca and not cb:
+                    gain2[ep[e]] += weight[r]
+        j, p = np.argmax(gain1), np.argmax(gain2) if n_pairs else 0
+        if gain1[j] > 0 and gain1[j] >= (gain2[p] if n_pairs else 0.0) / 2:
+            chosen[j] = True
+        elif n_pairs and gain2[p] > 0:  # a pair of new sites covers more per site added
+            chosen[pj[p]] = chosen[pl[p]] = True
+        else:  # only the k-visibility condition is missing: add the site most rows lack
+            seen = np.zeros(n_sites)
+            for r in range(n_rows):
+                if not covered[r]:
+                    seen += weight[r] * (vis[r] & ~chosen)
+            if seen.max() <= 0:
+                break
+            chosen[np.argmax(seen)] = True
+        covered = _rows_covered(row_ptr, ea, eb, vis, k, chosen)
+    for j in range(n_sites - 1, -1, -1):
+        if chosen[j]:
+            chosen[j] = False
+            if not _rows_covered(row_ptr, ea, eb, vis, k, chosen).all():
+                chosen[j] = True
+    return chosen
+
+
+def covered(cov: PairCover, chosen: np.ndarray, k: int) -> np.ndarray:
+    """Rows covered by ``chosen`` sites ((S,) bool), shape (R,) bool."""
+    return _rows_covered(cov.row_ptr, cov.ea, cov.eb, cov.vis, k, chosen)
+
+
+def greedy(cov: PairCover, k: int, start: np.ndarray | None = None) -> np.ndarray:
+    """Greedy cover: chosen sites, shape (S,) bool.
+
+    Adds the site that with the chosen ones covers the most uncovered points, or the pair of
+    new sites that covers the most per site added when that is more, until every row is
+    covered; then drops chosen sites that are no longer needed (latest index first).
+    ``start`` (S,) bool: sites chosen beforehand (a partial solution to complete).
+    """
+    chosen = np.zeros(cov.n_sites, dtype=np.bool_) if start is None else np.array(start, dtype=np.bool_)
+    return _greedy_kernel(cov.row_ptr, cov.ea, cov.eb, cov.ep, cov.pj, cov.pl, cov.weight, cov.vis, k, chosen)
+
+
+@numba.njit(cache=True)
+def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts):
+    """Independent-set cuts, one per row: ``cuts[r]`` = S_r minus a maximal independent set T.
+
+    T is grown greedily in the row's good-pair graph G_r (sites S_r, edges = good pairs), by
+    descending ``z`` then ascending degree. No good pair lies inside T, so every cover takes a
+    site of S_r minus T: ``sum_{S_r minus T} z >= 1`` is valid. Returns which rows' cuts ``z``
+    violates by more than ``tol``.
+    """
+    n_rows = row_ptr.size - 1
+    violated = np.zeros(n_rows, dtype=np.bool_)
+    adj = np.zeros((n_sites, n_sites), dtype=np.bool_)
+    deg = np.zeros(n_sites, dtype=np.int64)
+    in_row = np.zeros(n_sites, dtype=np.bool_)
+    blocked = np.zeros(n_sites, dtype=np.bool_)
+    for r in range(n_rows):
+        for e in range(row_ptr[r], row_ptr[r + 1]):
+            a, b = ea[e], eb[e]
+            adj[a, b] = adj[b, a] = True
+            deg[a] += 1
+            deg[b] += 1
+            in_row[a] = in_row[b] = True
+        sites = np.flatnonzero(in_row)
+        key = np.empty(sites.size)
+        for t in range(sites.size):
+            key[t] = -z[sites[t]] * 1e6 + deg[sites[t]]
+        slack = 0.0
+        for t in np.argsort(key, kind="mergesort"):
+            j = sites[t]
+            if blocked[j]:
+                cuts[r, j] = True
+                slack += z[j]
+                continue
+            for m in sites:  # j joins T: its neighbours can no longer
+                if adj[j, m]:
+                    blocked[m] = True
+        violated[r] = slack < 1.0 - tol
+        for e in range(row_ptr[r], row_ptr[r + 1]):
+            a, b = ea[e], eb[e]
+            adj[a, b] = adj[b, a] = False
+            deg[a] = deg[b] = 0
+            in_row[a] = in_row[b] = False
+        for j in sites:
+            blocked[j] = False
+    return violated
+
+
+class _Cuts:
+    """Covering rows ``sum_{j in support} z_j >= rhs``, kept free of dominated duplicates."""
+
+    def __init__(self, n_sites: int):
+        self.support = np.zeros((0, n_sites), dtype=bool)
+        self.rhs = np.zeros(0)
+
+    def add(self, support: np.ndarray, rhs: float) -> int:
+        """Add the rows of ``support`` (C, S) not implied by existing ones; returns how many."""
+        added = 0
+        for row in support:
+            same = self.rhs >= rhs
+            if np.any(same & ~(self.support & ~row).any(axis=1)):
+                continue  # an existing row with a smaller support implies this one
+            weaker = (self.rhs <= rhs) & ~(~self.support & row).any(axis=1)
+            self.support = np.vstack([self.support[~weaker], row])
+            self.rhs = np.append(self.rhs[~weaker], rhs)
+            added += 1
+        return added
+
+    def solve(self, time_limit: float, at_most: int | None = None):
+        """LP relaxation (``at_most`` None) or an integer point with at most ``at_most`` sites."""
+        n = self.support.shape[1]
+        a, lo, hi = self.support.astype(float), self.rhs, np.full(len(self.rhs), np.inf)
+        if at_most is not None:
+            a, lo, hi = np.vstack([a, np.ones(n)]), np.append(lo, 0.0), np.append(hi, at_most)
+        con = optimize.LinearConstraint(sparse.csr_matrix(a), lo, hi)
+        # integer rounds only look for a feasible point: a zero objective stops at the first
+        cost = np.ones(n) if at_most is None else np.zeros(n)
+        return optimize.milp(cost, constraints=[con], integrality=np.full(n, float(at_most is not None)),
+                             bounds=optimize.Bounds(0.0, 1.0), options={"time_limit": max(time_limit, 0.1)})
+
+
+def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, integral: bool = True):
+    """Cutting planes on the site-only formulation, then integer rounds (see module doc).
+
+    LP phase: solve the LP over the current covering rows, add the independent-set cuts it
+    violates, until none is found; its value is a lower bound. Upper bound: the greedy cover
+    and the greedy completion of the LP solution's sites with ``z >= 1/2``. Integer rounds
+    (``integral``): look for an integer point with fewer sites than the best cover; if it
+    covers, it is the new best; if not, add the cuts it violates (and complete it greedily);
+    if there is none, the best cover is optimal.
+
+    Returns
+    -------
+    chosen : ndarray of bool, shape (S,)
+        Best cover found.
+    bound : float
+        Lower bound on the count.
+    optimal : bool
+        ``chosen`` is proven minimal.
+    """
+    start = time.perf_counter()
+    left = lambda: time_limit - (time.perf_counter() - start)
+    cuts = _Cuts(cov.n_sites)
+    in_pair = np.zeros((len(cov.weight), cov.n_sites), dtype=bool)
+    er = cov.er
+    in_pair[er, cov.ea] = in_pair[er, cov.eb] = True
+    cuts.add(in_pair, 2.0)
+    if k > 2:
+        cuts.add(cov.vis, float(k))
+
+    def separate(z):
+        out = np.zeros((len(cov.weight), cov.n_sites), dtype=bool)
+        return out[_separate(cov.row_ptr, cov.ea, cov.eb, cov.n_sites, z, 1e-6, out)]
+
+    cuts.add(separate(np.zeros(cov.n_sites)), 1.0)
+    bound, x = 0.0, np.zeros(cov.n_sites)
+    while left() > 0:
+        res = cuts.solve(left())
+        if res.x is None:
+            break
+        bound, x = max(bound, float(res.fun)), res.x
+        if not cuts.add(separate(res.x), 1.0):
+            break
+    best = min(greedy(cov, k), greedy(cov, k, x >= 0.5), key=lambda z: z.sum())
+    while integral and math.ceil(bound - 1e-6) < best.sum() and left() > 0:
+        res = cuts.solve(left(), at_most=int(best.sum()) - 1)
+        if res.status == 2:  # infeasible: nothing smaller than the best cover exists
+            bound = float(best.sum())
+            break
+        if res.x is None:
+            break
+        z = res.x > 0.5
+        if covered(cov, z, k).all():
+            best = z
+            continue
+        completed = greedy(cov, k, z)
+        best = completed if completed.sum() < best.sum() else best
+        if not cuts.add(separate(z.astype(float)), 1.0):
+            break
+    return best, bound, math.ceil(bound - 1e-6) >= best.sum()
