@@ -2,12 +2,24 @@
 
 State: the planar pose ``x = (x [m], y [m], theta [rad])`` with covariance ``P`` (3, 3).
 
+Optionally (``estimate_wheel_bias=True``) the state is augmented with the relative
+wheel-radius error ``e`` (right wheel radius ``r (1 + e)``, left ``r (1 - e)``; the encoders
+are converted with the nominal ``r``): ``(x, y, theta, e)``. A systematic error adds up
+coherently between fixes, which per-step white noise (``include_systematic``) cannot represent;
+as a state it is tracked and its effect on the pose carried in the cross-covariance. Its prior
+is zero-mean with std ``max(|RobotSpec.wheel_radius_error|, BIAS_STD_FLOOR)`` (the declared
+magnitude, sign unknown), uncorrelated with the pose; it is a random constant, optionally with
+a random walk (``bias_walk_std``). Measurements do not see ``e`` (a zero column in ``H``); it is
+learnt through its correlation with the pose. ``x``/``P``/``nees`` stay on the pose;
+``full_x``/``full_P`` give the whole state.
+
 What we use of filterpy (``filterpy.kalman.ExtendedKalmanFilter``, 2.0.0):
-- it holds ``x`` (kept 1-D, shape (3,)) and ``P``;
+- it holds ``x`` (kept 1-D, shape (3,) or (4,)) and ``P``;
 - ``update(z, HJacobian, Hx, R, residual=...)`` does the correction: gain, state update and
   the Joseph-form covariance update. For bearings ``residual`` wraps the innovation angle.
 We do NOT use its ``predict``: it assumes a linear ``F x + B u``. Prediction sets ``x`` and
-``P`` directly from our motion model (:func:`estimators.motion.propagate_moments`), and the
+``P`` directly from our motion model (:func:`estimators.motion.propagate_moments`, or
+:func:`~estimators.motion.propagate_moments_biased` for the augmented state), and the
 filter's ``x_prior``/``P_prior`` are not maintained.
 
 Gating: before ``update`` we compute the innovation ``nu`` and its variance
@@ -38,6 +50,10 @@ from estimators import motion
 from estimators.measurements import bound_std, wrap_angle
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
+
+BIAS_STD_FLOOR = 1e-4
+"""Smallest prior std of the estimated wheel-radius error [-]: a declared 0 still lets the
+filter learn a small error instead of freezing ``e`` at exactly 0."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,10 +106,13 @@ class Localizer:
         The declared sensor (range error bound, bearing bound, noise model).
     markers : array_like, shape (M, 2)
         Marker positions [m].
-    x0 : array_like, shape (3,)
-        Initial pose estimate (x [m], y [m], theta [rad]).
-    P0 : array_like, shape (3, 3)
-        Initial covariance, symmetric positive definite.
+    x0 : array_like, shape (3,) or (4,)
+        Initial pose estimate (x [m], y [m], theta [rad]); with ``estimate_wheel_bias`` it may
+        also carry the wheel error (4,), else that starts at 0.
+    P0 : array_like, shape (3, 3) or (4, 4)
+        Initial covariance (shaped like ``x0``), symmetric positive definite; a (3, 3) pose
+        covariance is extended by the wheel-error prior variance
+        ``max(|robot.wheel_radius_error|, BIAS_STD_FLOOR)**2``, uncorrelated.
     gate_probability : float or None
         A measurement whose NIS exceeds the chi2(1) quantile at this probability is not
         applied; ``None`` disables gating.
@@ -102,11 +121,18 @@ class Localizer:
     include_systematic : bool
         Add the declared wheel-radius error bound to the process noise
         (:func:`estimators.motion.wheel_variances`).
+    estimate_wheel_bias : bool
+        Augment the state with the relative wheel-radius error ``e`` (module docstring).
+    bias_walk_std : float
+        Random-walk std of ``e`` per square root of metre travelled (mean of both wheels)
+        [1/sqrt(m)]; 0 (default) makes ``e`` a random constant. Only with
+        ``estimate_wheel_bias``.
     """
 
     def __init__(self, robot: RobotSpec, sensor: SensorSpec, markers, x0, P0,
                  gate_probability: float | None = 0.999, q_scale: float = 1.0,
-                 include_systematic: bool = False):
+                 include_systematic: bool = False, estimate_wheel_bias: bool = False,
+                 bias_walk_std: float = 0.0):
         # filterpy imports all its subpackages (~1 s): only pay for it when a filter is built.
         from filterpy.kalman import ExtendedKalmanFilter
 
@@ -114,13 +140,18 @@ class Localizer:
         if markers_arr.ndim != 2 or markers_arr.shape[1] != 2 or not np.all(np.isfinite(markers_arr)):
             raise SimulationError(f"Localizer: markers: expected a finite (M, 2) array, got shape "
                                   f"{markers_arr.shape}")
-        x0_arr = _check_matrix("x0", x0, (3,))
-        P0_arr = _check_matrix("P0", P0, (3, 3))
+        # A (3,) pose prior, or with the wheel error estimated optionally a full (4,) prior (e.g.
+        # the error learnt in an earlier run).
+        dim = 4 if estimate_wheel_bias and np.shape(x0) == (4,) else 3
+        x0_arr = _check_matrix("x0", x0, (dim,))
+        P0_arr = _check_matrix("P0", P0, (dim, dim))
         if not np.allclose(P0_arr, P0_arr.T) or np.any(np.linalg.eigvalsh(0.5 * (P0_arr + P0_arr.T)) <= 0):
             raise SimulationError(f"Localizer: P0: expected a symmetric positive definite matrix, "
                                   f"got {P0_arr.tolist()}")
         if not (q_scale > 0 and math.isfinite(q_scale)):
             raise SimulationError(f"Localizer: q_scale: expected a positive number, got {q_scale}")
+        if not (bias_walk_std >= 0 and math.isfinite(bias_walk_std)):
+            raise SimulationError(f"Localizer: bias_walk_std: expected a number >= 0, got {bias_walk_std}")
         if gate_probability is None:
             self._gate = math.inf
         elif 0.0 < gate_probability < 1.0:
@@ -138,24 +169,54 @@ class Localizer:
         self._std_per_bound = bound_std(1.0, sensor.noise)
         self._bearing_var = (sensor.bearing_error * self._std_per_bound) ** 2
         self._variance_terms = motion.variance_terms(robot, include_systematic)
-        self._kf = ExtendedKalmanFilter(dim_x=3, dim_z=1)
+        self.estimate_wheel_bias = bool(estimate_wheel_bias)
+        self.bias_walk_std = float(bias_walk_std)
+        P0_sym = 0.5 * (P0_arr + P0_arr.T)
+        if self.estimate_wheel_bias and dim == 3:
+            # Declared magnitude, unknown sign: zero mean, one sigma, independent of the pose.
+            bias_std = max(abs(robot.wheel_radius_error), BIAS_STD_FLOOR)
+            x0_arr = np.r_[x0_arr, 0.0]
+            P0_sym = np.block([[P0_sym, np.zeros((3, 1))], [np.zeros((1, 3)), np.array([[bias_std**2]])]])
+            dim = 4
+        self._kf = ExtendedKalmanFilter(dim_x=dim, dim_z=1)
         self._kf.x = np.ascontiguousarray(x0_arr)
         self._kf.x[2] = _wrap_scalar(self._kf.x[2])
-        self._kf.P = np.ascontiguousarray(0.5 * (P0_arr + P0_arr.T))
-        # Measurement model at the current state, filled before each filterpy update.
-        self._H = np.zeros((1, 3))
+        self._kf.P = np.ascontiguousarray(P0_sym)
+        # Measurement model at the current state, filled before each filterpy update; the
+        # wheel-error column (if any) stays 0.
+        self._H = np.zeros((1, dim))
         self._hx = np.zeros(1)
 
     # ------------------------------------------------------------------ state
     @property
     def x(self) -> np.ndarray:
         """Pose estimate (x [m], y [m], theta [rad]), shape (3,), a copy; theta in (-pi, pi]."""
-        return self._kf.x.copy()
+        return self._kf.x[:3].copy()
 
     @property
     def P(self) -> np.ndarray:
         """Pose covariance, shape (3, 3) [m^2, m rad, rad^2], a copy."""
+        return self._kf.P[:3, :3].copy()
+
+    @property
+    def full_x(self) -> np.ndarray:
+        """Whole state, a copy: shape (3,) pose, or (4,) pose and wheel error ``e`` [-]."""
+        return self._kf.x.copy()
+
+    @property
+    def full_P(self) -> np.ndarray:
+        """Covariance of the whole state, a copy: shape (3, 3) or (4, 4)."""
         return self._kf.P.copy()
+
+    @property
+    def bias(self) -> float:
+        """Estimated relative wheel-radius error ``e`` [-]; 0 when it is not estimated."""
+        return float(self._kf.x[3]) if self.estimate_wheel_bias else 0.0
+
+    @property
+    def bias_var(self) -> float:
+        """Variance of the estimated wheel-radius error [-]; 0 when it is not estimated."""
+        return float(self._kf.P[3, 3]) if self.estimate_wheel_bias else 0.0
 
     @property
     def gate_threshold(self) -> float:
@@ -173,11 +234,12 @@ class Localizer:
         Returns
         -------
         float
-            ``e^T P^-1 e`` with ``e = x - true_pose``, heading difference wrapped.
+            ``e^T P^-1 e`` with ``e = x - true_pose``, heading difference wrapped; on the pose
+            only (3 dof) also when the wheel error is estimated.
         """
-        e = self._kf.x - np.asarray(true_pose, dtype=float)
+        e = self._kf.x[:3] - np.asarray(true_pose, dtype=float)
         e[2] = _wrap_scalar(e[2])
-        return float(e @ np.linalg.solve(self._kf.P, e))
+        return float(e @ np.linalg.solve(self._kf.P[:3, :3], e))
 
     # ---------------------------------------------------------------- predict
     def predict(self, d_left: float, d_right: float) -> None:
@@ -186,14 +248,21 @@ class Localizer:
         Parameters
         ----------
         d_left, d_right : float
-            Wheel travel measured by the encoders over the step [m].
+            Wheel travel measured by the encoders over the step (nominal radius) [m].
         """
         d_left, d_right = float(d_left), float(d_right)
         rel_var, base_var = self._variance_terms
         kf = self._kf
-        motion.propagate_moments(kf.x, kf.P, d_left, d_right, self.robot.wheel_base,
-                                 self.q_scale * (rel_var * d_left * d_left + base_var),
-                                 self.q_scale * (rel_var * d_right * d_right + base_var))
+        if self.estimate_wheel_bias:
+            walk_var = self.bias_walk_std**2 * 0.5 * (abs(d_left) + abs(d_right))
+            motion.propagate_moments_biased(kf.x, kf.P, d_left, d_right, self.robot.wheel_base,
+                                            self.q_scale * (rel_var * d_left * d_left + base_var),
+                                            self.q_scale * (rel_var * d_right * d_right + base_var),
+                                            walk_var)
+        else:
+            motion.propagate_moments(kf.x, kf.P, d_left, d_right, self.robot.wheel_base,
+                                     self.q_scale * (rel_var * d_left * d_left + base_var),
+                                     self.q_scale * (rel_var * d_right * d_right + base_var))
         kf.x[2] = _wrap_scalar(kf.x[2])
 
     # ----------------------------------------------------------------- update

@@ -30,7 +30,10 @@ wheel-radius error bound (``RobotSpec.wheel_radius_error``) as a one-sigma white
 increment. A systematic error actually adds up linearly (n steps give n times the error, not
 sqrt(n) times), so the term does not model the accumulated drift of a biased wheel; it only
 widens the filter so a robot whose actual wheels differ from the nominal ones is not
-over-trusted. It is off by default.
+over-trusted. It is off by default. To model the coherent drift itself, estimate the error:
+:func:`propagate_moments_biased` propagates the pose augmented with the relative wheel-radius
+error ``e`` (a random constant in the state, see :class:`estimators.ekf.Localizer`'s
+``estimate_wheel_bias``).
 
 Hot paths are numba kernels (``cache=True``); the first call in a fresh environment compiles.
 """
@@ -136,6 +139,67 @@ def propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right):
             v = (FP[i, 0] * F[j, 0] + FP[i, 1] * F[j, 1] + FP[i, 2] * F[j, 2]
                  + G[i, 0] * var_left * G[j, 0] + G[i, 1] * var_right * G[j, 1])
             # Writing one triangle into both keeps P exactly symmetric over thousands of steps.
+            P[i, j] = v
+            P[j, i] = v
+
+
+@numba.njit(cache=True)
+def propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, bias_walk_var):
+    """EKF predict step of the pose augmented with the relative wheel-radius error, in place.
+
+    The state is ``(x [m], y [m], theta [rad], e [-])``; the true wheel travel is
+    ``d_left * (1 - e)`` and ``d_right * (1 + e)`` (right radius ``r (1 + e)``, left
+    ``r (1 - e)``, encoders converted with the nominal ``r``). The pose moves by the arc of the
+    corrected travel, ``e`` stays (a random constant, plus an optional random walk), and
+
+        P <- F4 P F4^T + Q4,   F4 = [[F, g_e], [0, 1]],   g_e = -d_left G[:, 0] + d_right G[:, 1],
+        Q4 = [[G diag(var_left, var_right) G^T, 0], [0, bias_walk_var]]
+
+    with ``F``, ``G`` of :func:`jacobians` at the corrected travel. The heading is left unwrapped.
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (4,), float64, C-contiguous
+        Pose and wheel error (x [m], y [m], theta [rad], e [-]); overwritten.
+    P : numpy.ndarray, shape (4, 4), float64, C-contiguous
+        Its covariance; overwritten.
+    d_left, d_right : float
+        Wheel travel reported by the encoders over the step (nominal radius) [m].
+    wheel_base : float
+        Distance between the wheels [m].
+    var_left, var_right : float
+        Variance of each wheel's random travel error over the step [m^2] (already scaled).
+    bias_walk_var : float
+        Variance added to ``e`` over the step [-]; 0 for a random constant.
+    """
+    e = x[3]
+    dl = d_left * (1.0 - e)
+    dr = d_right * (1.0 + e)
+    F = np.zeros((4, 4))
+    F3 = np.empty((3, 3))
+    G = np.empty((3, 2))
+    _jacobians_into(x[2], dl, dr, wheel_base, F3, G)
+    for i in range(3):
+        for j in range(3):
+            F[i, j] = F3[i, j]
+        # d f / d e through d(dl)/de = -d_left and d(dr)/de = +d_right.
+        F[i, 3] = -d_left * G[i, 0] + d_right * G[i, 1]
+    F[3, 3] = 1.0
+    ds, dtheta, _, k, _, c, s = _arc_terms(x[2], dl, dr, wheel_base)
+    x[0] += ds * k * c
+    x[1] += ds * k * s
+    x[2] += dtheta
+    FP = np.empty((4, 4))
+    for i in range(4):
+        for j in range(4):
+            FP[i, j] = F[i, 0] * P[0, j] + F[i, 1] * P[1, j] + F[i, 2] * P[2, j] + F[i, 3] * P[3, j]
+    for i in range(4):
+        for j in range(i, 4):
+            v = FP[i, 0] * F[j, 0] + FP[i, 1] * F[j, 1] + FP[i, 2] * F[j, 2] + FP[i, 3] * F[j, 3]
+            if j < 3:
+                v += G[i, 0] * var_left * G[j, 0] + G[i, 1] * var_right * G[j, 1]
+            elif i == 3:
+                v += bias_walk_var
             P[i, j] = v
             P[j, i] = v
 
