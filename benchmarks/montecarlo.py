@@ -57,16 +57,18 @@ def bare_episodes(scenario, runs: int) -> float:
         world.close()
 
 
-def timed_sweep(scenario, out: Path, runs: int, workers: int, executor: str = "local") -> tuple[float, float]:
-    """Time a sweep: wall seconds of its runs, and the sum of its episodes' own wall times.
+def timed_sweep(scenario, out: Path, runs: int, workers: int,
+                executor: str = "local") -> tuple[float, float, float]:
+    """Time a sweep: wall seconds of its runs, sum of its episodes' wall times, mean CPU seconds.
 
     Planning is excluded; the start-up of workers is included.
     """
     summary = sweep(scenario, out, runs=runs, workers=workers, executor=executor, progress=False)
     if summary.crashed:
         raise RuntimeError(f"{summary.crashed} runs crashed in {out}")
-    episodes = float(np.sum(results.read_runs(out).column("wall_time").to_numpy()))
-    return summary.wall_time, episodes
+    table = results.read_runs(out)
+    episodes = float(np.sum(table.column("wall_time").to_numpy()))
+    return summary.wall_time, episodes, float(np.mean(table.column("cpu_time").to_numpy()))
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -80,12 +82,13 @@ def main(argv: list[str] | None = None) -> dict:
     with tempfile.TemporaryDirectory(prefix="pefsim-bench-mc-") as tmp:
         tmp = Path(tmp)
         episode_s = bare_episodes(scenario, n)
-        wall_1, episodes_1 = timed_sweep(scenario, tmp / "w1", n, 1)
-        wall_2, _ = timed_sweep(scenario, tmp / "w2", n, 2)
+        wall_1, episodes_1, cpu_1 = timed_sweep(scenario, tmp / "w1", n, 1)
+        wall_2, _, cpu_2 = timed_sweep(scenario, tmp / "w2", n, 2)
         out.update(episode_s=round(episode_s, 4), runs_per_minute_1=round(60 * n / wall_1, 2),
                    runs_per_minute_2=round(60 * n / wall_2, 2), speedup_2=round(wall_1 / wall_2, 3),
                    speedup_target=1.8, harness_overhead=round(wall_1 / episodes_1 - 1, 4),
-                   harness_overhead_target=0.05, sweep_vs_bare=round(wall_1 / (n * episode_s), 3))
+                   harness_overhead_target=0.05, sweep_vs_bare=round(wall_1 / (n * episode_s), 3),
+                   cpu_per_run_1=round(cpu_1, 3), cpu_per_run_2=round(cpu_2, 3))
         if not args.no_ray and importlib.util.find_spec("ray") is not None:
             from sim.executors import start_ray
 
@@ -93,7 +96,7 @@ def main(argv: list[str] | None = None) -> dict:
             ray, _ = start_ray(2, None)
             out["ray_init_s"] = round(time.perf_counter() - start, 2)
             try:
-                wall_ray, _ = timed_sweep(scenario, tmp / "ray", n, 2, executor="ray")
+                wall_ray, _, _ = timed_sweep(scenario, tmp / "ray", n, 2, executor="ray")
             finally:
                 ray.shutdown()
             out.update(runs_per_minute_ray_2=round(60 * n / wall_ray, 2),

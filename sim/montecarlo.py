@@ -124,7 +124,7 @@ class RunContext:
     def execute(self, spec: RunSpec) -> RunRecord:
         """Run one episode and turn it into a record; a crash becomes a record, bad input a fatal one."""
         p = self.payload
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.process_time()
         try:
             result = p.api.run_episode(p.scenario, task_index=spec.task, seed=spec.seed_sequence(),
                                        world=self._world(), prepared=p.prepared[spec.task])
@@ -134,8 +134,8 @@ class RunContext:
         except Exception as exc:  # any other exception is a bug in this run: record it, go on
             self._drop_world()  # it may be left in any state
             return RunContext.died(spec, _one_line(exc), time.perf_counter() - start)
-        wall = time.perf_counter() - start
-        row = results.run_row(spec.run, spec.seed_text, spec.task, result.summary, wall)
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+        row = results.run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
         record = RunRecord(spec.run, row, results.step_columns(spec.run, result.steps),
                            results.fix_columns(spec.run, result.fixes))
         if spec.record:

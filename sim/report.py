@@ -119,8 +119,9 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
 
 
 _NUMERIC = ("rmse", "max_error", "max_predicted_tau", "violations", "fixes", "mean_nees", "mean_nis",
-            "duration", "wall_time")
-_UNITS = {"rmse": "mm", "max_error": "mm", "max_predicted_tau": "mm", "duration": "s", "wall_time": "s"}
+            "duration", "wall_time", "cpu_time")
+_UNITS = {"rmse": "mm", "max_error": "mm", "max_predicted_tau": "mm", "duration": "s", "wall_time": "s",
+          "cpu_time": "s"}
 
 
 def _stats_rows(runs: pa.Table) -> list[list[str]]:

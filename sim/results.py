@@ -50,9 +50,13 @@ RUN_SCHEMA = pa.schema([
     ("violations", pa.int64()),
     ("mean_nees", pa.float64()),
     ("mean_nis", pa.float64()),
-    ("wall_time", pa.float64()),    # [s] of the episode call, the only non-reproducible column
+    ("wall_time", pa.float64()),    # [s] of the episode call
+    ("cpu_time", pa.float64()),     # [s] CPU time of the worker process during the episode call
 ])
 """One row per run. Numeric columns are null for a crashed run."""
+
+TIMING_COLUMNS = ("wall_time", "cpu_time")
+"""The columns of :data:`RUN_SCHEMA` that depend on the machine, not on the seed."""
 
 STEP_SCHEMA = pa.schema([
     ("run", pa.int64()), ("step", pa.int32()), ("t", pa.float64()),
@@ -157,14 +161,14 @@ class RunRecord:
 
 # -- building rows ------------------------------------------------------------------------
 
-def run_row(run: int, seed: str, task: int, summary: dict[str, Any] | None, wall_time: float,
-            status: str = "ok") -> dict[str, Any]:
+def run_row(run: int, seed: str, task: int, summary: dict[str, Any] | None, wall_time: float | None,
+            status: str = "ok", cpu_time: float | None = None) -> dict[str, Any]:
     """Build the ``runs`` row of one run from an episode summary (``None`` for a crashed run)."""
     row: dict[str, Any] = {name: None for name in RUN_SCHEMA.names}
-    row.update(run=run, seed=seed, task=task, status=status, wall_time=wall_time)
+    row.update(run=run, seed=seed, task=task, status=status, wall_time=wall_time, cpu_time=cpu_time)
     if summary is not None:
         for name in RUN_SCHEMA.names:
-            if name in summary and name not in ("run", "seed", "task", "status", "wall_time"):
+            if name in summary and name not in ("run", "seed", "task", "status", *TIMING_COLUMNS):
                 row[name] = _scalar(summary[name])
     return row
 

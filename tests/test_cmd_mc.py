@@ -71,7 +71,8 @@ def test_real_sweep_end_to_end(capsys, tmp_path):
 
     serial = tmp_path / "serial"
     sweep(scenarios.load("paper-two-markers"), serial, runs=2, workers=1, progress=False)
-    for read in (lambda d: results.read_runs(d).drop(["wall_time"]), results.read_steps, results.read_fixes):
+    for read in (lambda d: results.read_runs(d).drop(list(results.TIMING_COLUMNS)), results.read_steps,
+                 results.read_fixes):
         a, b = read(out), read(serial)
         for col in a.column_names:
             assert a.column(col).equals(b.column(col)), f"{col} differs between 2 workers and 1"

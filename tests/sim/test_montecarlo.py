@@ -40,7 +40,8 @@ def two_tasks():
 
 
 def _tables(root):
-    return (results.read_runs(root).drop(["wall_time"]), results.read_steps(root), results.read_fixes(root))
+    runs = results.read_runs(root).drop(list(results.TIMING_COLUMNS))
+    return runs, results.read_steps(root), results.read_fixes(root)
 
 
 def _assert_same(a, b):
