@@ -150,7 +150,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             f"at {list(dock.position)}, a fix needs {k}")
 
     loc = Localizer(robot, scenario.sensor, scenario.marker_positions(), np.array(dock.pose), P0,
-                    q_scale=q_scale, include_systematic=True)
+                    q_scale=q_scale, estimate_wheel_bias=True)
     odo = WheelOdometry(robot, world.robot.wheel_angles(), np.array(dock.pose))
     fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
     follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
