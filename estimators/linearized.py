@@ -58,7 +58,7 @@ def chi2_2dof_ppf(p: float) -> float:
 
 # --- scalar kernels (numba) ------------------------------------------------------------------
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def parallelogram_diag_sq_k(g1x, g1y, g2x, g2y):
     """Squared long diagonal of ``{|g1.d| <= 1, |g2.d| <= 1}`` [m^2]; inf when parallel."""
     det = g1x * g2y - g1y * g2x
@@ -69,7 +69,7 @@ def parallelogram_diag_sq_k(g1x, g1y, g2x, g2y):
     return 4.0 * num / den
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def parallelogram_area_k(u1x, u1y, u2x, u2y, rho1, rho2):
     """Area ``4 rho1 rho2 / sin a`` of two strips with unit normals u1, u2 [m^2]."""
     s = abs(u1x * u2y - u1y * u2x)
@@ -78,7 +78,7 @@ def parallelogram_area_k(u1x, u1y, u2x, u2y, rho1, rho2):
     return 4.0 * rho1 * rho2 / s
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def parallelogram_diagonal_k(u1x, u1y, u2x, u2y, rho1, rho2):
     """Long diagonal ``(2/sin a) sqrt(rho1^2 + rho2^2 + 2 rho1 rho2 |cos a|)`` [m]."""
     s = abs(u1x * u2y - u1y * u2x)
@@ -121,7 +121,7 @@ def strip_max_vertex_sq_k(gx, gy, n):
     return best
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def info_lambda_max_inv_k(sxx, sxy, syy):
     """Largest eigenvalue of the inverse of the 2x2 information ``[[sxx, sxy], [sxy, syy]]``.
 

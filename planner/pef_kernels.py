@@ -4,7 +4,8 @@ One kernel, :func:`best_subset`, serves arbitrary points and grids (a grid is it
 centres, flattened). Points are processed in blocks of :data:`BLOCK`; for each block the
 scaled range normals ``g = u / rho`` (and with bearings the tangential ``h = t / (r tan xi)``)
 of every marker are computed once, then every candidate subset is scored across the block's
-points in a branch-free inner loop that vectorises (SIMD across points, threads across blocks).
+points in a branch-free inner loop that vectorises (SIMD across points; threads across
+blocks, :mod:`planner.kernel_threads`).
 
 Candidates are compared as fractions ``num / den`` by cross-multiplication
 (``num * best_den < best_num * den``), with neither square root nor division:
@@ -35,6 +36,7 @@ import numba
 import numpy as np
 
 from estimators.linearized import info_lambda_max_inv_k, parallelogram_diagonal_k, strip_max_vertex_sq_k
+from planner.kernel_threads import run_ranges
 
 PARALLELOGRAM, STRIPS, GDOP = 0, 1, 2
 #: Points per block: a block's per-marker float32 normals stay in the L1/L2 cache.
@@ -42,37 +44,77 @@ BLOCK = 256
 
 
 @numba.njit(cache=True, error_model="numpy")
-def subset_tau(model, px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
-    """Return the model's error [m] of marker subset ``sub`` (k,) at point (px, py), in float64.
+def _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
+    """Fill unit normals and half-widths of the strips of ``sub`` at (px, py).
 
-    ``nx``, ``ny``, ``b`` are scratch arrays of length >= 2k. Visibility is not checked here.
-    inf for a degenerate geometry.
+    Returns their count (k, or 2k with the tangential bearing strips); 0 when the point is on a
+    marker.
     """
     k = sub.size
-    ns = 2 * k if (tan_xi > 0.0 and model != PARALLELOGRAM) else k
+    ns = 2 * k if tan_xi > 0.0 else k
     for t in range(k):
         dx, dy = px - mx[sub[t]], py - my[sub[t]]
         r = math.sqrt(dx * dx + dy * dy)
         if r == 0.0:
-            return np.inf
+            return 0
         nx[t], ny[t], b[t] = dx / r, dy / r, rel * r + ab
         if ns > k:
             nx[k + t], ny[k + t], b[k + t] = -dy / r, dx / r, r * tan_xi
-    if model == PARALLELOGRAM:
-        return parallelogram_diagonal_k(nx[0], ny[0], nx[1], ny[1], b[0], b[1])
-    if model == GDOP:
-        sxx, sxy, syy = 0.0, 0.0, 0.0
-        for t in range(ns):
-            w = 1.0 / (b[t] * b[t])
-            sxx += w * nx[t] * nx[t]
-            sxy += w * nx[t] * ny[t]
-            syy += w * ny[t] * ny[t]
-        # sigma = rho / 3: P = B^-1 / 9.
-        return math.sqrt(chi2_ppf * info_lambda_max_inv_k(sxx, sxy, syy) / 9.0)
+    return ns
+
+
+@numba.njit(cache=True, error_model="numpy")
+def tau_parallelogram(px, py, mx, my, sub, rel, ab):
+    """Long diagonal [m] of the parallelogram of the pair ``sub`` (2,) at (px, py), float64."""
+    d1x, d1y = px - mx[sub[0]], py - my[sub[0]]
+    d2x, d2y = px - mx[sub[1]], py - my[sub[1]]
+    r1, r2 = math.sqrt(d1x * d1x + d1y * d1y), math.sqrt(d2x * d2x + d2y * d2y)
+    if r1 == 0.0 or r2 == 0.0:
+        return np.inf
+    return parallelogram_diagonal_k(d1x / r1, d1y / r1, d2x / r2, d2y / r2, rel * r1 + ab, rel * r2 + ab)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
+    """p-level GDOP radius [m] of subset ``sub`` at (px, py), float64 (``nx, ny, b``: scratch >= 2k)."""
+    ns = _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
+    if ns == 0:
+        return np.inf
+    sxx, sxy, syy = 0.0, 0.0, 0.0
+    for t in range(ns):
+        w = 1.0 / (b[t] * b[t])
+        sxx += w * nx[t] * nx[t]
+        sxy += w * nx[t] * ny[t]
+        syy += w * ny[t] * ny[t]
+    # sigma = rho / 3: P = B^-1 / 9.
+    return math.sqrt(chi2_ppf * info_lambda_max_inv_k(sxx, sxy, syy) / 9.0)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def tau_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
+    """Strip-polygon diameter [m] of subset ``sub`` at (px, py), float64 (``nx, ny, b``: scratch >= 2k)."""
+    ns = _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
+    if ns == 0:
+        return np.inf
     for t in range(ns):
         nx[t] /= b[t]
         ny[t] /= b[t]
     return 2.0 * math.sqrt(strip_max_vertex_sq_k(nx, ny, ns))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def subset_tau(model, px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
+    """Return the model's error [m] of marker subset ``sub`` (k,) at point (px, py), in float64.
+
+    Dispatches to :func:`tau_parallelogram` (which ignores bearings), :func:`tau_gdop` or
+    :func:`tau_strips`; ``nx``, ``ny``, ``b`` are scratch arrays of length >= 2k. Visibility is
+    not checked here; inf for a degenerate geometry.
+    """
+    if model == PARALLELOGRAM:
+        return tau_parallelogram(px, py, mx, my, sub, rel, ab)
+    if model == GDOP:
+        return tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b)
+    return tau_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -115,17 +157,9 @@ def _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, 
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _block_planes(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, model, r, scale, a0, a1, a2):
-    """float32 planes of one block for the vectorised models, scaled per point.
-
-    PARALLELOGRAM: (x, y, |g|^2) of ``g = s u / rho``; GDOP: the information entries
-    (xx, xy, yy) of ``s g`` and ``s h``; ``s`` = the smallest half-width seen from the point, so
-    that every entry is at most 1. NaN where hidden and in the padding beyond ``w``. Computed in
-    float32 (the planes only rank candidates); ``r`` (M, BLOCK) float32 is scratch.
-    """
-    nan = np.float32(np.nan)
-    rel32, ab32, tan32 = np.float32(rel), np.float32(ab), np.float32(tan_xi)
-    bearing = tan_xi > 0.0
+def _block_scale(px, py, mx, my, vis, rel32, ab32, tan32, lo, w, r, scale):
+    """Ranges ``r`` (M, BLOCK) and per-point scale: the smallest half-width seen (float32)."""
+    bearing = tan32 > 0
     for c in range(BLOCK):
         scale[c] = np.inf
     for m in range(mx.size):
@@ -138,34 +172,61 @@ def _block_planes(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, model, r, scale, 
             half = min(half, rr * tan32) if bearing else half
             ok = vis[m, lo + c] & (rr > 0)
             scale[c] = min(scale[c], half) if ok else scale[c]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, r, scale, a0, a1, a2):
+    """Fill float32 planes (x, y, |g|^2) of ``g = s u / rho`` for one block.
+
+    ``s`` = the smallest half-width seen from the point, so every entry is at most 1. NaN where
+    hidden and in the padding beyond ``w``. The planes only rank candidates; ``r`` (M, BLOCK) is
+    scratch.
+    """
+    nan = np.float32(np.nan)
+    rel32, ab32 = np.float32(rel), np.float32(ab)
+    _block_scale(px, py, mx, my, vis, rel32, ab32, np.float32(0.0), lo, w, r, scale)
     for m in range(mx.size):
         mxm, mym = mx[m], my[m]
-        if model == PARALLELOGRAM:
-            for c in range(w):
-                dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
-                rr = r[m, c]
-                ok = vis[m, lo + c] & (rr > 0)
-                f = scale[c] / ((rel32 * rr + ab32) * rr)
-                ux, uy = dx * f, dy * f
-                a0[m, c] = ux if ok else nan
-                a1[m, c] = uy if ok else nan
-                a2[m, c] = ux * ux + uy * uy if ok else nan
-        else:
-            for c in range(w):
-                dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
-                rr = r[m, c]
-                ok = vis[m, lo + c] & (rr > 0)
-                f = scale[c] / ((rel32 * rr + ab32) * rr)
-                f2 = scale[c] / (rr * tan32 * rr) if bearing else np.float32(0.0)
-                ux, uy, vx, vy = dx * f, dy * f, -dy * f2, dx * f2
-                a0[m, c] = ux * ux + vx * vx if ok else nan
-                a1[m, c] = ux * uy + vx * vy if ok else nan
-                a2[m, c] = uy * uy + vy * vy if ok else nan
+        for c in range(w):
+            dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
+            rr = r[m, c]
+            ok = vis[m, lo + c] & (rr > 0)
+            f = scale[c] / ((rel32 * rr + ab32) * rr)
+            ux, uy = dx * f, dy * f
+            a0[m, c] = ux if ok else nan
+            a1[m, c] = uy if ok else nan
+            a2[m, c] = ux * ux + uy * uy if ok else nan
         for c in range(w, BLOCK):
             a0[m, c], a1[m, c], a2[m, c] = nan, nan, nan
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy")
+def _planes_gdop(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, r, scale, a0, a1, a2):
+    """Fill float32 planes (xx, xy, yy) of the information ``s^2 (g g^T + h h^T)`` per marker.
+
+    Scaled as in :func:`_planes_parallelogram`; ``h`` = 0 without bearings.
+    """
+    nan = np.float32(np.nan)
+    rel32, ab32, tan32 = np.float32(rel), np.float32(ab), np.float32(tan_xi)
+    bearing = tan_xi > 0.0
+    _block_scale(px, py, mx, my, vis, rel32, ab32, tan32, lo, w, r, scale)
+    for m in range(mx.size):
+        mxm, mym = mx[m], my[m]
+        for c in range(w):
+            dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
+            rr = r[m, c]
+            ok = vis[m, lo + c] & (rr > 0)
+            f = scale[c] / ((rel32 * rr + ab32) * rr)
+            f2 = scale[c] / (rr * tan32 * rr) if bearing else np.float32(0.0)
+            ux, uy, vx, vy = dx * f, dy * f, -dy * f2, dx * f2
+            a0[m, c] = ux * ux + vx * vx if ok else nan
+            a1[m, c] = ux * uy + vx * vy if ok else nan
+            a2[m, c] = uy * uy + vy * vy if ok else nan
+        for c in range(w, BLOCK):
+            a0[m, c], a1[m, c], a2[m, c] = nan, nan, nan
+
+
+@numba.njit(cache=True)
 def _take(better, new, old):
     return new if better else old
 
@@ -247,7 +308,81 @@ def _sweep_strips(subsets, gx, gy, hx, hy, w, bearing, bs):
                     bs[c] = s
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _blocks_parallelogram(b0, b1, px, py, mx, my, vis, rel, ab, subsets, tau, best):
+    nm = mx.size
+    r = np.empty((nm, BLOCK), dtype=np.float32)
+    scale = np.empty(BLOCK, dtype=np.float32)
+    a0 = np.empty((nm, BLOCK), dtype=np.float32)
+    a1 = np.empty((nm, BLOCK), dtype=np.float32)
+    a2 = np.empty((nm, BLOCK), dtype=np.float32)
+    bn = np.empty(BLOCK, dtype=np.float32)
+    bd = np.empty(BLOCK, dtype=np.float32)
+    bs = np.empty(BLOCK, dtype=np.int32)
+    for blk in range(b0, b1):
+        lo = blk * BLOCK
+        w = min(BLOCK, px.size - lo)
+        _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, r, scale, a0, a1, a2)
+        bn[:], bd[:], bs[:] = 1.0, 0.0, -1
+        _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs)
+        for c in range(w):
+            s = bs[c]
+            best[lo + c] = s
+            tau[lo + c] = tau_parallelogram(px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab) \
+                if s >= 0 else np.inf
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best):
+    nm = mx.size
+    k = subsets.shape[1]
+    r = np.empty((nm, BLOCK), dtype=np.float32)
+    scale = np.empty(BLOCK, dtype=np.float32)
+    a0 = np.empty((nm, BLOCK), dtype=np.float32)
+    a1 = np.empty((nm, BLOCK), dtype=np.float32)
+    a2 = np.empty((nm, BLOCK), dtype=np.float32)
+    bn = np.empty(BLOCK, dtype=np.float32)
+    bd = np.empty(BLOCK, dtype=np.float32)
+    bs = np.empty(BLOCK, dtype=np.int32)
+    sxx = np.empty(BLOCK, dtype=np.float32)
+    sxy = np.empty(BLOCK, dtype=np.float32)
+    syy = np.empty(BLOCK, dtype=np.float32)
+    tx, ty, tb = np.empty(2 * k), np.empty(2 * k), np.empty(2 * k)
+    for blk in range(b0, b1):
+        lo = blk * BLOCK
+        w = min(BLOCK, px.size - lo)
+        _planes_gdop(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, r, scale, a0, a1, a2)
+        bn[:], bd[:], bs[:] = 1.0, 0.0, -1
+        _sweep_gdop(subsets, a0, a1, a2, bn, bd, bs, sxx, sxy, syy)
+        for c in range(w):
+            s = bs[c]
+            best[lo + c] = s
+            tau[lo + c] = tau_gdop(px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab, tan_xi, chi2_ppf,
+                                   tx, ty, tb) if s >= 0 else np.inf
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _blocks_strips(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, best):
+    nm = mx.size
+    k = subsets.shape[1]
+    gx, gy = np.empty((nm, BLOCK)), np.empty((nm, BLOCK))
+    hx, hy = np.empty((nm, BLOCK)), np.empty((nm, BLOCK))
+    scale = np.empty(BLOCK)
+    bs = np.empty(BLOCK, dtype=np.int32)
+    tx, ty, tb = np.empty(2 * k), np.empty(2 * k), np.empty(2 * k)
+    for blk in range(b0, b1):
+        lo = blk * BLOCK
+        w = min(BLOCK, px.size - lo)
+        _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, scale)
+        bs[:] = -1
+        _sweep_strips(subsets, gx, gy, hx, hy, w, tan_xi > 0.0, bs)
+        for c in range(w):
+            s = bs[c]
+            best[lo + c] = s
+            tau[lo + c] = tau_strips(px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab, tan_xi,
+                                     tx, ty, tb) if s >= 0 else np.inf
+
+
 def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, tau, best):
     """Best subset and its error for every point.
 
@@ -274,44 +409,12 @@ def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, 
     best : ndarray of int64, shape (N,)
         Output: row of ``subsets`` chosen, -1 where none.
     """
-    n = px.size
-    nm = mx.size
-    k = subsets.shape[1]
-    nblk = (n + BLOCK - 1) // BLOCK
-    for blk in numba.prange(nblk):
-        lo = blk * BLOCK
-        w = min(BLOCK, n - lo)
-        bs = np.full(BLOCK, -1, dtype=np.int32)
-        if model == STRIPS:
-            gx = np.empty((nm, BLOCK))
-            gy = np.empty((nm, BLOCK))
-            hx = np.empty((nm, BLOCK))
-            hy = np.empty((nm, BLOCK))
-            scale = np.empty(BLOCK)
-            _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, scale)
-            _sweep_strips(subsets, gx, gy, hx, hy, w, tan_xi > 0.0, bs)
-        else:
-            r = np.empty((nm, BLOCK), dtype=np.float32)
-            scale = np.empty(BLOCK, dtype=np.float32)
-            a0 = np.empty((nm, BLOCK), dtype=np.float32)
-            a1 = np.empty((nm, BLOCK), dtype=np.float32)
-            a2 = np.empty((nm, BLOCK), dtype=np.float32)
-            _block_planes(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, model, r, scale, a0, a1, a2)
-            bn = np.ones(BLOCK, dtype=np.float32)
-            bd = np.zeros(BLOCK, dtype=np.float32)
-            if model == PARALLELOGRAM:
-                _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs)
-            else:
-                _sweep_gdop(subsets, a0, a1, a2, bn, bd, bs, np.empty(BLOCK, dtype=np.float32),
-                            np.empty(BLOCK, dtype=np.float32), np.empty(BLOCK, dtype=np.float32))
-        tx = np.empty(2 * k)
-        ty = np.empty(2 * k)
-        tb = np.empty(2 * k)
-        for c in range(w):
-            s = bs[c]
-            best[lo + c] = s
-            if s < 0:
-                tau[lo + c] = np.inf
-            else:
-                tau[lo + c] = subset_tau(model, px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab,
-                                         tan_xi, chi2_ppf, tx, ty, tb)
+    nblk = (px.size + BLOCK - 1) // BLOCK
+    if model == PARALLELOGRAM:
+        kernel, args = _blocks_parallelogram, (px, py, mx, my, vis, rel, ab, subsets, tau, best)
+    elif model == GDOP:
+        kernel, args = _blocks_gdop, (px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best)
+    else:
+        kernel, args = _blocks_strips, (px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, best)
+    # Each model is its own kernel: a process compiles (or loads) only the models it uses.
+    run_ranges(kernel, nblk, args, min_chunk=8)

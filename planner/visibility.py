@@ -28,6 +28,7 @@ import math
 import numba
 import numpy as np
 
+from planner.kernel_threads import run_ranges
 from scenarios.schema import Scenario
 
 #: Boxes are shrunk by this much on each side for line-of-sight tests [m].
@@ -58,13 +59,13 @@ def box_params(corners: np.ndarray) -> np.ndarray:
     return np.column_stack([centre, axis, l1 / 2.0, l2 / 2.0])
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _local(px, py, box):
     dx, dy = px - box[0], py - box[1]
     return dx * box[2] + dy * box[3], -dx * box[3] + dy * box[2]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _is_free(px, py, width, height, boxes):
     if px < 0.0 or px > width or py < 0.0 or py > height:
         return False
@@ -75,7 +76,20 @@ def _is_free(px, py, width, height, boxes):
     return True
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
+def _clip(p0, d, h, t0, t1):
+    """Clip the parameter interval [t0, t1] of ``p0 + t d`` to the slab ``|p| < h``."""
+    if d == 0.0:
+        if abs(p0) >= h:
+            return 1.0, 0.0
+        return t0, t1
+    ta, tb = (-h - p0) / d, (h - p0) / d
+    if ta > tb:
+        ta, tb = tb, ta
+    return max(t0, ta), min(t1, tb)
+
+
+@numba.njit(cache=True)
 def _segment_enters_box(ax, ay, bx, by, box, shrink):
     """Tell whether the segment a-b meets the open interior of ``box`` shrunk by ``shrink``."""
     hx, hy = box[4] - shrink, box[5] - shrink
@@ -83,28 +97,17 @@ def _segment_enters_box(ax, ay, bx, by, box, shrink):
         return False
     p0x, p0y = _local(ax, ay, box)
     p1x, p1y = _local(bx, by, box)
-    t0, t1 = 0.0, 1.0
-    for p0, d, h in ((p0x, p1x - p0x, hx), (p0y, p1y - p0y, hy)):
-        if d == 0.0:
-            if abs(p0) >= h:
-                return False
-            continue
-        ta, tb = (-h - p0) / d, (h - p0) / d
-        if ta > tb:
-            ta, tb = tb, ta
-        if ta > t0:
-            t0 = ta
-        if tb < t1:
-            t1 = tb
-        if t0 >= t1:
-            return False
+    t0, t1 = _clip(p0x, p1x - p0x, hx, 0.0, 1.0)
+    if t0 >= t1:
+        return False
+    t0, t1 = _clip(p0y, p1y - p0y, hy, t0, t1)
     return t0 < t1
 
 
-@numba.njit(cache=True, parallel=True)
-def _visible_points_kernel(px, py, mx, my, max_range, width, height, boxes, shrink, vis, free):
+@numba.njit(cache=True, nogil=True)
+def _visible_points_range(lo, hi, px, py, mx, my, max_range, width, height, boxes, shrink, vis, free):
     r2max = max_range * max_range
-    for n in numba.prange(px.size):
+    for n in range(lo, hi):
         f = _is_free(px[n], py[n], width, height, boxes)
         free[n] = f
         for m in range(mx.size):
@@ -150,10 +153,11 @@ def visible_points(points: np.ndarray, markers: np.ndarray, corners: np.ndarray,
     boxes = np.ascontiguousarray(box_params(corners))
     vis = np.empty((mk.shape[0], p.shape[0]), dtype=np.bool_)
     free = np.empty(p.shape[0], dtype=np.bool_)
-    _visible_points_kernel(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                           np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
-                           float(max_range), float(workspace_size[0]), float(workspace_size[1]),
-                           boxes, BOX_SHRINK, vis, free)
+    run_ranges(_visible_points_range, p.shape[0],
+               (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
+                np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), float(max_range),
+                float(workspace_size[0]), float(workspace_size[1]), boxes, BOX_SHRINK, vis, free),
+               min_chunk=2048)
     return vis, free
 
 
@@ -175,7 +179,9 @@ def _shadow_halfplanes(mx, my, box, shrink, out):
     ex, ey = box[2], box[3]
     cx = np.empty(4)
     cy = np.empty(4)
-    for k, (sx, sy) in enumerate(((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))):
+    for k in range(4):
+        sx = -1.0 if k == 0 or k == 3 else 1.0  # corners counter-clockwise from (-, -)
+        sy = -1.0 if k < 2 else 1.0
         cx[k] = box[0] + sx * hx * ex - sy * hy * ey
         cy[k] = box[1] + sx * hx * ey + sy * hy * ex
     facing = np.zeros(4, dtype=np.bool_)
@@ -207,7 +213,7 @@ def _shadow_halfplanes(mx, my, box, shrink, out):
     return nrow
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _first_above(x, v):
     """Smallest index i with x[i] > v (x ascending, uniform); x.size if none."""
     n = x.size
@@ -225,7 +231,7 @@ def _first_above(x, v):
     return i
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _first_at_or_above(x, v):
     """Smallest index i with x[i] >= v (x ascending, uniform); x.size if none."""
     n = x.size
@@ -243,9 +249,9 @@ def _first_at_or_above(x, v):
     return i
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True)
 def _free_grid_kernel(x, y, width, height, boxes, free):
-    for iy in numba.prange(y.size):
+    for iy in range(y.size):
         for ix in range(x.size):
             free[iy, ix] = 0.0 <= x[ix] <= width and 0.0 <= y[iy] <= height
     for b in range(boxes.shape[0]):
@@ -256,58 +262,64 @@ def _free_grid_kernel(x, y, width, height, boxes, free):
         i1 = min(_first_above(x, boxes[b, 0] + rx) + 1, x.size)
         j0 = max(_first_at_or_above(y, boxes[b, 1] - ry) - 1, 0)
         j1 = min(_first_above(y, boxes[b, 1] + ry) + 1, y.size)
-        for iy in numba.prange(j0, j1):
+        for iy in range(j0, j1):
             for ix in range(i0, i1):
                 lx, ly = _local(x[ix], y[iy], boxes[b])
                 if abs(lx) <= boxes[b, 4] and abs(ly) <= boxes[b, 5]:
                     free[iy, ix] = False
 
 
-@numba.njit(cache=True, parallel=True)
-def _visible_grid_kernel(x, y, mx, my, max_range, boxes, shrink, free, vis):
+@numba.njit(cache=True)
+def _visible_grid_marker(m, x, y, mx, my, max_range, boxes, shrink, free, vis):
+    """Fill ``vis[m]``: in range and free, then clear each box's shadow row by row."""
     r2max = max_range * max_range
     nb = boxes.shape[0]
-    for m in numba.prange(mx.size):
-        hp = np.empty((nb, 6, 3))
-        nhp = np.empty(nb, dtype=np.int64)
-        hidden = False
+    hp = np.empty((nb, 6, 3))
+    nhp = np.empty(nb, dtype=np.int64)
+    hidden = False
+    for b in range(nb):
+        nhp[b] = _shadow_halfplanes(mx[m], my[m], boxes[b], shrink, hp[b])
+        if nhp[b] < 0:
+            hidden = True
+    for iy in range(y.size):
+        yy = y[iy]
+        dy = yy - my[m]
+        for ix in range(x.size):
+            dx = x[ix] - mx[m]
+            vis[m, iy, ix] = free[iy, ix] and (dx * dx + dy * dy <= r2max) and not hidden
+        if hidden:
+            continue
         for b in range(nb):
-            nhp[b] = _shadow_halfplanes(mx[m], my[m], boxes[b], shrink, hp[b])
-            if nhp[b] < 0:
-                hidden = True
-        for iy in range(y.size):
-            yy = y[iy]
-            dy = yy - my[m]
-            for ix in range(x.size):
-                dx = x[ix] - mx[m]
-                vis[m, iy, ix] = free[iy, ix] and (dx * dx + dy * dy <= r2max) and not hidden
-            if hidden:
+            if nhp[b] <= 0:
                 continue
-            for b in range(nb):
-                if nhp[b] <= 0:
-                    continue
-                lo, hi = -np.inf, np.inf
-                empty = False
-                for h in range(nhp[b]):
-                    a, bb, c = hp[b, h, 0], hp[b, h, 1], hp[b, h, 2]
-                    rhs = -(bb * yy + c)  # a x < rhs
-                    if a > 0.0:
-                        lo_hi = rhs / a
-                        if lo_hi < hi:
-                            hi = lo_hi
-                    elif a < 0.0:
-                        v = rhs / a
-                        if v > lo:
-                            lo = v
-                    elif rhs <= 0.0:
-                        empty = True
-                        break
-                if empty or not lo < hi:
-                    continue
-                i0 = _first_above(x, lo)
-                i1 = _first_at_or_above(x, hi)
-                for ix in range(i0, i1):
-                    vis[m, iy, ix] = False
+            lo, hi = -np.inf, np.inf
+            empty = False
+            for h in range(nhp[b]):
+                a, bb, c = hp[b, h, 0], hp[b, h, 1], hp[b, h, 2]
+                rhs = -(bb * yy + c)  # a x < rhs
+                if a > 0.0:
+                    lo_hi = rhs / a
+                    if lo_hi < hi:
+                        hi = lo_hi
+                elif a < 0.0:
+                    v = rhs / a
+                    if v > lo:
+                        lo = v
+                elif rhs <= 0.0:
+                    empty = True
+                    break
+            if empty or not lo < hi:
+                continue
+            i0 = _first_above(x, lo)
+            i1 = _first_at_or_above(x, hi)
+            for ix in range(i0, i1):
+                vis[m, iy, ix] = False
+
+
+@numba.njit(cache=True, nogil=True)
+def _visible_grid_markers(m0, m1, x, y, mx, my, max_range, boxes, shrink, free, vis):
+    for m in range(m0, m1):
+        _visible_grid_marker(m, x, y, mx, my, max_range, boxes, shrink, free, vis)
 
 
 def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, corners: np.ndarray,
@@ -337,8 +349,9 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, corners: np.
     free = np.empty((y.size, x.size), dtype=np.bool_)
     _free_grid_kernel(x, y, float(workspace_size[0]), float(workspace_size[1]), boxes, free)
     vis = np.empty((mk.shape[0], y.size, x.size), dtype=np.bool_)
-    _visible_grid_kernel(x, y, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
-                         float(max_range), boxes, BOX_SHRINK, free, vis)
+    run_ranges(_visible_grid_markers, mk.shape[0],
+               (x, y, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), float(max_range),
+                boxes, BOX_SHRINK, free, vis))
     return vis, free
 
 
