@@ -29,8 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--alpha", type=float, default=None,
                    help="family false-alarm probability (default 0.01)")
     p.add_argument("--q-scale", type=float, default=None, metavar="Q",
-                   help="NEGATIVE CONTROL ONLY: multiply the filter's process noise by Q (1 = as declared) to "
-                        "see the consistency checks fail on a mis-tuned filter")
+                   help="NEGATIVE CONTROL ONLY: multiply the filter's process noise by Q (1 = as "
+                        "declared) to see the consistency checks fail on a mis-tuned filter")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=run)
 
@@ -39,8 +39,9 @@ def _check_args(args: argparse.Namespace) -> None:
     from scenarios.errors import ScenarioError
 
     if args.from_dir is not None:
-        stray = [flag for flag, value in (("--runs", args.runs), ("--out", args.out), ("--workers", args.workers),
-                                          ("--q-scale", args.q_scale)) if value is not None]
+        given = (("--runs", args.runs), ("--out", args.out), ("--workers", args.workers),
+                 ("--q-scale", args.q_scale))
+        stray = [flag for flag, value in given if value is not None]
         if stray:
             raise ScenarioError(f"{stray[0]}: not with --from (the sweep in {args.from_dir} is already run)")
     elif args.scenario is None:
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def format_report(report, kept: str | None, wall: float) -> str:
-    """The lines ``pefsim validate`` prints for a :class:`~sim.validation.ValidationReport`."""
+    """Format the lines ``pefsim validate`` prints for a :class:`~sim.validation.ValidationReport`."""
     where = f"sweep {kept}" if kept else "temporary sweep, deleted"
     lines = [f"pefsim validate: {report.scenario}, {report.runs} runs, {report.fixes} fixes ({where}, "
              f"{wall:.1f} s)"]

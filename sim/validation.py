@@ -75,7 +75,7 @@ class ValidationReport:
         return not self.failed
 
     def check(self, name: str) -> CheckResult:
-        """The result of check ``name``; raises KeyError when there is none."""
+        """Return the result of check ``name``; raises KeyError when there is none."""
         for c in self.checks:
             if c.name == name:
                 return c
@@ -89,7 +89,7 @@ class ValidationReport:
 
 
 def validation_rng(data: SweepData) -> np.random.Generator:
-    """The null-model generator of a sweep: seeded from its scenario, apart from the runs' streams."""
+    """Return the null-model generator of a sweep: seeded from its scenario, apart from the runs' streams."""
     return np.random.default_rng(np.random.SeedSequence(data.scenario.seed, spawn_key=(NULL_STREAM,)))
 
 
@@ -132,7 +132,7 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
 
 
 def episode_api(q_scale: float = 1.0):
-    """The sweep's episode functions, with the filter's process noise times ``q_scale``.
+    """Return the sweep's episode functions, with the filter's process noise times ``q_scale``.
 
     ``q_scale != 1`` is a negative control (a deliberately mis-tuned filter), nothing else.
     """

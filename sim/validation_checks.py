@@ -50,7 +50,7 @@ def _fmt(x: float) -> str:
 
 
 def _ratios(data: SweepData) -> tuple[np.ndarray, np.ndarray]:
-    """Fixes usable for the bound (all markers measured, finite tau) and their error/tau."""
+    """Return the fixes usable for the bound (all markers measured, finite tau) and their error/tau."""
     fx = data.fixes
     use = fx.full & np.isfinite(fx.predicted_tau) & (fx.predicted_tau > 0) & np.isfinite(fx.snapshot_error)
     return use, fx.snapshot_error[use] / fx.predicted_tau[use]
@@ -67,7 +67,7 @@ def _containment_why_not(data: SweepData) -> str | None:
 
 
 def containment(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
-    """The true position lies in the realised exact fault area at every fix.
+    """Check that the true position lies in the realised exact fault area at every fix.
 
     The area intersects the annuli ``|r - r_i| <= rho_i + shift bound`` (the odometry bound of
     carrying earlier ranges to the fix time), polygonised outwards within
@@ -109,7 +109,7 @@ def _null_maps(data: SweepData, use: np.ndarray) -> np.ndarray:
 
 
 def bound(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
-    """The snapshot error never exceeds the predicted tau at that point (false-alarm probability 0).
+    """Check that the snapshot error never exceeds the predicted tau (false alarm probability 0).
 
     tau is the model's fault-area diameter at the true position; the least-squares point of
     two ranges lies in the (centrally symmetric) linearised area, so its error is at most
@@ -119,16 +119,18 @@ def bound(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResul
     over = int(np.sum(ratio > 1.0))
     worst = null.worst_case_ratio(_null_maps(data, use), data.fixes.predicted_tau[use])
     worst_max = float(np.nanmax(worst)) if np.isfinite(worst).any() else math.nan
-    detail = (f"snapshot LS error / PEF tau ({data.scenario.planning.pef_model.value}) of the fix's subset at the "
-              f"truth; the bounded model allows at most {_fmt(worst_max)} (odometry shift error not included)")
+    model = data.scenario.planning.pef_model.value
+    detail = (f"snapshot LS error / PEF tau ({model}) of the fix's subset at the truth; the bounded "
+              f"model allows at most {_fmt(worst_max)} (odometry shift error not included)")
     return CheckResult("bound", CheckStatus.FAIL if over else CheckStatus.PASS,
                        f"max {_fmt(float(ratio.max()))}, {over}/{ratio.size} over", "<= 1 at every fix", 0.0,
-                       detail, {"max_ratio": float(ratio.max()), "exceedances": over, "fixes": int(ratio.size),
-                                "model_worst_ratio": worst_max, "skipped_fixes": int(np.sum(~use))})
+                       detail, {"max_ratio": float(ratio.max()), "exceedances": over,
+                                "fixes": int(ratio.size), "model_worst_ratio": worst_max,
+                                "skipped_fixes": int(np.sum(~use))})
 
 
 def tightness(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
-    """The largest observed error / tau reaches the fraction f of tau that the model reaches.
+    """Check that the largest observed error / tau reaches the fraction f the model reaches.
 
     f is derived from ``alpha``: the null ratio of every fix is simulated at its own geometry
     (uniform errors in ``+-rho``, linearised LS, :mod:`sim.validation_null`), and f is the
@@ -141,8 +143,9 @@ def tightness(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckR
     f = null.tightness_threshold(sims, alpha)
     typical = float(np.median(sims.max(axis=0)))
     observed = float(ratio.max())
-    detail = (f"f chosen so that P(max of {ratio.size} null ratios < f) <= alpha ({sims.shape[1]} draws per fix, "
-              f"uniform errors in +-rho at each fix's truth); null median of the max {_fmt(typical)}")
+    detail = (f"f chosen so that P(max of {ratio.size} null ratios < f) <= alpha ({sims.shape[1]} draws "
+              f"per fix, uniform errors in +-rho at each fix's truth); null median of the max "
+              f"{_fmt(typical)}")
     return CheckResult("tightness", CheckStatus.PASS if observed >= f else CheckStatus.FAIL,
                        f"max {_fmt(observed)}", f">= f = {_fmt(f)}", alpha, detail,
                        {"max_ratio": observed, "threshold": f, "null_median_max": typical,
@@ -166,7 +169,7 @@ def _coverage_why_not(data: SweepData) -> str | None:
 
 
 def coverage(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
-    """The fraction of fixes inside their p-level snapshot ellipse matches p (gaussian noise).
+    """Check that the fraction of fixes inside their p-level snapshot ellipse matches p.
 
     Inside: ``d^T C^-1 d <= chi2.ppf(p, 2)`` with d the snapshot error and C its covariance,
     ``p = planning.gdop_level``; two-sided Clopper-Pearson interval at ``alpha`` must hold p.
@@ -182,8 +185,9 @@ def coverage(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRe
     detail = (f"snapshot error inside its {p:g} ellipse (d^T C^-1 d <= {_fmt(chi2_2dof_ppf(p))}); "
               f"fixes are independent, exact binomial interval; verdict {res.verdict.value}")
     return CheckResult("coverage", CheckStatus.PASS if res.passed else CheckStatus.FAIL,
-                       f"{_fmt(k / n)} ({k}/{n})", f"CI [{_fmt(lo)}, {_fmt(hi)}] holds p = {p:g}", alpha, detail,
-                       {"inside": k, "fixes": n, "p": p, "ci": [lo, hi], "skipped_fixes": int(np.sum(~rows))})
+                       f"{_fmt(k / n)} ({k}/{n})", f"CI [{_fmt(lo)}, {_fmt(hi)}] holds p = {p:g}", alpha,
+                       detail, {"inside": k, "fixes": n, "p": p, "ci": [lo, hi],
+                                "skipped_fixes": int(np.sum(~rows))})
 
 
 # -- filter consistency ---------------------------------------------------------------------
@@ -217,8 +221,10 @@ def nees(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
 
 
 def _updates(data: SweepData) -> tuple[int, int]:
-    """(updates attempted, updates gated) over all fixes: each measured marker is one range
-    update (plus one bearing update when the sensor measures bearings)."""
+    """Count the updates attempted and gated over all fixes.
+
+    Each measured marker is one range update (plus one bearing update with bearings).
+    """
     per_marker = 2 if data.scenario.sensor.uses_bearing else 1
     attempted = int(np.sum(data.fixes.markers >= 0)) * per_marker
     return attempted, attempted - int(np.sum(data.fixes.n_accepted))
@@ -259,7 +265,7 @@ def _plan_why_not(data: SweepData) -> str | None:
 
 
 def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
-    """The fraction of runs that reach the goal with the error under eps_max all along.
+    """Check the fraction of runs that reach the goal with the error under eps_max all along.
 
     Crashed runs count as failures. Fails when the upper end of the two-sided Clopper-Pearson
     interval at ``alpha`` is below ``montecarlo.success_target`` (false alarm <= alpha / 2).

@@ -46,7 +46,7 @@ MAX_WORST_ROWS = 12
 
 
 def error_maps(marker_xy: np.ndarray, truth: np.ndarray, sensor: SensorSpec) -> np.ndarray:
-    """The linear map ``A`` from unit-cube noise to the LS position error of each fix.
+    """Return the linear map ``A`` from unit-cube noise to the LS position error of each fix.
 
     Parameters
     ----------
@@ -141,7 +141,7 @@ def worst_case_ratio(amap: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 
 def tightness_threshold(ratios: np.ndarray, alpha: float) -> float:
-    """The largest f with ``P(max_i ratio_i < f) <= alpha`` for independent fixes.
+    """Return the largest f with ``P(max_i ratio_i < f) <= alpha`` for independent fixes.
 
     ``P(max < f) = prod_i F_i(f)`` with ``F_i`` the CDF of fix i's ratio, estimated from its
     draws as ``(count(ratio < f) + 1) / (draws + 1)``: the +1 keeps the logarithm finite and
