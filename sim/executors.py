@@ -272,6 +272,9 @@ def iter_ray(factory: WorkerFactory, payload: Any, specs: Iterable[Any], workers
             try:
                 record = ray.get(ref)
             except ray.exceptions.RayActorError as exc:
+                if getattr(exc, "actor_init_failed", False):
+                    # Not the run's fault: no actor can start (unimportable payload, ...).
+                    raise RuntimeError(f"Monte-Carlo Ray actors fail to start: {exc}") from None
                 record = factory.died(spec, f"Ray actor died: {str(exc).splitlines()[0]}")
                 ray.kill(actor)
                 actors.discard(actor)
