@@ -10,7 +10,9 @@ over pairs, the MILP (site variables z_j, pair variables y_jl)::
 :mod:`planner.cover` solves the same problem without the pair variables (equivalent
 independent-set cuts generated as needed: far fewer rows, a tighter LP; see there). For k > 2
 a good *pair* is used as a sufficient condition (adding markers to a subset only shrinks the
-strip intersection and adds GDOP information) together with ``sum_{j visible from i} z_j >= k``.
+strip intersection and adds GDOP information) together with ``sum_{j visible from i} z_j >= k``;
+a point that only k mediocre markers together could cover, without a good pair among them, is
+reported uncovered (conservative).
 
 Size limit: with at most :data:`MILP_MAX_SITES` useful sites (in some good pair), ``auto``
 runs the exact solver (LP cutting planes, then HiGHS MILP rounds via
