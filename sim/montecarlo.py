@@ -353,7 +353,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     if not scenario.text:
         raise ScenarioError(f"{scenario.source}: the scenario has no source text to keep beside the results")
     layout = SweepLayout(out)
-    layout.make_dirs()  # an unwritable place fails here, before the planning work
+    layout.check_writable()  # fails before the planning work; leaves at most an empty directory
     done = results.finished_runs(layout) if settings else set()
     todo = [s for s in plan_runs(scenario, runs, task, rrd_every) if s.run not in done]
 

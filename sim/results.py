@@ -132,6 +132,17 @@ class SweepLayout:
         """Path of run ``run``'s part in ``folder``."""
         return folder / f"run-{run:06d}{suffix}"
 
+    def check_writable(self) -> None:
+        """Create the directory itself (not its tree) and write a probe; raises OutputError if impossible."""
+        probe = self.root / f".probe{os.getpid()}"
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            probe.write_bytes(b"")
+            probe.unlink()
+        except OSError as exc:
+            raise OutputError(f"{self.root}: cannot create the output directory: "
+                              f"{exc.strerror or exc}") from None
+
     def make_dirs(self) -> None:
         """Create the directory tree; raises OutputError when that is impossible."""
         try:

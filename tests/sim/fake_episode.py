@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenarios.errors import SimulationError
+from scenarios.errors import PlanningError, SimulationError
 from sim.episode_types import SUMMARY_KEYS, EpisodeResult, FixLog, StepLog
 from sim.montecarlo import EpisodeApi
 
@@ -120,7 +120,12 @@ def run_episode_segfault(scenario, task_index: int = 0, seed=0, world=None, prep
     return run_episode(scenario, task_index, seed, world, prepared)
 
 
+def prepare_unplannable(scenario, task_index: int) -> FakePrepared:
+    raise PlanningError(f"task {task_index}: no admissible route")
+
+
 API = EpisodeApi(prepare, run_episode, FakeWorld)
+UNPLANNABLE = EpisodeApi(prepare_unplannable, run_episode, FakeWorld)
 CRASHY = EpisodeApi(prepare, run_episode_crashy, FakeWorld)
 FATAL = EpisodeApi(prepare, run_episode_fatal, FakeWorld)
 SLOW = EpisodeApi(prepare, run_episode_slow, FakeWorld)

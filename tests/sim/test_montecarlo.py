@@ -22,7 +22,7 @@ import pyarrow.parquet as pq
 import pytest
 
 import scenarios
-from scenarios.errors import OutputError, ScenarioError, SimulationError
+from scenarios.errors import OutputError, PlanningError, ScenarioError, SimulationError
 from scenarios.schema import PefModel
 from sim import montecarlo, results
 from sim.montecarlo import sweep
@@ -164,6 +164,14 @@ def test_output_directory_rules(tmp_path, two_tasks):
     blocker.write_text("x")
     with pytest.raises(OutputError, match="cannot create the output directory"):
         sweep(two_tasks, blocker / "sub", runs=3, api=fe.API, progress=False)
+
+
+def test_failed_planning_leaves_the_directory_usable(tmp_path, two_tasks):
+    out = tmp_path / "unplannable"
+    with pytest.raises(PlanningError, match="no admissible route"):
+        sweep(two_tasks, out, runs=2, workers=1, api=fe.UNPLANNABLE, progress=False)
+    assert not any(out.iterdir())
+    assert sweep(two_tasks, out, runs=2, workers=1, api=fe.API, progress=False).runs == 2
 
 
 def test_resume_completes_only_missing_runs_and_extends(tmp_path, two_tasks):
