@@ -159,8 +159,9 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
     if s.runs:
         met = s.success_ci[0] >= s.success_target
         missed = s.success_ci[1] < s.success_target
-        word = "meets" if met else "misses" if missed else "cannot yet tell whether it meets"
-        verdict = (f"The plan {word} its target: {s.successes} of {s.runs} runs succeeded "
+        lead = ("The plan meets its target" if met else "The plan misses its target" if missed
+                else "Too few runs yet to tell whether the plan meets its target")
+        verdict = (f"{lead}: {s.successes} of {s.runs} runs succeeded "
                    f"({s.success_fraction:.1%}, 95 % CI {s.success_ci[0]:.1%} – {s.success_ci[1]:.1%}) "
                    f"against a target of {s.success_target:.1%}.")
     else:
