@@ -1,0 +1,129 @@
+"""Arc length, time and turning along a path, sampled for the measurement schedule.
+
+:class:`Kinematics` maps time to arc length for vertex speeds with constant acceleration
+between vertices; :func:`sample_track` samples a path uniformly in time (plus its vertices),
+aligned with the sensor's fix rate, and records where a fix started at each sample completes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.errors import PlanningError
+
+
+@dataclass(frozen=True, eq=False)
+class Track:
+    """The path sampled at a fine spacing, with time, turning and fix stretches (n samples)."""
+
+    s: np.ndarray          # (n,) arc length [m]
+    xy: np.ndarray         # (n, 2) positions [m]
+    t: np.ndarray          # (n,) time since departure [s]
+    turn_in: np.ndarray    # (n,) absolute turning up to and including this sample [rad]
+    turn_ex: np.ndarray    # (n,) absolute turning before this sample [rad]
+    t_start: np.ndarray    # (n,) start time of a fix started here [s]
+    c: np.ndarray          # (n,) arc length where a fix started here completes [m]
+    c_idx: np.ndarray      # (n,) first sample at or after c
+    xy_c: np.ndarray       # (n, 2) position at c [m]
+    vertex_idx: np.ndarray  # (N,) sample index of each input point
+
+
+class Kinematics:
+    """Arc length against time along a path, constant acceleration between vertices.
+
+    A speed of 0 at a vertex (a stop) therefore takes finite time.
+
+    Parameters
+    ----------
+    s_v : ndarray, shape (N,)
+        Arc length of the vertices [m], non-decreasing.
+    v : ndarray, shape (N,)
+        Speed at the vertices [m/s], >= 0; two consecutive zeros only on a zero-length segment.
+    """
+
+    def __init__(self, s_v: np.ndarray, v: np.ndarray):
+        self.s_v, self.v = s_v, v
+        ds, vsum = np.diff(s_v), v[:-1] + v[1:]
+        stuck = (vsum <= 0.0) & (ds > 0.0)
+        if np.any(stuck):
+            q = int(np.flatnonzero(stuck)[0])
+            raise PlanningError(f"path speed is zero between s = {s_v[q]:.2f} m and s = {s_v[q + 1]:.2f} m")
+        self.dur = np.where(ds > 0.0, 2.0 * ds / np.where(vsum > 0.0, vsum, 1.0), 0.0)
+        self.t_v = np.concatenate([[0.0], np.cumsum(self.dur)])
+        self.acc = np.where(self.dur > 0.0, np.diff(v) / np.where(self.dur > 0.0, self.dur, 1.0), 0.0)
+
+    def s_at(self, t: np.ndarray) -> np.ndarray:
+        """Arc length reached at times ``t`` [s] (clipped to the path) [m]."""
+        if len(self.dur) == 0:
+            return np.zeros(np.shape(t))
+        i = np.clip(np.searchsorted(self.t_v, t, side="right") - 1, 0, len(self.dur) - 1)
+        tau = np.clip(t - self.t_v[i], 0.0, self.dur[i])
+        return np.minimum(self.s_v[i] + self.v[i] * tau + 0.5 * self.acc[i] * tau * tau, self.s_v[i + 1])
+
+
+def sample_track(path: np.ndarray, speed: np.ndarray, spacing: float, fix_time: float, gap: float) -> Track:
+    """Sample the path uniformly in time (plus its vertices), aligned with the fix rate.
+
+    The time step divides the minimum gap between fix starts (at least 4 steps per gap), so a
+    fix can start exactly when the rate allows; its spatial step is at most ``spacing``.
+
+    Parameters
+    ----------
+    path : ndarray, shape (N, 2)
+        Path vertices [m].
+    speed : ndarray, shape (N,)
+        Speed at the vertices [m/s] (see :class:`Kinematics`).
+    spacing : float
+        Largest distance between samples [m].
+    fix_time : float
+        Duration of one fix, ``k * measurement_time`` [s].
+    gap : float
+        Minimum time between fix starts [s].
+
+    Returns
+    -------
+    Track
+        n samples; the first fix (index 0) is taken at standstill before departure
+        (``t_start[0] = -fix_time``, completing at ``c[0] = 0``).
+    """
+    seg = np.diff(path, axis=0)
+    seg_len = np.hypot(seg[:, 0], seg[:, 1])
+    s_in = np.concatenate([[0.0], np.cumsum(seg_len)])
+    moving = seg_len > 0.0
+    heading = np.arctan2(seg[moving, 1], seg[moving, 0])
+    turns = np.abs((np.diff(heading) + math.pi) % (2.0 * math.pi) - math.pi)
+    # the turn between moving segments m and m+1 happens at the start point of segment m+1
+    turn_at = np.zeros(len(path))
+    turn_at[np.flatnonzero(moving)[1:]] = turns
+
+    kin = Kinematics(s_in, speed)
+    dt = gap / max(4, math.ceil(max(speed.max(), 1e-12) * gap / spacing))
+    anchor = (gap - fix_time) % dt  # grid holds t = gap - fix_time: the first rate-allowed start
+    t_end = kin.t_v[-1]
+    t_grid = np.concatenate([[0.0], np.arange(anchor, t_end, dt), [t_end]])
+    s = np.concatenate([kin.s_at(t_grid), s_in])
+    t = np.concatenate([t_grid, kin.t_v])
+    order = np.lexsort((t, s))
+    s, t = s[order], t[order]
+    keep = np.concatenate([[True], np.diff(t) > 1e-9 * dt])
+    s, t = s[keep], t[keep]
+    vertex_idx = np.minimum(np.searchsorted(t, kin.t_v - 1e-9 * dt), len(s) - 1)
+    xy = np.column_stack([np.interp(s, s_in, path[:, 0]), np.interp(s, s_in, path[:, 1])])
+
+    cum_turn = np.cumsum(turn_at)
+    turn_in = np.zeros(len(s))
+    turn_in[vertex_idx] = cum_turn
+    turn_in = np.maximum.accumulate(turn_in)
+    turn_ex = turn_in.copy()
+    turn_ex[vertex_idx] -= turn_at
+
+    t_start = t.copy()
+    t_start[0] = -fix_time  # the first fix is taken at standstill before departure
+    c = kin.s_at(t + fix_time)
+    c[0] = 0.0
+    c_idx = np.minimum(np.searchsorted(s, c, side="left"), len(s) - 1)
+    xy_c = np.column_stack([np.interp(c, s_in, path[:, 0]), np.interp(c, s_in, path[:, 1])])
+    return Track(s, xy, t, turn_in, turn_ex, t_start, c, c_idx, xy_c, vertex_idx)
