@@ -33,10 +33,11 @@ def run_ranges(kernel: Callable, n: int, args: tuple, min_chunk: int = 1) -> Non
 
     Notes
     -----
-    Uses ``numba.get_num_threads()`` threads (``NUMBA_NUM_THREADS``, default: the cores), with
-    four ranges per thread so that uneven ranges (e.g. cells inside obstacles) balance out.
+    Uses ``numba.config.NUMBA_NUM_THREADS`` threads (the environment variable of that name,
+    default: the cores; reading it does not start numba's own thread pool, which costs ~0.1 s),
+    with four ranges per thread so that uneven ranges (e.g. cells inside obstacles) balance out.
     """
-    threads = numba.get_num_threads()
+    threads = max(1, int(numba.config.NUMBA_NUM_THREADS))
     if n <= 0:
         return
     if threads == 1 or n < 2 * min_chunk:

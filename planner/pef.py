@@ -250,10 +250,10 @@ class PEF:
 
     def _kernel(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray, subsets: np.ndarray,
                 model: int) -> tuple[np.ndarray, np.ndarray]:
-        """Return tau (N,) and the chosen row of ``subsets`` (N,) for points (px, py), vis (M, N)."""
+        """Return tau (N,) and the chosen subset's markers (N, k) for points (px, py), vis (M, N)."""
         n = px.size
         tau = np.empty(n)
-        best = np.empty(n, dtype=np.int64)
+        best = np.empty((n, subsets.shape[1]), dtype=np.int64)
         if n == 0:
             return tau, best
         if subsets.shape[0] == 0:
@@ -269,21 +269,16 @@ class PEF:
 
     def _evaluate(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> PefResult:
         if self.model is PefModel.EXACT:
-            tau, idx = self._exact(px, py, vis)
+            tau, best = self._exact(px, py, vis)
         else:
-            tau, idx = self._kernel(px, py, vis, self.subsets, _KERNEL_MODEL[self.model])
-        best = np.full((px.size, self.k), -1, dtype=np.int64)
-        ok = idx >= 0
-        best[ok] = self.subsets[idx[ok]]
+            tau, best = self._kernel(px, py, vis, self.subsets, _KERNEL_MODEL[self.model])
         return PefResult(tau=tau, best=best)
 
     def _exact(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact model: clip the candidate subsets chosen by their linearised diameters."""
         n, nsub = px.size, len(self.subsets)
-        tau = np.full(n, np.inf)
-        idx = np.full(n, -1, dtype=np.int64)
         if n == 0 or nsub == 0:
-            return tau, idx
+            return np.full(n, np.inf), np.full((n, self.k), -1, dtype=np.int64)
         lin = np.empty((n, nsub))
         for s in range(nsub):
             lin[:, s] = self._kernel(px, py, vis, self.subsets[s:s + 1], pef_kernels.STRIPS)[0]
@@ -296,8 +291,8 @@ class PEF:
             if rows.size:
                 exact[rows, s] = self._exact_subset(pts[rows], vis[:, rows], self.subsets[s])
         idx = np.where(np.isfinite(exact).any(axis=1), exact.argmin(axis=1), -1)
-        tau = exact.min(axis=1)
-        return tau, idx
+        best = np.where(idx[:, None] >= 0, self.subsets[np.maximum(idx, 0)], -1)
+        return exact.min(axis=1), best
 
     def _exact_subset(self, pts: np.ndarray, vis: np.ndarray, subset: np.ndarray) -> np.ndarray:
         """Exact fault-area diameters of one ``subset`` (k,) at ``pts`` (N, 2); inf where hidden."""

@@ -308,6 +308,13 @@ def _sweep_strips(subsets, gx, gy, hx, hy, w, bearing, bs):
                     bs[c] = s
 
 
+@numba.njit(cache=True)
+def _store_best(best, p, subsets, s):
+    """Write the marker indices of subset row ``s`` (or -1 when ``s < 0``) into ``best[p]``."""
+    for t in range(best.shape[1]):
+        best[p, t] = subsets[s, t] if s >= 0 else -1
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _blocks_parallelogram(b0, b1, px, py, mx, my, vis, rel, ab, subsets, tau, best):
     nm = mx.size
@@ -327,7 +334,7 @@ def _blocks_parallelogram(b0, b1, px, py, mx, my, vis, rel, ab, subsets, tau, be
         _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs)
         for c in range(w):
             s = bs[c]
-            best[lo + c] = s
+            _store_best(best, lo + c, subsets, s)
             tau[lo + c] = tau_parallelogram(px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab) \
                 if s >= 0 else np.inf
 
@@ -356,7 +363,7 @@ def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf
         _sweep_gdop(subsets, a0, a1, a2, bn, bd, bs, sxx, sxy, syy)
         for c in range(w):
             s = bs[c]
-            best[lo + c] = s
+            _store_best(best, lo + c, subsets, s)
             tau[lo + c] = tau_gdop(px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab, tan_xi, chi2_ppf,
                                    tx, ty, tb) if s >= 0 else np.inf
 
@@ -378,7 +385,7 @@ def _blocks_strips(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, b
         _sweep_strips(subsets, gx, gy, hx, hy, w, tan_xi > 0.0, bs)
         for c in range(w):
             s = bs[c]
-            best[lo + c] = s
+            _store_best(best, lo + c, subsets, s)
             tau[lo + c] = tau_strips(px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab, tan_xi,
                                      tx, ty, tb) if s >= 0 else np.inf
 
@@ -406,8 +413,8 @@ def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, 
         ``chi2.ppf(p, 2)`` for GDOP.
     tau : ndarray, shape (N,)
         Output: error of the best subset [m]; inf where no subset is usable.
-    best : ndarray of int64, shape (N,)
-        Output: row of ``subsets`` chosen, -1 where none.
+    best : ndarray of int64, shape (N, k)
+        Output: marker indices of the chosen subset (a row of ``subsets``), -1 where none.
     """
     nblk = (px.size + BLOCK - 1) // BLOCK
     if model == PARALLELOGRAM:
