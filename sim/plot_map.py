@@ -21,16 +21,37 @@ NO_FIX_GREY = "#b8b8b8"
 
 
 def _tau_limits(tau_mm: np.ndarray, eps_mm: float) -> tuple[float, float]:
-    """Return colour limits [mm], symmetric about eps_max on the log scale.
+    """Return colour limits [mm]: the finite range, at least a factor 2 around eps_max.
 
-    So eps_max is the middle of the diverging colour map; at most three decades either side.
+    At most two decades above eps_max: errors that large are all just "far too large".
     """
     finite = tau_mm[np.isfinite(tau_mm)]
     if finite.size == 0:
         return eps_mm / 10.0, eps_mm * 10.0
-    ratio = max(eps_mm / float(finite.min()), float(finite.max()) / eps_mm, 2.0)
-    ratio = min(ratio, 1e3)
-    return eps_mm / ratio, eps_mm * ratio
+    lo = min(float(finite.min()), eps_mm / 2.0)
+    hi = min(max(float(finite.max()), eps_mm * 2.0), eps_mm * 100.0)
+    return lo, hi
+
+
+def _split_colormap(lo: float, hi: float, eps: float, bad: str):
+    """Diverging colour map whose middle sits at ``eps`` on a log axis from ``lo`` to ``hi``.
+
+    Blue below eps_max (navigable), yellow at it, red above: the lower and upper halves of
+    ``RdYlBu_r`` are stretched over [lo, eps] and [eps, hi] respectively.
+    """
+    import matplotlib
+    from matplotlib.colors import ListedColormap
+
+    base = matplotlib.colormaps["RdYlBu_r"]
+    e = (math.log(eps) - math.log(lo)) / (math.log(hi) - math.log(lo))
+    t = np.linspace(0.0, 1.0, 512)
+    src = np.where(t < e, 0.5 * t / max(e, 1e-9), 0.5 + 0.5 * (t - e) / max(1.0 - e, 1e-9))
+    return ListedColormap(base(np.clip(src, 0.0, 1.0))).with_extremes(bad=bad)
+
+
+def display_field(tau_mm: np.ndarray, lo: float, hi: float) -> np.ma.MaskedArray:
+    """Return the field drawn: finite tau clipped to [lo, hi], inf (no fix) masked (drawn grey)."""
+    return np.ma.masked_invalid(np.where(np.isfinite(tau_mm), np.clip(tau_mm, lo, hi), np.nan))
 
 
 def plot_map(scenario: Scenario, pef_map: PefMap, eps_max: float, path: str | Path, k: int,
@@ -75,8 +96,8 @@ def plot_map(scenario: Scenario, pef_map: PefMap, eps_max: float, path: str | Pa
     # The map's axes get the width left by the colour bar; the height follows the aspect ratio.
     fig, ax = plt.subplots(figsize=(fig_w, max(3.5, min((fig_w - 2.0) * aspect + 1.5, 11.0))),
                            layout="constrained")
-    cmap = matplotlib.colormaps["RdYlBu_r"].with_extremes(bad=NO_FIX_GREY)
-    shown = np.ma.masked_invalid(np.clip(tau_mm, lo, hi))
+    cmap = _split_colormap(lo, hi, eps_mm, NO_FIX_GREY)
+    shown = display_field(tau_mm, lo, hi)
     cx, cy = pef_map.cell_size
     extent = (pef_map.x[0] - cx / 2, pef_map.x[-1] + cx / 2, pef_map.y[0] - cy / 2, pef_map.y[-1] + cy / 2)
     im = ax.imshow(shown, origin="lower", extent=extent, cmap=cmap, norm=LogNorm(vmin=lo, vmax=hi),

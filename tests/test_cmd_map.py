@@ -12,6 +12,7 @@ import pytest
 import scenarios
 from planner.pef import PEF
 from sim.cli import main
+from sim.plot_map import display_field
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -90,3 +91,10 @@ def test_unwritable_output_exits_2_naming_the_path(tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and str(bad) in lines[0] and "Traceback" not in proc.stderr
     assert not bad.exists()
+
+
+def test_cells_without_a_fix_are_drawn_grey_not_clipped():
+    tau = np.array([[1.0, np.inf], [500.0, 0.01]])
+    shown = display_field(tau, 0.1, 100.0)
+    assert shown.mask.tolist() == [[False, True], [False, False]]
+    assert shown.compressed().tolist() == [1.0, 100.0, 0.1]
