@@ -22,9 +22,9 @@
 obstacles. Points and grids go through the same kernel (:mod:`planner.pef_kernels`); a grid
 is its cell centres. The kernel ranks candidate subsets in float32 and recomputes the
 winner's tau in float64: tau is exact for the chosen subset and within ~1e-6 relative of the
-minimum. A 1000 x 1000 map with 20 markers takes ~0.1-0.2 s on 2 cores
-(``benchmarks/pef_map.py``); the first call in a fresh checkout compiles the numba kernels
-(~10 s per model, cached on disk afterwards).
+minimum. Speed and the one-off numba compilation (kernels are compiled per model on first use
+in a fresh checkout, then loaded from the on-disk cache) are measured by
+``benchmarks/pef_map.py``.
 """
 
 from __future__ import annotations
