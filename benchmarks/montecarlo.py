@@ -12,6 +12,10 @@ Measures, in one process and against baselines taken in the same run:
 - ``ray_overhead``: a 2-actor Ray sweep's wall time against the 2-worker pool's, minus 1
   (target <= 0.15), with the cluster started beforehand (``ray_init_s`` reported apart).
 
+``cpu_per_run_1``/``cpu_per_run_2`` (CPU seconds per run in-process / in a worker) and the load
+average before and after are printed too: wall-clock ratios mean little on a machine that
+other jobs keep busy, while equal CPU per run shows the workers pay no per-run penalty.
+
 Usage: ``python benchmarks/montecarlo.py [--runs N] [--no-ray]``.
 """
 
@@ -73,7 +77,7 @@ def timed_sweep(scenario, out: Path, runs: int, workers: int,
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=16, help="runs per measurement")
+    parser.add_argument("--runs", type=int, default=40, help="runs per measurement")
     parser.add_argument("--no-ray", action="store_true", help="skip the Ray measurement")
     args = parser.parse_args(argv)
     scenario = scenarios.load(SCENARIO)
