@@ -65,7 +65,8 @@ def alpha_sweep(alpha_deg: np.ndarray, series: list[dict[str, Any]]) -> Figure:
 
 
 def equal_ranges(q: np.ndarray, thales: dict[str, tuple[np.ndarray, np.ndarray]], s_m: np.ndarray,
-                 ellipse: dict[str, np.ndarray], numbers: dict[str, Any]) -> Figure:
+                 ellipse: dict[str, np.ndarray], numbers: dict[str, Any],
+                 legend: dict[str, str] | None = None) -> Figure:
     """Claim 2: area along the alpha = 90 deg circle, and where the minimum sits at a fixed a + b.
 
     Parameters
@@ -80,18 +81,21 @@ def equal_ranges(q: np.ndarray, thales: dict[str, tuple[np.ndarray, np.ndarray]]
         Error-model label -> |a - b| / m at the smallest linearised area, (p,).
     numbers : dict
         The claim's numbers (thresholds per model under ``sum_threshold_over_m``).
+    legend : dict, optional
+        Error-model label -> legend text.
     """
+    legend = legend or {}
     fig = Figure(figsize=(11, 4.4))
     ax_t, ax_e = fig.subplots(1, 2)
     for (label, (lin, exact)), c in zip(thales.items(), MODEL_COLOURS, strict=False):
-        ax_t.plot(q, lin, color=c, lw=1.5, label=label)
+        ax_t.plot(q, lin, color=c, lw=1.5, label=legend.get(label, label))
         ax_t.plot(q, exact, "o", color=c, ms=3)
     ax_t.axvline(1.0, color="0.3", ls=":", lw=1)
     ax_t.set(xscale="log", xlabel="a / b  (robot on the α = 90° circle, m = 5 m)",
              ylabel="fault area / area at a = b", title="Fixed α = 90°: lines linearised, dots exact")
     ax_t.legend(fontsize=8)
     for (label, argmin), c in zip(ellipse.items(), MODEL_COLOURS, strict=False):
-        ax_e.plot(s_m, argmin, "-o", color=c, ms=3, lw=1.2, label=label)
+        ax_e.plot(s_m, argmin, "-o", color=c, ms=3, lw=1.2, label=legend.get(label, label))
         thr = numbers[label]["sum_threshold_over_m"]
         if thr is not None:
             ax_e.axvline(thr, color=c, ls="--", lw=1)

@@ -107,9 +107,9 @@ def verdict_alpha(numbers: dict) -> tuple[str, str]:
 
 # --- claim 2 ----------------------------------------------------------------------------------
 
-ERROR_MODELS = (("relative (ρ = Re·r)", PAPER_RE, 0.0), ("absolute (ρ = 0.3 mm)", 0.0, 3e-4),
-                ("paper laser (Re·r + 0.1 mm)", PAPER_RE, 1e-4))
-"""(label, Re [m/m], rho0 [m]) of the range-error models claim 2 compares."""
+ERROR_MODELS = (("paper laser", PAPER_RE, 1e-4), ("relative", PAPER_RE, 0.0), ("absolute", 0.0, 3e-4))
+"""(name, Re [m/m], rho0 [m]) of the range-error models claim 2 compares: the paper's laser with the
+paper-two-markers scenario's rho0, purely relative, and range-independent errors."""
 
 
 def _triangle_position(a: np.ndarray, b: np.ndarray, m: float) -> np.ndarray:
@@ -163,16 +163,22 @@ def reproduce_equal_ranges(out: Path, options: Options, rng: np.random.Generator
     numbers["diagonal_2to1_over_rhombus_same_area"] = float(parallelogram(u1, u2, 2.0, 0.5)[1]
                                                             / parallelogram(u1, u2, 1.0, 1.0)[1])
     verdict, why = verdict_equal_ranges(numbers)
-    fig = save_figure(figs.equal_ranges(q, thales, s_m, ellipse, numbers),
+    why += (f" Ch. 4 reads a, b as the parallelogram's sides: at equal area and α a 2:1 parallelogram has a "
+            f"{numbers['diagonal_2to1_over_rhombus_same_area']:.2f}× longer diagonal than the rhombus, so "
+            "there a = b minimises the worst-case error (the diameter), not the area.")
+    legend = {"paper laser": "paper laser: ρ = Re·r + 0.1 mm", "relative": "relative: ρ = Re·r",
+              "absolute": "absolute: ρ = 0.3 mm"}
+    fig = save_figure(figs.equal_ranges(q, thales, s_m, ellipse, numbers, legend),
                       out / "figures" / "claim2_equal_ranges.png")
     return Claim(2, "Fault area is smallest at a = b",
                  "Ch. 2: 'the smallest segment area can be achieved if a=b'; ch. 4 and conclusion: minimal "
                  "fault area when a = b and α = 90°, markers equidistant from the robot.", verdict,
                  sig(numbers), fig,
-                 f"Markers (0, 0) and ({m:g}, 0). Left: robot on the α = 90° (Thales) circle, a/b from 0.1 "
-                 "to 10, exact areas (dots) and linearised (lines) relative to a = b. Right: robot at a "
-                 "fixed range sum a + b = s (an ellipse around the markers): where along it the "
-                 "linearised area is smallest. " + why)
+                 f"Markers (0, 0) and ({m:g}, 0) (spacing m). Range-error models: paper laser ρ = Re·r + "
+                 "0.1 mm, relative ρ = Re·r, absolute ρ = 0.3 mm. Left: robot on the α = 90° (Thales) "
+                 "circle, a/b from 0.1 to 10, exact areas (dots) and linearised (lines) relative to a = b. "
+                 "Right: robot at a fixed range sum a + b = s (an ellipse around the markers): where along "
+                 "it the linearised area is smallest. " + why)
 
 
 def verdict_equal_ranges(numbers: dict) -> tuple[str, str]:
@@ -180,17 +186,28 @@ def verdict_equal_ranges(numbers: dict) -> tuple[str, str]:
     models = {k: v for k, v in numbers.items() if isinstance(v, dict)}
     at90 = {k: v["alpha90_best"] for k, v in models.items()}
     thr = {k: v["sum_threshold_over_m"] for k, v in models.items()}
-    why = ("At fixed α = 90°: " + "; ".join(f"{k} → {v}" for k, v in at90.items()) + ". At fixed a + b, "
-           "a = b is the minimum from (a + b)/m ≥ " +
+    def at90_text(k: str, v: dict) -> str:
+        if v["alpha90_best"] == "indifferent":
+            return f"{k}: the same area for every a/b (spread {v['alpha90_spread_pct']:.2f} %)"
+        if v["alpha90_best"] == "a=b":
+            return f"{k}: smallest at a = b"
+        return (f"{k}: shrinks toward a marker, at a/b = {v['alpha90_q_at_min']:g} to "
+                f"{v['alpha90_min_over_equal']:.2f}× the area at a = b")
+
+    why = ("At fixed α = 90°, " + "; ".join(at90_text(k, v) for k, v in models.items())
+           + ". At fixed a + b, a = b is the minimum from (a + b)/m ≥ " +
            "; ".join(f"{k}: {'never' if v is None else f'{v:.2f}'}" for k, v in thr.items()) + ".")
     everywhere = all(v is not None and v <= 1.05 + 1e-9 for v in thr.values())
     if all(v == "a=b" for v in at90.values()) and everywhere:
         return HOLDS, why
     if not any(v == "a=b" for v in at90.values()) and all(v is None for v in thr.values()):
         return DOES_NOT_HOLD, why
-    known = sorted(((k, v) for k, v in thr.items() if v is not None), key=lambda kv: "paper" not in kv[0])
-    cond = ("the robot is held at a fixed range sum a + b, not a fixed angle α, with a + b ≥ "
-            + "; ".join(f"{v:.2f}·m ({k})" for k, v in known) + ", m = marker spacing")
+    known = {k: v for k, v in thr.items() if v is not None}
+    first = next(iter(known))
+    rest = ", ".join(f"{v:.2f} with {k}" for k, v in known.items() if k != first)
+    cond = (f"the robot is held at a fixed range sum a + b (not at a fixed angle α) of at least "
+            f"{known[first]:.2f}·m with the {first}'s errors" + (f" ({rest} errors)" if rest else "")
+            + ", m = marker spacing")
     return only_when(cond), why
 
 
