@@ -158,3 +158,22 @@ def test_bad_input_is_one_line_exit_2(tmp_path, case, text, args, pattern):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in p.stderr, p.stderr
     assert re.search(pattern, lines[0]), lines[0]
+
+
+def test_ekf_cross_checks_against_snapshot_fixes(prepared):
+    """At each fix the filter, which fuses the fix with everything before it, must be closer to
+    the truth than the fix alone, and the two must agree within the snapshot's own covariance."""
+    s, p = prepared("paper-docks", 0)
+    r = run_episode(s, 0, seed=11, prepared=p)
+    f, st = r.fixes, r.steps
+    idx = np.searchsorted(st.t, f.t, side="left")  # first control step at or after the fix
+    keep = idx < len(st.t)
+    idx = idx[keep]
+    ekf_err = st.est_pose[idx, :2] - st.true_pose[idx, :2]
+    snap_err = f.snapshot[keep] - f.true_position[keep]
+    assert np.mean(np.sum(ekf_err**2, axis=1)) < np.mean(np.sum(snap_err**2, axis=1))
+    d = ekf_err - snap_err  # errors, not positions: the step may come up to 1/60 s after the fix
+    m2 = np.einsum("fi,fi->f", d, np.linalg.solve(f.snapshot_cov[keep], d[:, :, None])[:, :, 0])
+    # Cov(ekf - snapshot) = P_snapshot - P_ekf <= P_snapshot, so m2 is at most chi2(2)-like; its
+    # 99.9 % quantile is 13.8. With ~100 fixes, allow at most 1 exceedance (P(>=2) < 0.5 %).
+    assert np.sum(m2 > 13.8) <= 1, np.sort(m2)[-5:]
