@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "paper", help="reproduce the paper's claims (figures, numbers, verdicts) as one HTML page",
         description="Reproduce the claims of the source paper: 1 area smallest at α = 90°, 2 ... and at "
                     "a = b, 3 more markers never increase the PEF, 4 markers beyond two cost more time than "
-                    "they gain, 5 fault area nearly a parallelogram below 1 %% error, 6 segment-area error "
+                    "they gain, 5 fault area nearly a parallelogram below 1 % error, 6 segment-area error "
                     "and GDOP grow together, 7 a planned route stays under ε_max in simulation. Each gets a "
                     "figure, its numbers and a verdict (holds / holds only when … / does not hold) computed "
                     "from them, on a self-contained page OUT/index.html (PNGs also in OUT/figures/, claim "

@@ -281,11 +281,14 @@ def planned_route(series: list[tuple[np.ndarray, np.ndarray, np.ndarray]], run_m
     ax.set(xlabel="time [s]", ylabel="[mm]", title="Error along the planned route (paper-docks, A → B)")
     ax.legend(fontsize=8, loc="upper right")
     ratio = np.asarray(run_max_error, float) / eps_max
+    crashed = ~np.isfinite(ratio)          # a crashed run has no error: drawn as a red cross at the top
+    ratio = np.where(crashed, np.nan, ratio)
     ax_r.plot(np.arange(ratio.size), ratio, "o", color="tab:blue")
     ax_r.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax_r.axhline(1.0, color="tab:red", lw=1.5)
     lo, hi = numbers["ci95"]
-    top = max(1.1, float(np.max(ratio, initial=0.0)) * 1.1)
+    top = max(1.1, float(np.nanmax(ratio, initial=0.0)) * 1.1)
+    ax_r.plot(np.flatnonzero(crashed), np.full(int(crashed.sum()), 0.98 * top), "x", color="tab:red", ms=9)
     ax_r.set(xlabel="run", ylabel="largest error / ε_max", ylim=(0, top),
              title=f"{numbers['under_eps_max']}/{numbers['runs']} under ε_max (95 % CI {lo:.2f}–{hi:.2f})")
     return _finish(fig, ax, ax_r)

@@ -170,3 +170,15 @@ def test_unwritable_out_exits_2(tmp_path, capsys):
     assert main(["paper", "--quick", "--claims", "1", "--out", str(blocker)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("pefsim: error:") and str(blocker) in err[0]
+
+
+def test_route_figure_draws_a_crashed_run(tmp_path):
+    from sim import paper_figures as figs
+    from sim.paper import save_figure
+
+    t = np.linspace(0.0, 5.0, 50)
+    series = [(t, 0.001 + 0.0 * t, 0.005 + 0.0 * t), (t[:0], t[:0], t[:0])]
+    numbers = {"under_eps_max": 1, "runs": 2, "ci95": [0.01, 0.99]}
+    fig = figs.planned_route(series, np.array([0.001, np.inf]), 0.02, numbers)
+    path = save_figure(fig, tmp_path / "f.png")
+    assert path.read_bytes().startswith(PNG_SIGNATURE)
