@@ -1,0 +1,91 @@
+"""The PEF models for one marker subset at one point, in float64 (numba scalar functions).
+
+The block kernels of :mod:`planner.pef_kernels` rank candidate subsets in float32 and then
+recompute the winner's tau here; :func:`subset_tau` is also the entry point for callers that
+score single subsets (e.g. marker placement). Model codes: PARALLELOGRAM, STRIPS, GDOP.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from estimators.linearized import info_lambda_max_inv_k, parallelogram_diagonal_k, strip_max_vertex_sq_k
+
+PARALLELOGRAM, STRIPS, GDOP = 0, 1, 2
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
+    """Fill unit normals and half-widths of the strips of ``sub`` at (px, py).
+
+    Returns their count (k, or 2k with the tangential bearing strips); 0 when the point is on a
+    marker.
+    """
+    k = sub.size
+    ns = 2 * k if tan_xi > 0.0 else k
+    for t in range(k):
+        dx, dy = px - mx[sub[t]], py - my[sub[t]]
+        r = math.sqrt(dx * dx + dy * dy)
+        if r == 0.0:
+            return 0
+        nx[t], ny[t], b[t] = dx / r, dy / r, rel * r + ab
+        if ns > k:
+            nx[k + t], ny[k + t], b[k + t] = -dy / r, dx / r, r * tan_xi
+    return ns
+
+
+@numba.njit(cache=True, error_model="numpy")
+def tau_parallelogram(px, py, mx, my, sub, rel, ab):
+    """Long diagonal [m] of the parallelogram of the pair ``sub`` (2,) at (px, py), float64."""
+    d1x, d1y = px - mx[sub[0]], py - my[sub[0]]
+    d2x, d2y = px - mx[sub[1]], py - my[sub[1]]
+    r1, r2 = math.sqrt(d1x * d1x + d1y * d1y), math.sqrt(d2x * d2x + d2y * d2y)
+    if r1 == 0.0 or r2 == 0.0:
+        return np.inf
+    return parallelogram_diagonal_k(d1x / r1, d1y / r1, d2x / r2, d2y / r2, rel * r1 + ab, rel * r2 + ab)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
+    """p-level GDOP radius [m] of subset ``sub`` at (px, py), float64 (``nx, ny, b``: scratch >= 2k)."""
+    ns = _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
+    if ns == 0:
+        return np.inf
+    sxx, sxy, syy = 0.0, 0.0, 0.0
+    for t in range(ns):
+        w = 1.0 / (b[t] * b[t])
+        sxx += w * nx[t] * nx[t]
+        sxy += w * nx[t] * ny[t]
+        syy += w * ny[t] * ny[t]
+    # sigma = rho / 3: P = B^-1 / 9.
+    return math.sqrt(chi2_ppf * info_lambda_max_inv_k(sxx, sxy, syy) / 9.0)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def tau_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
+    """Strip-polygon diameter [m] of subset ``sub`` at (px, py), float64 (``nx, ny, b``: scratch >= 2k)."""
+    ns = _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
+    if ns == 0:
+        return np.inf
+    for t in range(ns):
+        nx[t] /= b[t]
+        ny[t] /= b[t]
+    return 2.0 * math.sqrt(strip_max_vertex_sq_k(nx, ny, ns))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def subset_tau(model, px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
+    """Return the model's error [m] of marker subset ``sub`` (k,) at point (px, py), in float64.
+
+    Dispatches to :func:`tau_parallelogram` (which ignores bearings), :func:`tau_gdop` or
+    :func:`tau_strips`; ``nx``, ``ny``, ``b`` are scratch arrays of length >= 2k. Visibility is
+    not checked here; inf for a degenerate geometry.
+    """
+    if model == PARALLELOGRAM:
+        return tau_parallelogram(px, py, mx, my, sub, rel, ab)
+    if model == GDOP:
+        return tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b)
+    return tau_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
