@@ -22,6 +22,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--npz", metavar="FILE",
                    help="write arrays: tau (ny,nx) [m, inf = no fix], x (nx,), y (ny,) cell centres [m], "
                         "best (ny,nx,k) marker indices (-1 = none)")
+    p.add_argument("--rrd", metavar="FILE",
+                   help="write a rerun recording of the static layers (map, region, markers, docks)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=run)
 
@@ -97,6 +99,10 @@ def run(args: argparse.Namespace) -> int:
     from sim.cli import print_json
 
     sc = scenarios.load(args.scenario)
+    if args.rrd:
+        from sim.recording import check_writable
+
+        check_writable(args.rrd)
     pef = PEF(sc, model=args.model)
     resolution = args.resolution if args.resolution is not None else sc.planning.resolution
     pef_map = pef.grid(resolution)
@@ -108,6 +114,10 @@ def run(args: argparse.Namespace) -> int:
         _write_npz(Path(args.npz), pef_map)
     if png is not None:
         _write_png(Path(png), sc, pef_map, eps_max, pef.k)
+    if args.rrd:
+        from sim.recording import write_static_rrd
+
+        write_static_rrd(args.rrd, sc, pef_map=pef_map)
     summary = map_summary(pef_map, eps_max, resolution)
     if args.json:
         print_json(summary)
