@@ -32,10 +32,6 @@ def run(args: argparse.Namespace) -> int:
     seed = scenario.seed if args.seed is None else args.seed
     if seed < 0:
         raise SimulationError(f"--seed: expected a non-negative integer, got {seed}")
-    if args.rrd:
-        from sim.recording import check_writable
-
-        check_writable(args.rrd)  # fail before a long episode, not after
     prepared = prepare(scenario, args.task)
     result = run_episode(scenario, args.task, seed=seed, prepared=prepared)
     summary = dict(result.summary)
