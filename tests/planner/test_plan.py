@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import scenarios
-from planner import criteria, plan
+from planner import candidates, criteria, plan
 from planner.pef import PEF
 from scenarios.errors import PlanningError
 from scenarios.schema import Dock, Obstacle, RouteNetwork, Weights
@@ -71,11 +71,11 @@ def brute(small):
     """All routes enumerated here, scored with the planner's scoring of a single route."""
     seqs = list(brute_paths())
     g = {frozenset((a, b)): small.routes.traffic_of(a, b) for a, b in SEGMENTS}
-    specs = [plan.RouteSpec(str(i), [np.array([NODES[n] for n in seq])], seq,
+    specs = [candidates.RouteSpec(str(i), [np.array([NODES[n] for n in seq])], seq,
                             [g[frozenset(p)] for p in zip(seq[:-1], seq[1:], strict=True)])
              for i, seq in enumerate(seqs)]
     tau_fn = lambda p: FakePEF(bumpy_tau).at(p).tau
-    cands = plan.make_candidates(small, specs, tau_fn)
+    cands = candidates.make_candidates(small, specs, tau_fn)
     # The planner compares criteria at 9 significant digits (documented in planner.criteria),
     # so that floating-point noise neither breaks ties nor gets stretched by normalisation.
     values = np.array([[float(f"{x:.9g}") for x in c.vector()] for c in cands])
