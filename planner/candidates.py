@@ -228,7 +228,11 @@ def network_candidates(scenario: Scenario, start: str, goal: str, tau_fn: TauFn)
 
 def free_candidates(scenario: Scenario, start: str, goal: str, pef, tau_fn: TauFn,
                     n_routes: int = 4) -> list[Candidate]:
-    """Scored free-space candidate routes from grid search on the PEF map."""
+    """Scored free-space candidate routes from grid search on the PEF map.
+
+    Free-space routes carry no traffic data (traffic 0), even when the scenario has a
+    route network with traffic densities.
+    """
     pm = pef.grid(scenario.planning.resolution)
     grid = gridsearch.Grid(np.asarray(pm.x), np.asarray(pm.y))
     h = math.hypot(grid.hx, grid.hy)
