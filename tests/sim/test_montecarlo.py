@@ -21,6 +21,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+import sim
+
 import scenarios
 from scenarios.errors import OutputError, PlanningError, ScenarioError, SimulationError
 from scenarios.schema import PefModel
@@ -250,7 +252,10 @@ def test_recordings_every_mth_run(tmp_path, two_tasks, monkeypatch):
         Path(path).write_bytes(b"RRF2 fake " + result.scenario_name.encode())
         return Path(path)
 
-    monkeypatch.setitem(sys.modules, "sim.recording", SimpleNamespace(write_episode_rrd=write_episode_rrd))
+    fake = SimpleNamespace(write_episode_rrd=write_episode_rrd)
+    # ``from sim import recording`` reads the package attribute once sim.recording was imported
+    monkeypatch.setitem(sys.modules, "sim.recording", fake)
+    monkeypatch.setattr(sim, "recording", fake, raising=False)
     monkeypatch.setattr(montecarlo, "recording_pef_map", lambda scenario: "the map")
     out = tmp_path / "rrd"
     sweep(two_tasks, out, runs=7, workers=1, api=fe.API, rrd_every=3, progress=False)
@@ -264,7 +269,9 @@ def test_a_failing_recording_keeps_the_run_and_warns(tmp_path, two_tasks, monkey
     def broken(path, scenario, result, pef_map=None):
         raise ValueError("no plan")
 
-    monkeypatch.setitem(sys.modules, "sim.recording", SimpleNamespace(write_episode_rrd=broken))
+    fake = SimpleNamespace(write_episode_rrd=broken)
+    monkeypatch.setitem(sys.modules, "sim.recording", fake)
+    monkeypatch.setattr(sim, "recording", fake, raising=False)
     monkeypatch.setattr(montecarlo, "recording_pef_map", lambda scenario: None)
     warnings = []
     out = tmp_path / "rrd-broken"
