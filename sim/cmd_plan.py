@@ -14,6 +14,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--free", action="store_true",
                    help="free-space grid search even if there is a route network")
     p.add_argument("-o", "--output", metavar="PNG", help="figure file (default: <name>-plan.png)")
+    p.add_argument("--rrd", metavar="FILE",
+                   help="write a rerun recording of the map, the candidate routes and the schedule")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run)
 
@@ -83,9 +85,18 @@ def run(args: argparse.Namespace) -> int:
         if not sc.tasks:
             raise PlanningError(f"scenario {sc.name!r} has no tasks: give --from and --to")
         start, goal = sc.tasks[0].start, sc.tasks[0].goal
+    if args.rrd:
+        from sim.recording import check_writable
+
+        check_writable(args.rrd)
     pef = PEF(sc)
     plan = plan_route(sc, start, goal, free=True if args.free else None, pef=pef)
-    out = plot_plan(sc, plan, pef.grid(), args.output or f"{sc.name}-plan.png")
+    pef_map = pef.grid()
+    out = plot_plan(sc, plan, pef_map, args.output or f"{sc.name}-plan.png")
+    if args.rrd:
+        from sim.recording import write_static_rrd
+
+        write_static_rrd(args.rrd, sc, pef_map=pef_map, plan=plan)
     if args.json:
         print_json(plan_json(sc, plan))
         return 0

@@ -64,3 +64,14 @@ def test_map_recording_has_the_static_layers(tmp_path):
                    "world/region"):
         assert rb.chunks.get(entity), f"{entity} missing"
     assert not rb.chunks.get("metrics/error")  # static layers only
+
+
+def test_plan_recording_has_routes_and_schedule(tmp_path):
+    from sim.cli import main
+
+    path = tmp_path / "plan.rrd"
+    assert main(["plan", "paper-docks", "-o", str(tmp_path / "plan.png"), "--rrd", str(path), "--json"]) == 0
+    rb = Readback(path)
+    for entity in ("world/pef", "world/region", "world/routes/candidates", "world/routes/chosen",
+                   "world/schedule"):
+        assert rb.chunks.get(entity), f"{entity} missing"
