@@ -4,12 +4,29 @@ The bottom package of pefsim: it imports nothing from ``estimators``, ``planner`
 """
 
 from scenarios.errors import (
-    OutputError, PefsimError, PlanningError, ScenarioError, SimulationError,
+    OutputError,
+    PefsimError,
+    PlanningError,
+    ScenarioError,
+    SimulationError,
 )
 from scenarios.load import builtin_names, from_dict, load, loads, resolve
 from scenarios.schema import (
-    Dock, Marker, MonteCarloSpec, NoiseModel, Obstacle, PefModel, PlacementSpec, PlanningSpec,
-    RobotSpec, RouteNetwork, Scenario, SensorSpec, Task, Weights, Workspace,
+    Dock,
+    Marker,
+    MonteCarloSpec,
+    NoiseModel,
+    Obstacle,
+    PefModel,
+    PlacementSpec,
+    PlanningSpec,
+    RobotSpec,
+    RouteNetwork,
+    Scenario,
+    SensorSpec,
+    Task,
+    Weights,
+    Workspace,
 )
 
 __all__ = [

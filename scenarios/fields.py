@@ -59,7 +59,7 @@ class Table:
 
     def number(self, name: str, default: Any = _MISSING, *, low: float | None = None,
                high: float | None = None, low_open: bool = False, what: str = "a number") -> float:
-        """A finite float in [low, high] (``low_open``: strictly above ``low``)."""
+        """Read a finite float in [low, high] (``low_open``: strictly above ``low``)."""
         v = self.raw(name, default)
         return self.check_number(self.key(name), v, low=low, high=high, low_open=low_open, what=what)
 
@@ -94,7 +94,7 @@ class Table:
 
     def vector(self, name: str, n: int, default: Any = _MISSING, *, what: str | None = None,
                positive: bool = False) -> tuple[float, ...]:
-        """A list of exactly ``n`` finite numbers."""
+        """Read a list of exactly ``n`` finite numbers."""
         v = self.raw(name, default)
         return self.check_vector(self.key(name), v, n, what=what, positive=positive)
 

@@ -15,8 +15,21 @@ from typing import Any
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table, show
 from scenarios.schema import (
-    Dock, Marker, MonteCarloSpec, NoiseModel, Obstacle, PefModel, PlacementSpec, PlanningSpec,
-    RobotSpec, RouteNetwork, Scenario, SensorSpec, Task, Weights, Workspace,
+    Dock,
+    Marker,
+    MonteCarloSpec,
+    NoiseModel,
+    Obstacle,
+    PefModel,
+    PlacementSpec,
+    PlanningSpec,
+    RobotSpec,
+    RouteNetwork,
+    Scenario,
+    SensorSpec,
+    Task,
+    Weights,
+    Workspace,
 )
 
 LIBRARY = Path(__file__).resolve().parent / "library"
@@ -29,7 +42,7 @@ def builtin_names() -> list[str]:
 
 
 def resolve(name_or_path: str | Path) -> Path:
-    """A path for a scenario given as a path or a built-in name."""
+    """Return the path of a scenario given as a path or a built-in name."""
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists():
         if not p.is_file():
@@ -285,5 +298,5 @@ def _routes(t: Table, workspace: Workspace, docks: list[Dock], free_point) -> Ro
 
 
 def with_overrides(scenario: Scenario, **changes: Any) -> Scenario:
-    """A copy of ``scenario`` with top-level fields replaced (for tests and sweeps)."""
+    """Return a copy of ``scenario`` with top-level fields replaced (for tests and sweeps)."""
     return replace(scenario, **changes)

@@ -56,7 +56,7 @@ class Workspace:
         return self.size[1]
 
     def contains(self, p: tuple[float, float] | np.ndarray) -> bool:
-        """True if point ``p`` (x, y) [m] lies in the closed workspace rectangle."""
+        """Tell whether point ``p`` (x, y) [m] lies in the closed workspace rectangle."""
         return 0.0 <= p[0] <= self.size[0] and 0.0 <= p[1] <= self.size[1]
 
 
@@ -77,7 +77,7 @@ class Obstacle:
         return local @ rot.T + np.asarray(self.center)
 
     def contains(self, p: tuple[float, float] | np.ndarray, margin: float = 0.0) -> bool:
-        """True if point ``p`` lies inside the box grown by ``margin`` [m] on every side."""
+        """Tell whether point ``p`` lies inside the box grown by ``margin`` [m] on every side."""
         c, s = math.cos(self.yaw), math.sin(self.yaw)
         dx, dy = p[0] - self.center[0], p[1] - self.center[1]
         lx, ly = c * dx + s * dy, -s * dx + c * dy
@@ -292,7 +292,7 @@ class Scenario:
         return [m.id for m in self.markers]
 
     def dock(self, name: str) -> Dock:
-        """The dock called ``name``; raises ``KeyError`` when there is none."""
+        """Return the dock called ``name``; raises ``KeyError`` when there is none."""
         for d in self.docks:
             if d.name == name:
                 return d

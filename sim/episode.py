@@ -72,7 +72,7 @@ def prepare(scenario: Scenario, task_index: int = 0, pef=None) -> Prepared:
 
 
 def seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:
-    """The episode's SeedSequence from an int or a SeedSequence (used as is)."""
+    """Return the episode's SeedSequence from an int or a SeedSequence (used as is)."""
     if isinstance(seed, np.random.SeedSequence):
         return seed
     if isinstance(seed, (bool, float)) or not isinstance(seed, (int, np.integer)) or seed < 0:

@@ -1,5 +1,7 @@
-"""One fix at a time: measure the chosen markers one after another, update the EKF, and judge
-the fix against its own exact fault area and the PEF's prediction.
+"""One fix at a time: measure, update the EKF, judge the fix.
+
+The chosen markers are measured one after another; each fix is judged against its own exact
+fault area and the PEF's prediction.
 
 The robot keeps moving while it measures (``measurement_time`` per marker), so a fix's ranges
 are taken at different places. The snapshot fix brings them to the time of the last one with
@@ -65,9 +67,12 @@ class FixRecorder:
     # -- starting ------------------------------------------------------------------------
 
     def choose_subset(self, scheduled: tuple[int, ...], est_xy: np.ndarray) -> list[int] | None:
-        """The scheduled subset if the laser sees all of it, else the best visible one by the
-        PEF at the *estimated* position (the robot does not know the truth); None if fewer than
-        k markers are visible."""
+        """Choose the markers of a fix.
+
+        The scheduled subset if the laser sees all of it, else the best visible one by the PEF
+        at the *estimated* position (the robot does not know the truth); None if fewer than k
+        markers are visible.
+        """
         vis = self.laser.visible_all()
         if all(vis[i] for i in scheduled):
             return list(scheduled)
@@ -100,9 +105,11 @@ class FixRecorder:
         return 2.0 * tick + (3.0 * r.odometry_noise + abs(r.wheel_radius_error)) * np.asarray(travelled)
 
     def shift_var(self, travelled: np.ndarray) -> np.ndarray:
-        """Variance of the odometry error of a shift over ``travelled`` metres (M,) [m^2]:
-        quantisation of two encoder readings, random slip, the systematic wheel error, and the
-        filter's heading uncertainty turning the shift."""
+        """Return the variance of the odometry error of a shift over ``travelled`` metres (M,) [m^2].
+
+        Quantisation of two encoder readings, random slip, the systematic wheel error, and the
+        filter's heading uncertainty turning the shift.
+        """
         r = self.scenario.robot
         tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
         d = np.asarray(travelled)

@@ -29,7 +29,7 @@ def write_tum(directory: str | Path, t: np.ndarray, true_pose: np.ndarray, est_p
         d.mkdir(parents=True, exist_ok=True)
         paths = (d / "groundtruth.txt", d / "estimate.txt")
         header = "# timestamp tx ty tz qx qy qz qw"
-        for path, pose in zip(paths, (true_pose, est_pose)):
+        for path, pose in zip(paths, (true_pose, est_pose), strict=True):
             # 9 decimals: nanoseconds and nanometres, so the RMSE recomputed from the files matches
             np.savetxt(path, tum_rows(t, pose), fmt="%.9f", header=header, comments="")
     except OSError as exc:

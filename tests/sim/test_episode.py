@@ -161,8 +161,11 @@ def test_bad_input_is_one_line_exit_2(tmp_path, case, text, args, pattern):
 
 
 def test_ekf_cross_checks_against_snapshot_fixes(prepared):
-    """At each fix the filter, which fuses the fix with everything before it, must be closer to
-    the truth than the fix alone, and the two must agree within the snapshot's own covariance."""
+    """The EKF beats and agrees with the snapshot fixes.
+
+    At each fix the filter, which fuses the fix with everything before it, must be closer to the
+    truth than the fix alone, and the two must agree within the snapshot's own covariance.
+    """
     s, p = prepared("paper-docks", 0)
     r = run_episode(s, 0, seed=11, prepared=p)
     f, st = r.fixes, r.steps

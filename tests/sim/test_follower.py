@@ -12,7 +12,7 @@ from sim.follower import PurePursuit, wheel_speeds
 
 def _densify(corners, step=0.02):
     pts = [corners[0]]
-    for a, b in zip(corners[:-1], corners[1:]):
+    for a, b in zip(corners[:-1], corners[1:], strict=True):
         n = max(1, int(np.ceil(np.hypot(*(np.subtract(b, a))) / step)))
         pts += [np.add(a, (np.subtract(b, a)) * t) for t in np.linspace(0, 1, n + 1)[1:]]
     return np.array(pts)

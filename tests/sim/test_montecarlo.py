@@ -21,9 +21,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-import sim
-
 import scenarios
+import sim
 from scenarios.errors import OutputError, PlanningError, ScenarioError, SimulationError
 from scenarios.schema import PefModel
 from sim import montecarlo, results
