@@ -16,6 +16,19 @@ import numba
 import numpy as np
 
 
+_threads: int | None = None
+
+
+def set_threads(n: int | None) -> None:
+    """Limit the threads of every kernel call in this process (None: back to the default).
+
+    Process-parallel sweeps call this with 1 in each worker: the workers already fill the
+    cores, and kernel threads on top would only contend with them.
+    """
+    global _threads
+    _threads = None if n is None else max(1, int(n))
+
+
 def run_ranges(kernel: Callable, n: int, args: tuple, min_chunk: int = 1) -> None:
     """Call ``kernel(lo, hi, *args)`` for ranges covering ``[0, n)``, in parallel.
 
@@ -37,7 +50,7 @@ def run_ranges(kernel: Callable, n: int, args: tuple, min_chunk: int = 1) -> Non
     default: the cores; reading it does not start numba's own thread pool, which costs ~0.1 s),
     with four ranges per thread so that uneven ranges (e.g. cells inside obstacles) balance out.
     """
-    threads = max(1, int(numba.config.NUMBA_NUM_THREADS))
+    threads = _threads if _threads is not None else max(1, int(numba.config.NUMBA_NUM_THREADS))
     if n <= 0:
         return
     if threads == 1 or n < 2 * min_chunk:

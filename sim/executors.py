@@ -104,8 +104,16 @@ def _pool_init(factory: WorkerFactory, payload: Any) -> None:
     if parent is not None:
         # Without this, workers of a parent killed with SIGKILL would wait on the task queue forever.
         threading.Thread(target=_exit_with, args=(parent.sentinel,), daemon=True).start()
+    _one_thread_per_worker()
     _context = factory(payload)
     multiprocessing.util.Finalize(None, _context.close, exitpriority=10)
+
+
+def _one_thread_per_worker() -> None:
+    # Workers already fill the cores; kernel threads on top only contend for them.
+    from planner.kernel_threads import set_threads
+
+    set_threads(1)
 
 
 def _exit_with(sentinel: int) -> None:
@@ -208,6 +216,7 @@ class _RayWorker:
     """A Ray actor keeping one context (one physics world) for all the runs it is given."""
 
     def __init__(self, factory: WorkerFactory, payload: Any) -> None:
+        _one_thread_per_worker()
         self.context = factory(payload)
 
     def execute(self, spec: Any) -> Any:
