@@ -15,7 +15,6 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-
 _threads: int | None = None
 
 

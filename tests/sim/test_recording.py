@@ -17,10 +17,11 @@ from scipy import stats
 
 import scenarios
 from scenarios.errors import OutputError
-from sim import recording, recording_episode
-from sim import recording_entities as E
+from sim import recording
 from sim.episode_types import EpisodeResult, FixLog, StepLog
-from sim.recording_geometry import covariance_ellipses, level_contours, strip_polygons
+from sim.recording import entities as E
+from sim.recording import episode as recording_episode
+from sim.recording.geometry import covariance_ellipses, level_contours, strip_polygons
 
 
 @pytest.fixture(autouse=True)

@@ -1,7 +1,7 @@
 """Static part of a recording: the workspace, markers, docks, PEF map and plan.
 
 Everything here is logged with ``static=True`` (it does not change during an episode), in
-metres in the workspace frame. Entity paths come from :mod:`sim.recording_entities`.
+metres in the workspace frame. Entity paths come from :mod:`sim.recording.entities`.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import numpy as np
 import rerun as rr
 
 from scenarios.schema import Scenario
-from sim import recording_entities as E
-from sim.recording_geometry import closed_ring, heading_vectors, level_contours, rectangle_ring
+from sim.recording import entities as E
+from sim.recording.geometry import closed_ring, heading_vectors, level_contours, rectangle_ring
 
 TAU_DISPLAY_CAP = 2.0
 """The heatmap shows τ clipped at this multiple of ε_max (τ = ∞ shows as the cap): the

@@ -5,9 +5,9 @@ believed (estimate and covariance), which markers each fix used, and whether the
 fault area stayed inside what the PEF predicted. Open one with ``rerun FILE.rrd``.
 
 Every function takes an explicit :class:`rerun.RecordingStream` (never the global stream).
-The file layout (entity paths, timeline) is defined in :mod:`sim.recording_entities`; the
-static and per-episode logging live in :mod:`sim.recording_static` and
-:mod:`sim.recording_episode`.
+The file layout (entity paths, timeline) is defined in :mod:`sim.recording.entities`; the
+static and per-episode logging live in :mod:`sim.recording.static` and
+:mod:`sim.recording.episode`.
 
 Examples
 --------
@@ -26,10 +26,10 @@ import rerun.blueprint as rrb
 
 from scenarios.errors import OutputError
 from scenarios.schema import Scenario
-from sim import recording_entities as E
 from sim.episode_types import EpisodeResult
-from sim.recording_episode import log_result
-from sim.recording_static import log_pef_map, log_plan, log_scene
+from sim.recording import entities as E
+from sim.recording.episode import log_result
+from sim.recording.static import log_pef_map, log_plan, log_scene
 
 
 def blueprint() -> rrb.Blueprint:

@@ -11,9 +11,9 @@ import numpy as np
 import rerun as rr
 
 from scenarios.schema import Scenario
-from sim import recording_entities as E
 from sim.episode_types import EpisodeResult, FixLog, StepLog
-from sim.recording_geometry import covariance_ellipses, heading_vectors, strip_polygons
+from sim.recording import entities as E
+from sim.recording.geometry import covariance_ellipses, heading_vectors, strip_polygons
 
 CHI2_3DOF_975 = 9.348403604496148
 """NEES reference line, scipy.stats.chi2.ppf(0.975, 3) (a constant so recording does not import
