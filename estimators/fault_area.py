@@ -39,13 +39,13 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
+from estimators.lsq import solve_position
 from estimators.measurements import (
     collinear_markers,
     marker_line_side,
     range_jacobian,
     ranges,
     reflect_across_marker_line,
-    solve_position,
     world_bearing,
     world_bearing_jacobian,
 )

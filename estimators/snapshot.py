@@ -18,13 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.fault_area import FaultArea, exact_fault_area
+from estimators.lsq import solve_position
 from estimators.measurements import (
     bearing_std,
     collinear_markers,
     marker_line_side,
     range_std,
     reflect_across_marker_line,
-    solve_position,
     wrap_angle,
 )
 from scenarios.schema import NoiseModel

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from estimators.lsq import solve_position
 from estimators.measurements import (
     bearing,
     bearing_jacobian,
@@ -20,7 +21,6 @@ from estimators.measurements import (
     range_jacobian,
     range_std,
     ranges,
-    solve_position,
     world_bearing,
     world_bearing_jacobian,
     wrap_angle,

@@ -1,0 +1,127 @@
+"""Weighted Gauss-Newton position from ranges (and world bearings).
+
+The inverse of the measurement model: both the snapshot fix and the fault-area construction
+start from it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.measurements import (
+    _MIN_RANGE,
+    wrap_angle,
+)
+
+
+@dataclass(frozen=True)
+class LsqSolution:
+    """Result of :func:`solve_position`.
+
+    Attributes
+    ----------
+    position : ndarray, shape (2,)
+        Estimated position [m].
+    jacobian : ndarray, shape (n, 2)
+        Stacked measurement Jacobian at ``position`` (ranges first, then bearings).
+    residuals : ndarray, shape (n,)
+        Measured minus predicted at ``position`` (ranges [m], then wrapped bearings [rad]).
+    iterations : int
+        Gauss-Newton iterations taken.
+    converged : bool
+        True if the last step was shorter than the tolerance.
+    """
+
+    position: np.ndarray
+    jacobian: np.ndarray
+    residuals: np.ndarray
+    iterations: int
+    converged: bool
+
+
+def _stack(p, markers, meas_ranges, world_bearings):
+    d = p - markers
+    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), _MIN_RANGE)
+    res = meas_ranges - r
+    jac = d / r[:, None]
+    if world_bearings is not None:
+        pred = np.arctan2(-d[:, 1], -d[:, 0])
+        res = np.concatenate([res, wrap_angle(world_bearings - pred)])
+        jac = np.vstack([jac, np.column_stack([-d[:, 1], d[:, 0]]) / (r * r)[:, None]])
+    return res, jac
+
+
+def _normal_step(jw, rw):
+    """Gauss-Newton step from the weighted Jacobian (n, 2) and residuals (n,); 2x2 closed form."""
+    (a, b), (_, c) = (jw.T @ jw).tolist()
+    g0, g1 = (jw.T @ rw).tolist()
+    det = a * c - b * b
+    if not det > 1e-14 * (a * c + b * b):      # (near) singular: e.g. robot on the marker line
+        step, *_ = np.linalg.lstsq(jw, rw, rcond=None)
+        return step
+    return np.array([(c * g0 - b * g1) / det, (a * g1 - b * g0) / det])
+
+
+def solve_position(markers: np.ndarray, meas_ranges: np.ndarray, std: np.ndarray, prior: np.ndarray,
+                   world_bearings: np.ndarray | None = None, max_iter: int = 20,
+                   step_tol: float = 1e-10) -> LsqSolution:
+    """Weighted least-squares position from ranges (and world bearings), by Gauss-Newton.
+
+    Minimises ``sum(residual_j^2 / std_j^2)`` starting at ``prior``, halving steps that do not
+    decrease it. This usually stays on the prior's side of the line through two markers but
+    does not guarantee it: :func:`estimators.snapshot.snapshot_fix` and
+    :func:`estimators.fault_area.exact_fault_area` resolve the mirror ambiguity explicitly.
+
+    Parameters
+    ----------
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+    meas_ranges : ndarray, shape (k,)
+        Measured ranges [m].
+    std : ndarray, shape (k,) or (2k,)
+        Standard deviations of the range errors [m] (then of the bearing errors [rad]).
+    prior : ndarray, shape (2,)
+        Starting point [m].
+    world_bearings : ndarray, shape (k,), optional
+        Measured world-frame directions from the robot to the markers [rad].
+    max_iter : int
+        Iteration limit.
+    step_tol : float
+        Convergence when a step is shorter than this [m].
+
+    Returns
+    -------
+    LsqSolution
+    """
+    markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+    meas_ranges = np.asarray(meas_ranges, dtype=float)
+    w = 1.0 / np.asarray(std, dtype=float)
+    p = np.array(prior, dtype=float)
+    res, jac = _stack(p, markers, meas_ranges, world_bearings)
+    cost = float(np.sum((res * w) ** 2))
+    converged = False
+    it = 0
+    for it in range(1, max_iter + 1):  # noqa: B007 -- the count is reported
+        step = _normal_step(jac * w[:, None], res * w)
+        if math.hypot(step[0], step[1]) < step_tol:
+            p = p + step
+            res, jac = _stack(p, markers, meas_ranges, world_bearings)
+            converged = True
+            break
+        # Backtrack when a full step overshoots (far priors, near-singular geometry): plain
+        # Gauss-Newton can jump across the marker line to the mirror solution.
+        for _ in range(30):
+            q = p + step
+            res_q, jac_q = _stack(q, markers, meas_ranges, world_bearings)
+            cost_q = float(np.sum((res_q * w) ** 2))
+            if cost_q <= cost * (1.0 + 1e-12):     # within rounding counts as no increase
+                break
+            step = 0.5 * step
+        else:               # no decrease along the step: p is a minimum to rounding
+            converged = True
+            break
+        p, res, jac, cost = q, res_q, jac_q, cost_q
+    return LsqSolution(position=p, jacobian=jac, residuals=res, iterations=it, converged=converged)
