@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from estimators.snapshot import snapshot_fix
+from scenarios import SimulationError
 from sim.episode_types import FixLog
 
 
@@ -123,8 +124,11 @@ class FixRecorder:
         p = self.pending
         i = p.markers.pop(0)
         p.due.pop(0)
-        if self.laser.visible(i):
-            m = self.laser.measure(i, self.rng)
+        try:
+            m = self.laser.measure(i, self.rng)  # it checks the line of sight itself
+        except SimulationError:
+            m = None  # the marker went behind an obstacle during the fix
+        if m is not None:
             res = self.loc.update_range(i, m.measured_range)
             p.nis += res.nis if res.accepted else 0.0
             p.accepted += int(res.accepted)
