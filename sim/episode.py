@@ -181,6 +181,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     state = {"dr": np.array(dock.pose, dtype=float)}
     next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
+    counts = {"merged": 0}
 
     def start_fix(s_now: float, t: float, x_est: np.ndarray) -> None:
         # Start the latest scheduled fix the robot has passed, when the laser is free again.
@@ -189,6 +190,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                 or t - last_fix_start < min_gap - 1e-9:
             return
         f = int(np.searchsorted(fix_s, s_now, side="right")) - 1
+        # scheduled fixes the laser could not start in time are merged into this one: count them
+        counts["merged"] += f - next_fix
         subset = fixes.choose_subset(schedule.fixes[f].markers, x_est[:2])
         if subset is None:
             fixes.skipped += 1
@@ -246,7 +249,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     return EpisodeResult(
         scenario_name=scenario.name, task_index=task_index, seed=_seed_repr(ss),
         eps_max=scenario.planning.eps_max, steps=steps, fixes=fix_log, plan=plan,
-        summary=_summary(steps, fix_log, reached, scenario.planning.eps_max, ss, fixes.skipped))
+        summary={**_summary(steps, fix_log, reached, scenario.planning.eps_max, ss, fixes.skipped,
+                            counts["merged"]), "scheduled_fixes": len(fix_s)})
 
 
 def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:
@@ -267,7 +271,7 @@ def _seed_repr(ss: np.random.SeedSequence) -> int | str:
     return f"{ss.entropy}:{'/'.join(str(k) for k in ss.spawn_key)}"
 
 
-def _summary(steps: StepLog, fixes, reached: bool, eps_max: float, ss, skipped: int) -> dict:
+def _summary(steps: StepLog, fixes, reached: bool, eps_max: float, ss, skipped: int, merged: int) -> dict:
     err = steps.error
     acc = fixes.n_accepted.sum()
     return {
@@ -276,6 +280,7 @@ def _summary(steps: StepLog, fixes, reached: bool, eps_max: float, ss, skipped: 
         "steps": int(len(steps.t)),
         "fixes": int(len(fixes.t)),
         "skipped_fixes": int(skipped),
+        "merged_fixes": int(merged),
         "rmse": float(np.sqrt(np.mean(err**2))),
         "max_error": float(err.max()),
         "max_predicted_tau": float(np.max(steps.predicted_tau)),

@@ -99,11 +99,14 @@ class FixRecorder:
         """Bound on the odometry error of a shift over ``travelled`` metres (M,) [m].
 
         Two encoder readings each off by up to one tick on each wheel, plus the declared
-        random slip (as a 3-sigma bound) and systematic wheel error over the distance.
+        random slip and the filter's heading error (as 3-sigma bounds) and the systematic
+        wheel error over the distance.
         """
         r = self.scenario.robot
         tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
-        return 2.0 * tick + (3.0 * r.odometry_noise + abs(r.wheel_radius_error)) * np.asarray(travelled)
+        heading_std = math.sqrt(max(float(self.loc.P[2, 2]), 0.0))  # turns the shift
+        per_metre = 3.0 * r.odometry_noise + abs(r.wheel_radius_error) + 3.0 * heading_std
+        return 2.0 * tick + per_metre * np.asarray(travelled)
 
     def shift_var(self, travelled: np.ndarray) -> np.ndarray:
         """Return the variance of the odometry error of a shift over ``travelled`` metres (M,) [m^2].
@@ -132,11 +135,14 @@ class FixRecorder:
             res = self.loc.update_range(i, m.measured_range)
             p.nis += res.nis if res.accepted else 0.0
             p.accepted += int(res.accepted)
-            if m.measured_bearing is not None:
-                rb = self.loc.update_bearing(i, m.measured_bearing)
+            if self.sensor.uses_bearing:
+                # The declared model expects a bearing; hardware declared bearing-free in
+                # [sensor.actual] (xi = 0) measures it without error.
+                b = m.measured_bearing if m.measured_bearing is not None else m.true_bearing
+                rb = self.loc.update_bearing(i, b)
                 p.nis += rb.nis if rb.accepted else 0.0
                 p.accepted += int(rb.accepted)
-                p.bearings.append(m.measured_bearing)
+                p.bearings.append(b)
             p.measured.append(i)
             p.ranges.append(m.measured_range)
             p.dr_at.append(np.array(dr_pose, dtype=float))
@@ -161,9 +167,16 @@ class FixRecorder:
         # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
         # the least-squares weights add its variance.
         travelled = np.hypot(disp[:, 0], disp[:, 1])
-        bearings = np.array(p.bearings) if p.bearings else None
+        bearings, bearing_error = None, self.sensor.bearing_error
+        if p.bearings:
+            # Each bearing was taken at its own heading: turn it into the frame of the last one
+            # by the dead-reckoned turn since, so that one heading (the filter's) serves all.
+            turned = np.array([float(dr_end[2]) - float(d[2]) for d in p.dr_at])
+            bearings = np.array(p.bearings) - turned
+            # the filter's heading is not exact: widen the wedges by its 3-sigma bound
+            bearing_error += 3.0 * math.sqrt(max(float(self.loc.P[2, 2]), 0.0))
         snap = snapshot_fix(shifted, ranges, rho, prior=self.loc.x[:2], noise=self.sensor.noise,
-                            bearings=bearings, bearing_error=self.sensor.bearing_error,
+                            bearings=bearings, bearing_error=bearing_error,
                             heading=float(self.loc.x[2]) if bearings is not None else None,
                             extra_var=self.shift_var(travelled), fault_margin=self.shift_bound(travelled))
         fa = snap.fault_area

@@ -180,3 +180,19 @@ def test_ekf_cross_checks_against_snapshot_fixes(prepared):
     # Cov(ekf - snapshot) = P_snapshot - P_ekf <= P_snapshot, so m2 is at most chi2(2)-like; its
     # 99.9 % quantile is 13.8. With ~100 fixes, allow at most 1 exceedance (P(>=2) < 0.5 %).
     assert np.sum(m2 > 13.8) <= 1, np.sort(m2)[-5:]
+
+
+def test_bearings_taken_while_turning_keep_the_truth_in_the_fault_area():
+    """Bearings taken while turning still bound the truth.
+
+    Each bearing is measured at its own heading; carried to the fix time, the realised fault
+    area must still hold the truth (bounded noise), and the per-fix bookkeeping adds up.
+    """
+    text = scenarios.load("paper-docks").text.replace('noise = "uniform"',
+                                                       'noise = "uniform"\nbearing_error_deg = 0.05')
+    s = scenarios.loads(text, source="paper-docks-bearings.toml")
+    r = run_episode(s, 0, seed=0)
+    assert r.summary["reached"] and r.summary["fixes"] > 50
+    assert r.fixes.contained.all(), np.flatnonzero(~r.fixes.contained)
+    done = r.summary["fixes"] + r.summary["skipped_fixes"] + r.summary["merged_fixes"]
+    assert done <= r.summary["scheduled_fixes"]
