@@ -233,6 +233,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                 continue
         cmd = follower.command(x_est, dt_ctrl)
         s_now, done = cmd.s, cmd.done
+        s_log[n - 1] = s_now  # the arc length of this step's estimate, not the previous one's
         if done:
             world.robot.set_wheel_speeds(0.0, 0.0)
             continue
