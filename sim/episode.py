@@ -131,7 +131,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     from estimators.ekf import Localizer
     from sim.fix_recorder import FixRecorder
     from sim.physics.laser import LaserSensor
-    from sim.physics.odometry import WheelOdometry, integrate_arc
+    from sim.physics.odometry import WheelOdometry
 
     rng_start, rng_laser, rng_odo = _streams(ss)
     task = scenario.tasks[task_index]
@@ -152,14 +152,16 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     loc = Localizer(robot, scenario.sensor, scenario.marker_positions(), np.array(dock.pose), P0,
                     q_scale=q_scale, estimate_wheel_bias=True)
-    odo = WheelOdometry(robot, world.robot.wheel_angles(), np.array(dock.pose))
+    # The simulated floor's random slip, per unit of travel, goes into the odometry readings;
+    # the odometry's dead reckoning carries the ranges of a fix to its end (FixRecorder).
+    odo = WheelOdometry(robot, world.robot.wheel_angles(), np.array(dock.pose),
+                        slip_std=actual.odometry_noise, rng=rng_odo)
     fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
     follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
                            max_yaw_rate=robot.max_yaw_rate)
     schedule = plan.schedule
     fix_s = np.array([f.s for f in schedule.fixes])
     min_gap = 1.0 / scenario.sensor.fix_rate_hz
-    slip_std = actual.odometry_noise  # the simulated floor's random slip, per unit of travel
 
     dt_phys = world.config.time_step
     dt_ctrl = CONTROL_STEPS * dt_phys
@@ -172,21 +174,21 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     cov_log = np.empty((n_max, 3, 3))
     s_log = np.empty(n_max)
 
-    def read_odometry() -> None:
-        travel = odo.update(world.robot.wheel_angles())
-        dl = travel.d_left + slip_std * abs(travel.d_left) * rng_odo.standard_normal()
-        dr = travel.d_right + slip_std * abs(travel.d_right) * rng_odo.standard_normal()
-        loc.predict(dl, dr)
-        state["dr"] = integrate_arc(state["dr"], dl, dr, robot.wheel_base)
+    wheel_angles, predict = world.robot.wheel_angles, loc.predict
 
-    state = {"dr": np.array(dock.pose, dtype=float)}
+    def read_odometry() -> None:
+        d_left, d_right = odo.update(wheel_angles())
+        predict(d_left, d_right)
+
     next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
     counts = {"merged": 0}
+
+    fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
 
     def start_fix(s_now: float, t: float, x_est: np.ndarray) -> None:
         # Start the latest scheduled fix the robot has passed, when the laser is free again.
         nonlocal next_fix, last_fix_start
-        if fixes.pending is not None or next_fix >= len(fix_s) or s_now < fix_s[next_fix] \
+        if fixes.pending is not None or next_fix >= len(fix_s_list) or s_now < fix_s_list[next_fix] \
                 or t - last_fix_start < min_gap - 1e-9:
             return
         f = int(np.searchsorted(fix_s, s_now, side="right")) - 1
@@ -200,8 +202,13 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             last_fix_start = t
         next_fix = f + 1
 
+    step = world.step
+
     def advance() -> None:
         # One control period, stopping at each physics step a measurement falls due.
+        if fixes.pending is None:
+            step(CONTROL_STEPS)
+            return
         end = world.steps + CONTROL_STEPS
         while world.steps < end:
             due = fixes.next_due
@@ -209,18 +216,20 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             if due_step < end:
                 world.step(max(due_step - world.steps, 0))
                 read_odometry()
-                fixes.measure_due(state["dr"], world.true_pose(), world.time)
+                fixes.measure_due(odo.pose, world.true_pose(), world.time)
             else:
                 world.step(end - world.steps)
 
     # The schedule's first fix is taken at standstill on the dock, before the robot leaves.
     holding = len(fix_s) > 0 and fix_s[0] <= 1e-9
     s_now = 0.0
+    true_pose, set_wheel_speeds, command = world.true_pose, world.robot.set_wheel_speeds, follower.command
+    radius, base = robot.wheel_radius, robot.wheel_base
     while n < n_max:
         t = world.time
         read_odometry()
         x_est = loc.x
-        t_log[n], true_log[n], est_log[n], cov_log[n], s_log[n] = t, world.true_pose(), x_est, loc.P, s_now
+        t_log[n], true_log[n], est_log[n], cov_log[n], s_log[n] = t, true_pose(), x_est, loc.P, s_now
         n += 1
         if done:
             break
@@ -231,15 +240,14 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                 world.robot.set_wheel_speeds(0.0, 0.0)
                 advance()
                 continue
-        cmd = follower.command(x_est, dt_ctrl)
+        cmd = command(x_est, dt_ctrl)
         s_now, done = cmd.s, cmd.done
         s_log[n - 1] = s_now  # the arc length of this step's estimate, not the previous one's
         if done:
             world.robot.set_wheel_speeds(0.0, 0.0)
             continue
         start_fix(s_now, t, x_est)
-        wl, wr = wheel_speeds(cmd.v, cmd.omega, robot.wheel_radius, robot.wheel_base)
-        world.robot.set_wheel_speeds(wl, wr)
+        set_wheel_speeds(*wheel_speeds(cmd.v, cmd.omega, radius, base))
         advance()
 
     steps = _step_log(t_log[:n], true_log[:n], est_log[:n], cov_log[:n], s_log[:n], schedule, pef)

@@ -74,10 +74,9 @@ class FixRecorder:
         at the *estimated* position (the robot does not know the truth); None if fewer than k
         markers are visible.
         """
-        vis = self.laser.visible_all()
-        if all(vis[i] for i in scheduled):
+        if self.laser.visible_all(scheduled).all():  # the usual case: two rays, not M
             return list(scheduled)
-        seen = np.flatnonzero(vis)
+        seen = np.flatnonzero(self.laser.visible_all())
         if len(seen) < self.k:
             return None
         best, best_tau = None, math.inf

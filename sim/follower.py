@@ -6,10 +6,10 @@ localisation errors become tracking errors exactly as on a real AGV.
 
 from __future__ import annotations
 
-import bisect
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 
@@ -67,82 +67,95 @@ class PurePursuit:
         self.path = np.asarray(self.path, dtype=float)
         seg = np.hypot(*np.diff(self.path, axis=0).T)
         self._s = np.concatenate([[0.0], np.cumsum(seg)])
-        # The control loop runs this at tens of Hz for thousands of runs: plain floats and
-        # lists beat numpy's per-call overhead on these few-element operations.
-        self._xs = self.path[:, 0].tolist()
-        self._ys = self.path[:, 1].tolist()
-        self._sl = self._s.tolist()
-        self._speed = np.asarray(self.speed, dtype=float).tolist()
+        self._xs = np.ascontiguousarray(self.path[:, 0])
+        self._ys = np.ascontiguousarray(self.path[:, 1])
+        self._speed = np.asarray(self.speed, dtype=float).copy()
+        self._limits = np.array([self.max_speed, self.max_yaw_rate, self.max_accel, self.max_yaw_accel,
+                                 self.lookahead_min, self.lookahead_gain, self.goal_tolerance,
+                                 self.rotate_in_place_above, float(self.window)])
+        # index, v, w: the kernel's memory between calls
+        self._state = np.array([float(self._index), self._v, self._w])
 
     def reset(self) -> None:
         self._index = 0
         self._v = 0.0
         self._w = 0.0
+        self._state[:] = 0.0
 
     @property
     def length(self) -> float:
         return float(self._s[-1])
 
-    def _nearest_ahead(self, x: float, y: float) -> int:
-        # Search a short window ahead of the last index so that a path passing near itself (a
-        # U-turn around an obstacle) cannot make the follower jump ahead or back.
-        xs, ys = self._xs, self._ys
-        lo = self._index
-        best, best_d2 = lo, math.inf
-        for j in range(lo, min(len(xs), lo + self.window)):
-            d2 = (xs[j] - x) ** 2 + (ys[j] - y) ** 2
-            if d2 < best_d2:
-                best, best_d2 = j, d2
-        self._index = best
-        return best
-
     def command(self, pose: np.ndarray, dt: float) -> FollowerCommand:
         """Command for estimated ``pose`` (x, y, theta) over the next ``dt`` seconds."""
-        px, py, th = float(pose[0]), float(pose[1]), float(pose[2])
-        i = self._nearest_ahead(px, py)
-        s_i = self._sl[i]
-        dist_goal = math.hypot(self._xs[-1] - px, self._ys[-1] - py)
-        remaining = self._sl[-1] - s_i
-        if dist_goal < self.goal_tolerance and remaining < 2 * self.lookahead_min:
-            self._v = self._w = 0.0
-            return FollowerCommand(0.0, 0.0, True, s_i)
+        # The control loop runs this at tens of Hz for thousands of runs: one compiled call.
+        v, omega, done, s = _command(self._xs, self._ys, self._s, self._speed, self._limits, self._state,
+                                     float(pose[0]), float(pose[1]), float(pose[2]), float(dt))
+        self._index, self._v, self._w = int(self._state[0]), float(self._state[1]), float(self._state[2])
+        return FollowerCommand(v, omega, done, s)
 
-        look = max(self.lookahead_min, self.lookahead_gain * self._v)
-        j = min(bisect.bisect_left(self._sl, s_i + look), len(self._sl) - 1)
-        dx, dy = self._xs[j] - px, self._ys[j] - py
-        c, s = math.cos(th), math.sin(th)
-        lx, ly = c * dx + s * dy, -s * dx + c * dy  # target in the robot frame
-        alpha = math.atan2(ly, lx)
-        ld2 = lx * lx + ly * ly
 
-        if abs(alpha) > self.rotate_in_place_above:
-            # turn on the spot, braking first if still rolling; the yaw rate is the one from
-            # which max_yaw_accel stops the turn exactly at alpha = 0
-            w_ref = 0.0 if self._v > 0.0 else math.copysign(
-                min(self.max_yaw_rate, math.sqrt(1.6 * self.max_yaw_accel * abs(alpha))), alpha)
-            v, omega = self._limit(0.0, w_ref, dt)
-            return FollowerCommand(v, omega, False, s_i)
+@numba.njit(cache=True)
+def _limit(state, limits, v_ref, w_ref, dt):
+    """Apply the speed and acceleration limits to a command; remember it in ``state``."""
+    max_yaw_rate, max_accel, max_yaw_accel = limits[1], limits[2], limits[3]
+    dv, dw = max_accel * dt, max_yaw_accel * dt
+    v = min(max(v_ref, state[1] - dv), state[1] + dv)
+    w = min(max(w_ref, -max_yaw_rate), max_yaw_rate)
+    w = min(max(w, state[2] - dw), state[2] + dw)
+    state[1], state[2] = v, w
+    return v, w
 
-        kappa = 2.0 * ly / ld2 if ld2 > 1e-12 else 0.0
-        v_ref = min(self._speed[i], self.max_speed)
-        if abs(kappa) > 1e-9:
-            v_ref = min(v_ref, self.max_yaw_rate / abs(kappa))
-        # stop at the goal: the speed from which max_accel brakes to zero within the distance left
-        # brake with 80 % of the deceleration limit so the limit itself never truncates the profile
-        v_ref = min(v_ref, math.sqrt(1.6 * self.max_accel * max(dist_goal - self.goal_tolerance, 0.0)))
-        v_ref = max(v_ref, 0.02)  # creep instead of stalling short of the goal
-        dv = self.max_accel * dt
-        v = min(max(v_ref, self._v - dv), self._v + dv)
-        v, omega = self._limit(v, v * kappa, dt)
-        return FollowerCommand(v, omega, False, s_i)
 
-    def _limit(self, v_ref: float, w_ref: float, dt: float) -> tuple[float, float]:
-        """Apply the speed and acceleration limits to a command; remember it."""
-        dv, dw = self.max_accel * dt, self.max_yaw_accel * dt
-        self._v = min(max(v_ref, self._v - dv), self._v + dv)
-        w = min(max(w_ref, -self.max_yaw_rate), self.max_yaw_rate)
-        self._w = min(max(w, self._w - dw), self._w + dw)
-        return self._v, self._w
+@numba.njit(cache=True)
+def _command(xs, ys, sl, speed, limits, state, px, py, th, dt):
+    """Pure pursuit step; returns (v, omega, done, s). See :class:`PurePursuit` for ``limits``."""
+    max_speed, max_yaw_rate, max_accel, max_yaw_accel = limits[0], limits[1], limits[2], limits[3]
+    look_min, look_gain, goal_tol, rotate_above = limits[4], limits[5], limits[6], limits[7]
+    n = xs.size
+    # Search a short window ahead of the last index so that a path passing near itself (a
+    # U-turn around an obstacle) cannot make the follower jump ahead or back.
+    lo = int(state[0])
+    i, best_d2 = lo, np.inf
+    for j in range(lo, min(n, lo + int(limits[8]))):
+        d2 = (xs[j] - px) ** 2 + (ys[j] - py) ** 2
+        if d2 < best_d2:
+            i, best_d2 = j, d2
+    state[0] = i
+    s_i = sl[i]
+    dist_goal = math.hypot(xs[n - 1] - px, ys[n - 1] - py)
+    if dist_goal < goal_tol and sl[n - 1] - s_i < 2.0 * look_min:
+        state[1] = state[2] = 0.0
+        return 0.0, 0.0, True, s_i
+
+    look = max(look_min, look_gain * state[1])
+    j = min(np.searchsorted(sl, s_i + look), n - 1)
+    dx, dy = xs[j] - px, ys[j] - py
+    c, s = math.cos(th), math.sin(th)
+    lx, ly = c * dx + s * dy, -s * dx + c * dy  # target in the robot frame
+    alpha = math.atan2(ly, lx)
+    ld2 = lx * lx + ly * ly
+
+    if abs(alpha) > rotate_above:
+        # turn on the spot, braking first if still rolling; the yaw rate is the one from
+        # which max_yaw_accel stops the turn exactly at alpha = 0
+        w_ref = 0.0 if state[1] > 0.0 else math.copysign(
+            min(max_yaw_rate, math.sqrt(1.6 * max_yaw_accel * abs(alpha))), alpha)
+        v, omega = _limit(state, limits, 0.0, w_ref, dt)
+        return v, omega, False, s_i
+
+    kappa = 2.0 * ly / ld2 if ld2 > 1e-12 else 0.0
+    v_ref = min(speed[i], max_speed)
+    if abs(kappa) > 1e-9:
+        v_ref = min(v_ref, max_yaw_rate / abs(kappa))
+    # stop at the goal: the speed from which max_accel brakes to zero within the distance left;
+    # brake with 80 % of the deceleration limit so the limit itself never truncates the profile
+    v_ref = min(v_ref, math.sqrt(1.6 * max_accel * max(dist_goal - goal_tol, 0.0)))
+    v_ref = max(v_ref, 0.02)  # creep instead of stalling short of the goal
+    dv = max_accel * dt
+    v = min(max(v_ref, state[1] - dv), state[1] + dv)
+    v, omega = _limit(state, limits, v, v * kappa, dt)
+    return v, omega, False, s_i
 
 
 def wheel_speeds(v: float, omega: float, wheel_radius: float, wheel_base: float) -> tuple[float, float]:

@@ -117,22 +117,30 @@ class LaserSensor:
     def visible(self, i: int) -> bool:
         """Tell whether marker ``i`` is within max range and its line of sight is clear."""
         self._check_index(i)
-        origin = self.origin()
-        if math.hypot(*(self.markers[i] - origin[:2])) > self.spec.max_range:
+        return self._visible_from(i, self.world.true_pose())
+
+    def _visible_from(self, i: int, pose: np.ndarray) -> bool:
+        x, y = float(pose[0]), float(pose[1])
+        tx, ty, h = self._targets[i]
+        if math.hypot(tx - x, ty - y) > self.spec.max_range:
             return False
-        hit = pb.rayTest(origin.tolist(), self._targets[i], physicsClientId=self.world.client)[0]
+        hit = pb.rayTest([x, y, h], self._targets[i], physicsClientId=self.world.client)[0]
         return bool(hit[0] == -1 or hit[0] == self._own_post[i])
 
-    def visible_all(self) -> np.ndarray:
-        """Visibility of every marker, shape (M,) bool (one batched ray test)."""
-        m = len(self.markers)
-        if m == 0:
+    def visible_all(self, indices=None) -> np.ndarray:
+        """Visibility of every marker, or of the markers ``indices``: shape (M,) or (len(indices),) bool.
+
+        One batched ray test.
+        """
+        idx = np.arange(len(self.markers)) if indices is None else np.asarray(indices, dtype=int).reshape(-1)
+        if idx.size == 0:
             return np.zeros(0, dtype=bool)
         origin = self.origin()
-        in_range = np.hypot(*(self.markers - origin[:2]).T) <= self.spec.max_range
-        hits = pb.rayTestBatch([origin.tolist()] * m, self._targets, physicsClientId=self.world.client)
+        in_range = np.hypot(*(self.markers[idx] - origin[:2]).T) <= self.spec.max_range
+        hits = pb.rayTestBatch([origin.tolist()] * idx.size, [self._targets[i] for i in idx],
+                               physicsClientId=self.world.client)
         body = np.array([h[0] for h in hits], dtype=int)
-        return in_range & ((body == -1) | (body == self._own_post))
+        return in_range & ((body == -1) | (body == self._own_post[idx]))
 
     def measure(self, i: int, rng: np.random.Generator) -> Measurement:
         """Measure marker ``i`` now, drawing noise from ``rng``.
@@ -146,11 +154,12 @@ class LaserSensor:
         SimulationError
             If marker ``i`` is not visible (callers check :meth:`visible` first).
         """
-        if not self.visible(i):
-            raise SimulationError(f"laser: marker {i} at {self.markers[i].tolist()} is not visible "
-                                  f"from {self.world.true_pose()[:2].round(3).tolist()}")
+        self._check_index(i)
         pose = self.world.true_pose()
-        dx, dy = self.markers[i] - pose[:2]
+        if not self._visible_from(i, pose):
+            raise SimulationError(f"laser: marker {i} at {self.markers[i].tolist()} is not visible "
+                                  f"from {pose[:2].round(3).tolist()}")
+        dx, dy = self._targets[i][0] - float(pose[0]), self._targets[i][1] - float(pose[1])
         r = math.hypot(dx, dy)
         rho = float(self.spec.range_bound(r))
         measured = r + _draw(rng, self.spec.noise, rho)

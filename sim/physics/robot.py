@@ -177,8 +177,8 @@ class DiffDriveRobot:
                               physicsClientId=client)
         # The base frame pybullet reports is the chassis' centre of mass, not the URDF link
         # frame (the axle midpoint): keep the offset to convert between them.
-        self._com_local = np.array(
-            pb.getDynamicsInfo(self.body, -1, physicsClientId=client)[3], dtype=float)
+        # Plain floats: true_pose() runs at every control step, and numpy scalars are slow.
+        self._com_local = tuple(float(v) for v in pb.getDynamicsInfo(self.body, -1, physicsClientId=client)[3])
         self._torque = [spec.max_wheel_torque, spec.max_wheel_torque]
 
     def reset(self, pose: tuple[float, float, float] | np.ndarray) -> None:

@@ -238,6 +238,24 @@ def test_odometry_converts_ticks_with_the_nominal_radius():
     assert odo.update(angles) == (0.0, 0.0)
 
 
+def test_odometry_slip_is_drawn_per_wheel_from_the_generator():
+    # The slip is the declared per-metre std times the travel, times one normal per wheel and
+    # update, left first; block draws must give the same numbers as scalar draws.
+    sc = flat(0.0)
+    n, r = sc.robot.encoder_ticks, sc.robot.wheel_radius
+    odo = WheelOdometry(sc.robot, np.zeros(2), np.zeros(3), slip_std=0.02, rng=np.random.default_rng(7))
+    ref = np.random.default_rng(7)
+    tick = 2 * math.pi / n
+    nominal = 25 * 2 * math.pi * r / n
+    for j in range(1, 2500):  # crosses the refill of the normals' block
+        travel = odo.update(np.array([(25 * j + 0.5) * tick, (50 * j + 0.5) * tick]))
+        # 1e-12: rounding of the tick conversion; a wrong normal is off by ~1e-2 relative
+        assert travel.d_left == pytest.approx(nominal * (1 + 0.02 * ref.standard_normal()), rel=1e-12)
+        assert travel.d_right == pytest.approx(2 * nominal * (1 + 0.02 * ref.standard_normal()), rel=1e-12)
+    with pytest.raises(ValueError, match="random generator"):
+        WheelOdometry(sc.robot, np.zeros(2), np.zeros(3), slip_std=0.01)
+
+
 def test_integrate_arc_follows_the_circle():
     # Constant wheel travel per step traces a circle of radius R = b (dl + dr) / (2 (dr - dl))
     # about the centre to the robot's left; compare with the closed form after many steps.
