@@ -96,44 +96,62 @@ def _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, 
 def _block_scale(px, py, mx, my, vis, rel32, ab32, tan32, lo, w, r, scale):
     """Ranges ``r`` (M, BLOCK) and per-point scale: the smallest half-width seen (float32)."""
     bearing = tan32 > 0
+    # Row views: numba cannot tell that ``lo + c`` is not negative, and the wraparound select
+    # on such an index turns every load into a scalar one (the loops no longer vectorise).
+    pxb, pyb = px[lo:lo + w], py[lo:lo + w]
     for c in range(BLOCK):
         scale[c] = np.inf
     for m in range(mx.size):
         mxm, mym = mx[m], my[m]
+        vb, rm = vis[m, lo:lo + w], r[m]
         for c in range(w):
-            dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
+            dx, dy = np.float32(pxb[c] - mxm), np.float32(pyb[c] - mym)
             rr = math.sqrt(dx * dx + dy * dy)
-            r[m, c] = rr
+            rm[c] = rr
             half = rel32 * rr + ab32
             half = min(half, rr * tan32) if bearing else half
-            ok = vis[m, lo + c] & (rr > 0)
+            ok = vb[c] & (rr > 0)
             scale[c] = min(scale[c], half) if ok else scale[c]
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, r, scale, a0, a1, a2):
+def _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, dxb, dyb, scale, a0, a1, a2):
     """Fill float32 planes (x, y, |g|^2) of ``g = s u / rho`` for one block.
 
     ``s`` = the smallest half-width seen from the point, so every entry is at most 1. NaN where
-    hidden and in the padding beyond ``w``. The planes only rank candidates; ``r`` (M, BLOCK) is
-    scratch.
+    hidden and in the padding beyond ``w``. The planes only rank candidates; ``dxb``, ``dyb``
+    (BLOCK,) are scratch. One pass computes the unscaled normals and the scale (one square root
+    and one division per marker and point), a second applies the scale.
     """
-    nan = np.float32(np.nan)
+    nan, inf, one = np.float32(np.nan), np.float32(np.inf), np.float32(1.0)
     rel32, ab32 = np.float32(rel), np.float32(ab)
-    _block_scale(px, py, mx, my, vis, rel32, ab32, np.float32(0.0), lo, w, r, scale)
+    pxb, pyb = px[lo:lo + w], py[lo:lo + w]  # views: see _block_scale
+    for c in range(BLOCK):
+        scale[c] = inf
     for m in range(mx.size):
         mxm, mym = mx[m], my[m]
+        vb, x, y = vis[m, lo:lo + w], a0[m], a1[m]
+        # The float64 differences get a loop of their own: mixed with the float32 arithmetic
+        # they would halve the vector width of the whole loop.
         for c in range(w):
-            dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
-            rr = r[m, c]
-            ok = vis[m, lo + c] & (rr > 0)
-            f = scale[c] / ((rel32 * rr + ab32) * rr)
-            ux, uy = dx * f, dy * f
-            a0[m, c] = ux if ok else nan
-            a1[m, c] = uy if ok else nan
-            a2[m, c] = ux * ux + uy * uy if ok else nan
+            dxb[c] = np.float32(pxb[c] - mxm)
+            dyb[c] = np.float32(pyb[c] - mym)
+        for c in range(w):
+            dx, dy = dxb[c], dyb[c]
+            rr = math.sqrt(dx * dx + dy * dy)
+            rho = rel32 * rr + ab32
+            f = one / (rho * rr)
+            ok = vb[c] & (rr > 0)
+            x[c] = dx * f if ok else nan
+            y[c] = dy * f if ok else nan
+            scale[c] = min(scale[c], rho) if ok else scale[c]
+    for m in range(mx.size):
+        x, y, q = a0[m], a1[m], a2[m]
+        for c in range(w):
+            xs, ys = x[c] * scale[c], y[c] * scale[c]
+            x[c], y[c], q[c] = xs, ys, xs * xs + ys * ys
         for c in range(w, BLOCK):
-            a0[m, c], a1[m, c], a2[m, c] = nan, nan, nan
+            x[c], y[c], q[c] = nan, nan, nan
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -146,20 +164,22 @@ def _planes_gdop(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, r, scale, a0, a1, 
     rel32, ab32, tan32 = np.float32(rel), np.float32(ab), np.float32(tan_xi)
     bearing = tan_xi > 0.0
     _block_scale(px, py, mx, my, vis, rel32, ab32, tan32, lo, w, r, scale)
+    pxb, pyb = px[lo:lo + w], py[lo:lo + w]  # views: see _block_scale
     for m in range(mx.size):
         mxm, mym = mx[m], my[m]
+        vb, rm, sxx, sxy, syy = vis[m, lo:lo + w], r[m], a0[m], a1[m], a2[m]
         for c in range(w):
-            dx, dy = np.float32(px[lo + c] - mxm), np.float32(py[lo + c] - mym)
-            rr = r[m, c]
-            ok = vis[m, lo + c] & (rr > 0)
+            dx, dy = np.float32(pxb[c] - mxm), np.float32(pyb[c] - mym)
+            rr = rm[c]
+            ok = vb[c] & (rr > 0)
             f = scale[c] / ((rel32 * rr + ab32) * rr)
             f2 = scale[c] / (rr * tan32 * rr) if bearing else np.float32(0.0)
             ux, uy, vx, vy = dx * f, dy * f, -dy * f2, dx * f2
-            a0[m, c] = ux * ux + vx * vx if ok else nan
-            a1[m, c] = ux * uy + vx * vy if ok else nan
-            a2[m, c] = uy * uy + vy * vy if ok else nan
+            sxx[c] = ux * ux + vx * vx if ok else nan
+            sxy[c] = ux * uy + vx * vy if ok else nan
+            syy[c] = uy * uy + vy * vy if ok else nan
         for c in range(w, BLOCK):
-            a0[m, c], a1[m, c], a2[m, c] = nan, nan, nan
+            sxx[c], sxy[c], syy[c] = nan, nan, nan
 
 
 @numba.njit(cache=True)
@@ -254,7 +274,8 @@ def _store_best(best, p, subsets, s):
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _blocks_parallelogram(b0, b1, px, py, mx, my, vis, rel, ab, subsets, tau, best):
     nm = mx.size
-    r = np.empty((nm, BLOCK), dtype=np.float32)
+    dxb = np.empty(BLOCK, dtype=np.float32)
+    dyb = np.empty(BLOCK, dtype=np.float32)
     scale = np.empty(BLOCK, dtype=np.float32)
     a0 = np.empty((nm, BLOCK), dtype=np.float32)
     a1 = np.empty((nm, BLOCK), dtype=np.float32)
@@ -265,7 +286,7 @@ def _blocks_parallelogram(b0, b1, px, py, mx, my, vis, rel, ab, subsets, tau, be
     for blk in range(b0, b1):
         lo = blk * BLOCK
         w = min(BLOCK, px.size - lo)
-        _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, r, scale, a0, a1, a2)
+        _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, dxb, dyb, scale, a0, a1, a2)
         bn[:], bd[:], bs[:] = 1.0, 0.0, -1
         _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs)
         for c in range(w):
