@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
@@ -87,8 +88,11 @@ def main() -> None:
         r = run_episode(s, 0, seed=1, prepared=prepared, world=world)
         write_episode_rrd(rrd, s, r, pef_map=pef_map)
 
-    t_bare = best_of(args.repeat, bare)
-    t_episode = best_of(args.repeat, episode)
+    # Interleaved, best of each: load from other processes hits both alike.
+    t_bare, t_episode = math.inf, math.inf
+    for _ in range(args.repeat):
+        t_bare = min(t_bare, best_of(1, bare))
+        t_episode = min(t_episode, best_of(1, episode))
     t_rrd = best_of(args.repeat, episode_rrd)
     t_reset = best_of(20, lambda: world.reset(s.docks[0].pose))
 

@@ -174,7 +174,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     cov_log = np.empty((n_max, 3, 3))
     s_log = np.empty(n_max)
 
-    wheel_angles, predict = world.robot.wheel_angles, loc.predict
+    wheel_angles, predict = world.robot.wheel_angle_pair, loc.predict
 
     def read_odometry() -> None:
         d_left, d_right = odo.update(wheel_angles())

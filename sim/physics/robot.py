@@ -207,8 +207,12 @@ class DiffDriveRobot:
 
     def wheel_angles(self) -> np.ndarray:
         """Unwrapped wheel joint angles (left, right), shape (2,) [rad]."""
-        states = pb.getJointStates(self.body, self.wheel_joints, physicsClientId=self.client)
-        return np.array([states[0][0], states[1][0]])
+        return np.array(self.wheel_angle_pair())
+
+    def wheel_angle_pair(self) -> tuple[float, float]:
+        """Unwrapped wheel joint angles (left, right) [rad] as floats (the control loop's read)."""
+        left, right = pb.getJointStates(self.body, self.wheel_joints, physicsClientId=self.client)
+        return left[0], right[0]
 
     def wheel_rates(self) -> np.ndarray:
         """Wheel joint rates (left, right), shape (2,) [rad/s]."""
