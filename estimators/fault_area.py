@@ -39,6 +39,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
+from estimators.annuli import arc_steps, max_pairwise_distance, two_annuli_region
 from estimators.lsq import solve_position
 from estimators.measurements import (
     collinear_markers,
@@ -98,35 +99,12 @@ def _empty(tol: float) -> FaultArea:
     return FaultArea(Polygon(), 0.0, math.nan, np.full(2, math.nan), tol)
 
 
-@numba.njit(cache=True)
-def _max_pairwise_distance(xy):
-    best = 0.0
-    for i in range(xy.shape[0]):
-        for j in range(i + 1, xy.shape[0]):
-            dx = xy[i, 0] - xy[j, 0]
-            dy = xy[i, 1] - xy[j, 1]
-            best = max(best, dx * dx + dy * dy)
-    return math.sqrt(best)
-
-
 def _from_polygon(poly: Polygon, tol: float) -> FaultArea:
     xy = shapely.get_coordinates(poly.exterior)
     if len(xy) > _HULL_ABOVE:
         xy = shapely.get_coordinates(shapely.convex_hull(poly))
     c = poly.centroid
-    return FaultArea(poly, float(poly.area), float(_max_pairwise_distance(xy)), np.array([c.x, c.y]), tol)
-
-
-@numba.njit(cache=True)
-def _arc_steps(radius, span, tol, outside):
-    """Segment count and vertex radius of a polyline within ``tol`` of an arc of ``span`` [rad]."""
-    if outside:
-        step_max = 2.0 * math.acos(radius / (radius + tol))
-    else:
-        step_max = 2.0 * math.acos(max(1.0 - tol / radius, -1.0))
-    n = max(1, int(math.ceil(span / step_max - 1e-12)))
-    rad = radius / math.cos(0.5 * span / n) if outside else radius
-    return n, rad
+    return FaultArea(poly, float(poly.area), float(max_pairwise_distance(xy)), np.array([c.x, c.y]), tol)
 
 
 @numba.njit(cache=True)
@@ -137,9 +115,9 @@ def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
     centre), so the ring contains the exact sector and stays within ``tol`` of it.
     """
     span = phi1 - phi0
-    n_out, rad_out = _arc_steps(r_out, span, tol, True)
+    n_out, rad_out = arc_steps(r_out, span, tol, True)
     if r_in > 0.0:
-        n_in, rad_in = _arc_steps(r_in, span, tol, False)
+        n_in, rad_in = arc_steps(r_in, span, tol, False)
         m_in = n_in + 1
     else:
         n_in, rad_in, m_in = 1, 0.0, 1
@@ -158,7 +136,7 @@ def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
 
 def _circle(mx, my, radius, tol, outside):
     """Open ring (n, 2) within ``tol`` of a whole circle, circumscribed if ``outside``."""
-    n, rad = _arc_steps(radius, 2.0 * math.pi, tol, outside)
+    n, rad = arc_steps(radius, 2.0 * math.pi, tol, outside)
     n = max(n, 8)
     if outside:
         rad = radius / math.cos(math.pi / n)
@@ -298,20 +276,34 @@ def _mirror_polygon(poly, markers):
     return shapely.polygons(shell, holes=holes or None)
 
 
+@numba.njit(cache=True)
+def _input_summary(markers, meas, rho):
+    """Sum of every input (finite iff all are, barring overflow), min rho, min(range + rho)."""
+    total, rho_min, reach_min = 0.0, math.inf, math.inf
+    for i in range(rho.shape[0]):
+        total += markers[i, 0] + markers[i, 1] + meas[i] + rho[i]
+        rho_min = min(rho_min, rho[i])
+        reach_min = min(reach_min, meas[i] + rho[i])
+    return total, rho_min, reach_min
+
+
 def _validate(markers, meas, rho, bearings, xi):
+    """Raise ValueError on bad inputs; return (min rho, min(range + rho))."""
     k = markers.shape[0]
-    if meas.shape != (k,) or rho.shape != (k,):
-        raise ValueError(f"fault area: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
-    if not math.isfinite(float(markers.sum() + meas.sum() + rho.sum())):
+    if k == 0 or meas.shape != (k,) or rho.shape != (k,):
+        raise ValueError(f"fault area: ranges {meas.shape} and rho {rho.shape} must be ({k},), k >= 1")
+    total, rho_min, reach_min = _input_summary(markers, meas, rho)
+    if not math.isfinite(total):
         raise ValueError(f"fault area: non-finite input: markers {markers.tolist()}, ranges {meas.tolist()}, "
                          f"rho {rho.tolist()}")
-    if not float(rho.min()) > 0.0:
+    if not rho_min > 0.0:
         raise ValueError(f"fault area: rho must be > 0, got {rho.tolist()}")
     if bearings is not None:
         if bearings.shape != (k,):
             raise ValueError(f"fault area: bearings {bearings.shape} must be ({k},)")
         if not xi > 0.0:
             raise ValueError(f"fault area: bearing_error must be > 0 with bearings, got {xi}")
+    return rho_min, reach_min
 
 
 def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior: np.ndarray,
@@ -350,11 +342,30 @@ def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, p
     prior = np.asarray(prior, dtype=float)
     bearings = None if bearings is None else np.asarray(bearings, dtype=float)
     xi = float(bearing_error)
-    _validate(markers, meas, rho, bearings, xi)
-    tol = DEFAULT_TOLERANCE_FRACTION * float(rho.min()) if tolerance is None else float(tolerance)
-
-    if np.any(meas + rho < 0.0):       # no point is at a negative distance
+    rho_min, reach_min = _validate(markers, meas, rho, bearings, xi)
+    tol = DEFAULT_TOLERANCE_FRACTION * rho_min if tolerance is None else float(tolerance)
+    if reach_min < 0.0:       # no point is at a negative distance
         return _empty(tol)
+    if bearings is None and markers.shape[0] == 2:
+        fast = _two_ranges(markers, meas, rho, prior, tol)
+        if fast is not None:
+            return fast
+    return _general(markers, meas, rho, prior, bearings, xi, tol)
+
+
+def _two_ranges(markers, meas, rho, prior, tol):
+    """Return the closed form (:mod:`estimators.annuli`) of the component on prior's side, or None.
+
+    That is the component the general path returns (it mirrors what it finds to that side).
+    """
+    region = two_annuli_region(markers, meas, rho, prior, tol)
+    if region is None:
+        return None
+    return FaultArea(shapely.polygons(region.ring), region.area, region.diameter, region.centroid, tol)
+
+
+def _general(markers, meas, rho, prior, bearings, xi, tol):
+    """Windowed shapely construction of :func:`exact_fault_area` (any measurements)."""
     std = rho if bearings is None else np.concatenate([rho, np.full(len(rho), xi)])
     seed = solve_position(markers, meas, std, prior, world_bearings=bearings).position
     comp = _component(markers, meas, rho, bearings, xi, seed, prior, tol)
@@ -397,7 +408,7 @@ def fault_area_of_point(markers: np.ndarray, position: np.ndarray, rho: np.ndarr
     meas = ranges(position, markers)
     xi = float(bearing_error)
     bearings = world_bearing(position, markers) if xi > 0.0 else None
-    _validate(markers, meas, rho, bearings, xi)
-    tol = DEFAULT_TOLERANCE_FRACTION * float(rho.min()) if tolerance is None else float(tolerance)
+    rho_min, _ = _validate(markers, meas, rho, bearings, xi)
+    tol = DEFAULT_TOLERANCE_FRACTION * rho_min if tolerance is None else float(tolerance)
     comp = _component(markers, meas, rho, bearings, xi, position, position, tol)
     return _empty(tol) if comp is None else _from_polygon(comp, tol)

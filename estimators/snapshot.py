@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.annuli import marker_side
 from estimators.fault_area import FaultArea, exact_fault_area
 from estimators.lsq import solve_position
 from estimators.measurements import (
@@ -101,7 +102,8 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     k = markers.shape[0]
     if meas.shape != (k,) or rho.shape != (k,):
         raise ValueError(f"snapshot_fix: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
-    std = np.asarray(range_std(rho, noise), dtype=float)
+    # std is linear in the bound: one scalar call instead of an array one
+    std = rho * range_std(1.0, noise)
     if extra_var is not None:
         std = np.sqrt(std**2 + np.asarray(extra_var, dtype=float))
     world = None
@@ -112,20 +114,30 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
         std = np.concatenate([std, np.full(k, bearing_std(float(bearing_error), noise))])
 
     sol = solve_position(markers, meas, std, prior, world_bearings=world)
-    position = sol.position
-    if (world is None and collinear_markers(markers)
-            and marker_line_side(position, markers) * marker_line_side(prior, markers) < 0):
+    if world is None and _across_marker_line(sol.position, prior, markers):
         # Both mirror points fit equally well; the prior decides (DESIGN §1).
-        sol = solve_position(markers, meas, std, reflect_across_marker_line(position, markers))
+        sol = solve_position(markers, meas, std, reflect_across_marker_line(sol.position, markers))
 
-    jw = sol.jacobian / std[:, None]
-    info = jw.T @ jw
-    if abs(np.linalg.det(info)) <= 1e-14 * float(np.trace(info)) ** 2:
-        covariance = np.full((2, 2), math.inf)
-    else:
-        covariance = np.linalg.inv(info)
     fault_rho = rho if fault_margin is None else rho + np.asarray(fault_margin, dtype=float)
     area = exact_fault_area(markers, meas, fault_rho, sol.position, bearings=world,
                             bearing_error=bearing_error)
-    return SnapshotFix(position=sol.position, covariance=covariance, fault_area=area,
+    return SnapshotFix(position=sol.position, covariance=_covariance(sol.jacobian, std), fault_area=area,
                        residuals=sol.residuals, iterations=sol.iterations, converged=sol.converged)
+
+
+def _across_marker_line(position, prior, markers):
+    """Tell whether ``position`` and ``prior`` lie strictly on opposite sides of collinear markers."""
+    if markers.shape[0] == 2:           # always collinear: the side in plain floats
+        return marker_side(position, markers) * marker_side(prior, markers) < 0.0
+    return bool(collinear_markers(markers)
+                and marker_line_side(position, markers) * marker_line_side(prior, markers) < 0)
+
+
+def _covariance(jacobian, std):
+    """``(H^T W H)^-1`` (2, 2) [m^2] in closed form; ``inf`` where (near) singular."""
+    jw = jacobian / std[:, None]
+    (a, b), (_, c) = (jw.T @ jw).tolist()
+    det = a * c - b * b
+    if abs(det) <= 1e-14 * (a + c) ** 2:
+        return np.full((2, 2), math.inf)
+    return np.array([[c / det, -b / det], [-b / det, a / det]])
