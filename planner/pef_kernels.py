@@ -41,9 +41,9 @@ from planner.pef_scalar import (
     GDOP,
     PARALLELOGRAM,
     STRIPS,
+    diagonal_of_offsets,
     subset_tau,
     tau_gdop,
-    tau_parallelogram,
     tau_strips,
 )
 
@@ -264,6 +264,27 @@ def _sweep_strips(subsets, gx, gy, hx, hy, w, bearing, bs):
                     bs[c] = s
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _tau_pairs(px, py, mx, my, subsets, rel, ab, lo, w, bs, ax, ay, bx, by, tau, best):
+    """Write the chosen pair ``subsets[bs[c]]`` and its float64 tau for the block's points.
+
+    A scalar pass gathers the pair's marker coordinates into ``ax, ay, bx, by`` (BLOCK,); the
+    arithmetic (square roots, divisions) then runs in a vectorised loop.
+    """
+    bb, taub = best[lo:lo + w], tau[lo:lo + w]  # views: see _block_scale
+    for c in range(w):
+        s = bs[c]
+        s0 = max(s, 0)
+        i, j = subsets[s0, 0], subsets[s0, 1]
+        ax[c], ay[c], bx[c], by[c] = mx[i], my[i], mx[j], my[j]
+        bb[c, 0] = i if s >= 0 else -1
+        bb[c, 1] = j if s >= 0 else -1
+    pxb, pyb = px[lo:lo + w], py[lo:lo + w]
+    for c in range(w):
+        t = diagonal_of_offsets(pxb[c] - ax[c], pyb[c] - ay[c], pxb[c] - bx[c], pyb[c] - by[c], rel, ab)
+        taub[c] = t if bs[c] >= 0 else np.inf
+
+
 @numba.njit(cache=True)
 def _store_best(best, p, subsets, s):
     """Write the marker indices of subset row ``s`` (or -1 when ``s < 0``) into ``best[p]``."""
@@ -283,17 +304,14 @@ def _blocks_parallelogram(b0, b1, px, py, mx, my, vis, rel, ab, subsets, tau, be
     bn = np.empty(BLOCK, dtype=np.float32)
     bd = np.empty(BLOCK, dtype=np.float32)
     bs = np.empty(BLOCK, dtype=np.int32)
+    ax, ay, bx, by = np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK)
     for blk in range(b0, b1):
         lo = blk * BLOCK
         w = min(BLOCK, px.size - lo)
         _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, dxb, dyb, scale, a0, a1, a2)
         bn[:], bd[:], bs[:] = 1.0, 0.0, -1
         _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs)
-        for c in range(w):
-            s = bs[c]
-            _store_best(best, lo + c, subsets, s)
-            tau[lo + c] = tau_parallelogram(px[lo + c], py[lo + c], mx, my, subsets[s], rel, ab) \
-                if s >= 0 else np.inf
+        _tau_pairs(px, py, mx, my, subsets, rel, ab, lo, w, bs, ax, ay, bx, by, tau, best)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
