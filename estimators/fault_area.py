@@ -22,6 +22,14 @@ The default tolerance is ``1e-3 * min(rho)``. For two ranges meeting at angle al
 overestimates the area by a relative ``<= tolerance (1/rho_1 + 1/rho_2) <= 2e-3`` and moves
 each corner by ``<= 2 tolerance / sin(alpha)``.
 
+Two ranges
+----------
+Without bearings, the component on the prior's side is built in closed form
+(:mod:`estimators.annuli`: corners at the circle intersections, the same containment and
+tolerance) whenever it is a curvilinear quadrilateral safely away from the marker line;
+otherwise, and for everything else, by the windowed clipping above (pieces in
+:mod:`estimators.fault_pieces`).
+
 Empty sets
 ----------
 Inconsistent measurements (no position satisfies all bounds, possible with gaussian noise)
@@ -39,7 +47,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from estimators.annuli import arc_steps, max_pairwise_distance, two_annuli_region
+from estimators.annuli import max_pairwise_distance, two_annuli_region
+from estimators.fault_pieces import annulus_piece, wedge_piece
 from estimators.lsq import solve_position
 from estimators.measurements import (
     collinear_markers,
@@ -107,81 +116,6 @@ def _from_polygon(poly: Polygon, tol: float) -> FaultArea:
     return FaultArea(poly, float(poly.area), float(max_pairwise_distance(xy)), np.array([c.x, c.y]), tol)
 
 
-@numba.njit(cache=True)
-def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
-    """Build the closed ring (n, 2) of the annular sector phi0..phi1 [rad], radii r_in..r_out.
-
-    The outer arc is circumscribed, the inner one inscribed (``r_in <= 0``: apex at the
-    centre), so the ring contains the exact sector and stays within ``tol`` of it.
-    """
-    span = phi1 - phi0
-    n_out, rad_out = arc_steps(r_out, span, tol, True)
-    if r_in > 0.0:
-        n_in, rad_in = arc_steps(r_in, span, tol, False)
-        m_in = n_in + 1
-    else:
-        n_in, rad_in, m_in = 1, 0.0, 1
-    ring = np.empty((n_out + 1 + m_in + 1, 2))
-    for j in range(n_out + 1):
-        phi = phi0 + span * j / n_out
-        ring[j, 0] = mx + rad_out * math.cos(phi)
-        ring[j, 1] = my + rad_out * math.sin(phi)
-    for j in range(m_in):
-        phi = phi1 - span * j / n_in
-        ring[n_out + 1 + j, 0] = mx + rad_in * math.cos(phi)
-        ring[n_out + 1 + j, 1] = my + rad_in * math.sin(phi)
-    ring[-1] = ring[0]
-    return ring
-
-
-def _circle(mx, my, radius, tol, outside):
-    """Open ring (n, 2) within ``tol`` of a whole circle, circumscribed if ``outside``."""
-    n, rad = arc_steps(radius, 2.0 * math.pi, tol, outside)
-    n = max(n, 8)
-    if outside:
-        rad = radius / math.cos(math.pi / n)
-    phi = (2.0 * math.pi / n) * np.arange(n)
-    return np.column_stack([mx + rad * np.cos(phi), my + rad * np.sin(phi)])
-
-
-def _annulus_piece(marker, r, rho, center, half, tol):
-    """Polygon holding the annulus inside the window; None if it does not constrain it.
-
-    Returns the string "empty" when the annulus misses the window.
-    """
-    reach = half * math.sqrt(2.0)          # circumradius of the window
-    mx, my = float(marker[0]), float(marker[1])
-    dist = math.hypot(center[0] - mx, center[1] - my)
-    r_out, r_in = r + rho, r - rho
-    if r_out < dist - reach or r_in > dist + reach:
-        return "empty"
-    if r_in <= dist - reach and r_out >= dist + reach:
-        return None
-    if dist > reach:
-        phi_c = math.atan2(center[1] - my, center[0] - mx)
-        delta = math.asin(reach / dist)
-        return shapely.polygons(_sector_ring(mx, my, r_out, r_in, phi_c - delta, phi_c + delta, tol))
-    outer = _circle(mx, my, r_out, tol, True)
-    return shapely.polygons(outer, holes=[_circle(mx, my, r_in, tol, False)] if r_in > 0.0 else None)
-
-
-def _wedge_piece(marker, beta, xi, center, half):
-    """Polygon holding the wedge apex ``marker``, directions beta + pi +- xi, over the window."""
-    if xi >= math.pi:
-        return None
-    mx, my = float(marker[0]), float(marker[1])
-    far = math.hypot(abs(center[0] - mx) + half, abs(center[1] - my) + half)
-    n = max(1, math.ceil(2.0 * xi / (math.pi / 4.0)))
-    step = 2.0 * xi / n
-    length = 2.0 * far / math.cos(step / 2.0)   # the far chords stay beyond the window
-    phi = beta + math.pi - xi + step * np.arange(n + 1)
-    ring = np.empty((n + 2, 2))
-    ring[0] = mx, my
-    ring[1:, 0] = mx + length * np.cos(phi)
-    ring[1:, 1] = my + length * np.sin(phi)
-    return shapely.polygons(ring)
-
-
 def _local_region(markers, meas, rho, bearings, xi, center, half, tol):
     """Intersection of the pieces that constrain the window; None when empty.
 
@@ -190,13 +124,13 @@ def _local_region(markers, meas, rho, bearings, xi, center, half, tol):
     """
     pieces = []
     for i in range(markers.shape[0]):
-        piece = _annulus_piece(markers[i], meas[i], rho[i], center, half, tol)
+        piece = annulus_piece(markers[i], meas[i], rho[i], center, half, tol)
         if isinstance(piece, str):
             return None
         if piece is not None:
             pieces.append(piece)
         if bearings is not None:
-            piece = _wedge_piece(markers[i], bearings[i], xi, center, half)
+            piece = wedge_piece(markers[i], bearings[i], xi, center, half)
             if piece is not None:
                 pieces.append(piece)
     if not pieces:
@@ -410,5 +344,10 @@ def fault_area_of_point(markers: np.ndarray, position: np.ndarray, rho: np.ndarr
     bearings = world_bearing(position, markers) if xi > 0.0 else None
     rho_min, _ = _validate(markers, meas, rho, bearings, xi)
     tol = DEFAULT_TOLERANCE_FRACTION * rho_min if tolerance is None else float(tolerance)
+    if bearings is None and markers.shape[0] == 2:
+        # the closed form's component on the position's side is the one holding it
+        fast = _two_ranges(markers, meas, rho, position, tol)
+        if fast is not None:
+            return fast
     comp = _component(markers, meas, rho, bearings, xi, position, position, tol)
     return _empty(tol) if comp is None else _from_polygon(comp, tol)

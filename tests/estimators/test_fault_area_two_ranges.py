@@ -30,7 +30,7 @@ import shapely
 
 from estimators import fault_area
 from estimators.annuli import MAX_VERTICES, is_simple_ring, two_annuli_region
-from estimators.fault_area import exact_fault_area
+from estimators.fault_area import exact_fault_area, fault_area_of_point
 from estimators.measurements import draw_range_errors, ranges, reflect_across_marker_line
 from scenarios.schema import NoiseModel
 
@@ -125,6 +125,28 @@ def test_closed_form_matches_the_shapely_construction():
     # most fixes away from the marker line take the closed form
     assert fast_count >= 0.9 * N_GEOMETRIES, fast_count
     assert control_caught == control_count >= 0.8 * fast_count, (control_caught, control_count)
+
+
+def test_fault_area_of_point_takes_the_closed_form_around_the_position():
+    """Noise-free ranges: the component holding the position, matching the general path.
+
+    Negative control: the mirror position's component (the other twin) does not hold it.
+    """
+    fast_count = 0
+    for markers, _, rho, _, truth in _geometries(107, n=100):
+        z = ranges(truth, markers)
+        fa = fault_area_of_point(markers, truth, rho)
+        general = fault_area._general(markers, z, rho, truth, None, 0.0, fa.tolerance)
+        assert fa.contains(truth)
+        if two_annuli_region(markers, z, rho, truth, fa.tolerance) is None:
+            continue
+        fast_count += 1
+        _, cos_max = _alpha_bounds(markers, z, rho, fa.tolerance)
+        h_bound = math.sqrt(2) * fa.tolerance / math.sqrt(1 - cos_max)
+        assert abs(fa.diameter - general.diameter) <= 2 * h_bound * (1 + 1e-9)
+        twin = fault_area_of_point(markers, reflect_across_marker_line(truth, markers), rho)
+        assert not twin.contains(truth)
+    assert fast_count >= 90
 
 
 def _exact_samples(markers, z, rho, side, tol, rng):
