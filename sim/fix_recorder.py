@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import shapely
 
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
@@ -156,7 +157,8 @@ class FixRecorder:
         idx = np.array(p.measured)
         # Dead reckoning drifts in heading without bound; only its displacement over the fix is
         # trusted, turned into the world frame with the filter's heading.
-        rot = float(self.loc.x[2]) - float(dr_end[2])
+        x_est = self.loc.x
+        rot = float(x_est[2]) - float(dr_end[2])
         c, s = math.cos(rot), math.sin(rot)
         disp = np.array([dr_end[:2] - d[:2] for d in p.dr_at])
         shifted = self.markers[idx] + disp @ np.array([[c, s], [-s, c]])
@@ -174,9 +176,9 @@ class FixRecorder:
             bearings = np.array(p.bearings) - turned
             # the filter's heading is not exact: widen the wedges by its 3-sigma bound
             bearing_error += 3.0 * math.sqrt(max(float(self.loc.P[2, 2]), 0.0))
-        snap = snapshot_fix(shifted, ranges, rho, prior=self.loc.x[:2], noise=self.sensor.noise,
+        snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=bearing_error,
-                            heading=float(self.loc.x[2]) if bearings is not None else None,
+                            heading=float(x_est[2]) if bearings is not None else None,
                             extra_var=self.shift_var(travelled), fault_margin=self.shift_bound(travelled))
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
@@ -190,7 +192,7 @@ class FixRecorder:
             t=t, markers=markers_row, ranges=ranges_row, rho=rho_row, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted))
-        ring = (np.asarray(fa.polygon.exterior.coords) if not fa.is_empty else np.zeros((0, 2)))
+        ring = shapely.get_coordinates(fa.polygon.exterior) if not fa.is_empty else np.zeros((0, 2))
         self._polygons.append(ring)
 
     def _predicted(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
