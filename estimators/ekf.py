@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy import stats
 
@@ -86,6 +87,36 @@ def _wrap_scalar(a: float) -> float:
     # The formula of measurements.wrap_angle ((-pi, pi]) on a float: ~0.1 µs instead of ~4 µs
     # of array handling, which would dominate predict().
     return math.pi - (math.pi - a) % (2.0 * math.pi)
+
+
+# Localizer.predict_params (float64, shape (6,)): what a predict step needs besides x and P.
+WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED = range(6)
+
+
+@numba.njit(cache=True)
+def predict_step(x, P, d_left, d_right, params):
+    """Run the Localizer's predict on its state arrays, in place (see :meth:`Localizer.predict`).
+
+    Compiled so that a control loop can call it from compiled code (``sim.control_tick``).
+
+    Parameters
+    ----------
+    x, P : ndarray, shape (3,), (3, 3) or (4,), (4, 4)
+        The filter's state and covariance (:meth:`Localizer.state_arrays`).
+    d_left, d_right : float
+        Wheel travel measured by the encoders over the step (nominal radius) [m].
+    params : ndarray, shape (6,)
+        :attr:`Localizer.predict_params`.
+    """
+    wheel_base, rel_var, base_var, q = params[WHEEL_BASE], params[REL_VAR], params[BASE_VAR], params[Q_SCALE]
+    var_left = q * (rel_var * d_left * d_left + base_var)
+    var_right = q * (rel_var * d_right * d_right + base_var)
+    if params[BIASED] > 0.0:
+        walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
+        motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var)
+    else:
+        motion.propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right)
+    x[2] = math.pi - (math.pi - x[2]) % (2.0 * math.pi)  # _wrap_scalar
 
 
 def _check_matrix(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
@@ -182,6 +213,9 @@ class Localizer:
         self._kf.x = np.ascontiguousarray(x0_arr)
         self._kf.x[2] = _wrap_scalar(self._kf.x[2])
         self._kf.P = np.ascontiguousarray(P0_sym)
+        rel_var, base_var = self._variance_terms
+        self.predict_params = np.array([robot.wheel_base, rel_var, base_var, self.q_scale,
+                                        self.bias_walk_std**2, float(self.estimate_wheel_bias)])
         # Measurement model at the current state, filled before each filterpy update; the
         # wheel-error column (if any) stays 0.
         self._H = np.zeros((1, dim))
@@ -250,20 +284,14 @@ class Localizer:
         d_left, d_right : float
             Wheel travel measured by the encoders over the step (nominal radius) [m].
         """
-        d_left, d_right = float(d_left), float(d_right)
-        rel_var, base_var = self._variance_terms
-        kf = self._kf
-        if self.estimate_wheel_bias:
-            walk_var = self.bias_walk_std**2 * 0.5 * (abs(d_left) + abs(d_right))
-            motion.propagate_moments_biased(kf.x, kf.P, d_left, d_right, self.robot.wheel_base,
-                                            self.q_scale * (rel_var * d_left * d_left + base_var),
-                                            self.q_scale * (rel_var * d_right * d_right + base_var),
-                                            walk_var)
-        else:
-            motion.propagate_moments(kf.x, kf.P, d_left, d_right, self.robot.wheel_base,
-                                     self.q_scale * (rel_var * d_left * d_left + base_var),
-                                     self.q_scale * (rel_var * d_right * d_right + base_var))
-        kf.x[2] = _wrap_scalar(kf.x[2])
+        predict_step(self._kf.x, self._kf.P, float(d_left), float(d_right), self.predict_params)
+
+    def state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the filter's live state and covariance arrays (not copies), for :func:`predict_step`.
+
+        filterpy's update replaces both arrays: ask again after every update.
+        """
+        return self._kf.x, self._kf.P
 
     # ----------------------------------------------------------------- update
     def _marker(self, marker_index: int) -> tuple[float, float]:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios import PlanningError, Scenario, SimulationError
+from sim.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode_types import EpisodeResult, StepLog
 from sim.follower import PurePursuit, wheel_speeds
 
@@ -168,11 +169,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     planned_time = float(np.sum(np.diff(plan.s) / np.maximum(plan.speed[1:], 0.05)))
     t_max = time_limit if time_limit is not None else 3.0 * planned_time + 30.0
     n_max = int(t_max / dt_ctrl) + 2
-    t_log = np.empty(n_max)
-    true_log = np.empty((n_max, 3))
-    est_log = np.empty((n_max, 3))
-    cov_log = np.empty((n_max, 3, 3))
-    s_log = np.empty(n_max)
+    log = np.empty((n_max, LOG_COLUMNS))
+    tick = ControlTick(odo, loc, follower, log, dt_ctrl)
 
     wheel_angles, predict = world.robot.wheel_angle_pair, loc.predict
 
@@ -185,7 +183,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
 
-    def start_fix(s_now: float, t: float, x_est: np.ndarray) -> None:
+    def start_fix(s_now: float, t: float) -> None:
         # Start the latest scheduled fix the robot has passed, when the laser is free again.
         nonlocal next_fix, last_fix_start
         if fixes.pending is not None or next_fix >= len(fix_s_list) or s_now < fix_s_list[next_fix] \
@@ -194,7 +192,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         f = int(np.searchsorted(fix_s, s_now, side="right")) - 1
         # scheduled fixes the laser could not start in time are merged into this one: count them
         counts["merged"] += f - next_fix
-        subset = fixes.choose_subset(schedule.fixes[f].markers, x_est[:2])
+        subset = fixes.choose_subset(schedule.fixes[f].markers, loc.x[:2])
         if subset is None:
             fixes.skipped += 1
         else:
@@ -223,34 +221,36 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     # The schedule's first fix is taken at standstill on the dock, before the robot leaves.
     holding = len(fix_s) > 0 and fix_s[0] <= 1e-9
     s_now = 0.0
-    true_pose, set_wheel_speeds, command = world.true_pose, world.robot.set_wheel_speeds, follower.command
+    true_pose, set_wheel_speeds = world.true_pose, world.robot.set_wheel_speeds
     radius, base = robot.wheel_radius, robot.wheel_base
     while n < n_max:
         t = world.time
-        read_odometry()
-        x_est = loc.x
-        t_log[n], true_log[n], est_log[n], cov_log[n], s_log[n] = t, true_pose(), x_est, loc.P, s_now
+        # odometry, predict, log row n (the arc length of this step's estimate) and, unless the
+        # robot is held or done, the follower's command from this step's estimate
+        v, omega, cmd_done, s_cmd = tick(wheel_angles(), true_pose(), t, n, s_now, not (holding or done))
         n += 1
         if done:
             break
         if holding:
-            start_fix(0.0, t, x_est)
+            start_fix(0.0, t)
             holding = fixes.pending is not None
             if holding:
-                world.robot.set_wheel_speeds(0.0, 0.0)
+                set_wheel_speeds(0.0, 0.0)
                 advance()
                 continue
-        cmd = command(x_est, dt_ctrl)
-        s_now, done = cmd.s, cmd.done
-        s_log[n - 1] = s_now  # the arc length of this step's estimate, not the previous one's
+            v, omega, cmd_done, s_cmd = follower.command(loc.x, dt_ctrl)
+            log[n - 1, LOG_S] = s_cmd
+        s_now, done = s_cmd, cmd_done
         if done:
-            world.robot.set_wheel_speeds(0.0, 0.0)
+            set_wheel_speeds(0.0, 0.0)
             continue
-        start_fix(s_now, t, x_est)
-        set_wheel_speeds(*wheel_speeds(cmd.v, cmd.omega, radius, base))
+        start_fix(s_now, t)
+        set_wheel_speeds(*wheel_speeds(v, omega, radius, base))
         advance()
 
-    steps = _step_log(t_log[:n], true_log[:n], est_log[:n], cov_log[:n], s_log[:n], schedule, pef)
+    log = log[:n]
+    steps = _step_log(log[:, LOG_T], log[:, LOG_TRUE], log[:, LOG_EST], log[:, LOG_COV].reshape(n, 3, 3),
+                      log[:, LOG_S], schedule, pef)
     fix_log = fixes.log()
     goal = np.array(scenario.dock(task.goal).position)
     reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=

@@ -61,29 +61,23 @@ class PurePursuit:
     rotate_in_place_above: float = math.radians(60.0)
     window: int = 40
     """Path points searched ahead of the last nearest one (the path is sampled every ~0.1 m)."""
-    _index: int = field(default=0, init=False)
-    _v: float = field(default=0.0, init=False)
-    _w: float = field(default=0.0, init=False)
     _s: np.ndarray = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.path = np.asarray(self.path, dtype=float)
         seg = np.hypot(*np.diff(self.path, axis=0).T)
         self._s = np.concatenate([[0.0], np.cumsum(seg)])
-        self._xs = np.ascontiguousarray(self.path[:, 0])
-        self._ys = np.ascontiguousarray(self.path[:, 1])
-        self._speed = np.asarray(self.speed, dtype=float).copy()
-        self._limits = np.array([self.max_speed, self.max_yaw_rate, self.max_accel, self.max_yaw_accel,
+        # rows x [m], y [m], arc length [m], reference speed [m/s]: one array for the kernel
+        self.table = np.ascontiguousarray(np.vstack([self.path[:, 0], self.path[:, 1], self._s,
+                                                     np.asarray(self.speed, dtype=float)]))
+        self.limits = np.array([self.max_speed, self.max_yaw_rate, self.max_accel, self.max_yaw_accel,
                                  self.lookahead_min, self.lookahead_gain, self.goal_tolerance,
                                  self.rotate_in_place_above, float(self.window)])
-        # index, v, w: the kernel's memory between calls
-        self._state = np.array([float(self._index), self._v, self._w])
+        # nearest path index, last v [m/s], last omega [rad/s]: the kernel's memory between calls
+        self.state = np.zeros(3)
 
     def reset(self) -> None:
-        self._index = 0
-        self._v = 0.0
-        self._w = 0.0
-        self._state[:] = 0.0
+        self.state[:] = 0.0
 
     @property
     def length(self) -> float:
@@ -92,9 +86,8 @@ class PurePursuit:
     def command(self, pose: np.ndarray, dt: float) -> FollowerCommand:
         """Command for estimated ``pose`` (x, y, theta) over the next ``dt`` seconds."""
         # The control loop runs this at tens of Hz for thousands of runs: one compiled call.
-        v, omega, done, s = _command(self._xs, self._ys, self._s, self._speed, self._limits, self._state,
-                                     float(pose[0]), float(pose[1]), float(pose[2]), float(dt))
-        self._index, self._v, self._w = int(self._state[0]), float(self._state[1]), float(self._state[2])
+        v, omega, done, s = command_step(self.table, self.limits, self.state,
+                                         float(pose[0]), float(pose[1]), float(pose[2]), float(dt))
         return FollowerCommand(v, omega, done, s)
 
 
@@ -111,8 +104,13 @@ def _limit(state, limits, v_ref, w_ref, dt):
 
 
 @numba.njit(cache=True)
-def _command(xs, ys, sl, speed, limits, state, px, py, th, dt):
-    """Pure pursuit step; returns (v, omega, done, s). See :class:`PurePursuit` for ``limits``."""
+def command_step(table, limits, state, px, py, th, dt):
+    """Pure pursuit step on :attr:`PurePursuit.table`, ``limits`` and ``state`` (in place).
+
+    Returns (v [m/s], omega [rad/s], done, s [m]). Compiled so that a control loop can call it
+    from compiled code (``sim.control_tick``).
+    """
+    xs, ys, sl, speed = table[0], table[1], table[2], table[3]
     max_speed, max_yaw_rate, max_accel, max_yaw_accel = limits[0], limits[1], limits[2], limits[3]
     look_min, look_gain, goal_tol, rotate_above = limits[4], limits[5], limits[6], limits[7]
     n = xs.size

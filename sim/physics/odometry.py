@@ -3,8 +3,8 @@
 The encoders see the true joint angles, quantised to ``encoder_ticks`` per revolution; the
 odometry converts ticks to travel with the *declared* (nominal) wheel radius, so the physical
 difference between the simulated wheels (``robot_actual.wheel_radius_error``) becomes the
-classic systematic odometry error. Pure Python floats: a control step handles two numbers and
-numpy's per-call overhead would dominate.
+classic systematic odometry error. The step is compiled (:func:`odometry_step`): a control
+loop calls it thousands of times per run, and numpy's per-call overhead would dominate.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from scenarios.schema import RobotSpec
@@ -46,11 +47,12 @@ def integrate_arc(pose: np.ndarray, d_left: float, d_right: float, wheel_base: f
     ndarray, shape (3,)
         Pose after the step; theta is not wrapped (it accumulates).
     """
-    return np.array(_arc((float(pose[0]), float(pose[1]), float(pose[2])), d_left, d_right, wheel_base))
+    return np.array(_arc((float(pose[0]), float(pose[1]), float(pose[2])), float(d_left), float(d_right),
+                         float(wheel_base)))
 
 
-def _arc(pose: tuple[float, float, float], d_left: float, d_right: float,
-         wheel_base: float) -> tuple[float, float, float]:
+@numba.njit(cache=True)
+def _arc(pose, d_left, d_right, wheel_base):
     x, y, th = pose
     ds = 0.5 * (d_left + d_right)
     dth = (d_right - d_left) / wheel_base
@@ -61,6 +63,38 @@ def _arc(pose: tuple[float, float, float], d_left: float, d_right: float,
     radius = ds / dth
     return (x + radius * (math.sin(th + dth) - math.sin(th)),
             y - radius * (math.cos(th + dth) - math.cos(th)), th + dth)
+
+
+# WheelOdometry.state (float64, shape (6,)): encoder counts, dead-reckoned pose, next slip normal.
+TICKS_LEFT, TICKS_RIGHT, POSE_X, POSE_Y, POSE_THETA, NEXT_NORMAL = range(6)
+# WheelOdometry.params (float64, shape (4,)).
+METRES_PER_TICK, TICKS_PER_REV, SLIP_STD, WHEEL_BASE = range(4)
+
+
+@numba.njit(cache=True)
+def odometry_step(state, params, normals, angle_left, angle_right):
+    """Read the encoders at the wheel angles [rad]; advance ``state`` in place.
+
+    Compiled so that a control loop can call it from compiled code (``sim.control_tick``).
+    Returns the travel (d_left, d_right) [m] with the floor's slip, and whether the slip
+    normals are used up (the caller draws the next block).
+    """
+    two_pi = 2.0 * math.pi
+    n = params[TICKS_PER_REV]
+    ticks_left = math.floor(angle_left * n / two_pi)   # as encoder_ticks(), to the last bit
+    ticks_right = math.floor(angle_right * n / two_pi)
+    d_left = (ticks_left - state[TICKS_LEFT]) * params[METRES_PER_TICK]
+    d_right = (ticks_right - state[TICKS_RIGHT]) * params[METRES_PER_TICK]
+    state[TICKS_LEFT], state[TICKS_RIGHT] = ticks_left, ticks_right
+    slip = params[SLIP_STD]
+    if slip > 0.0:
+        k = int(state[NEXT_NORMAL])
+        d_left += slip * abs(d_left) * normals[k]
+        d_right += slip * abs(d_right) * normals[k + 1]
+        state[NEXT_NORMAL] = k + 2
+    x, y, th = _arc((state[POSE_X], state[POSE_Y], state[POSE_THETA]), d_left, d_right, params[WHEEL_BASE])
+    state[POSE_X], state[POSE_Y], state[POSE_THETA] = x, y, th
+    return d_left, d_right, slip > 0.0 and state[NEXT_NORMAL] + 2.0 > normals.size
 
 
 class WheelOdometry:
@@ -82,7 +116,7 @@ class WheelOdometry:
         at each update, in blocks (the numbers are those of one scalar draw after another).
     """
 
-    _BLOCK = 1024   # slip normals drawn per refill: a scalar draw per wheel costs ~1 us
+    _BLOCK = 1024   # slip normals drawn per refill (even: a block holds whole left/right pairs)
 
     def __init__(self, spec: RobotSpec, angles: np.ndarray, pose: np.ndarray, slip_std: float = 0.0,
                  rng: np.random.Generator | None = None) -> None:
@@ -91,24 +125,25 @@ class WheelOdometry:
         self.spec = spec
         self.slip_std = float(slip_std)
         self._rng = rng
-        self._normals: list[float] = []
-        self._next = 0
-        self._metres_per_tick = 2.0 * math.pi * spec.wheel_radius / spec.encoder_ticks
+        self.params = np.array([2.0 * math.pi * spec.wheel_radius / spec.encoder_ticks,
+                                float(spec.encoder_ticks), self.slip_std, spec.wheel_base])
+        self.state = np.zeros(6)
+        self.normals = np.zeros(2)
+        if self.slip_std > 0.0:
+            self.refill()
         self.reset(angles, pose)
 
     def reset(self, angles: np.ndarray, pose: np.ndarray) -> None:
-        """Restart from wheel ``angles`` (2,) [rad] and ``pose`` (3,)."""
+        """Restart from wheel ``angles`` (2,) [rad] and ``pose`` (3,) (the slip stream goes on)."""
         n = self.spec.encoder_ticks
-        self._ticks = (encoder_ticks(float(angles[0]), n), encoder_ticks(float(angles[1]), n))
-        x, y, th = np.array(pose, dtype=float).reshape(3)
-        self._pose = (float(x), float(y), float(th))
+        self.state[TICKS_LEFT] = encoder_ticks(float(angles[0]), n)
+        self.state[TICKS_RIGHT] = encoder_ticks(float(angles[1]), n)
+        self.state[POSE_X:POSE_THETA + 1] = np.array(pose, dtype=float).reshape(3)
 
-    def _normal(self) -> float:
-        if self._next == len(self._normals):
-            self._normals = self._rng.standard_normal(self._BLOCK).tolist()
-            self._next = 0
-        self._next += 1
-        return self._normals[self._next - 1]
+    def refill(self) -> None:
+        """Draw the next block of slip normals (call when :func:`odometry_step` says so)."""
+        self.normals = self._rng.standard_normal(self._BLOCK)
+        self.state[NEXT_NORMAL] = 0.0
 
     def update(self, angles) -> WheelTravel:
         """Read the encoders at wheel ``angles`` (left, right) [rad]; return the travel since the last read.
@@ -116,18 +151,13 @@ class WheelOdometry:
         The travel includes the floor's random slip; it also advances the dead-reckoned
         :attr:`pose`.
         """
-        n, two_pi = self.spec.encoder_ticks, 2.0 * math.pi  # as encoder_ticks(), to the last bit
-        ticks = (math.floor(float(angles[0]) * n / two_pi), math.floor(float(angles[1]) * n / two_pi))
-        dl = (ticks[0] - self._ticks[0]) * self._metres_per_tick
-        dr = (ticks[1] - self._ticks[1]) * self._metres_per_tick
-        self._ticks = ticks
-        if self.slip_std > 0.0:
-            dl += self.slip_std * abs(dl) * self._normal()
-            dr += self.slip_std * abs(dr) * self._normal()
-        self._pose = _arc(self._pose, dl, dr, self.spec.wheel_base)
-        return WheelTravel(dl, dr)
+        d_left, d_right, used_up = odometry_step(self.state, self.params, self.normals,
+                                                 float(angles[0]), float(angles[1]))
+        if used_up:
+            self.refill()
+        return WheelTravel(d_left, d_right)
 
     @property
     def pose(self) -> np.ndarray:
         """Dead-reckoned pose (x [m], y [m], theta [rad], theta unwrapped), shape (3,)."""
-        return np.array(self._pose)
+        return self.state[POSE_X:POSE_THETA + 1].copy()
