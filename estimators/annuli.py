@@ -155,6 +155,24 @@ def is_simple_ring(ring):
 
 
 @numba.njit(cache=True)
+def ring_contains(ring, x, y):
+    """Tell whether point (x, y) lies in the polygon of the closed ring (n + 1, 2), boundary included.
+
+    Crossing number with the half-open rule; a point on an edge (exact orientation test) counts
+    as inside, like shapely's ``intersects``.
+    """
+    inside = False
+    for i in range(ring.shape[0] - 1):
+        ax, ay, bx, by = ring[i, 0], ring[i, 1], ring[i + 1, 0], ring[i + 1, 1]
+        if (_orient(ax, ay, bx, by, x, y) == 0.0 and min(ax, bx) <= x <= max(ax, bx)
+                and min(ay, by) <= y <= max(ay, by)):
+            return True
+        if (ay > y) != (by > y) and x < ax + (y - ay) * (bx - ax) / (by - ay):
+            inside = not inside
+    return inside
+
+
+@numba.njit(cache=True)
 def _fill_arc(ring, pos, cx, radius, phi_s, phi_e, n, rad, outside, chords):
     """Write the n - 1 (inscribed) or n (circumscribed) interior vertices of one arc polyline."""
     step = (phi_e - phi_s) / n

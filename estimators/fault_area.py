@@ -39,15 +39,16 @@ give a :class:`FaultArea` with an empty polygon, ``area = 0``, ``diameter = nan`
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from estimators.annuli import max_pairwise_distance, two_annuli_region
+from estimators.annuli import max_pairwise_distance, ring_contains, two_annuli_region
 from estimators.fault_pieces import annulus_piece, wedge_piece
 from estimators.lsq import solve_position
 from estimators.measurements import (
@@ -74,9 +75,8 @@ class FaultArea:
 
     Attributes
     ----------
-    polygon : shapely.geometry.Polygon
-        Outer approximation of the exact set (empty when the measurements are inconsistent):
-        contains it, and is contained in the exact set of the bounds ``rho + tolerance``.
+    ring : ndarray, shape (n + 1, 2)
+        Closed exterior ring of the polygon [m]; shape (0, 2) when empty.
     area : float
         Area of ``polygon`` [m^2]; 0 when empty.
     diameter : float
@@ -86,34 +86,51 @@ class FaultArea:
         Centroid of ``polygon`` [m]; nan when empty.
     tolerance : float
         Polygonisation tolerance [m]: largest distance of a polygon edge beyond its circle.
+    polygon : shapely.geometry.Polygon
+        Outer approximation of the exact set (empty when the measurements are inconsistent):
+        contains it, and is contained in the exact set of the bounds ``rho + tolerance``. Built
+        on first use from ``ring`` for the closed form (an episode makes hundreds of fault areas
+        and only needs their rings).
     """
 
-    polygon: Polygon
+    ring: np.ndarray
     area: float
     diameter: float
     centroid: np.ndarray
     tolerance: float
+    shape: Polygon | None = field(default=None, repr=False, compare=False)
+    """The shapely polygon when one was built (it may have holes); else made from ``ring``."""
+
+    @functools.cached_property
+    def polygon(self) -> Polygon:
+        if self.shape is not None:
+            return self.shape
+        return shapely.polygons(self.ring) if len(self.ring) else Polygon()
 
     @property
     def is_empty(self) -> bool:
         """True when no position is consistent with the measurements."""
-        return self.polygon.is_empty
+        return len(self.ring) == 0
 
     def contains(self, point: np.ndarray) -> bool:
         """Tell whether ``point`` (2,) [m] lies in the polygon (boundary included)."""
-        return (not self.is_empty) and bool(shapely.intersects_xy(self.polygon, point[0], point[1]))
+        if self.is_empty:
+            return False
+        if self.shape is not None and len(self.shape.interiors):
+            return bool(shapely.intersects_xy(self.shape, point[0], point[1]))
+        return bool(ring_contains(self.ring, float(point[0]), float(point[1])))
 
 
 def _empty(tol: float) -> FaultArea:
-    return FaultArea(Polygon(), 0.0, math.nan, np.full(2, math.nan), tol)
+    return FaultArea(np.zeros((0, 2)), 0.0, math.nan, np.full(2, math.nan), tol)
 
 
 def _from_polygon(poly: Polygon, tol: float) -> FaultArea:
-    xy = shapely.get_coordinates(poly.exterior)
-    if len(xy) > _HULL_ABOVE:
-        xy = shapely.get_coordinates(shapely.convex_hull(poly))
+    ring = shapely.get_coordinates(poly.exterior)
+    xy = shapely.get_coordinates(shapely.convex_hull(poly)) if len(ring) > _HULL_ABOVE else ring
     c = poly.centroid
-    return FaultArea(poly, float(poly.area), float(max_pairwise_distance(xy)), np.array([c.x, c.y]), tol)
+    return FaultArea(ring, float(poly.area), float(max_pairwise_distance(xy)), np.array([c.x, c.y]), tol,
+                     shape=poly)
 
 
 def _local_region(markers, meas, rho, bearings, xi, center, half, tol):
@@ -295,7 +312,7 @@ def _two_ranges(markers, meas, rho, prior, tol):
     region = two_annuli_region(markers, meas, rho, prior, tol)
     if region is None:
         return None
-    return FaultArea(shapely.polygons(region.ring), region.area, region.diameter, region.centroid, tol)
+    return FaultArea(region.ring, region.area, region.diameter, region.centroid, tol)
 
 
 def _general(markers, meas, rho, prior, bearings, xi, tol):

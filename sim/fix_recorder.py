@@ -16,7 +16,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import shapely
 
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
@@ -192,8 +191,7 @@ class FixRecorder:
             t=t, markers=markers_row, ranges=ranges_row, rho=rho_row, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted))
-        ring = shapely.get_coordinates(fa.polygon.exterior) if not fa.is_empty else np.zeros((0, 2))
-        self._polygons.append(ring)
+        self._polygons.append(fa.ring)
 
     def _predicted(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
         """PEF τ of each fix's subset at its true position, one batched call per subset."""

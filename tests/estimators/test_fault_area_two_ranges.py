@@ -29,7 +29,7 @@ import pytest
 import shapely
 
 from estimators import fault_area
-from estimators.annuli import MAX_VERTICES, is_simple_ring, two_annuli_region
+from estimators.annuli import MAX_VERTICES, is_simple_ring, ring_contains, two_annuli_region
 from estimators.fault_area import exact_fault_area, fault_area_of_point
 from estimators.measurements import draw_range_errors, ranges, reflect_across_marker_line
 from scenarios.schema import NoiseModel
@@ -278,3 +278,32 @@ def test_simplicity_check_agrees_with_shapely():
     assert not is_simple_ring(touching)
     folded = np.array([[0, 0], [2, 0], [1, 0], [1, 1], [0, 0]], float)
     assert not is_simple_ring(folded)
+
+
+def test_containment_agrees_with_shapely():
+    """ring_contains (what FaultArea.contains uses for a ring) against GEOS on simple rings.
+
+    Random points in and around random simple polygons, and every vertex (on the boundary:
+    inside). A crossing test that ignored the half-open rule or the boundary would disagree.
+    """
+    rng = np.random.default_rng(12)
+    checked = inside = drawn = 0
+    while checked < 20000:
+        pts = rng.uniform(0, 1, size=(int(rng.integers(3, 9)), 2))
+        ring = np.vstack([pts, pts[:1]])
+        if not is_simple_ring(ring):
+            continue
+        poly = shapely.polygons(ring)
+        queries = np.vstack([rng.uniform(-0.1, 1.1, size=(200, 2)), pts])
+        expected = shapely.intersects_xy(poly, queries[:, 0], queries[:, 1])
+        ours = np.array([ring_contains(ring, x, y) for x, y in queries])
+        np.testing.assert_array_equal(ours, expected)
+        checked += len(queries)
+        inside += int(ours[:200].sum())
+        drawn += 200
+    assert 0.03 < inside / drawn < 0.97                 # both answers exercised
+    fa = exact_fault_area(np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([3.0, 4.0]), np.array([0.01, 0.01]),
+                          prior=np.array([2.0, 2.0]))
+    assert fa.shape is None                               # the closed form: polygon built on demand
+    assert fa.contains(fa.centroid) and not fa.contains(fa.centroid + [0.0, 1.0])
+    assert shapely.intersects_xy(fa.polygon, *fa.centroid)
