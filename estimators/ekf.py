@@ -220,6 +220,8 @@ class Localizer:
         # wheel-error column (if any) stays 0.
         self._H = np.zeros((1, dim))
         self._hx = np.zeros(1)
+        self._z = np.zeros(1)
+        self._R = np.zeros((1, 1))
 
     # ------------------------------------------------------------------ state
     @property
@@ -315,7 +317,10 @@ class Localizer:
         if nis > self._gate:
             return UpdateResult(False, nis, innovation, s)
         self._hx[0] = predicted
-        self._kf.update(z, self._cached_H, self._cached_hx, R=var, residual=residual)
+        # (1,)- and (1, 1)-arrays, not floats: filterpy would build them with asarray and eye
+        self._z[0] = z
+        self._R[0, 0] = var
+        self._kf.update(self._z, self._cached_H, self._cached_hx, R=self._R, residual=residual)
         self._kf.x[2] = _wrap_scalar(self._kf.x[2])
         return UpdateResult(True, nis, innovation, s)
 
