@@ -19,10 +19,11 @@
   ``exact_margin=inf`` clips every subset.
 
 ``tau`` is inf where fewer than k markers are visible, outside the workspace and inside
-obstacles. Points and grids go through the same kernel (:mod:`planner.pef_kernels`); a grid
-is its cell centres. The kernel ranks candidate subsets in float32 and recomputes the
-winner's tau in float64: tau is exact for the chosen subset and within ~1e-6 relative of the
-minimum. Speed and the one-off numba compilation (kernels are compiled per model on first use
+obstacles. Points and grids go through the same kernels (:mod:`planner.pef_kernels`); a grid
+is its cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
+with the same values as on the points). The kernels rank candidate subsets in float32 and
+recompute the winner's tau in float64: tau is exact for the chosen subset and within ~1e-6
+relative of the minimum. Speed and the one-off numba compilation (kernels are compiled per model on first use
 in a fresh checkout, then loaded from the on-disk cache) are measured by
 ``benchmarks/pef_map.py``.
 """
@@ -216,11 +217,14 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res)
         vis, free = scenario_visible_grid(self.scenario, x, y)
-        px, py = np.tile(x, y.size), np.repeat(y, x.size)
-        r = self._evaluate(px, py, vis.reshape(vis.shape[0], -1))
+        if self.model is PefModel.EXACT:
+            px, py = np.tile(x, y.size), np.repeat(y, x.size)
+            r = self._evaluate(px, py, vis.reshape(vis.shape[0], -1))
+            tau, best = r.tau.reshape(y.size, x.size), r.best.reshape(y.size, x.size, self.k)
+        else:
+            tau, best = self._kernel_grid(x, y, vis)
         size = self.scenario.workspace.size
-        return PefMap(x=x, y=y, tau=r.tau.reshape(y.size, x.size),
-                      best=r.best.reshape(y.size, x.size, self.k), free=free, model=self.model,
+        return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
                       cell_size=(size[0] / x.size, size[1] / y.size))
 
     def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:
@@ -269,6 +273,21 @@ class PEF:
             px, py, np.ascontiguousarray(self.markers[:, 0]), np.ascontiguousarray(self.markers[:, 1]),
             np.ascontiguousarray(vis), float(self.sensor.relative_error),
             float(self.sensor.absolute_error), tan_xi, model, subsets, self.chi2_ppf, tau, best)
+        return tau, best
+
+    def _kernel_grid(self, x: np.ndarray, y: np.ndarray, vis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return tau (ny, nx) and the best subsets (ny, nx, k) on cell centres x, y; vis (M, ny, nx)."""
+        tau = np.empty((y.size, x.size))
+        best = np.empty((y.size, x.size, self.k), dtype=np.int64)
+        if self.subsets.shape[0] == 0:
+            tau.fill(np.inf)
+            best.fill(-1)
+            return tau, best
+        tan_xi = math.tan(self.sensor.bearing_error) if self.sensor.uses_bearing else 0.0
+        pef_kernels.best_subset_grid(
+            x, y, np.ascontiguousarray(self.markers[:, 0]), np.ascontiguousarray(self.markers[:, 1]),
+            np.ascontiguousarray(vis), float(self.sensor.relative_error), float(self.sensor.absolute_error),
+            tan_xi, _KERNEL_MODEL[self.model], self.subsets, self.chi2_ppf, tau, best)
         return tau, best
 
     def _evaluate(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> PefResult:

@@ -1,7 +1,9 @@
 """numba kernels of the PEF: the best marker subset for each point under a linearised model.
 
-One kernel, :func:`best_subset`, serves arbitrary points and grids (a grid is its cell
-centres, flattened). Points are processed in blocks of :data:`BLOCK`; for each block the
+One kernel, :func:`best_subset`, serves arbitrary points; :func:`best_subset_grid` gives the
+same values on the cell centres of a grid. Points are processed in blocks of :data:`BLOCK`
+(the parallelogram model: :mod:`planner.pef_pairs`, which walks a grid in square tiles and
+prunes pairs that cannot win a tile); for each block the
 scaled range normals ``g = u / rho`` (and with bearings the tangential ``h = t / (r tan xi)``)
 of every marker are computed once, then every candidate subset is scored across the block's
 points in a branch-free inner loop that vectorises (SIMD across points; threads across
@@ -36,18 +38,18 @@ import numba
 import numpy as np
 
 from estimators.linearized import strip_max_vertex_sq_k
+from planner import pef_pairs
 from planner.kernel_threads import run_ranges
 from planner.pef_scalar import (
     GDOP,
     PARALLELOGRAM,
     STRIPS,
-    diagonal_of_offsets,
     subset_tau,
     tau_gdop,
     tau_strips,
 )
 
-__all__ = ["BLOCK", "GDOP", "PARALLELOGRAM", "STRIPS", "best_subset", "subset_tau"]
+__all__ = ["BLOCK", "GDOP", "PARALLELOGRAM", "STRIPS", "best_subset", "best_subset_grid", "subset_tau"]
 
 #: Points per block: a block's per-marker float32 normals stay in the L1/L2 cache.
 BLOCK = 256
@@ -115,46 +117,6 @@ def _block_scale(px, py, mx, my, vis, rel32, ab32, tan32, lo, w, r, scale):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, dxb, dyb, scale, a0, a1, a2):
-    """Fill float32 planes (x, y, |g|^2) of ``g = s u / rho`` for one block.
-
-    ``s`` = the smallest half-width seen from the point, so every entry is at most 1. NaN where
-    hidden and in the padding beyond ``w``. The planes only rank candidates; ``dxb``, ``dyb``
-    (BLOCK,) are scratch. One pass computes the unscaled normals and the scale (one square root
-    and one division per marker and point), a second applies the scale.
-    """
-    nan, inf, one = np.float32(np.nan), np.float32(np.inf), np.float32(1.0)
-    rel32, ab32 = np.float32(rel), np.float32(ab)
-    pxb, pyb = px[lo:lo + w], py[lo:lo + w]  # views: see _block_scale
-    for c in range(BLOCK):
-        scale[c] = inf
-    for m in range(mx.size):
-        mxm, mym = mx[m], my[m]
-        vb, x, y = vis[m, lo:lo + w], a0[m], a1[m]
-        # The float64 differences get a loop of their own: mixed with the float32 arithmetic
-        # they would halve the vector width of the whole loop.
-        for c in range(w):
-            dxb[c] = np.float32(pxb[c] - mxm)
-            dyb[c] = np.float32(pyb[c] - mym)
-        for c in range(w):
-            dx, dy = dxb[c], dyb[c]
-            rr = math.sqrt(dx * dx + dy * dy)
-            rho = rel32 * rr + ab32
-            f = one / (rho * rr)
-            ok = vb[c] & (rr > 0)
-            x[c] = dx * f if ok else nan
-            y[c] = dy * f if ok else nan
-            scale[c] = min(scale[c], rho) if ok else scale[c]
-    for m in range(mx.size):
-        x, y, q = a0[m], a1[m], a2[m]
-        for c in range(w):
-            xs, ys = x[c] * scale[c], y[c] * scale[c]
-            x[c], y[c], q[c] = xs, ys, xs * xs + ys * ys
-        for c in range(w, BLOCK):
-            x[c], y[c], q[c] = nan, nan, nan
-
-
-@numba.njit(cache=True, error_model="numpy")
 def _planes_gdop(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, r, scale, a0, a1, a2):
     """Fill float32 planes (xx, xy, yy) of the information ``s^2 (g g^T + h h^T)`` per marker.
 
@@ -185,31 +147,6 @@ def _planes_gdop(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, r, scale, a0, a1, 
 @numba.njit(cache=True)
 def _take(better, new, old):
     return new if better else old
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs):
-    """Best pair per point of the block; pairs are scored two per sweep to halve the traffic."""
-    two = np.float32(2.0)
-    nsub = subsets.shape[0]
-    for s in range(0, nsub, 2):
-        t = min(s + 1, nsub - 1)  # an odd count scores the last pair twice (harmless)
-        i, j, k, m = subsets[s, 0], subsets[s, 1], subsets[t, 0], subsets[t, 1]
-        xi, yi, qi, xj, yj, qj = a0[i], a1[i], a2[i], a0[j], a1[j], a2[j]
-        xk, yk, qk, xm, ym, qm = a0[k], a1[k], a2[k], a0[m], a1[m], a2[m]
-        ss, st = np.int32(s), np.int32(t)
-        for c in range(BLOCK):
-            det1 = xi[c] * yj[c] - yi[c] * xj[c]
-            num1 = qi[c] + qj[c] + two * abs(xi[c] * xj[c] + yi[c] * yj[c])
-            den1 = det1 * det1
-            det2 = xk[c] * ym[c] - yk[c] * xm[c]
-            num2 = qk[c] + qm[c] + two * abs(xk[c] * xm[c] + yk[c] * ym[c])
-            den2 = det2 * det2
-            n0, d0, s0 = bn[c], bd[c], bs[c]
-            b1 = num1 * d0 < n0 * den1
-            n0, d0, s0 = _take(b1, num1, n0), _take(b1, den1, d0), _take(b1, ss, s0)
-            b2 = num2 * d0 < n0 * den2
-            bn[c], bd[c], bs[c] = _take(b2, num2, n0), _take(b2, den2, d0), _take(b2, st, s0)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -264,54 +201,11 @@ def _sweep_strips(subsets, gx, gy, hx, hy, w, bearing, bs):
                     bs[c] = s
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _tau_pairs(px, py, mx, my, subsets, rel, ab, lo, w, bs, ax, ay, bx, by, tau, best):
-    """Write the chosen pair ``subsets[bs[c]]`` and its float64 tau for the block's points.
-
-    A scalar pass gathers the pair's marker coordinates into ``ax, ay, bx, by`` (BLOCK,); the
-    arithmetic (square roots, divisions) then runs in a vectorised loop.
-    """
-    bb, taub = best[lo:lo + w], tau[lo:lo + w]  # views: see _block_scale
-    for c in range(w):
-        s = bs[c]
-        s0 = max(s, 0)
-        i, j = subsets[s0, 0], subsets[s0, 1]
-        ax[c], ay[c], bx[c], by[c] = mx[i], my[i], mx[j], my[j]
-        bb[c, 0] = i if s >= 0 else -1
-        bb[c, 1] = j if s >= 0 else -1
-    pxb, pyb = px[lo:lo + w], py[lo:lo + w]
-    for c in range(w):
-        t = diagonal_of_offsets(pxb[c] - ax[c], pyb[c] - ay[c], pxb[c] - bx[c], pyb[c] - by[c], rel, ab)
-        taub[c] = t if bs[c] >= 0 else np.inf
-
-
 @numba.njit(cache=True)
 def _store_best(best, p, subsets, s):
     """Write the marker indices of subset row ``s`` (or -1 when ``s < 0``) into ``best[p]``."""
     for t in range(best.shape[1]):
         best[p, t] = subsets[s, t] if s >= 0 else -1
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _blocks_parallelogram(b0, b1, px, py, mx, my, vis, rel, ab, subsets, tau, best):
-    nm = mx.size
-    dxb = np.empty(BLOCK, dtype=np.float32)
-    dyb = np.empty(BLOCK, dtype=np.float32)
-    scale = np.empty(BLOCK, dtype=np.float32)
-    a0 = np.empty((nm, BLOCK), dtype=np.float32)
-    a1 = np.empty((nm, BLOCK), dtype=np.float32)
-    a2 = np.empty((nm, BLOCK), dtype=np.float32)
-    bn = np.empty(BLOCK, dtype=np.float32)
-    bd = np.empty(BLOCK, dtype=np.float32)
-    bs = np.empty(BLOCK, dtype=np.int32)
-    ax, ay, bx, by = np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK)
-    for blk in range(b0, b1):
-        lo = blk * BLOCK
-        w = min(BLOCK, px.size - lo)
-        _planes_parallelogram(px, py, mx, my, vis, rel, ab, lo, w, dxb, dyb, scale, a0, a1, a2)
-        bn[:], bd[:], bs[:] = 1.0, 0.0, -1
-        _sweep_parallelogram(subsets, a0, a1, a2, bn, bd, bs)
-        _tau_pairs(px, py, mx, my, subsets, rel, ab, lo, w, bs, ax, ay, bx, by, tau, best)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -393,10 +287,45 @@ def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, 
     """
     nblk = (px.size + BLOCK - 1) // BLOCK
     if model == PARALLELOGRAM:
-        kernel, args = _blocks_parallelogram, (px, py, mx, my, vis, rel, ab, subsets, tau, best)
+        nblk = (px.size + pef_pairs.BLOCK - 1) // pef_pairs.BLOCK
+        kernel = pef_pairs.blocks_points
+        args = (px, py, mx, my, vis, rel, ab, subsets, pef_pairs.MARGIN, tau, best)
     elif model == GDOP:
         kernel, args = _blocks_gdop, (px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best)
     else:
         kernel, args = _blocks_strips, (px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, best)
     # Each model is its own kernel: a process compiles (or loads) only the models it uses.
     run_ranges(kernel, nblk, args, min_chunk=8)
+
+
+def best_subset_grid(x, y, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, tau, best):
+    """:func:`best_subset` on the cell centres of a grid, the same values as on the flattened points.
+
+    Parameters
+    ----------
+    x : ndarray, shape (nx,)
+        Cell-centre x coordinates [m].
+    y : ndarray, shape (ny,)
+        Cell-centre y coordinates [m].
+    vis : ndarray of bool, shape (M, ny, nx)
+        Marker visible from cell centre.
+    tau : ndarray, shape (ny, nx)
+        Output: error of the best subset [m]; inf where no subset is usable.
+    best : ndarray of int64, shape (ny, nx, k)
+        Output: marker indices of the chosen subset, -1 where none.
+    mx, my, rel, ab, tan_xi, model, subsets, chi2_ppf
+        As in :func:`best_subset`.
+
+    Notes
+    -----
+    The parallelogram kernel walks the grid in square tiles, whose pair pruning is much sharper
+    than on row segments (:mod:`planner.pef_pairs`); the choice per cell is the same. The other
+    models run on the flattened points.
+    """
+    if model == PARALLELOGRAM:
+        args = (x, y, mx, my, vis, rel, ab, subsets, pef_pairs.MARGIN, tau, best)
+        run_ranges(pef_pairs.blocks_grid, pef_pairs.tile_count(x.size, y.size), args, min_chunk=8)
+        return
+    px, py = np.tile(x, y.size), np.repeat(y, x.size)
+    best_subset(px, py, mx, my, vis.reshape(vis.shape[0], -1), rel, ab, tan_xi, model, subsets, chi2_ppf,
+                tau.reshape(-1), best.reshape(-1, best.shape[-1]))
