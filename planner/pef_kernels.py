@@ -289,7 +289,7 @@ def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, 
     if model == PARALLELOGRAM:
         nblk = (px.size + pef_pairs.BLOCK - 1) // pef_pairs.BLOCK
         kernel = pef_pairs.blocks_points
-        args = (px, py, mx, my, vis, rel, ab, subsets, pef_pairs.MARGIN, tau, best)
+        args = (px, py, mx, my, vis.reshape(-1), rel, ab, subsets, pef_pairs.MARGIN, tau, best.reshape(-1))
     elif model == GDOP:
         kernel, args = _blocks_gdop, (px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best)
     else:
@@ -323,7 +323,7 @@ def best_subset_grid(x, y, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_pp
     models run on the flattened points.
     """
     if model == PARALLELOGRAM:
-        args = (x, y, mx, my, vis, rel, ab, subsets, pef_pairs.MARGIN, tau, best)
+        args = (x, y, mx, my, vis.reshape(-1), rel, ab, subsets, pef_pairs.MARGIN, tau.reshape(-1), best.reshape(-1))
         run_ranges(pef_pairs.blocks_grid, pef_pairs.tile_count(x.size, y.size), args, min_chunk=8)
         return
     px, py = np.tile(x, y.size), np.repeat(y, x.size)

@@ -45,7 +45,7 @@ _PLANE = 3 * BLOCK  # one marker's x, y, |g|^2 rows in the flat planes array
 def _planes(pxb, pyb, visb, w, mx, my, rel, ab, dxb, dyb, scale, seen, planes):
     """Fill the float32 planes of one block; count the markers ``seen`` from each point.
 
-    ``pxb``, ``pyb`` (>= w,) are the block's points [m], ``visb`` (M, BLOCK) their visibility.
+    ``pxb``, ``pyb`` (>= w,) are the block's points [m], ``visb`` (M * BLOCK,) their visibility.
     ``planes`` (M * 3 * BLOCK,) holds, for marker m, ``x`` at ``m * 3 * BLOCK + c``, ``y`` one
     BLOCK further, ``|g|^2`` two further: one base pointer per marker keeps the sweep's address
     registers few. NaN where hidden and in the padding beyond ``w``. One pass computes the
@@ -59,7 +59,7 @@ def _planes(pxb, pyb, visb, w, mx, my, rel, ab, dxb, dyb, scale, seen, planes):
         seen[c] = 0
     for m in range(mx.size):
         mxm, mym = mx[m], my[m]
-        vb, pm = visb[m], planes[m * _PLANE:(m + 1) * _PLANE]
+        vb, pm = visb[m * BLOCK:(m + 1) * BLOCK], planes[m * _PLANE:(m + 1) * _PLANE]
         # The float64 differences get a loop of their own: mixed with the float32 arithmetic
         # they would halve the vector width of the whole loop.
         for c in range(w):
@@ -207,7 +207,7 @@ def _next_candidates(bs, w, counts, touched, cand):
 
 @numba.njit(cache=True, error_model="numpy")
 def _tau_pairs(pxb, pyb, w, mx, my, subsets, rel, ab, bs, ax, ay, bx, by, taub, bestb):
-    """Write the chosen pair ``subsets[bs[c]]`` and its float64 tau for the block's points.
+    """Write the chosen pair ``subsets[bs[c]]`` (into ``bestb[2c:2c + 2]``) and its float64 tau.
 
     A scalar pass gathers the pair's marker coordinates into ``ax, ay, bx, by`` (BLOCK,); the
     arithmetic (square roots, divisions) then runs in a vectorised loop.
@@ -217,8 +217,8 @@ def _tau_pairs(pxb, pyb, w, mx, my, subsets, rel, ab, bs, ax, ay, bx, by, taub, 
         s0 = max(s, 0)
         i, j = subsets[s0, 0], subsets[s0, 1]
         ax[c], ay[c], bx[c], by[c] = mx[i], my[i], mx[j], my[j]
-        bestb[c, 0] = i if s >= 0 else -1
-        bestb[c, 1] = j if s >= 0 else -1
+        bestb[2 * c] = i if s >= 0 else -1
+        bestb[2 * c + 1] = j if s >= 0 else -1
     for c in range(w):
         t = diagonal_of_offsets(pxb[c] - ax[c], pyb[c] - ay[c], pxb[c] - bx[c], pyb[c] - by[c], rel, ab)
         taub[c] = t if bs[c] >= 0 else np.inf
@@ -226,18 +226,27 @@ def _tau_pairs(pxb, pyb, w, mx, my, subsets, rel, ab, bs, ax, ay, bx, by, taub, 
 
 @numba.njit(cache=True, error_model="numpy")
 def _scratch(nm, nsub):
-    """Per-thread buffers of :func:`_block`, in the order it unpacks them."""
-    f32, i32 = np.float32, np.int32
-    return (np.empty(BLOCK, f32), np.empty(BLOCK, f32), np.empty(BLOCK, f32), np.empty(BLOCK, i32),
-            np.empty(nm * _PLANE, f32), np.empty(2 * BLOCK, f32), np.empty(BLOCK, i32),
-            np.empty(BLOCK, f32), np.empty(2 * nm, i32), np.empty(nsub, np.int64),
-            np.zeros(nsub, np.int64), np.empty(nsub, np.int64), np.empty(N_CANDIDATES, np.int64),
-            np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK))
+    """Allocate the per-thread buffers.
+
+    Those of :func:`_block` (in the order it unpacks them), then the block's points, visibility,
+    tau and pairs (flat, as the drivers fill and read them).
+    """
+    f32, i32, i64 = np.float32, np.int32, np.int64
+    return ((np.empty(BLOCK, f32), np.empty(BLOCK, f32), np.empty(BLOCK, f32), np.empty(BLOCK, i32),
+             np.empty(nm * _PLANE, f32), np.empty(2 * BLOCK, f32), np.empty(BLOCK, i32),
+             np.empty(BLOCK, f32), np.empty(2 * nm, i32), np.empty(nsub, i64), np.zeros(nsub, i64),
+             np.empty(nsub, i64), np.empty(N_CANDIDATES, i64),
+             np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK)),
+            np.empty(BLOCK), np.empty(BLOCK), np.empty(nm * BLOCK, np.bool_), np.empty(BLOCK),
+            np.empty(2 * BLOCK, i64))
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _block(pxb, pyb, visb, w, mx, my, rel, ab, subsets, margin, ncand, sc, taub, bestb):
-    """Best pair and tau for the ``w`` points of one block; return the next block's candidate count."""
+    """Best pair and tau for the ``w`` points of one block; return the next block's candidate count.
+
+    ``visb`` (M * BLOCK,): marker m's visibility at ``m * BLOCK + c``; ``bestb`` (2 w,).
+    """
     dxb, dyb, scale, seen, planes, bnd, bs, bound, bits, order, counts, touched, cand, ax, ay, bx, by = sc
     _planes(pxb, pyb, visb, w, mx, my, rel, ab, dxb, dyb, scale, seen, planes)
     n = _prune(mx.size, subsets, planes, seen, cand, ncand, margin, bnd, bs, bound, bits, order)
@@ -247,28 +256,29 @@ def _block(pxb, pyb, visb, w, mx, my, rel, ab, subsets, margin, ncand, sc, taub,
     return _next_candidates(bs, w, counts, touched, cand)
 
 
+# The drivers take flat arrays and index them with unsigned integers: a signed index gets a
+# negative-index wraparound select, which makes the short row copies ten times slower.
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def blocks_points(b0, b1, px, py, mx, my, vis, rel, ab, subsets, margin, tau, best):
     """Blocks ``b0 <= b < b1`` of :data:`BLOCK` consecutive points (``run_ranges`` kernel).
 
-    ``px``, ``py`` (N,) [m], ``vis`` (M, N); ``margin``: :data:`MARGIN` (inf: no pruning);
-    writes ``tau`` (N,) [m] and ``best`` (N, 2).
+    ``px``, ``py`` (N,) [m]; ``vis`` (M * N,): the (M, N) visibility, flattened; ``margin``:
+    :data:`MARGIN` (inf: no pruning). Writes ``tau`` (N,) [m] and ``best`` (2 N,): the (N, 2)
+    pairs, flattened.
     """
-    nm, npt = mx.size, px.size
-    sc = _scratch(nm, subsets.shape[0])
-    visb = np.empty((nm, BLOCK), dtype=np.bool_)
-    vf, vbf = vis.reshape(-1), visb.reshape(-1)
+    nm, npt, u = mx.size, px.size, np.uint64
+    sc, _, _, visb, _, _ = _scratch(nm, subsets.shape[0])
     ncand = np.int64(0)  # not the literal 0, which numba would compile _block for a second time
     for blk in range(b0, b1):
         lo = blk * BLOCK
         w = min(BLOCK, npt - lo)
-        # Unsigned indices: no negative-index wraparound, so the copy is a plain memcpy.
         for m in range(nm):
-            src, dst = np.uint64(m * npt + lo), np.uint64(m * BLOCK)
-            for i in range(np.uint64(w)):
-                vbf[dst + i] = vf[src + i]
+            src, dst = u(m * npt + lo), u(m * BLOCK)
+            for i in range(u(w)):
+                visb[dst + i] = vis[src + i]
         ncand = _block(px[lo:lo + w], py[lo:lo + w], visb, w, mx, my, rel, ab, subsets, margin, ncand,
-                       sc, tau[lo:lo + w], best[lo:lo + w])
+                       sc, tau[lo:lo + w], best[2 * lo:2 * (lo + w)])
 
 
 def tile_count(nx: int, ny: int) -> int:
@@ -282,20 +292,13 @@ def blocks_grid(t0, t1, x, y, mx, my, vis, rel, ab, subsets, margin, tau, best):
 
     Tiles are numbered row by row in a serpentine (every other tile row right to left), so
     consecutive tiles are neighbours and the previous tile's winners are good candidates.
-    ``vis`` (M, ny, nx); ``margin`` as in :func:`blocks_points`; writes ``tau`` (ny, nx) [m] and
-    ``best`` (ny, nx, 2); all C-contiguous.
+    ``vis`` (M * ny * nx,), ``tau`` (ny * nx,) [m] and ``best`` (2 * ny * nx,) are the (M, ny, nx),
+    (ny, nx) and (ny, nx, 2) arrays flattened; ``margin`` as in :func:`blocks_points`.
     """
-    nm, nx, ny = mx.size, x.size, y.size
+    nm, nx, ny, u = mx.size, x.size, y.size, np.uint64
     ntx = -(-nx // TILE_COLS)
-    sc = _scratch(nm, subsets.shape[0])
-    visb = np.empty((nm, BLOCK), dtype=np.bool_)
-    pxb, pyb = np.empty(BLOCK), np.empty(BLOCK)
-    taub, bestb = np.empty(BLOCK), np.empty((BLOCK, 2), dtype=best.dtype)
-    # Flat views indexed with unsigned integers: a signed index gets a negative-index
-    # wraparound select, which makes these short row copies ten times slower.
-    vf, vbf, tf, bf, bbf = vis.reshape(-1), visb.reshape(-1), tau.reshape(-1), best.reshape(-1), bestb.reshape(-1)
-    u, two = np.uint64, np.uint64(2)
-    ncand = np.int64(0)  # not the literal 0, which numba would compile _block for a second time
+    sc, pxb, pyb, visb, taub, bestb = _scratch(nm, subsets.shape[0])
+    ncand = np.int64(0)  # see blocks_points
     for t in range(t0, t1):
         ty, k = t // ntx, t % ntx
         tx = k if ty % 2 == 0 else ntx - 1 - k
@@ -308,11 +311,11 @@ def blocks_grid(t0, t1, x, y, mx, my, vis, rel, ab, subsets, margin, tau, best):
             for m in range(nm):
                 src, dst = u(m * nx * ny) + cell, u(m * BLOCK) + o
                 for i in range(u(tw)):
-                    vbf[dst + i] = vf[src + i]
+                    visb[dst + i] = vis[src + i]
         ncand = _block(pxb, pyb, visb, th * tw, mx, my, rel, ab, subsets, margin, ncand, sc, taub, bestb)
         for r in range(th):
             o, cell = u(r * tw), u((iy0 + r) * nx + ix0)
             for i in range(u(tw)):
-                tf[cell + i] = taub[o + i]
+                tau[cell + i] = taub[o + i]
             for i in range(u(2 * tw)):
-                bf[two * cell + i] = bbf[two * o + i]
+                best[u(2) * cell + i] = bestb[u(2) * o + i]

@@ -54,8 +54,8 @@ def grid_inputs(sc, resolution):
 
 def run_grid(x, y, mx, my, vis, subsets, margin):
     tau, best = np.empty((y.size, x.size)), np.empty((y.size, x.size, 2), dtype=np.int64)
-    pef_pairs.blocks_grid(0, pef_pairs.tile_count(x.size, y.size), x, y, mx, my, vis, REL, AB, subsets,
-                          margin, tau, best)
+    pef_pairs.blocks_grid(0, pef_pairs.tile_count(x.size, y.size), x, y, mx, my, vis.reshape(-1), REL, AB,
+                          subsets, margin, tau.reshape(-1), best.reshape(-1))
     return tau, best
 
 
@@ -63,8 +63,8 @@ def run_points(x, y, mx, my, vis, subsets, margin):
     px, py = np.tile(x, y.size), np.repeat(y, x.size)
     tau, best = np.empty(px.size), np.empty((px.size, 2), dtype=np.int64)
     nblk = -(-px.size // pef_pairs.BLOCK)
-    pef_pairs.blocks_points(0, nblk, px, py, mx, my, vis.reshape(vis.shape[0], -1), REL, AB, subsets,
-                            margin, tau, best)
+    pef_pairs.blocks_points(0, nblk, px, py, mx, my, vis.reshape(-1), REL, AB, subsets, margin, tau,
+                            best.reshape(-1))
     return tau.reshape(y.size, x.size), best.reshape(y.size, x.size, 2)
 
 
