@@ -242,6 +242,11 @@ class Localizer:
         return self._kf.P[:3, :3].copy()
 
     @property
+    def heading_var(self) -> float:
+        """Variance of the heading estimate [rad^2] (``P[2, 2]`` without copying ``P``)."""
+        return float(self._kf.P[2, 2])
+
+    @property
     def full_x(self) -> np.ndarray:
         """Whole state, a copy: shape (3,) pose, or (4,) pose and wheel error ``e`` [-]."""
         return self._kf.x.copy()

@@ -12,6 +12,7 @@ propagated into the covariance or the fault area.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -102,8 +103,8 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     k = markers.shape[0]
     if meas.shape != (k,) or rho.shape != (k,):
         raise ValueError(f"snapshot_fix: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
-    # std is linear in the bound: one scalar call instead of an array one
-    std = rho * range_std(1.0, noise)
+    # std is linear in the bound: one factor per noise model
+    std = rho * _std_per_bound(noise)
     if extra_var is not None:
         std = np.sqrt(std**2 + np.asarray(extra_var, dtype=float))
     world = None
@@ -133,10 +134,19 @@ def _across_marker_line(position, prior, markers):
                 and marker_line_side(position, markers) * marker_line_side(prior, markers) < 0)
 
 
+@functools.lru_cache(maxsize=4)
+def _std_per_bound(noise: NoiseModel) -> float:
+    return float(range_std(1.0, noise))
+
+
 def _covariance(jacobian, std):
     """``(H^T W H)^-1`` (2, 2) [m^2] in closed form; ``inf`` where (near) singular."""
-    jw = jacobian / std[:, None]
-    (a, b), (_, c) = (jw.T @ jw).tolist()
+    a = b = c = 0.0
+    for (hx, hy), s in zip(jacobian.tolist(), std.tolist(), strict=True):  # k rows: floats beat numpy
+        w = 1.0 / (s * s)
+        a += hx * hx * w
+        b += hx * hy * w
+        c += hy * hy * w
     det = a * c - b * b
     if abs(det) <= 1e-14 * (a + c) ** 2:
         return np.full((2, 2), math.inf)

@@ -103,7 +103,7 @@ class FixRecorder:
         """
         r = self.scenario.robot
         tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
-        heading_std = math.sqrt(max(float(self.loc.P[2, 2]), 0.0))  # turns the shift
+        heading_std = math.sqrt(max(self.loc.heading_var, 0.0))  # turns the shift
         per_metre = 3.0 * r.odometry_noise + abs(r.wheel_radius_error) + 3.0 * heading_std
         return 2.0 * tick + per_metre * np.asarray(travelled)
 
@@ -116,7 +116,7 @@ class FixRecorder:
         r = self.scenario.robot
         tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
         d = np.asarray(travelled)
-        per_metre = r.odometry_noise**2 + r.wheel_radius_error**2 + float(self.loc.P[2, 2])
+        per_metre = r.odometry_noise**2 + r.wheel_radius_error**2 + self.loc.heading_var
         return tick**2 / 12.0 + per_metre * d**2
 
     # -- measuring -----------------------------------------------------------------------
@@ -155,18 +155,23 @@ class FixRecorder:
             return
         idx = np.array(p.measured)
         # Dead reckoning drifts in heading without bound; only its displacement over the fix is
-        # trusted, turned into the world frame with the filter's heading.
+        # trusted, turned into the world frame with the filter's heading. (A fix has a few
+        # measurements: plain floats, numpy's per-call cost would dominate.)
         x_est = self.loc.x
         rot = float(x_est[2]) - float(dr_end[2])
         c, s = math.cos(rot), math.sin(rot)
-        disp = np.array([dr_end[:2] - d[:2] for d in p.dr_at])
-        shifted = self.markers[idx] + disp @ np.array([[c, s], [-s, c]])
+        ex, ey = float(dr_end[0]), float(dr_end[1])
+        shifted, travelled = np.empty((len(idx), 2)), np.empty(len(idx))
+        for j, (i, at) in enumerate(zip(p.measured, p.dr_at, strict=True)):
+            dx, dy = ex - float(at[0]), ey - float(at[1])
+            shifted[j, 0] = self.markers[i, 0] + (c * dx - s * dy)
+            shifted[j, 1] = self.markers[i, 1] + (s * dx + c * dy)
+            travelled[j] = math.hypot(dx, dy)
         ranges = np.array(p.ranges)
-        rho = np.asarray(self.sensor.range_bound(ranges), dtype=float)
+        rho = self.sensor.range_bound(ranges)
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
         # the least-squares weights add its variance.
-        travelled = np.hypot(disp[:, 0], disp[:, 1])
         bearings, bearing_error = None, self.sensor.bearing_error
         if p.bearings:
             # Each bearing was taken at its own heading: turn it into the frame of the last one
@@ -181,14 +186,10 @@ class FixRecorder:
                             extra_var=self.shift_var(travelled), fault_margin=self.shift_bound(travelled))
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
-        markers_row = np.full(self.k, -1, dtype=int)
-        markers_row[: len(idx)] = idx
-        ranges_row = np.full(self.k, np.nan)
-        ranges_row[: len(idx)] = ranges
-        rho_row = np.full(self.k, np.nan)
-        rho_row[: len(idx)] = rho
+        pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty
         self._rows.append(dict(
-            t=t, markers=markers_row, ranges=ranges_row, rho=rho_row, true_position=truth,
+            t=t, markers=p.measured + [-1] * pad, ranges=p.ranges + [math.nan] * pad,
+            rho=rho.tolist() + [math.nan] * pad, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted))
         self._polygons.append(fa.ring)
