@@ -29,13 +29,13 @@ LOG_COLUMNS = 17
 
 @numba.njit(cache=True)
 def _tick(odo_state, odo_params, normals, angle_left, angle_right, kf_x, kf_P, ekf_params,
-          table, limits, follower_state, log, n, t, true_pose, s_prev, steer, dt):
+          table, limits, follower_state, log, n, t, true_x, true_y, true_theta, s_prev, steer, dt):
     d_left, d_right, used_up = odometry_step(odo_state, odo_params, normals, angle_left, angle_right)
     predict_step(kf_x, kf_P, d_left, d_right, ekf_params)
     row = log[n]
     row[LOG_T] = t
+    row[1], row[2], row[3] = true_x, true_y, true_theta
     for i in range(3):
-        row[1 + i] = true_pose[i]
         row[4 + i] = kf_x[i]
         for j in range(3):
             row[7 + 3 * i + j] = kf_P[i, j]
@@ -63,7 +63,7 @@ class ControlTick:
     def __init__(self, odometry, localizer, follower, log: np.ndarray, dt: float) -> None:
         self.odo, self.loc, self.follower, self.log, self.dt = odometry, localizer, follower, log, float(dt)
 
-    def __call__(self, angles: tuple[float, float], true_pose: np.ndarray, t: float, n: int,
+    def __call__(self, angles: tuple[float, float], true_pose: tuple[float, float, float], t: float, n: int,
                  s_prev: float, steer: bool) -> tuple[float, float, bool, float]:
         """Read the encoders at ``angles`` [rad], predict, log row ``n``, and command if ``steer``.
 
@@ -74,7 +74,7 @@ class ControlTick:
         x, P = self.loc.state_arrays()
         v, omega, done, s, used_up = _tick(odo.state, odo.params, odo.normals, angles[0], angles[1], x, P,
                                            self.loc.predict_params, fol.table, fol.limits, fol.state,
-                                           self.log, n, t, true_pose, s_prev, steer, self.dt)
+                                           self.log, n, t, *true_pose, s_prev, steer, self.dt)
         if used_up:
             odo.refill()
         return v, omega, done, s

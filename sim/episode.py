@@ -8,6 +8,7 @@ seed: the start pose, the laser noise and the odometry slip noise.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -189,7 +190,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         if fixes.pending is not None or next_fix >= len(fix_s_list) or s_now < fix_s_list[next_fix] \
                 or t - last_fix_start < min_gap - 1e-9:
             return
-        f = int(np.searchsorted(fix_s, s_now, side="right")) - 1
+        f = bisect.bisect_right(fix_s_list, s_now) - 1
         # scheduled fixes the laser could not start in time are merged into this one: count them
         counts["merged"] += f - next_fix
         subset = fixes.choose_subset(schedule.fixes[f].markers, loc.x[:2])
@@ -221,7 +222,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     # The schedule's first fix is taken at standstill on the dock, before the robot leaves.
     holding = len(fix_s) > 0 and fix_s[0] <= 1e-9
     s_now = 0.0
-    true_pose, set_wheel_speeds = world.true_pose, world.robot.set_wheel_speeds
+    true_pose, set_wheel_speeds = world.robot.true_pose_tuple, world.robot.set_wheel_speeds
     radius, base = robot.wheel_radius, robot.wheel_base
     while n < n_max:
         t = world.time

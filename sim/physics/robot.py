@@ -221,6 +221,10 @@ class DiffDriveRobot:
 
     def true_pose(self) -> np.ndarray:
         """Return the true pose of the axle midpoint: (x [m], y [m], theta [rad]), shape (3,)."""
+        return np.array(self.true_pose_tuple())
+
+    def true_pose_tuple(self) -> tuple[float, float, float]:
+        """Return :meth:`true_pose` as floats (the control loop's read, without an array)."""
         (px, py, pz), (qx, qy, qz, qw) = pb.getBasePositionAndOrientation(
             self.body, physicsClientId=self.client)
         # Rotate the centre-of-mass offset by the base orientation and subtract it.
@@ -233,7 +237,7 @@ class DiffDriveRobot:
         r12 = 2 * (qy * qz - qx * qw)
         x = px - (r00 * lx + r01 * ly + r02 * lz)
         y = py - (r10 * lx + r11 * ly + r12 * lz)
-        return np.array([x, y, math.atan2(r10, r00)])
+        return x, y, math.atan2(r10, r00)
 
     def tilt(self) -> float:
         """Angle between the chassis' up axis and the vertical [rad] (0 when level)."""

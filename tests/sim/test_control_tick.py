@@ -46,7 +46,7 @@ def test_compiled_step_matches_the_objects_methods():
             expected = (cmd.v, cmd.omega, cmd.done, cmd.s)
         else:
             expected = (0.0, 0.0, False, s_prev)
-        got = tick((float(angles[0]), float(angles[1])), true_pose, 0.5 * i, i, s_prev, steer)
+        got = tick((float(angles[0]), float(angles[1])), tuple(true_pose.tolist()), 0.5 * i, i, s_prev, steer)
         assert got == expected
         row = log[i]
         assert row[LOG_T] == 0.5 * i
@@ -68,6 +68,6 @@ def test_the_log_holds_the_estimate_after_the_predict():
     loc, odo, fol = _parts(sc, path)
     log = np.empty((1, LOG_COLUMNS))
     before = loc.x
-    ControlTick(odo, loc, fol, log, 1 / 60)((0.5, 0.6), np.zeros(3), 0.0, 0, 0.0, True)
+    ControlTick(odo, loc, fol, log, 1 / 60)((0.5, 0.6), (0.0, 0.0, 0.0), 0.0, 0, 0.0, True)
     assert not np.array_equal(log[0, LOG_EST], before)
     np.testing.assert_array_equal(log[0, LOG_EST], loc.x)
