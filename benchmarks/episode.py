@@ -5,7 +5,11 @@ robot for the same number of physics steps; the ratio is what planning-free cont
 the EKF, the laser and the fixes add on top.
 
 Every figure is a ratio against a baseline measured in this run, in this process, so the
-numbers compare across machines. Run: ``python benchmarks/episode.py [SCENARIO] [--repeat N]``.
+numbers compare across machines. The headline ``episode_over_bare`` is the median, over
+interleaved pairs, of one episode's time over the baseline run just before it: on a shared host
+whose speed drifts by tens of per cent within a minute, the two runs of a pair see the same
+machine, while the best episode and the best baseline may come from different moments
+(``episode_over_bare_best`` reports that ratio too). Run: ``python benchmarks/episode.py [SCENARIO] [--repeat N]``.
 The last line is one JSON object.
 """
 
@@ -91,7 +95,7 @@ def main() -> None:
 
     # Interleaved: each episode run is paired with the baseline run just before it, so a
     # machine that slows down for a while (other processes, a shared host) slows both. The
-    # ratio is the best episode over the best baseline, and the median of the pairs' ratios.
+    # headline ratio is the median of the pairs' ratios (module docstring), next to best over best.
     t_bare, t_episode, t_rrd, pair_ratios, rrd_ratios = math.inf, math.inf, math.inf, [], []
     for _ in range(args.repeat):
         b, e, r = best_of(1, bare), best_of(1, episode), best_of(1, episode_rrd)
@@ -112,13 +116,13 @@ def main() -> None:
         "prepare_s": round(t_prepare, 3),
         "bare_steps_s": round(t_bare, 4),
         "episode_s": round(t_episode, 4),
-        "episode_over_bare": round(t_episode / t_bare, 3),
-        "episode_over_bare_median_pair": round(statistics.median(pair_ratios), 3),
+        "episode_over_bare": round(statistics.median(pair_ratios), 3),
+        "episode_over_bare_best": round(t_episode / t_bare, 3),
         "episode_over_bare_target": 1.25,
         "real_time_factor": round(sim_time / t_episode, 1),
         "episode_rrd_s": round(t_rrd, 4),
-        "rrd_over_episode": round(t_rrd / t_episode, 3),
-        "rrd_over_episode_median_pair": round(statistics.median(rrd_ratios), 3),
+        "rrd_over_episode": round(statistics.median(rrd_ratios), 3),
+        "rrd_over_episode_best": round(t_rrd / t_episode, 3),
         "rrd_over_episode_target": 1.3,
         "reset_ms": round(1e3 * t_reset, 4),
         "build_ms": round(1e3 * t_build, 3),
