@@ -155,7 +155,8 @@ class Localizer:
         A measurement whose NIS exceeds the chi2(1) quantile at this probability is not
         applied; ``None`` disables gating.
     q_scale : float
-        Multiplies the process noise (1 = the declared model; tests use 0.01 to mis-tune).
+        Multiplies the process noise (1 = the declared model; tests use 0.01 to mis-tune). Read
+        once, like ``bias_walk_std``, into :attr:`predict_params`.
     include_systematic : bool
         Add the declared wheel-radius error bound to the process noise
         (:func:`estimators.motion.wheel_variances`).

@@ -83,7 +83,7 @@ def _stack_ranges(px, py, markers, meas, w, res, jac):
 
 @numba.njit(cache=True)
 def _gauss_newton_ranges(markers, meas, w, prior, max_iter, step_tol):
-    """:func:`solve_position` for ranges only, step for step (compiled).
+    """:func:`solve_position` for ranges only, the same iteration compiled (sums in another order).
 
     Returns (position (2,), jacobian (k, 2), residuals (k,), iterations, converged, ok);
     ``ok`` is False when a normal matrix was (near) singular: the caller then reruns the

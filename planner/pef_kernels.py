@@ -259,6 +259,13 @@ def _blocks_strips(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, b
                                      tx, ty, tb) if s >= 0 else np.inf
 
 
+def _check_outputs(tau, best):
+    # The kernels write through flattened views: a reshape of a non-contiguous array would be a
+    # copy, and the results would be lost without a word.
+    if not (tau.flags.c_contiguous and best.flags.c_contiguous):
+        raise ValueError("best_subset: tau and best must be C-contiguous output arrays")
+
+
 def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, tau, best):
     """Best subset and its error for every point.
 
@@ -285,6 +292,7 @@ def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, 
     best : ndarray of int64, shape (N, k)
         Output: marker indices of the chosen subset (a row of ``subsets``), -1 where none.
     """
+    _check_outputs(tau, best)
     nblk = (px.size + BLOCK - 1) // BLOCK
     if model == PARALLELOGRAM:
         nblk = (px.size + pef_pairs.BLOCK - 1) // pef_pairs.BLOCK
@@ -322,6 +330,7 @@ def best_subset_grid(x, y, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_pp
     than on row segments (:mod:`planner.pef_pairs`); the choice per cell is the same. The other
     models run on the flattened points.
     """
+    _check_outputs(tau, best)
     if model == PARALLELOGRAM:
         args = (x, y, mx, my, vis.reshape(-1), rel, ab, subsets, pef_pairs.MARGIN, tau.reshape(-1), best.reshape(-1))
         run_ranges(pef_pairs.blocks_grid, pef_pairs.tile_count(x.size, y.size), args, min_chunk=8)

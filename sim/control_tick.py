@@ -6,6 +6,11 @@ pursuit) it cost ~30 us per step against ~225 us of physics; chained here it is 
 the same compiled kernels the classes use (:func:`sim.physics.odometry.odometry_step`,
 :func:`estimators.ekf.predict_step`, :func:`sim.follower.command_step`), so the two paths cannot
 drift apart. The objects stay the owners of their state: the kernel works on their arrays.
+
+numba caches ``_tick`` compiled with those kernels inlined, and its cache is keyed on this file
+only: after editing one of them, clear the cache (delete the ``__pycache__`` folders), or the
+episode keeps the old code (``tests/sim/test_control_tick.py`` then fails, as the classes
+recompile and the fused step does not).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ LOG_EST = slice(4, 7)
 LOG_COV = slice(7, 16)
 LOG_S = 16
 LOG_COLUMNS = 17
+_TRUE0, _EST0, _COV0 = LOG_TRUE.start, LOG_EST.start, LOG_COV.start  # numba indexes with ints
 
 
 @numba.njit(cache=True)
@@ -34,11 +40,11 @@ def _tick(odo_state, odo_params, normals, angle_left, angle_right, kf_x, kf_P, e
     predict_step(kf_x, kf_P, d_left, d_right, ekf_params)
     row = log[n]
     row[LOG_T] = t
-    row[1], row[2], row[3] = true_x, true_y, true_theta
+    row[_TRUE0], row[_TRUE0 + 1], row[_TRUE0 + 2] = true_x, true_y, true_theta
     for i in range(3):
-        row[4 + i] = kf_x[i]
+        row[_EST0 + i] = kf_x[i]
         for j in range(3):
-            row[7 + 3 * i + j] = kf_P[i, j]
+            row[_COV0 + 3 * i + j] = kf_P[i, j]
     v, omega, done, s = 0.0, 0.0, False, s_prev
     if steer:
         v, omega, done, s = command_step(table, limits, follower_state, kf_x[0], kf_x[1], kf_x[2], dt)
@@ -70,6 +76,8 @@ class ControlTick:
         Returns (v [m/s], omega [rad/s], done, s [m]); without ``steer`` the robot is held
         (0, 0, False) and ``s_prev`` is logged.
         """
+        if not 0 <= n < len(self.log):  # the compiled step does not check bounds
+            raise IndexError(f"ControlTick: log row {n} outside 0..{len(self.log) - 1}")
         odo, fol = self.odo, self.follower
         x, P = self.loc.state_arrays()
         v, omega, done, s, used_up = _tick(odo.state, odo.params, odo.normals, angles[0], angles[1], x, P,

@@ -27,9 +27,18 @@ class FollowerCommand(NamedTuple):
     """Arc length of the path point nearest to the estimated pose [m]."""
 
 
+# PurePursuit.limits (float64, shape (9,)) and PurePursuit.state (float64, shape (3,)).
+(MAX_SPEED, MAX_YAW_RATE, MAX_ACCEL, MAX_YAW_ACCEL, LOOKAHEAD_MIN, LOOKAHEAD_GAIN, GOAL_TOLERANCE,
+ ROTATE_ABOVE, WINDOW) = range(9)
+INDEX, SPEED, YAW_RATE = range(3)
+
+
 @dataclass
 class PurePursuit:
     """Pure pursuit with a speed profile, turn slow-down, acceleration limit and goal stop.
+
+    The parameters are read once, when the follower is built (into :attr:`table` and
+    :attr:`limits` for the compiled step): build a new follower to change them.
 
     Parameters
     ----------
@@ -94,42 +103,60 @@ class PurePursuit:
 @numba.njit(cache=True)
 def _limit(state, limits, v_ref, w_ref, dt):
     """Apply the speed and acceleration limits to a command; remember it in ``state``."""
-    max_yaw_rate, max_accel, max_yaw_accel = limits[1], limits[2], limits[3]
+    max_yaw_rate, max_accel, max_yaw_accel = limits[MAX_YAW_RATE], limits[MAX_ACCEL], limits[MAX_YAW_ACCEL]
     dv, dw = max_accel * dt, max_yaw_accel * dt
-    v = min(max(v_ref, state[1] - dv), state[1] + dv)
+    v = min(max(v_ref, state[SPEED] - dv), state[SPEED] + dv)
     w = min(max(w_ref, -max_yaw_rate), max_yaw_rate)
-    w = min(max(w, state[2] - dw), state[2] + dw)
-    state[1], state[2] = v, w
+    w = min(max(w, state[YAW_RATE] - dw), state[YAW_RATE] + dw)
+    state[SPEED], state[YAW_RATE] = v, w
     return v, w
 
 
 @numba.njit(cache=True)
 def command_step(table, limits, state, px, py, th, dt):
-    """Pure pursuit step on :attr:`PurePursuit.table`, ``limits`` and ``state`` (in place).
+    """Run one pure-pursuit step (compiled, so that ``sim.control_tick`` can chain it).
 
-    Returns (v [m/s], omega [rad/s], done, s [m]). Compiled so that a control loop can call it
-    from compiled code (``sim.control_tick``).
+    Parameters
+    ----------
+    table : ndarray, shape (4, N)
+        :attr:`PurePursuit.table`: path x, y [m], arc length [m], reference speed [m/s].
+    limits : ndarray, shape (9,)
+        :attr:`PurePursuit.limits` (indices ``MAX_SPEED`` ... ``WINDOW``).
+    state : ndarray, shape (3,)
+        :attr:`PurePursuit.state`: nearest path index, last v [m/s], last omega [rad/s]; updated.
+    px, py, th : float
+        Estimated pose [m, m, rad].
+    dt : float
+        Control period [s].
+
+    Returns
+    -------
+    v, omega, done, s : float, float, bool, float
+        Forward speed [m/s], yaw rate [rad/s], goal reached, arc length of the nearest path
+        point [m].
     """
     xs, ys, sl, speed = table[0], table[1], table[2], table[3]
-    max_speed, max_yaw_rate, max_accel, max_yaw_accel = limits[0], limits[1], limits[2], limits[3]
-    look_min, look_gain, goal_tol, rotate_above = limits[4], limits[5], limits[6], limits[7]
+    max_speed, max_yaw_rate = limits[MAX_SPEED], limits[MAX_YAW_RATE]
+    max_accel, max_yaw_accel = limits[MAX_ACCEL], limits[MAX_YAW_ACCEL]
+    look_min, look_gain = limits[LOOKAHEAD_MIN], limits[LOOKAHEAD_GAIN]
+    goal_tol, rotate_above = limits[GOAL_TOLERANCE], limits[ROTATE_ABOVE]
     n = xs.size
     # Search a short window ahead of the last index so that a path passing near itself (a
     # U-turn around an obstacle) cannot make the follower jump ahead or back.
-    lo = int(state[0])
+    lo = int(state[INDEX])
     i, best_d2 = lo, np.inf
-    for j in range(lo, min(n, lo + int(limits[8]))):
+    for j in range(lo, min(n, lo + int(limits[WINDOW]))):
         d2 = (xs[j] - px) ** 2 + (ys[j] - py) ** 2
         if d2 < best_d2:
             i, best_d2 = j, d2
-    state[0] = i
+    state[INDEX] = i
     s_i = sl[i]
     dist_goal = math.hypot(xs[n - 1] - px, ys[n - 1] - py)
     if dist_goal < goal_tol and sl[n - 1] - s_i < 2.0 * look_min:
-        state[1] = state[2] = 0.0
+        state[SPEED] = state[YAW_RATE] = 0.0
         return 0.0, 0.0, True, s_i
 
-    look = max(look_min, look_gain * state[1])
+    look = max(look_min, look_gain * state[SPEED])
     j = min(np.searchsorted(sl, s_i + look), n - 1)
     dx, dy = xs[j] - px, ys[j] - py
     c, s = math.cos(th), math.sin(th)
@@ -140,7 +167,7 @@ def command_step(table, limits, state, px, py, th, dt):
     if abs(alpha) > rotate_above:
         # turn on the spot, braking first if still rolling; the yaw rate is the one from
         # which max_yaw_accel stops the turn exactly at alpha = 0
-        w_ref = 0.0 if state[1] > 0.0 else math.copysign(
+        w_ref = 0.0 if state[SPEED] > 0.0 else math.copysign(
             min(max_yaw_rate, math.sqrt(1.6 * max_yaw_accel * abs(alpha))), alpha)
         v, omega = _limit(state, limits, 0.0, w_ref, dt)
         return v, omega, False, s_i
@@ -154,7 +181,7 @@ def command_step(table, limits, state, px, py, th, dt):
     v_ref = min(v_ref, math.sqrt(1.6 * max_accel * max(dist_goal - goal_tol, 0.0)))
     v_ref = max(v_ref, 0.02)  # creep instead of stalling short of the goal
     dv = max_accel * dt
-    v = min(max(v_ref, state[1] - dv), state[1] + dv)
+    v = min(max(v_ref, state[SPEED] - dv), state[SPEED] + dv)
     v, omega = _limit(state, limits, v, v * kappa, dt)
     return v, omega, False, s_i
 

@@ -76,8 +76,24 @@ def odometry_step(state, params, normals, angle_left, angle_right):
     """Read the encoders at the wheel angles [rad]; advance ``state`` in place.
 
     Compiled so that a control loop can call it from compiled code (``sim.control_tick``).
-    Returns the travel (d_left, d_right) [m] with the floor's slip, and whether the slip
-    normals are used up (the caller draws the next block).
+
+    Parameters
+    ----------
+    state : ndarray, shape (6,)
+        :attr:`WheelOdometry.state` (indices ``TICKS_LEFT`` ... ``NEXT_NORMAL``); updated.
+    params : ndarray, shape (4,)
+        :attr:`WheelOdometry.params` (indices ``METRES_PER_TICK`` ... ``WHEEL_BASE``).
+    normals : ndarray, shape (B,)
+        Standard normal draws for the slip, consumed from ``state[NEXT_NORMAL]``, left first.
+    angle_left, angle_right : float
+        Wheel joint angles now [rad].
+
+    Returns
+    -------
+    d_left, d_right : float
+        Wheel travel since the last read, with the floor's slip [m].
+    used_up : bool
+        The slip normals are used up: the caller draws the next block before the next step.
     """
     two_pi = 2.0 * math.pi
     n = params[TICKS_PER_REV]
@@ -121,7 +137,7 @@ class WheelOdometry:
     def __init__(self, spec: RobotSpec, angles: np.ndarray, pose: np.ndarray, slip_std: float = 0.0,
                  rng: np.random.Generator | None = None) -> None:
         if slip_std > 0.0 and rng is None:
-            raise ValueError("WheelOdometry: slip_std > 0 needs a random generator")
+            raise ValueError(f"WheelOdometry: slip_std = {slip_std} > 0 needs a random generator, got rng=None")
         self.spec = spec
         self.slip_std = float(slip_std)
         self._rng = rng
