@@ -26,7 +26,7 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 import numpy as np  # noqa: E402
 
 import scenarios  # noqa: E402
-from planner import criteria, gridsearch, network, plan  # noqa: E402
+from planner import criteria, gridsearch, network, plan, ranking  # noqa: E402
 from planner.pef import PEF  # noqa: E402
 from scenarios.schema import Dock, Marker, Obstacle, RouteNetwork, Task  # noqa: E402
 
@@ -173,7 +173,7 @@ def bench_network(rng: np.random.Generator) -> dict:
     t_plan, p = best_of(lambda: plan.plan_route(sc, "A", "B", pef=pef, schedule=False), 2)
     values = np.array([c.vector() for c in p.candidates])
     adm = np.array([c.admissible for c in p.candidates])
-    t_rank, _ = best_of(lambda: criteria.rank(values, adm, sc.planning.weights), 20)
+    t_rank, _ = best_of(lambda: ranking.rank(values, adm, sc.planning.weights), 20)
     g = network.build_graph(net)
     t_enum, (routes, method) = best_of(lambda: network.candidate_routes(g, "n00", "n64"), 3)
     return {"segments": len(net.segments), "candidates": len(p.candidates), "method": method,

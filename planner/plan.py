@@ -16,6 +16,7 @@ import numpy as np
 
 from planner import criteria
 from planner.candidates import Candidate, TauFn, free_candidates, network_candidates
+from planner.ranking import Ranking, rank
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
@@ -63,16 +64,16 @@ class Plan:
 # ------------------------------------------------------------------------------- choosing
 
 
-def _rank(scenario: Scenario, cands: list[Candidate]) -> criteria.Ranking:
+def _rank(scenario: Scenario, cands: list[Candidate]) -> Ranking:
     values = np.array([c.vector() for c in cands]).reshape(-1, len(criteria.CRITERIA))
     adm = np.array([c.admissible for c in cands], bool)
-    ranking = criteria.rank(values, adm, scenario.planning.weights, scenario.planning.order)
+    ranking = rank(values, adm, scenario.planning.weights, scenario.planning.order)
     for c, sc, p in zip(cands, ranking.scores, ranking.pareto, strict=True):
         c.score, c.pareto = float(sc), bool(p)
     return ranking
 
 
-def _reason(scenario: Scenario, cands: list[Candidate], ranking: criteria.Ranking, chosen: int,
+def _reason(scenario: Scenario, cands: list[Candidate], ranking: Ranking, chosen: int,
             dropped: list[str]) -> str:
     c = cands[chosen]
     n = int(sum(x.admissible for x in cands))

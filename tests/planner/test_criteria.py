@@ -11,7 +11,7 @@ import pytest
 import shapely
 
 import scenarios
-from planner import criteria
+from planner import criteria, ranking
 from scenarios.schema import Obstacle, Weights
 
 
@@ -103,8 +103,8 @@ def test_rank_matches_brute_force(seed):
     values = rng.integers(0, 4, (n, 5)).astype(float) * np.array([0.01, 10.0, 0.2, 0.5, 1.0])
     adm = rng.random(n) < 0.8
     w = Weights(*rng.uniform(0, 2, 5))
-    wv = criteria.weight_vector(w)
-    r = criteria.rank(values, adm, w)
+    wv = ranking.weight_vector(w)
+    r = ranking.rank(values, adm, w)
     np.testing.assert_allclose(r.scores, brute_scores(values, adm, wv), equal_nan=True, atol=1e-8)
     assert set(r.order) == set(np.flatnonzero(adm))
     best = r.order[0]
@@ -122,19 +122,19 @@ def test_lexicographic_matches_brute_force(order):
     rng = np.random.default_rng(len(order))
     values = rng.integers(0, 3, (15, 5)).astype(float)
     adm = rng.random(15) < 0.8
-    r = criteria.rank(values, adm, Weights(), order)
+    r = ranking.rank(values, adm, Weights(), order)
     idx = [criteria.CRITERIA.index(c) for c in order]
     ranked = sorted(np.flatnonzero(adm), key=lambda i: tuple(values[i, idx]))
     assert [tuple(values[i, idx]) for i in r.order] == [tuple(values[i, idx]) for i in ranked]
     with pytest.raises(ValueError, match="unknown criterion"):
-        criteria.rank(values, adm, Weights(), ("speed",))
+        ranking.rank(values, adm, Weights(), ("speed",))
 
 
 def test_no_admissible_and_constant_columns():
     values = np.array([[1.0, 2, 3, 4, 5], [1.0, 3, 3, 4, 5]])
-    r = criteria.rank(values, np.array([False, False]), Weights())
+    r = ranking.rank(values, np.array([False, False]), Weights())
     assert r.order == () and not r.pareto.any() and np.isnan(r.scores).all()
-    r = criteria.rank(values, np.array([True, True]), Weights(length=2.0))
+    r = ranking.rank(values, np.array([True, True]), Weights(length=2.0))
     # Only "length" varies: normalised 0 and 1, the others contribute nothing.
     np.testing.assert_allclose(r.scores, [0.0, 2.0])
     assert r.pareto.tolist() == [True, False]
@@ -143,14 +143,14 @@ def test_no_admissible_and_constant_columns():
 def test_ties_from_rounding_noise_are_ties():
     a = np.array([0.01, 17.89, 0.0, -0.56, 0.53])
     values = np.array([a, a * (1 + 1e-13)])
-    r = criteria.rank(values, np.array([True, True]), Weights())
+    r = ranking.rank(values, np.array([True, True]), Weights())
     assert r.pareto.tolist() == [True, True] and r.order == (0, 1)
 
 
 def test_pareto_all_pairs_non_dominated():
     rng = np.random.default_rng(11)
     values = rng.normal(size=(40, 5))
-    front = criteria.pareto_front(values)
+    front = ranking.pareto_front(values)
     for i, j in itertools.product(np.flatnonzero(front), range(40)):
         assert not (np.all(values[j] <= values[i]) and np.any(values[j] < values[i]))
     for i in np.flatnonzero(~front):
