@@ -48,7 +48,11 @@ class Candidate:
     path : SmoothPath
         The drivable path sampled at the PEF resolution.
     speed : ndarray, shape (N,)
-        Reference speed along ``path`` [m/s].
+        Reference speed along ``path`` [m/s]; with the schedule's slow-downs for fixes once
+        the candidate has a schedule.
+    slowdown : float
+        Time the schedule's slow-downs for fixes add [s], included in ``time``; NaN until the
+        candidate has a schedule (only the chosen one gets one).
     """
 
     id: str
@@ -69,6 +73,7 @@ class Candidate:
     worst_point: tuple[float, float]
     path: smoothing.SmoothPath = field(repr=False)
     speed: np.ndarray = field(repr=False)
+    slowdown: float = math.nan
 
     def vector(self) -> np.ndarray:
         """Criteria in :data:`planner.criteria.CRITERIA` order, shape (5,)."""

@@ -29,6 +29,8 @@ class Track:
     c_idx: np.ndarray      # (n,) first sample at or after c
     xy_c: np.ndarray       # (n, 2) position at c [m]
     vertex_idx: np.ndarray  # (N,) sample index of each input point
+    xy_m: np.ndarray       # (n, k, 2) position at each of the fix's k measurements [m]
+    kin: Kinematics        # arc length against time
 
 
 class Kinematics:
@@ -55,6 +57,19 @@ class Kinematics:
         self.t_v = np.concatenate([[0.0], np.cumsum(self.dur)])
         self.acc = np.where(self.dur > 0.0, np.diff(v) / np.where(self.dur > 0.0, self.dur, 1.0), 0.0)
 
+    def t_at(self, s: np.ndarray) -> np.ndarray:
+        """Time at which arc length ``s`` [m] is reached (clipped to the path) [s]."""
+        s = np.asarray(s, dtype=float)
+        if len(self.dur) == 0:
+            return np.zeros(s.shape)
+        i = np.clip(np.searchsorted(self.s_v, s, side="right") - 1, 0, len(self.dur) - 1)
+        ds = np.clip(s - self.s_v[i], 0.0, np.diff(self.s_v)[i])
+        v, a = self.v[i], self.acc[i]
+        root = np.sqrt(np.maximum(v * v + 2.0 * a * ds, 0.0))
+        # (root - v) / a written as 2 ds / (v + root): no cancellation when a is small
+        tau = np.where(v + root > 0.0, 2.0 * ds / np.where(v + root > 0.0, v + root, 1.0), 0.0)
+        return self.t_v[i] + np.minimum(tau, self.dur[i])
+
     def s_at(self, t: np.ndarray) -> np.ndarray:
         """Arc length reached at times ``t`` [s] (clipped to the path) [m]."""
         if len(self.dur) == 0:
@@ -64,7 +79,14 @@ class Kinematics:
         return np.minimum(self.s_v[i] + self.v[i] * tau + 0.5 * self.acc[i] * tau * tau, self.s_v[i + 1])
 
 
-def sample_track(path: np.ndarray, speed: np.ndarray, spacing: float, fix_time: float, gap: float) -> Track:
+def positions_at(kin: Kinematics, s_in: np.ndarray, path: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Positions reached at times ``t`` (any shape) [s] along ``path`` (N, 2), shape ``(*t.shape, 2)`` [m]."""
+    s = kin.s_at(np.asarray(t, dtype=float))
+    return np.stack([np.interp(s, s_in, path[:, 0]), np.interp(s, s_in, path[:, 1])], axis=-1)
+
+
+def sample_track(path: np.ndarray, speed: np.ndarray, spacing: float, fix_time: float, gap: float,
+                 measurements: int = 1) -> Track:
     """Sample the path uniformly in time (plus its vertices), aligned with the fix rate.
 
     The time step divides the minimum gap between fix starts (at least 4 steps per gap), so a
@@ -82,6 +104,8 @@ def sample_track(path: np.ndarray, speed: np.ndarray, spacing: float, fix_time: 
         Duration of one fix, ``k * measurement_time`` [s].
     gap : float
         Minimum time between fix starts [s].
+    measurements : int
+        Measurements per fix (k), taken ``fix_time / k`` apart, the last at the completion.
 
     Returns
     -------
@@ -126,4 +150,7 @@ def sample_track(path: np.ndarray, speed: np.ndarray, spacing: float, fix_time: 
     c[0] = 0.0
     c_idx = np.minimum(np.searchsorted(s, c, side="left"), len(s) - 1)
     xy_c = np.column_stack([np.interp(c, s_in, path[:, 0]), np.interp(c, s_in, path[:, 1])])
-    return Track(s, xy, t, turn_in, turn_ex, t_start, c, c_idx, xy_c, vertex_idx)
+    offsets = fix_time * np.arange(1, measurements + 1) / measurements
+    xy_m = positions_at(kin, s_in, path, t_start[:, None] + offsets[None, :])
+    xy_m[0] = path[0]  # the standstill fix before departure
+    return Track(s, xy, t, turn_in, turn_ex, t_start, c, c_idx, xy_c, vertex_idx, xy_m, kin)

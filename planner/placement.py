@@ -266,7 +266,8 @@ def _scenario_dict(sc: Scenario) -> dict:
         d["robot"]["actual"] = spec(sc.robot_actual, sc.robot)
     pl = sc.planning
     d["planning"] = {"eps_max": pl.eps_max, "pef_model": pl.pef_model.value, "gdop_level": pl.gdop_level,
-                     "resolution": pl.resolution, "weights": spec(pl.weights)}
+                     "resolution": pl.resolution, "weights": spec(pl.weights),
+                     "heading_std_deg": pl.heading_std_deg, "min_fix_speed": pl.min_fix_speed}
     if pl.order:
         d["planning"]["order"] = list(pl.order)
     d["docks"] = [{"name": k.name, "pose": [k.pose[0], k.pose[1], math.degrees(k.pose[2])]} for k in sc.docks]

@@ -176,6 +176,11 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
                 sched = _make_schedule(scenario, pef, cand)
             except PlanningError as exc:
                 why = f"no measurement schedule ({exc})"
+            else:
+                # the slow-downs for fixes are part of the drive
+                cand.slowdown = sched.slowdown_time
+                cand.time += sched.slowdown_time
+                cand.speed = sched.speed
         if not why:
             break
         cand.admissible, cand.why_not = False, why

@@ -6,9 +6,12 @@ the error of the last *completed* fix plus the drift since that fix started::
     err(s) = tau_i + drift_bound(s - s_i, turned(s_i -> s))   for s in (c_i, c_{i+1}]
 
 where fix ``i`` starts at ``s_i`` and completes at ``c_i`` (it measures its ``k`` markers one
-after another, ``k * measurement_time`` seconds, while the robot moves on), and ``tau_i`` is the
-PEF error of its marker subset, the largest over the stretch ``[s_i, c_i]`` the fix is taken
-over. Fix starts are at least ``max(1 / fix_rate_hz, k * measurement_time)`` seconds apart.
+after another, ``k * measurement_time`` seconds, while the robot moves on), and ``tau_i`` is its
+promise ``predicted_tau``: the fault-area diameter of that moving fix, its earlier ranges
+carried to the last by odometry (:mod:`planner.promise`). A fix is admissible when its promise
+is under ``eps_max / (1 + PROMISE_TOLERANCE)``; where none is at the planned speed, the plan
+slows down for the fix (down to ``planning.min_fix_speed``) and the schedule's ``speed`` and
+``slowdown_time`` say so. Fix starts are at least ``max(1 / fix_rate_hz, k * measurement_time)`` seconds apart.
 The first fix is taken at standstill at the start of the path (before departure).
 
 Schedule choice (:func:`make_schedule`)
@@ -18,7 +21,9 @@ Schedule choice (:func:`make_schedule`)
     never walks into a dead end: it is complete on the sampled path (finds a schedule whenever
     one exists with fixes starting at samples). Forward policy ``"often"`` (default) starts
     each fix as early as the rate allows among the completable samples (lowest error);
-    ``"sparse"`` as late as the drift allows (fewest fixes).
+    ``"sparse"`` as late as the drift allows (fewest fixes). A window's fixes at the planned
+    speed are preferred to slowed ones, and slow-downs are only tried when no schedule exists
+    without them.
     Subset policy: keep the previous fix's subset while its ``tau`` over the new stretch is
     within ``(1 + switch_tolerance)`` of the best subset's and the rest stays completable;
     otherwise take the best subset. ``switch`` marks the fixes whose subset differs from the
@@ -34,7 +39,9 @@ from itertools import combinations
 import numpy as np
 
 from planner.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
-from planner.pathtime import Track, sample_track
+from planner import promise
+from planner.pathtime import sample_track
+from planner.schedule_search import Windows, search
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
@@ -56,10 +63,20 @@ class ScheduledFix:
     markers : tuple of int
         Indices into ``scenario.markers`` measured, in order.
     tau : float
-        Predicted fix error: the PEF error of this subset, largest over the stretch the fix is
-        taken over [m].
+        The static PEF (the paper's, a robot standing still) of this subset, largest over the
+        stretch the fix is taken over [m].
     switch : bool
         The subset differs from the previous fix's (always False for the first fix).
+    predicted_tau : float
+        The fix's promise: fault-area diameter of the moving fix the robot makes, its ranges
+        measured one after another at ``poses`` and carried to the last one by odometry
+        (:mod:`planner.promise`) [m].
+    speed : float
+        Mean planned speed over the fix [m/s] (0 for the standstill fix before departure).
+    slowed : bool
+        The plan slows down for this fix (its promise would break at the cruising speed).
+    poses : tuple of (x, y)
+        Planned position at each measurement, in order [m].
     """
 
     s: float
@@ -67,6 +84,10 @@ class ScheduledFix:
     markers: tuple[int, ...]
     tau: float
     switch: bool
+    predicted_tau: float = math.inf
+    speed: float = 0.0
+    slowed: bool = False
+    poses: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,12 +105,18 @@ class Schedule:
     worst : float
         Largest predicted error along the whole path, checked at the fine spacing and at every
         fix completion point [m].
+    speed : ndarray, shape (N,)
+        Speed at the path's points with the slow-downs for fixes [m/s].
+    slowdown_time : float
+        Time the slow-downs add to the drive [s].
     """
 
     fixes: tuple[ScheduledFix, ...]
     s: np.ndarray
     predicted_error: np.ndarray
     worst: float
+    speed: np.ndarray
+    slowdown_time: float = 0.0
 
 
 def _candidate_subsets(pef, xy: np.ndarray, k: int) -> list[tuple[int, ...]]:
@@ -115,109 +142,6 @@ def _stretch_tau(tau: np.ndarray, tau_c: np.ndarray, c_idx: np.ndarray) -> np.nd
         idx = np.minimum(j + off, n - 1)
         out = np.where(j + off < c_idx, np.maximum(out, tau[:, idx]), out)
     return out
-
-
-class _Planner:
-    """Windows of feasible next fixes on a sampled track (see module doc)."""
-
-    def __init__(self, tr: Track, drift, eps: float, gap: float):
-        self.tr, self.drift, self.eps = tr, drift, eps
-        n = len(tr.s)
-        # earliest next start allowed by the sensor rate, strictly after the sample
-        self.l_min = np.maximum(np.searchsorted(tr.t, tr.t_start + gap * (1 - 1e-9), side="left"),
-                                np.arange(n) + 1)
-
-    def err_at_completion(self, j, tau, nxt):
-        """Error of fix (j, tau) just before a fix started at sample ``nxt`` completes [m]."""
-        tr = self.tr
-        return tau + self.drift(tr.c[nxt] - tr.s[j], tr.turn_in[tr.c_idx[nxt]] - tr.turn_ex[j])
-
-    def err_at_end(self, j, tau):
-        tr = self.tr
-        return tau + self.drift(tr.s[-1] - tr.s[j], tr.turn_in[-1] - tr.turn_ex[j])
-
-    def err_at_sample(self, j, tau, i):
-        """Error of fix (j, tau) at sample i >= j [m]."""
-        tr = self.tr
-        return tau + self.drift(tr.s[i] - tr.s[j], tr.turn_in[i] - tr.turn_ex[j])
-
-    def _last_ok(self, j, tau, err) -> np.ndarray:
-        """Largest index i in (j, n) with err(j, tau, i) < eps (monotone in i), else j."""
-        n = len(self.tr.s)
-        j = np.asarray(j, dtype=int)
-        lo, hi = j.copy(), np.full(j.shape, n, dtype=int)
-        # invariant: the predicate holds at lo (vacuously at lo = j) and fails at hi
-        while np.any(hi - lo > 1):
-            mid = (lo + hi) // 2
-            ok = (mid < n) & (err(j, tau, np.minimum(mid, n - 1)) < self.eps)
-            lo = np.where(ok, mid, lo)
-            hi = np.where(ok, hi, mid)
-        return lo
-
-    def l_max(self, j: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """Last sample l whose fix completes while fix (j, tau) is still under eps (j if none)."""
-        return self._last_ok(j, tau, self.err_at_completion)
-
-    def l_max_one(self, j: int, tau: float) -> int:
-        """:meth:`l_max` for one fix, by windows (cheaper than a scalar binary search)."""
-        n, width = len(self.tr.s), 64
-        while True:
-            ls = np.arange(j + 1, min(n, j + 1 + width))
-            if len(ls) == 0:
-                return j
-            over = np.flatnonzero(self.err_at_completion(j, tau, ls) >= self.eps)
-            if len(over):
-                return int(ls[over[0]] - 1)
-            if ls[-1] == n - 1:
-                return n - 1
-            width *= 4
-
-    def fail_idx(self, j: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """First sample at or after j where fix (j, tau) alone reaches eps (n if never)."""
-        j = np.asarray(j, dtype=int)
-        first_ok = self.err_at_sample(j, tau, j) < self.eps
-        return np.where(first_ok, self._last_ok(j, tau, self.err_at_sample) + 1, j)
-
-
-def _diagnose(pl: _Planner, tau_best: np.ndarray, k: int) -> PlanningError:
-    """Name the worst stretch of the best (farthest-reaching) schedule in a PlanningError."""
-    tr, eps, n = pl.tr, pl.eps, len(pl.tr.s)
-    good = np.isfinite(tau_best) & (tau_best < eps)
-    lmax = pl.l_max(np.arange(n), np.where(good, tau_best, eps))
-    reach = np.zeros(n, dtype=bool)
-    reach[0] = good[0]
-    frontier = np.zeros(n + 1, dtype=int)  # difference array of reachable windows
-    active = 0
-    for j in range(n):
-        active += frontier[j]
-        if j > 0:
-            reach[j] = active > 0 and good[j]
-        if reach[j] and pl.l_min[j] <= lmax[j]:
-            frontier[pl.l_min[j]] += 1
-            frontier[lmax[j] + 1] -= 1
-    best_j, best_fail = 0, 0
-    rj = np.flatnonzero(reach)
-    if len(rj):
-        fails = pl.fail_idx(rj, tau_best[rj])
-        best_j, best_fail = int(rj[np.argmax(fails)]), int(fails.max())
-    a = min(best_fail, n - 1)
-    later_good = np.flatnonzero(good[a:])
-    b = a + int(later_good[0]) if len(later_good) else n - 1
-    b = max(b, int(tr.c_idx[min(pl.l_min[best_j], n - 1)]))
-    stretch_tau = float(np.min(tau_best[a:b + 1]))
-    if reach[best_j]:
-        err = float(tau_best[best_j] + pl.drift(tr.s[b] - tr.s[best_j], tr.turn_in[b] - tr.turn_ex[best_j]))
-        last = f"last usable fix at s = {tr.s[best_j]:.2f} m with tau {tau_best[best_j]:.4g} m"
-    else:
-        err = float(tau_best[0])
-        last = "no usable fix at the start"
-    tau_txt = (f"{stretch_tau:.4g} m" if np.isfinite(stretch_tau)
-               else f"inf (fewer than {k} markers visible)")
-    x, y = tr.xy[a]
-    return PlanningError(
-        f"no measurement schedule keeps the error under eps_max = {eps:.4g} m: from s = "
-        f"{tr.s[a]:.2f} m ({x:.2f}, {y:.2f}) to s = {tr.s[b]:.2f} m the predicted error reaches "
-        f"{err:.4g} m ({last}; best fix tau in the stretch {tau_txt})")
 
 
 def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray | None = None, *,
@@ -275,7 +199,7 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     if spacing <= 0:
         raise PlanningError(f"schedule: spacing must be > 0, got {spacing}")
 
-    tr = sample_track(path, v, spacing, fix_time, gap)
+    tr = sample_track(path, v, spacing, fix_time, gap, measurements=k)
     n = len(tr.s)
     subsets = _candidate_subsets(pef, tr.xy, k)
     if not subsets:
@@ -285,63 +209,85 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
         # tau at the samples and at the exact completion points of fixes started there
         both = np.vstack([tr.xy, tr.xy_c])
         tau = np.stack([np.asarray(pef.tau_subset(both, np.asarray(c)), dtype=float) for c in subsets])
-    tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)
-    best_c = np.argmin(tau_s, axis=0)
-    tau_best = tau_s[best_c, np.arange(n)]
+    tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
+    lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
+          else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
+    limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
 
     def drift(d, turned):
         return drift_bound(robot, d, turned, k_sigma, heading_error, increment)
 
-    pl = _Planner(tr, drift, eps, gap)
-    usable = np.isfinite(tau_best) & (tau_best < eps)
-    tau_use = np.where(usable, tau_best, eps)
-    done = usable & (pl.err_at_end(np.arange(n), tau_use) < eps)
-    lmax = pl.l_max(np.arange(n), tau_use)
-    # backward pass: ok[j] = the rest of the path can be completed from a fix started at j
-    ok = np.zeros(n, dtype=bool)
-    suffix = np.zeros(n + 1, dtype=int)  # suffix[l] = count of ok in [l, n)
-    for j in range(n - 1, -1, -1):
-        lo, hi = pl.l_min[j], lmax[j]
-        ok[j] = usable[j] and (done[j] or (lo <= hi and suffix[lo] - suffix[hi + 1] > 0))
-        suffix[j] = suffix[j + 1] + ok[j]
-    if not ok[0]:
-        raise _diagnose(pl, np.where(usable, tau_best, np.inf), k)
-
-    def completable(j: int, t: float) -> bool:
-        if pl.err_at_end(j, t) < eps:
-            return True
-        lo, hi = pl.l_min[j], pl.l_max_one(j, t)
-        return lo <= hi and suffix[lo] - suffix[hi + 1] > 0
-
-    chosen = [(0, int(best_c[0]), float(tau_best[0]))]
-    while True:
-        j, c_prev, t_prev = chosen[-1]
-        lo, hi = pl.l_min[j], pl.l_max_one(j, t_prev)
-        cand = np.flatnonzero(ok[lo:hi + 1]) + lo if lo <= hi else np.array([], dtype=int)
-        if len(cand) == 0:
-            break  # the current fix covers the rest (guaranteed by ok[j])
-        if policy == "sparse" and pl.err_at_end(j, t_prev) < eps:
-            break
-        nxt = int(cand[0] if policy == "often" else cand[-1])
-        t_keep = float(tau_s[c_prev, nxt])
-        if (np.isfinite(t_keep) and t_keep < eps and t_keep <= tau_best[nxt] * (1.0 + switch_tolerance)
-                and completable(nxt, t_keep)):
-            chosen.append((nxt, c_prev, t_keep))
-        else:
-            chosen.append((nxt, int(best_c[nxt]), float(tau_best[nxt])))
+    pl = Windows(tr, drift, eps, gap)
+    taus = np.stack([x.tau for x in lv])
+    try:
+        chosen, level = search(pl, taus[:1], limit, k, policy, switch_tolerance)  # no slow-down
+    except PlanningError:
+        if len(lv) == 1:
+            raise
+        chosen, level = search(pl, taus, limit, k, policy, switch_tolerance)
+    starts = np.array([j for j, _, _ in chosen])
+    fix_level = level[starts].copy()
+    pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k)
 
     fixes = tuple(
         ScheduledFix(s=float(tr.s[j]), position=(float(tr.xy[j, 0]), float(tr.xy[j, 1])),
-                     markers=subsets[c], tau=t, switch=i > 0 and c != chosen[i - 1][1])
-        for i, (j, c, t) in enumerate(chosen))
-    starts = np.array([j for j, _, _ in chosen])
-    taus = np.array([t for _, _, t in chosen])
+                     markers=order[i], tau=float(tau_s[c, j]), switch=i > 0 and c != chosen[i - 1][1],
+                     predicted_tau=float(pred[i]), speed=_fix_speed(kin, tr.s[j], k, sensor.measurement_time, i),
+                     slowed=bool(fix_level[i] > 0), poses=tuple(tuple(map(float, q)) for q in poses[i]))
+        for i, (j, c, _) in enumerate(chosen))
     completes = tr.c[starts]
     active = np.maximum(np.searchsorted(completes, tr.s, side="left") - 1, 0)
     fj = starts[active]
-    err = taus[active] + drift(tr.s - tr.s[fj], tr.turn_in - tr.turn_ex[fj])
+    err = pred[active] + drift(tr.s - tr.s[fj], tr.turn_in - tr.turn_ex[fj])
     # just before each later fix completes, the previous fix still holds
-    handover = [pl.err_at_completion(starts[i], taus[i], starts[i + 1]) for i in range(len(starts) - 1)]
+    handover = [pl.err_at_completion(starts[i], pred[i], starts[i + 1]) for i in range(len(starts) - 1)]
     worst = float(max([err.max(), *handover]))
-    return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(),
-                    predicted_error=err[tr.vertex_idx].copy(), worst=worst)
+    if not worst < eps:
+        i = int(np.argmax(err))
+        raise PlanningError(f"no measurement schedule keeps the error under eps_max = {eps:.4g} m: the exact "
+                            f"promises of the chosen fixes reach {worst:.4g} m near s = {tr.s[i]:.2f} m")
+    return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
+                    worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - tr.kin.t_v[-1]))
+
+
+def _fix_speed(kin, s0: float, k: int, mt: float, i: int) -> float:
+    """Mean planned speed over a fix started at ``s0`` [m/s] (0 for the standstill fix, i = 0)."""
+    if i == 0:
+        return 0.0
+    t0 = float(kin.t_at(np.array(s0)))
+    return float((kin.s_at(np.array(t0 + k * mt)) - s0) / (k * mt))
+
+
+def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
+    """Slow the chosen fixes down until each exact promise is under ``limit``.
+
+    The search scores fixes with the construction's parallelogram; the exact promise
+    (:func:`planner.promise.predict`) can differ a little, and at the final speed profile the
+    robot may still be braking: a fix over the limit is taken at the next slower level.
+    """
+    mt = scenario.sensor.measurement_time
+    s_v = tr.kin.s_v
+    while True:
+        order = [tuple(reversed(subsets[c])) if lv[fix_level[i]].flipped[c, j] else subsets[c]
+                 for i, (j, c, _) in enumerate(chosen)]
+        slow = []
+        for i, (j, _, _) in enumerate(chosen):
+            if fix_level[i] > 0:
+                vf = float(lv[fix_level[i]].speed[j])
+                slow.append((float(tr.s[j]), float(tr.s[j]) + vf * k * mt * 1.01, vf))
+        v_new = promise.slowed_speeds(s_v, v, slow)
+        pred, poses, kin = promise.predict(scenario, path, v_new, tr.s[[j for j, _, _ in chosen]], order)
+        bad = np.flatnonzero(~(pred < limit))
+        if len(bad) == 0:
+            return pred, poses, kin, v_new, order
+        for i in bad:
+            j, c, _ = chosen[i]
+            slower = [lvl for lvl in range(fix_level[i] + 1, len(lv)) if np.isfinite(lv[lvl].tau[c, j])]
+            if not slower:
+                x, y = tr.xy[j]
+                raise PlanningError(
+                    f"no measurement schedule keeps the error under eps_max = {scenario.planning.eps_max:.4g} m: "
+                    f"the fix at s = {tr.s[j]:.2f} m ({x:.2f}, {y:.2f}) promises {pred[i]:.4g} m even at "
+                    f"{scenario.planning.min_fix_speed:g} m/s (limit {limit:.4g} m = eps_max / "
+                    f"{1 + promise.PROMISE_TOLERANCE:g})")
+            fix_level[i] = slower[0]

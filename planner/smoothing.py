@@ -277,7 +277,27 @@ def speed_profile(path: SmoothPath, robot: RobotSpec, max_accel: float = MAX_ACC
     v = np.minimum(v, robot.max_speed)
     v = np.where(path.stop, 0.0, v)
     v[-1] = 0.0
-    two_a_ds = 2.0 * max_accel * np.diff(path.s)
+    return acceleration_limited(path.s, v, max_accel)
+
+
+def acceleration_limited(s: np.ndarray, v: np.ndarray, max_accel: float = MAX_ACCEL) -> np.ndarray:
+    """Lower speeds so that ``|dv²/ds| ≤ 2 · max_accel`` between vertices [m/s], shape (N,).
+
+    A forward pass for speeding up and a backward one for braking; ``v[0]`` only brakes (the
+    follower leaves the dock at its own acceleration). Used by :func:`speed_profile` and for
+    the schedule's slow-downs at fixes.
+
+    Parameters
+    ----------
+    s : ndarray, shape (N,)
+        Arc length of the vertices [m].
+    v : ndarray, shape (N,)
+        Speed caps at the vertices [m/s].
+    max_accel : float
+        Acceleration limit [m/s^2].
+    """
+    v = np.array(v, dtype=float)
+    two_a_ds = 2.0 * max_accel * np.diff(s)
     for i in range(1, len(v)):
         v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + two_a_ds[i - 1]))
     for i in range(len(v) - 2, -1, -1):

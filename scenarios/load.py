@@ -129,6 +129,8 @@ def _planning(t: Table) -> PlanningSpec:
         resolution=t.number("resolution", d.resolution, low=0.0, low_open=True),
         weights=weights,
         order=tuple(order),
+        heading_std_deg=t.number("heading_std_deg", d.heading_std_deg, low=0.0, high=90.0),
+        min_fix_speed=t.number("min_fix_speed", d.min_fix_speed, low=0.0, low_open=True),
     )
 
 

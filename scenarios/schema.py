@@ -198,6 +198,16 @@ class PlanningSpec:
     weights: Weights = field(default_factory=Weights)
     order: tuple[str, ...] = ()
     """Lexicographic criteria order; empty means weighted sum."""
+    heading_std_deg: float = 0.3
+    """Heading std of the filter the promise of a moving fix assumes [deg] (it turns the
+    odometry shift of the fix's earlier ranges, :mod:`estimators.carried`)."""
+    min_fix_speed: float = 0.05
+    """Slowest speed the planner may slow down to for a fix [m/s]."""
+
+    @property
+    def heading_std(self) -> float:
+        """:attr:`heading_std_deg` in radians."""
+        return math.radians(self.heading_std_deg)
 
 
 @dataclass(frozen=True)

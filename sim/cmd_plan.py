@@ -33,14 +33,16 @@ def plan_json(scenario, plan) -> dict:
             "id": c.id, "nodes": list(c.nodes) if c.nodes is not None else None,
             "length": _num(c.length), "time": _num(c.time), "max_tau": _num(c.max_tau),
             "mean_tau": _num(c.mean_tau), "traffic": _num(c.traffic), "min_clearance": _num(c.min_clearance),
-            "turning": _num(c.turning), "admissible": c.admissible, "pareto": c.pareto,
+            "turning": _num(c.turning), "slowdown": _num(c.slowdown), "admissible": c.admissible, "pareto": c.pareto,
             "score": _num(c.score), "why_not": c.why_not or None})
     ids = scenario.marker_ids()
     fixes = []
     if plan.schedule is not None:
         for f in plan.schedule.fixes:
             fixes.append({"x": f.position[0], "y": f.position[1], "s": f.s,
-                          "markers": [ids[i] for i in f.markers], "tau": _num(f.tau), "switch": f.switch})
+                          "markers": [ids[i] for i in f.markers], "tau": _num(f.tau),
+                          "predicted_tau": _num(f.predicted_tau), "speed": f.speed, "slowed": f.slowed,
+                          "switch": f.switch})
     return {
         "scenario": scenario.name, "start": plan.start, "goal": plan.goal, "eps_max": plan.eps_max,
         "candidates": cands,
@@ -53,7 +55,7 @@ def plan_json(scenario, plan) -> dict:
 
 def _table(plan) -> str:
     head = (f"{'id':<4} {'route':<28} {'len[m]':>7} {'time[s]':>7} {'max τ[mm]':>9} {'mean τ[mm]':>10} "
-            f"{'traffic':>7} {'clear[m]':>8} {'turn[rad]':>9} {'score':>6}  note")
+            f"{'slow[s]':>7} {'traffic':>7} {'clear[m]':>8} {'turn[rad]':>9} {'score':>6}  note")
     rows = [head, "-" * len(head)]
     for i, c in enumerate(plan.candidates):
         route = "-".join(c.nodes) if c.nodes is not None else c.origin
@@ -63,8 +65,9 @@ def _table(plan) -> str:
         if not c.admissible:
             note = "inadmissible: " + c.why_not
         score = f"{c.score:6.3f}" if math.isfinite(c.score) else "     -"
+        slow = f"{c.slowdown:7.2f}" if math.isfinite(c.slowdown) else "      -"
         rows.append(f"{c.id:<4} {route:<28} {c.length:7.2f} {c.time:7.1f} {c.max_tau * 1000:9.2f} "
-                    f"{c.mean_tau * 1000:10.2f} {c.traffic:7.2f} {c.min_clearance:8.2f} {c.turning:9.2f} "
+                    f"{c.mean_tau * 1000:10.2f} {slow} {c.traffic:7.2f} {c.min_clearance:8.2f} {c.turning:9.2f} "
                     f"{score}  {note.strip()}")
     return "\n".join(rows)
 
@@ -107,7 +110,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"chosen: {plan.reason}")
     if plan.schedule is not None:
         n_sw = sum(f.switch for f in plan.schedule.fixes)
-        print(f"schedule: {len(plan.schedule.fixes)} fixes, {n_sw} marker switches, "
-              f"worst predicted error {plan.schedule.worst * 1000:.2f} mm")
+        sch = plan.schedule
+        n_slow = sum(f.slowed for f in sch.fixes)
+        worst_fix = max(f.predicted_tau for f in sch.fixes)
+        print(f"schedule: {len(sch.fixes)} fixes, {n_sw} marker switches, largest fix promise "
+              f"{worst_fix * 1000:.2f} mm (moving fix), worst predicted error {sch.worst * 1000:.2f} mm; "
+              f"{n_slow} fixes slowed down (+{sch.slowdown_time:.2f} s)")
     print(f"wrote {out}")
     return 0

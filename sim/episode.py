@@ -197,7 +197,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         if subset is None:
             fixes.skipped += 1
         else:
-            fixes.start(subset, t)
+            fixes.start(subset, t, schedule.fixes[f])
             last_fix_start = t
         next_fix = f + 1
 

@@ -75,7 +75,11 @@ class FixLog:
     contained : (F,) bool
         True position inside the realised fault area (within the polygonisation tolerance).
     predicted_tau : (F,) float
-        PEF τ for this fix's marker subset at the true position [m].
+        The plan's promise for the fix: fault-area diameter of the moving fix at the planned
+        poses (``planner.schedule.ScheduledFix.predicted_tau``, or the same construction for a
+        fallback subset) [m].
+    static_tau : (F,) float
+        The paper's static PEF τ of the fix's subset at the true position [m].
     nis : (F,) float
         Sum over the fix's accepted updates of the normalised innovation squared.
     n_accepted : (F,) int
@@ -93,6 +97,7 @@ class FixLog:
     fault_polygons: list[np.ndarray]
     contained: np.ndarray
     predicted_tau: np.ndarray
+    static_tau: np.ndarray
     nis: np.ndarray
     n_accepted: np.ndarray
 

@@ -1,12 +1,15 @@
 """One fix at a time: measure, update the EKF, judge the fix.
 
 The chosen markers are measured one after another; each fix is judged against its own exact
-fault area and the PEF's prediction.
+fault area and the plan's promise for it.
 
 The robot keeps moving while it measures (``measurement_time`` per marker), so a fix's ranges
 are taken at different places. The snapshot fix brings them to the time of the last one with
 the dead-reckoned displacement since each measurement: a range taken at p_i to marker M_i is a
-range from p_end to the shifted marker M_i + (p_end - p_i).
+range from p_end to the shifted marker M_i + (p_end - p_i), its band widened by the odometry
+bound of the shift (:mod:`estimators.carried`, the construction the planner's promise uses on
+noise-free ranges at the planned poses). Each fix logs the promise (``predicted_tau``) and the
+paper's static PEF of its subset at the truth (``static_tau``).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from estimators.carried import carry, promised_fault_area, shift_bound, shift_var
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
 from sim.episode_types import FixLog
@@ -34,6 +38,9 @@ class _Pending:
     dr_at: list[np.ndarray] = field(default_factory=list)
     nis: float = 0.0
     accepted: int = 0
+    scheduled: object = None
+    attempted: int = 0
+    slots: list[int] = field(default_factory=list)
 
 
 class FixRecorder:
@@ -54,6 +61,7 @@ class FixRecorder:
     def __init__(self, scenario, pef, laser, localizer, rng: np.random.Generator) -> None:
         self.scenario = scenario
         self.sensor = scenario.sensor  # declared: what the filter and the fault area assume
+        self.robot = scenario.robot
         self.k = scenario.sensor.markers_per_fix
         self.markers = scenario.marker_positions()
         self.pef = pef
@@ -86,44 +94,27 @@ class FixRecorder:
                 best, best_tau = list(sub), tau
         return best if best is not None else list(seen[: self.k])
 
-    def start(self, subset: list[int], t: float) -> None:
+    def start(self, subset: list[int], t: float, scheduled=None) -> None:
+        """Start a fix of ``subset`` (measured in that order) at time ``t`` [s].
+
+        ``scheduled`` is the schedule's fix (``planner.schedule.ScheduledFix``) this one
+        takes; its promise becomes the fix's ``predicted_tau``.
+        """
         mt = self.sensor.measurement_time
-        self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))])
+        self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))],
+                                scheduled=scheduled)
 
     @property
     def next_due(self) -> float:
         return self.pending.due[0] if self.pending else math.inf
-
-    def shift_bound(self, travelled: np.ndarray) -> np.ndarray:
-        """Bound on the odometry error of a shift over ``travelled`` metres (M,) [m].
-
-        Two encoder readings each off by up to one tick on each wheel, plus the declared
-        random slip and the filter's heading error (as 3-sigma bounds) and the systematic
-        wheel error over the distance.
-        """
-        r = self.scenario.robot
-        tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
-        heading_std = math.sqrt(max(self.loc.heading_var, 0.0))  # turns the shift
-        per_metre = 3.0 * r.odometry_noise + abs(r.wheel_radius_error) + 3.0 * heading_std
-        return 2.0 * tick + per_metre * np.asarray(travelled)
-
-    def shift_var(self, travelled: np.ndarray) -> np.ndarray:
-        """Return the variance of the odometry error of a shift over ``travelled`` metres (M,) [m^2].
-
-        Quantisation of two encoder readings, random slip, the systematic wheel error, and the
-        filter's heading uncertainty turning the shift.
-        """
-        r = self.scenario.robot
-        tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
-        d = np.asarray(travelled)
-        per_metre = r.odometry_noise**2 + r.wheel_radius_error**2 + self.loc.heading_var
-        return tick**2 / 12.0 + per_metre * d**2
 
     # -- measuring -----------------------------------------------------------------------
 
     def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float) -> None:
         """Take the measurement that is due now (the caller has predicted the EKF up to ``t``)."""
         p = self.pending
+        slot = p.attempted
+        p.attempted += 1
         i = p.markers.pop(0)
         p.due.pop(0)
         try:
@@ -143,6 +134,7 @@ class FixRecorder:
                 p.accepted += int(rb.accepted)
                 p.bearings.append(b)
             p.measured.append(i)
+            p.slots.append(slot)
             p.ranges.append(m.measured_range)
             p.dr_at.append(np.array(dr_pose, dtype=float))
         if not p.markers:
@@ -158,17 +150,12 @@ class FixRecorder:
         # trusted, turned into the world frame with the filter's heading. (A fix has a few
         # measurements: plain floats, numpy's per-call cost would dominate.)
         x_est = self.loc.x
-        rot = float(x_est[2]) - float(dr_end[2])
-        c, s = math.cos(rot), math.sin(rot)
-        ex, ey = float(dr_end[0]), float(dr_end[1])
-        shifted, travelled = np.empty((len(idx), 2)), np.empty(len(idx))
-        for j, (i, at) in enumerate(zip(p.measured, p.dr_at, strict=True)):
-            dx, dy = ex - float(at[0]), ey - float(at[1])
-            shifted[j, 0] = self.markers[i, 0] + (c * dx - s * dy)
-            shifted[j, 1] = self.markers[i, 1] + (s * dx + c * dy)
-            travelled[j] = math.hypot(dx, dy)
+        at = np.array([[float(d[0]), float(d[1])] for d in p.dr_at])
+        shifted, travelled = carry(self.markers[idx], at, (float(dr_end[0]), float(dr_end[1])),
+                                   float(x_est[2]) - float(dr_end[2]))
         ranges = np.array(p.ranges)
         rho = self.sensor.range_bound(ranges)
+        heading_var = max(self.loc.heading_var, 0.0)  # the shift is turned with the filter's heading
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
         # the least-squares weights add its variance.
@@ -183,7 +170,8 @@ class FixRecorder:
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
-                            extra_var=self.shift_var(travelled), fault_margin=self.shift_bound(travelled))
+                            extra_var=shift_var(self.robot, travelled, heading_var),
+                            fault_margin=shift_bound(self.robot, travelled, math.sqrt(heading_var)))
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty
@@ -191,11 +179,25 @@ class FixRecorder:
             t=t, markers=p.measured + [-1] * pad, ranges=p.ranges + [math.nan] * pad,
             rho=rho.tolist() + [math.nan] * pad, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
-            contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted))
+            contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted,
+            predicted_tau=self._promise(p)))
         self._polygons.append(fa.ring)
 
-    def _predicted(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
-        """PEF τ of each fix's subset at its true position, one batched call per subset."""
+    def _promise(self, p: _Pending) -> float:
+        """The plan's promise for this fix: the scheduled fix's, or the same construction for the
+        markers actually measured at the scheduled poses (a fallback subset, a marker lost) [m]."""
+        f = p.scheduled
+        if f is None or not f.poses:
+            return math.inf
+        if tuple(p.measured) == tuple(f.markers):
+            return float(f.predicted_tau)
+        poses = np.array(f.poses)[p.slots]
+        area = promised_fault_area(self.sensor, self.robot, self.markers[p.measured], poses,
+                                   self.scenario.planning.heading_std)
+        return math.inf if area.is_empty else float(area.diameter)
+
+    def _static(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
+        """Static PEF τ (the paper's) of each fix's subset at its true position, one call per subset."""
         out = np.full(len(markers), math.inf)
         full = np.all(markers >= 0, axis=1)
         if not full.any():
@@ -224,5 +226,6 @@ class FixRecorder:
             rho=col("rho", (k,)), true_position=col("true_position", (2,)),
             snapshot=col("snapshot", (2,)), snapshot_cov=col("snapshot_cov", (2, 2)),
             fault_diameter=col("fault_diameter", ()), fault_polygons=list(self._polygons),
-            contained=col("contained", (), bool), predicted_tau=self._predicted(markers, truth),
+            contained=col("contained", (), bool), predicted_tau=col("predicted_tau", ()),
+            static_tau=self._static(markers, truth),
             nis=col("nis", ()), n_accepted=col("n_accepted", (), int))

@@ -75,7 +75,8 @@ FIX_SCHEMA = pa.schema([
     ("snapshot_x", pa.float64()), ("snapshot_y", pa.float64()),
     ("snapshot_error", pa.float64()),   # |snapshot - true position| [m]
     ("snapshot_x_var", pa.float64()), ("snapshot_y_var", pa.float64()), ("snapshot_xy_cov", pa.float64()),
-    ("fault_diameter", pa.float64()), ("predicted_tau", pa.float64()),
+    ("fault_diameter", pa.float64()), ("predicted_tau", pa.float64()),   # the plan's promise
+    ("static_tau", pa.float64()),                                        # the paper's static PEF
     ("nis", pa.float64()), ("n_accepted", pa.int32()), ("contained", pa.bool_()),
     ("markers", pa.list_(pa.int32())),   # marker indices in scenario file order
     ("ranges", pa.list_(pa.float64())), ("rho", pa.list_(pa.float64())),
@@ -221,6 +222,7 @@ def fix_columns(run: int, fixes: FixLog) -> dict[str, np.ndarray]:
         "snapshot_x_var": scov[:, 0, 0], "snapshot_y_var": scov[:, 1, 1], "snapshot_xy_cov": scov[:, 0, 1],
         "fault_diameter": np.asarray(fixes.fault_diameter, dtype=float),
         "predicted_tau": np.asarray(fixes.predicted_tau, dtype=float),
+        "static_tau": np.asarray(fixes.static_tau, dtype=float),
         "nis": np.asarray(fixes.nis, dtype=float),
         "n_accepted": np.asarray(fixes.n_accepted, dtype=np.int32),
         "contained": np.asarray(fixes.contained, dtype=bool),

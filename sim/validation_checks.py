@@ -25,6 +25,7 @@ from estimators.linearized import chi2_2dof_ppf
 from scenarios.schema import NoiseModel, PefModel
 from sim import validation_null as null
 from sim.validation_data import CheckResult, CheckStatus, SweepData
+from sim.validation_promise import promise, promise_why_not
 
 NEES_DOF = 3
 """The filter's pose (x, y, theta)."""
@@ -284,6 +285,7 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
 
 CHECKS: tuple[Check, ...] = (
     Check("containment", False, _containment_why_not, containment),
+    Check("promise", False, promise_why_not, promise),
     Check("bound", False, _bound_why_not, bound),
     Check("tightness", True, _bound_why_not, tightness),
     Check("coverage", True, _coverage_why_not, coverage),

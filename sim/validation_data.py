@@ -121,7 +121,8 @@ class FixTable:
     snapshot_error : (F,) float
         ``|snapshot - truth|`` [m].
     predicted_tau : (F,) float
-        PEF tau of the fix's subset at the true position [m] (inf: subset not visible there).
+        The plan's promise for the fix (moving-fix fault-area diameter at the planned poses) [m]
+        (inf: no promise).
     contained : (F,) bool
         Truth inside the realised exact fault area.
     fault_diameter : (F,) float
@@ -132,6 +133,8 @@ class FixTable:
         Updates that passed the filter's gate.
     markers : (F, k) int
         Marker indices measured (-1 where a marker dropped out of the fix).
+    static_tau : (F,) float or None
+        The paper's static PEF of the fix's subset at the truth [m] (None: not in the sweep).
     """
 
     run: np.ndarray
@@ -145,6 +148,7 @@ class FixTable:
     nis: np.ndarray
     n_accepted: np.ndarray
     markers: np.ndarray
+    static_tau: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.run)
@@ -204,7 +208,8 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
         snapshot_cov=cov, snapshot_error=col("snapshot_error"), predicted_tau=col("predicted_tau"),
         contained=col("contained", bool, False), fault_diameter=col("fault_diameter"),
         nis=col("nis"), n_accepted=col("n_accepted", np.int64, 0),
-        markers=flat.astype(np.int64).reshape(n, width))
+        markers=flat.astype(np.int64).reshape(n, width),
+        static_tau=col("static_tau") if "static_tau" in fixes.column_names else None)
 
 
 def from_tables(scenario: Scenario, runs: pa.Table, fixes: pa.Table, source: str = "<memory>",

@@ -80,6 +80,7 @@ def synthetic_episode(scenario, n_steps: int = 600, n_fixes: int = 30, seed: int
                    snapshot_cov=np.tile(np.eye(2) * 1e-6, (n_fixes, 1, 1)),
                    fault_diameter=diameter, fault_polygons=polys,
                    contained=np.arange(n_fixes) % 7 != 3, predicted_tau=np.full(n_fixes, 0.005),
+                   static_tau=np.full(n_fixes, 0.004),
                    nis=rng.chisquare(k, n_fixes), n_accepted=np.full(n_fixes, k))
     plan = synthetic_plan(scenario, xy)
     return EpisodeResult(scenario_name=scenario.name, task_index=0, seed=seed,
