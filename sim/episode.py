@@ -163,7 +163,12 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                            max_yaw_rate=robot.max_yaw_rate)
     schedule = plan.schedule
     fix_s = np.array([f.s for f in schedule.fixes])
-    min_gap = 1.0 / scenario.sensor.fix_rate_hz
+    # The schedule spaces fix starts by the sensor's rate in planned time, but a start can only
+    # happen at a control step: holding two starts a full period apart would delay each fix by up
+    # to one control step more than the last, until a fix is skipped (the robot then fixes
+    # ~0.2 s of travel away from where the plan promised). Starts may come up to one control
+    # step closer, so each fix starts within one control step of its planned place.
+    min_gap = 1.0 / scenario.sensor.fix_rate_hz - CONTROL_STEPS * world.config.time_step
 
     dt_phys = world.config.time_step
     dt_ctrl = CONTROL_STEPS * dt_phys
