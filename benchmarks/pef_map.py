@@ -107,7 +107,7 @@ def naive_tau(x, y, sc, boxes, model, chi2_ppf):
             a, b, c = w1 * u1x**2 + w2 * u2x**2, w1 * u1x * u1y + w2 * u2x * u2y, w1 * u1y**2 + w2 * u2y**2
             det = a * c - b * b
             lam = ((a + c) / 2 + math.sqrt(((a - c) / 2) ** 2 + b * b)) / det
-            tau = math.sqrt(chi2_ppf * lam)
+            tau = 2 * math.sqrt(chi2_ppf * lam)  # major axis of the p-level ellipse
         best = min(best, tau)
     return best
 

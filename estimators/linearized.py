@@ -15,10 +15,10 @@ error ``delta`` to the strip ``|u_i . delta| <= rho_i`` with the unit vector
   error moves the position only across the line of sight;
 - the least-squares view: ``P = (H^T W H)^-1`` with ``W = diag(sigma_i^-2)`` and
   ``sigma_i = rho_i / 3`` (the gaussian noise model), ``GDOP = sqrt(trace((H^T H)^-1))``; the
-  ``gdop`` PEF radius ``tau = sqrt(chi2.ppf(p, 2) * lambda_max(P))`` is the largest error inside
-  the p-level confidence ellipse (its semi-major axis). It is a *radius*, whereas the other
-  models give a *diameter* of the region; this follows the choice "largest error the fix makes
-  with probability p". For 2 degrees of freedom ``chi2.ppf(p, 2) = -2 ln(1 - p)`` exactly.
+  ``gdop`` PEF ``tau = 2 sqrt(chi2.ppf(p, 2) * lambda_max(P))`` is the major axis (the diameter)
+  of the p-level confidence ellipse, the same quantity as the other models' diameter of the
+  region (the paper's d, eq. 12), so one eps_max means the same under every model. For 2
+  degrees of freedom ``chi2.ppf(p, 2) = -2 ln(1 - p)`` exactly.
 
 The region is expressed in *scaled normals* ``g = n / b`` (strip ``|g . delta| <= 1``), which
 gives every formula without trigonometry: for two strips the vertex ``G^-1 (1, s)`` has squared
@@ -355,8 +355,8 @@ def gaussian_sigma(half_widths: np.ndarray) -> np.ndarray:
     return np.asarray(half_widths, float) / 3.0
 
 
-def gdop_radius(u: np.ndarray, half_widths: np.ndarray, level: float) -> float:
-    """Return the gdop model's error ``tau = sqrt(chi2.ppf(level, 2) * lambda_max(P))`` [m].
+def gdop_diameter(u: np.ndarray, half_widths: np.ndarray, level: float) -> float:
+    """Return the gdop model's error ``tau = 2 sqrt(chi2.ppf(level, 2) * lambda_max(P))`` [m].
 
     Parameters
     ----------
@@ -370,9 +370,10 @@ def gdop_radius(u: np.ndarray, half_widths: np.ndarray, level: float) -> float:
     Returns
     -------
     float
-        Semi-major axis of the p-level ellipse of the least-squares fix [m]; inf if singular.
+        Major axis (twice the semi-major axis) of the p-level ellipse of the least-squares fix
+        [m]: the diameter of the region the error lies in with probability p; inf if singular.
     """
     p_cov = lsq_covariance(u, gaussian_sigma(half_widths))
     if not np.all(np.isfinite(p_cov)):
         return math.inf
-    return math.sqrt(chi2_2dof_ppf(level) * float(np.linalg.eigvalsh(p_cov)[-1]))
+    return 2.0 * math.sqrt(chi2_2dof_ppf(level) * float(np.linalg.eigvalsh(p_cov)[-1]))

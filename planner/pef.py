@@ -6,9 +6,10 @@
 - ``parallelogram`` (k = 2, ranges only): long diagonal of the linearised parallelogram;
 - ``strips``: diameter of the intersection of the linearised strips of the subset, with the
   tangential bearing strips when the sensor measures bearings;
-- ``gdop``: largest error inside the ``planning.gdop_level`` confidence ellipse of the
-  least-squares fix with ``sigma = rho / 3`` (a radius, not a diameter; see
-  :mod:`estimators.linearized`), bearings included as tangential rows;
+- ``gdop``: major axis (diameter) of the ``planning.gdop_level`` confidence ellipse of the
+  least-squares fix with ``sigma = rho / 3`` (:mod:`estimators.linearized`), bearings included
+  as tangential rows. Every model reports a diameter (the paper's d), so eps_max means the same
+  under each; they agree where their assumptions overlap (``tests/planner/test_pef_models_agree.py``);
 - ``exact``: diameter of the exact fault area of noise-free measurements
   (:func:`estimators.fault_area.fault_area_of_point`, polygon clipping). It is slow (a
   polygon clipping per point and subset): use it on points and coarse grids. To keep it

@@ -15,7 +15,8 @@ Candidates are compared as fractions ``num / den`` by cross-multiplication
 - parallelogram: ``num = |g1|^2 + |g2|^2 + 2 |g1.g2|``, ``den = det(g1, g2)^2``; the squared
   long diagonal is ``4 num / den`` (see :mod:`estimators.linearized`);
 - gdop: ``num = T + sqrt(T^2 - 4 D)``, ``den = 2 D`` with trace T and determinant D of the
-  information ``B = sum g g^T``, i.e. ``lambda_max(B^-1)``;
+  information ``B = sum g g^T``, i.e. ``lambda_max(B^-1)``, monotone in the reported major axis
+  ``2 sqrt(chi2.ppf(p, 2) lambda_max(B^-1) / 9)``;
 - strips: the largest squared vertex norm of the strip polygon, a scalar O(s^3) loop per point
   and subset in float64.
 

@@ -63,7 +63,11 @@ def tau_parallelogram(px, py, mx, my, sub, rel, ab):
 
 @numba.njit(cache=True, error_model="numpy")
 def tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
-    """p-level GDOP radius [m] of subset ``sub`` at (px, py), float64 (``nx, ny, b``: scratch >= 2k)."""
+    """Major axis [m] of the p-level ellipse of subset ``sub`` at (px, py), float64.
+
+    ``2 sqrt(chi2_ppf lambda_max(P))``, a diameter like the other models' tau (``nx, ny, b``:
+    scratch >= 2k).
+    """
     ns = _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
     if ns == 0:
         return np.inf
@@ -73,8 +77,8 @@ def tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
         sxx += w * nx[t] * nx[t]
         sxy += w * nx[t] * ny[t]
         syy += w * ny[t] * ny[t]
-    # sigma = rho / 3: P = B^-1 / 9.
-    return math.sqrt(chi2_ppf * info_lambda_max_inv_k(sxx, sxy, syy) / 9.0)
+    # sigma = rho / 3: P = B^-1 / 9; the factor 2 turns the semi-major axis into the diameter.
+    return 2.0 * math.sqrt(chi2_ppf * info_lambda_max_inv_k(sxx, sxy, syy) / 9.0)
 
 
 @numba.njit(cache=True, error_model="numpy")

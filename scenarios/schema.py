@@ -32,7 +32,7 @@ class PefModel(str, Enum):
     ``exact``: diameter of the exact fault area (intersection of annuli), by polygon clipping.
     ``parallelogram``: long diagonal of the linearised two-marker parallelogram (k = 2).
     ``strips``: diameter of the intersection of k linearised strips.
-    ``gdop``: largest error inside the p-level confidence ellipse of the least-squares fix.
+    ``gdop``: major axis (diameter) of the p-level confidence ellipse of the least-squares fix.
     """
 
     EXACT = "exact"

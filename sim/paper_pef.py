@@ -17,7 +17,7 @@ import numpy as np
 
 import scenarios
 from estimators.fault_area import fault_area_of_point
-from estimators.linearized import gdop_radius, strip_polygon, unit_rows
+from estimators.linearized import gdop_diameter, strip_polygon, unit_rows
 from planner.pef import PEF
 from scenarios.schema import Marker, Obstacle, Scenario
 from sim import paper_figures as figs
@@ -45,8 +45,8 @@ def strips_model(markers: np.ndarray, position: np.ndarray, rho: np.ndarray) -> 
 
 
 def gdop_model(markers: np.ndarray, position: np.ndarray, rho: np.ndarray) -> float:
-    """95 % error radius [m] of the least-squares fix with sigma = rho / 3 (the ``gdop`` PEF)."""
-    return gdop_radius(unit_rows(markers, position)[0], rho, 0.95)
+    """Major axis [m] of the 95 % ellipse of the least-squares fix, sigma = rho / 3 (the ``gdop`` PEF)."""
+    return gdop_diameter(unit_rows(markers, position)[0], rho, 0.95)
 
 
 def exact_model(markers: np.ndarray, position: np.ndarray, rho: np.ndarray) -> float:

@@ -33,7 +33,7 @@ EPISODE_GATE_PROBABILITY = 0.999
 """The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
 not stored, only that it exceeded ``chi2.ppf(0.999, 1)``."""
 SET_MEMBERSHIP_MODELS = (PefModel.EXACT, PefModel.PARALLELOGRAM, PefModel.STRIPS)
-"""PEF models whose tau is the diameter of a fault area (a bound), not a probability radius."""
+"""PEF models whose tau is the diameter of a fault area (a bound); gdop's is that of a probability ellipse."""
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,8 @@ def _bound_why_not(data: SweepData) -> str | None:
     if data.scenario.sensor.noise is not NoiseModel.UNIFORM:
         return "the declared noise is gaussian: the PEF bound holds only for bounded noise"
     if data.scenario.planning.pef_model not in SET_MEMBERSHIP_MODELS:
-        return f"pef_model {data.scenario.planning.pef_model.value} gives a probability radius, not a bound"
+        return (f"pef_model {data.scenario.planning.pef_model.value} gives the diameter of a probability "
+                "ellipse, not a bound")
     if not _ratios(data)[0].any():
         return "no fix with all its markers measured and a finite predicted tau"
     return None

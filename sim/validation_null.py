@@ -20,7 +20,8 @@ What tau means per model, and why ``error <= tau`` follows:
   maximum of a convex function on a box is at a vertex) to show the margin per fix.
 - ``exact``: tau is the exact fault-area diameter of noise-free ranges, within the
   linearisation of the parallelogram diagonal for small ``rho / r``: the same argument.
-- ``gdop``: tau is a probability-p *radius* for gaussian errors, not a bound (not used here).
+- ``gdop``: tau is the major axis of a probability-p ellipse for gaussian errors, a diameter
+  like the others but not a bound (not used here).
 
 The real fix also carries each earlier range to the fix time by odometry; that shift error
 is not in this null model. It only makes observed errors larger, so it cannot make the

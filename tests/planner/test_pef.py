@@ -20,7 +20,7 @@ from estimators.linearized import (
     chi2_2dof_ppf,
     fix_strips,
     gdop,
-    gdop_radius,
+    gdop_diameter,
     lsq_covariance,
     parallelogram,
     strip_polygon,
@@ -152,7 +152,7 @@ def test_adding_a_strip_or_a_row_never_increases_the_error():
         _, _, u, _ = random_geometry(rng, 5)
         rho = rng.uniform(0.001, 0.01, 5)
         diam = [strip_polygon(u[:j], rho[:j]).diameter for j in range(2, 6)]
-        rad = [gdop_radius(u[:j], rho[:j], 0.95) for j in range(2, 6)]
+        rad = [gdop_diameter(u[:j], rho[:j], 0.95) for j in range(2, 6)]
         g = [gdop(u[:j]) for j in range(2, 6)]
         for seq in (diam, rad, g):
             assert all(b <= a * (1 + 1e-12) for a, b in itertools.pairwise(seq))
@@ -199,13 +199,14 @@ def test_gdop_matches_monte_carlo_least_squares():
     assert abs(z_stat(1.05 * gdop(u))) > Z  # negative control
 
 
-def test_lsq_covariance_and_gdop_radius_match_monte_carlo():
+def test_lsq_covariance_and_gdop_diameter_match_monte_carlo():
     """Weighted LS with unequal sigma_i = rho_i / 3: P = (H^T W H)^-1 and the p-ellipse.
 
     (1) e^T P^-1 e ~ chi2(2): its mean over N = 20000 has sd 2 / sqrt(N); reject at |z| > 3.29.
     Negative control: P 10 % too large must be rejected (expected shift ~13 sd).
     (2) The fraction of fixes inside the p = 0.95 ellipse is binomial(N, p); reject at
-    |frac - p| > 3.29 sqrt(p (1 - p) / N). (3) Every fix inside the ellipse lies within tau.
+    |frac - p| > 3.29 sqrt(p (1 - p) / N). (3) Every fix inside the ellipse lies within tau / 2
+    of the truth (tau is the ellipse's major axis).
     """
     rng = np.random.default_rng(7)
     markers = np.array([[0.0, 0.0], [12.0, 1.0], [5.0, 9.0]])
@@ -228,9 +229,9 @@ def test_lsq_covariance_and_gdop_radius_match_monte_carlo():
     p = 0.95
     inside = d2 <= stats.chi2.ppf(p, 2)
     assert abs(inside.mean() - p) <= Z * np.sqrt(p * (1 - p) / n)
-    tau = gdop_radius(u, rho, p)
-    assert np.all(np.hypot(*e[inside].T) <= tau * (1 + 1e-12))
-    assert np.hypot(*e[inside].T).max() > 0.9 * tau  # the radius is reached, not loose
+    tau = gdop_diameter(u, rho, p)
+    assert np.all(np.hypot(*e[inside].T) <= tau / 2 * (1 + 1e-12))
+    assert np.hypot(*e[inside].T).max() > 0.9 * tau / 2  # the semi-major axis is reached, not loose
 
 
 # --- the PEF ----------------------------------------------------------------------------------
@@ -263,7 +264,7 @@ def test_gdop_pef_matches_independent_numpy(warehouse):
             info = h.T @ w @ h
             if np.linalg.cond(info) > 1e12:
                 continue  # (nearly) collinear: no fix
-            best = min(best, np.sqrt(c * np.linalg.eigvalsh(np.linalg.inv(info)).max()))
+            best = min(best, 2 * np.sqrt(c * np.linalg.eigvalsh(np.linalg.inv(info)).max()))  # major axis
         # Candidates are ranked in float32 (documented): the chosen tau is within 1e-6 of the minimum.
         assert pm.tau[iy[n], ix[n]] == pytest.approx(best, rel=1e-5)
 
@@ -374,7 +375,7 @@ def test_bearings_shrink_strips_and_gdop():
             u, r = unit_rows(mk, p)
             normals, half = fix_strips(u, sc.sensor.range_bound(r), r, sc.sensor.bearing_error)
             ref = (strip_polygon(normals, half).diameter if model == "strips"
-                   else gdop_radius(normals, half, sc.planning.gdop_level))
+                   else gdop_diameter(normals, half, sc.planning.gdop_level))
             assert with_b.tau[n] == pytest.approx(ref, rel=1e-9)
 
 
