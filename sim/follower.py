@@ -113,6 +113,27 @@ def _limit(state, limits, v_ref, w_ref, dt):
 
 
 @numba.njit(cache=True)
+def _project(xs, ys, sl, i, px, py):
+    """Arc length of (px, py) projected on the segment after vertex i, or before it [m]."""
+    n = xs.size
+    if i + 1 < n:
+        tx, ty = xs[i + 1] - xs[i], ys[i + 1] - ys[i]
+        L2 = tx * tx + ty * ty
+        if L2 > 0.0:
+            u = ((px - xs[i]) * tx + (py - ys[i]) * ty) / L2
+            if u > 0.0:
+                return sl[i] + min(u, 1.0) * (sl[i + 1] - sl[i])
+    if i > 0:
+        tx, ty = xs[i] - xs[i - 1], ys[i] - ys[i - 1]
+        L2 = tx * tx + ty * ty
+        if L2 > 0.0:
+            u = ((px - xs[i]) * tx + (py - ys[i]) * ty) / L2
+            if u < 0.0:
+                return sl[i] + max(u, -1.0) * (sl[i] - sl[i - 1])
+    return sl[i]
+
+
+@numba.njit(cache=True)
 def command_step(table, limits, state, px, py, th, dt):
     """Run one pure-pursuit step (compiled, so that ``sim.control_tick`` can chain it).
 
@@ -132,8 +153,9 @@ def command_step(table, limits, state, px, py, th, dt):
     Returns
     -------
     v, omega, done, s : float, float, bool, float
-        Forward speed [m/s], yaw rate [rad/s], goal reached, arc length of the nearest path
-        point [m].
+        Forward speed [m/s], yaw rate [rad/s], goal reached, arc length of the estimate's
+        projection on the path next to its nearest vertex [m] (continuous: the schedule's fixes
+        start at arc lengths between vertices).
     """
     xs, ys, sl, speed = table[0], table[1], table[2], table[3]
     max_speed, max_yaw_rate = limits[MAX_SPEED], limits[MAX_YAW_RATE]
@@ -150,14 +172,15 @@ def command_step(table, limits, state, px, py, th, dt):
         if d2 < best_d2:
             i, best_d2 = j, d2
     state[INDEX] = i
-    s_i = sl[i]
+    s_near = sl[i]
+    s_i = _project(xs, ys, sl, i, px, py)
     dist_goal = math.hypot(xs[n - 1] - px, ys[n - 1] - py)
     if dist_goal < goal_tol and sl[n - 1] - s_i < 2.0 * look_min:
         state[SPEED] = state[YAW_RATE] = 0.0
         return 0.0, 0.0, True, s_i
 
     look = max(look_min, look_gain * state[SPEED])
-    j = min(np.searchsorted(sl, s_i + look), n - 1)
+    j = min(np.searchsorted(sl, s_near + look), n - 1)
     dx, dy = xs[j] - px, ys[j] - py
     c, s = math.cos(th), math.sin(th)
     lx, ly = c * dx + s * dy, -s * dx + c * dy  # target in the robot frame
