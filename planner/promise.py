@@ -192,3 +192,81 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
         if not area.is_empty:
             out[i] = area.diameter
     return out, poses, kin
+
+
+def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None = None):
+    """Compute the motion-aware PEF on a grid: the promise of a fix ending at each cell at ``speed``.
+
+    Each cell is the end of a two-marker fix driven at constant ``speed`` [m/s]: the first
+    range is taken ``measurement_time`` earlier, ``speed * measurement_time`` back, and carried
+    to the cell with the odometry bound (:func:`estimators.carried.shift_bound`, heading std
+    ``planning.heading_std_deg``). The map takes the marker directions at the cell for both
+    ranges (the robot moves a few centimetres during a fix, metres from the markers: the
+    direction changes by less than that ratio, whatever way it drives), the better of the two
+    measurement orders, and the best visible pair, the static map's candidate pairs when there
+    are more than :data:`planner.schedule.MAX_SUBSETS`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Needs ``markers_per_fix = 2``.
+    pef : planner.pef.PEF
+        The static PEF (visibility, free cells, candidate pairs).
+    speed : float
+        Driving speed during the fix [m/s], >= 0 (0 gives the static map's geometry).
+    resolution : float, optional
+        Cell size [m]; default ``planning.resolution``.
+
+    Returns
+    -------
+    planner.pef.PefMap
+        ``tau`` the motion-aware promise [m] (inf where fewer than 2 markers are visible),
+        ``best`` the pair in measurement order.
+    """
+    import math
+    from dataclasses import replace
+
+    from estimators.carried import shift_bound
+    from scenarios.errors import PlanningError
+
+    if scenario.sensor.markers_per_fix != 2:
+        raise PlanningError(f"--speed: the motion-aware map needs markers_per_fix = 2, got "
+                            f"{scenario.sensor.markers_per_fix}")
+    if not (speed >= 0.0 and math.isfinite(speed)):
+        raise PlanningError(f"--speed: expected a speed >= 0 m/s, got {speed}")
+    static = pef.grid(resolution)
+    xx, yy = np.meshgrid(static.x, static.y)
+    xy = np.column_stack([xx.ravel(), yy.ravel()])
+    vis = pef.visible(xy)
+    markers = scenario.marker_positions()
+    from planner.schedule import MAX_SUBSETS
+    if len(markers) * (len(markers) - 1) // 2 <= MAX_SUBSETS:
+        pairs = [(i, j) for i in range(len(markers)) for j in range(i + 1, len(markers))]
+    else:
+        b = static.best.reshape(-1, 2)
+        pairs = [tuple(map(int, p)) for p in np.unique(np.sort(b[(b >= 0).all(axis=1)], axis=1), axis=0)]
+    d = xy[:, None, :] - markers[None, :, :]
+    r = np.hypot(d[..., 0], d[..., 1])
+    u = d / np.where(r > 0, r, 1.0)[..., None]
+    rho = scenario.sensor.range_bound(r)
+    margin = float(shift_bound(scenario.robot, np.array([speed * scenario.sensor.measurement_time]),
+                               scenario.planning.heading_std)[0])
+    tau = np.full(len(xy), np.inf)
+    best = np.full((len(xy), 2), -1, dtype=np.int64)
+    for i, j in pairs:
+        ok = vis[:, i] & vis[:, j]
+        if not ok.any():
+            continue
+        sin_a = np.abs(u[:, i, 0] * u[:, j, 1] - u[:, i, 1] * u[:, j, 0])
+        cos_a = np.abs(u[:, i, 0] * u[:, j, 0] + u[:, i, 1] * u[:, j, 1])
+        for first, second in ((i, j), (j, i)):
+            a, b2 = rho[:, first] + margin, rho[:, second]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = 2.0 / sin_a * np.sqrt(a * a + b2 * b2 + 2.0 * a * b2 * cos_a)
+            t = np.where(ok & (sin_a > 1e-12), t, np.inf)
+            win = t < tau
+            tau[win] = t[win]
+            best[win] = (first, second)
+    shape = static.tau.shape
+    tau = np.where(static.free.ravel(), tau, np.inf).reshape(shape)
+    return replace(static, tau=tau, best=best.reshape(*shape, 2))

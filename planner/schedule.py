@@ -9,9 +9,15 @@ where fix ``i`` starts at ``s_i`` and completes at ``c_i`` (it measures its ``k`
 after another, ``k * measurement_time`` seconds, while the robot moves on), and ``tau_i`` is its
 promise ``predicted_tau``: the fault-area diameter of that moving fix, its earlier ranges
 carried to the last by odometry (:mod:`planner.promise`). A fix is admissible when its promise
-is under ``eps_max / (1 + PROMISE_TOLERANCE)``; where none is at the planned speed, the plan
-slows down for the fix (down to ``planning.min_fix_speed``) and the schedule's ``speed`` and
-``slowdown_time`` say so. Fix starts are at least ``max(1 / fix_rate_hz, k * measurement_time)`` seconds apart.
+is under ``eps_max / (1 + PROMISE_TOLERANCE)``.
+
+Slowing down (the paper's compromise between speed and accuracy)
+    Where no fix is admissible at the planned speed, the fix is taken slower (its earlier ranges
+    are shifted less; :mod:`planner.promise`). Where no schedule exists at all, the stretch the
+    search names is driven at half the speed and the search runs again: slower, the robot fixes
+    more often per metre (the sensor's rate is in time), so drift between fixes shrinks too.
+    Neither goes below ``planning.min_fix_speed``; a path is inadmissible only when that does
+    not help. The schedule's ``speed`` is the resulting profile and ``slowdown_time`` its cost. Fix starts are at least ``max(1 / fix_rate_hz, k * measurement_time)`` seconds apart.
 The first fix is taken at standstill at the start of the path (before departure).
 
 Schedule choice (:func:`make_schedule`)
@@ -32,16 +38,18 @@ Schedule choice (:func:`make_schedule`)
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
 
-from planner.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
 from planner import promise
-from planner.pathtime import sample_track
-from planner.schedule_search import Windows, search
+from planner.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
+from planner.pathtime import Kinematics, sample_track
+from planner.schedule_search import StretchError, Windows, search
+from planner.smoothing import acceleration_limited
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
@@ -186,7 +194,7 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     path = np.asarray(path, dtype=float).reshape(-1, 2)
     if len(path) == 0:
         raise PlanningError("schedule: empty path")
-    sensor, robot, eps = scenario.sensor, scenario.robot, scenario.planning.eps_max
+    sensor, robot = scenario.sensor, scenario.robot
     k = int(getattr(pef, "k", None) or sensor.markers_per_fix)
     v = (np.full(len(path), robot.max_speed) if speed is None
          else np.asarray(speed, dtype=float).reshape(-1))
@@ -199,6 +207,43 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     if spacing <= 0:
         raise PlanningError(f"schedule: spacing must be > 0, got {spacing}")
 
+    drift = functools.partial(drift_bound, robot, k_sigma=k_sigma, heading_error=heading_error,
+                              increment=increment)
+    s_v = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    t_planned = Kinematics(s_v, v).t_v[-1]
+    v_try = v
+    while True:
+        try:
+            return _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
+                            t_planned)
+        except StretchError as exc:
+            slower = _slow_stretch(s_v, v_try, exc.stretch, scenario.planning.min_fix_speed)
+            if slower is None:
+                raise
+            v_try = slower
+
+
+def _slow_stretch(s_v: np.ndarray, v: np.ndarray, stretch: tuple[float, float], v_min: float) -> np.ndarray | None:
+    """Halve the speed over a stretch (not below ``v_min``), braking into it; None if it is at ``v_min``.
+
+    Slower, the robot fixes more often per metre (the sensor's rate is in time) and each fix's
+    earlier ranges are shifted less: drift and promise both shrink.
+    """
+    a, b = stretch
+    lo = max(int(np.searchsorted(s_v, a, side="right")) - 1, 0)
+    hi = min(int(np.searchsorted(s_v, b, side="left")), len(s_v) - 1)
+    cap = np.array(v, dtype=float)
+    part = cap[lo:hi + 1]
+    if np.all(part <= v_min * (1.0 + 1e-9)):
+        return None
+    cap[lo:hi + 1] = np.minimum(part, np.maximum(0.5 * part, v_min))
+    return acceleration_limited(s_v, cap)
+
+
+def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned) -> Schedule:
+    """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists."""
+    sensor, eps = scenario.sensor, scenario.planning.eps_max
+    fix_time = k * sensor.measurement_time
     tr = sample_track(path, v, spacing, fix_time, gap, measurements=k)
     n = len(tr.s)
     subsets = _candidate_subsets(pef, tr.xy, k)
@@ -213,9 +258,6 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
           else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
     limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
-
-    def drift(d, turned):
-        return drift_bound(robot, d, turned, k_sigma, heading_error, increment)
 
     pl = Windows(tr, drift, eps, gap)
     taus = np.stack([x.tau for x in lv])
@@ -244,10 +286,12 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     worst = float(max([err.max(), *handover]))
     if not worst < eps:
         i = int(np.argmax(err))
-        raise PlanningError(f"no measurement schedule keeps the error under eps_max = {eps:.4g} m: the exact "
-                            f"promises of the chosen fixes reach {worst:.4g} m near s = {tr.s[i]:.2f} m")
+        f = int(np.searchsorted(starts, i, side="right")) - 1
+        raise StretchError(f"no measurement schedule keeps the error under eps_max = {eps:.4g} m: the exact "
+                           f"promises of the chosen fixes reach {worst:.4g} m near s = {tr.s[i]:.2f} m",
+                           (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
     return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
-                    worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - tr.kin.t_v[-1]))
+                    worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
 
 
 def _fix_speed(kin, s0: float, k: int, mt: float, i: int) -> float:
@@ -285,9 +329,9 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
             slower = [lvl for lvl in range(fix_level[i] + 1, len(lv)) if np.isfinite(lv[lvl].tau[c, j])]
             if not slower:
                 x, y = tr.xy[j]
-                raise PlanningError(
+                raise StretchError(
                     f"no measurement schedule keeps the error under eps_max = {scenario.planning.eps_max:.4g} m: "
                     f"the fix at s = {tr.s[j]:.2f} m ({x:.2f}, {y:.2f}) promises {pred[i]:.4g} m even at "
                     f"{scenario.planning.min_fix_speed:g} m/s (limit {limit:.4g} m = eps_max / "
-                    f"{1 + promise.PROMISE_TOLERANCE:g})")
+                    f"{1 + promise.PROMISE_TOLERANCE:g})", (float(tr.s[j]), float(tr.s[j]) + 0.1))
             fix_level[i] = slower[0]

@@ -13,6 +13,17 @@ from planner.pathtime import Track
 from scenarios.errors import PlanningError
 
 
+class StretchError(PlanningError):
+    """No schedule keeps the error under eps_max; ``stretch`` = (s_from, s_to) [m] is where.
+
+    The schedule slows this stretch down and tries again (:func:`planner.schedule.make_schedule`).
+    """
+
+    def __init__(self, message: str, stretch: tuple[float, float]):
+        super().__init__(message)
+        self.stretch = stretch
+
+
 class Windows:
     """Windows of feasible next fixes on a sampled track (see module doc)."""
 
@@ -75,7 +86,7 @@ class Windows:
         return np.where(first_ok, self._last_ok(j, tau, self.err_at_sample) + 1, j)
 
 
-def diagnose(pl: Windows, tau_best: np.ndarray, k: int) -> PlanningError:
+def diagnose(pl: Windows, tau_best: np.ndarray, k: int) -> StretchError:
     """Name the worst stretch of the best (farthest-reaching) schedule in a PlanningError."""
     tr, eps, n = pl.tr, pl.eps, len(pl.tr.s)
     good = np.isfinite(tau_best) & (tau_best < eps)
@@ -110,10 +121,11 @@ def diagnose(pl: Windows, tau_best: np.ndarray, k: int) -> PlanningError:
     tau_txt = (f"{stretch_tau:.4g} m" if np.isfinite(stretch_tau)
                else f"inf (fewer than {k} markers visible)")
     x, y = tr.xy[a]
-    return PlanningError(
+    return StretchError(
         f"no measurement schedule keeps the error under eps_max = {eps:.4g} m: from s = "
         f"{tr.s[a]:.2f} m ({x:.2f}, {y:.2f}) to s = {tr.s[b]:.2f} m the predicted error reaches "
-        f"{err:.4g} m ({last}; best fix tau in the stretch {tau_txt})")
+        f"{err:.4g} m ({last}; best fix tau in the stretch {tau_txt})",
+        (float(tr.s[best_j]) if reach[best_j] else 0.0, float(tr.s[b])))
 
 
 

@@ -18,6 +18,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="PEF model (default: the scenario's planning.pef_model); exact is slow")
     p.add_argument("--resolution", type=float, metavar="R",
                    help="cell size in metres (default: the scenario's planning.resolution)")
+    p.add_argument("--speed", type=float, metavar="V",
+                   help="the motion-aware PEF: the promise of a fix ending at each cell, driven at V m/s "
+                        "(ranges one after another, carried by odometry); default the paper's static PEF")
     p.add_argument("-o", "--output", metavar="PNG", help="write the figure here")
     p.add_argument("--npz", metavar="FILE",
                    help="write arrays: tau (ny,nx) [m, inf = no fix], x (nx,), y (ny,) cell centres [m], "
@@ -105,7 +108,12 @@ def run(args: argparse.Namespace) -> int:
         check_writable(args.rrd)
     pef = PEF(sc, model=args.model)
     resolution = args.resolution if args.resolution is not None else sc.planning.resolution
-    pef_map = pef.grid(resolution)
+    if args.speed is not None:
+        from planner.promise import moving_map
+
+        pef_map = moving_map(sc, pef, args.speed, resolution)
+    else:
+        pef_map = pef.grid(resolution)
     eps_max = sc.planning.eps_max
     png = args.output
     if png is None and args.npz is None and not args.json:
@@ -119,11 +127,13 @@ def run(args: argparse.Namespace) -> int:
 
         write_static_rrd(args.rrd, sc, pef_map=pef_map)
     summary = map_summary(pef_map, eps_max, resolution)
+    summary["speed"] = args.speed
     if args.json:
         print_json(summary)
         return 0
     ny, nx = summary["shape"]
-    print(f"{sc.name}: PEF {summary['model']} model, k = {pef.k}, {nx} x {ny} cells of "
+    kind = "static" if args.speed is None else f"moving at {args.speed:g} m/s"
+    print(f"{sc.name}: PEF {summary['model']} model ({kind}), k = {pef.k}, {nx} x {ny} cells of "
           f"{pef_map.cell_size[0]:.3g} x {pef_map.cell_size[1]:.3g} m")
     if summary["tau_min"] is None:
         print("no free cell sees enough markers for a fix")

@@ -184,8 +184,11 @@ class FixRecorder:
         self._polygons.append(fa.ring)
 
     def _promise(self, p: _Pending) -> float:
-        """The plan's promise for this fix: the scheduled fix's, or the same construction for the
-        markers actually measured at the scheduled poses (a fallback subset, a marker lost) [m]."""
+        """Return the plan's promise for this fix [m].
+
+        The scheduled fix's, or the same construction for the markers actually measured at the
+        scheduled poses (a fallback subset, a marker lost mid-fix).
+        """
         f = p.scheduled
         if f is None or not f.poses:
             return math.inf
@@ -197,7 +200,7 @@ class FixRecorder:
         return math.inf if area.is_empty else float(area.diameter)
 
     def _static(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
-        """Static PEF τ (the paper's) of each fix's subset at its true position, one call per subset."""
+        """Return the static PEF τ (the paper's) of each fix's subset at its true position, (F,) [m]."""
         out = np.full(len(markers), math.inf)
         full = np.all(markers >= 0, axis=1)
         if not full.any():

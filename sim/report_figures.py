@@ -88,15 +88,17 @@ def error_cdf(step_error: np.ndarray, step_tau: np.ndarray, run_max_error: np.nd
 
 
 def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_diameter: np.ndarray) -> Figure:
-    """Per fix: the snapshot error and the realised fault-area diameter against the predicted τ.
+    """Per fix: the snapshot error and the realised fault-area diameter against the plan's promise.
 
-    Points above the line y = x are fixes whose error (or fault area) exceeded the prediction.
+    The promise is the fault-area diameter of the moving fix the plan made (ranges one after
+    another at the planned poses, carried by odometry): the same construction as the realised
+    area, so the right panel compares like with like. Points above y = x exceed the promise.
 
     Parameters
     ----------
     predicted_tau, snapshot_error, fault_diameter : ndarray, shape (F,)
-        Predicted τ of the fix's marker subset at the true position, the snapshot fix's
-        position error, and the realised exact fault-area diameter [m].
+        The fix's promise, the snapshot fix's position error, and the realised exact
+        fault-area diameter [m].
     """
     fig = Figure(figsize=(11, 4.6))
     axes = fig.subplots(1, 2)
@@ -114,7 +116,7 @@ def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_dia
         ax.plot([0, top], [0, top], color=LIMIT_COLOUR, lw=1, label="y = x")
         n = int(keep.sum())
         share = above.sum() / n if n else 0.0
-        ax.set(xlim=(0, top), ylim=(0, top), xlabel="predicted τ [mm]", ylabel=f"{name} [mm]",
+        ax.set(xlim=(0, top), ylim=(0, top), xlabel="promised τ of the moving fix [mm]", ylabel=f"{name} [mm]",
                title=f"{name.capitalize()}: {above.sum()} of {n} fixes above τ ({share:.2%})")
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)

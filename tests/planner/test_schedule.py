@@ -12,8 +12,8 @@ import pytest
 import scenarios
 from estimators.carried import promised_fault_area
 from planner.drift import drift_bound
-from planner.promise import PROMISE_TOLERANCE
 from planner.pef import PEF
+from planner.promise import PROMISE_TOLERANCE
 from planner.schedule import Schedule, make_schedule
 from scenarios.errors import PlanningError
 
@@ -197,8 +197,9 @@ def test_drift_limited_stretch_is_named(warehouse):
     sc, pef = warehouse
     path = route(sc, ["A", "C"])
     fast = np.full(len(path), 6.0)  # 1.2 m between fixes: drift alone exceeds eps
+    no_slowing = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, min_fix_speed=6.0))
     with pytest.raises(PlanningError) as exc:
-        make_schedule(sc, pef, path, fast)
+        make_schedule(no_slowing, pef, path, fast)
     a, b, err = parse_stretch(str(exc.value))
     assert 0.0 <= a <= b and err >= sc.planning.eps_max
     # independently: the first fix's tau plus drift reaches eps before the next fix completes
@@ -208,6 +209,10 @@ def test_drift_limited_stretch_is_named(warehouse):
     assert a <= reach
     # at a walking pace the same path is fine
     make_schedule(sc, pef, path, np.full(len(path), 0.5))
+    # and allowed to slow down, the planner finds that pace where it needs it, at a cost in time
+    slowed = make_schedule(sc, pef, path, fast)
+    assert slowed.slowdown_time > 0.0 and slowed.worst < sc.planning.eps_max
+    assert slowed.speed.min() >= sc.planning.min_fix_speed and slowed.speed.max() <= 6.0
 
 
 def test_start_without_enough_markers():

@@ -77,7 +77,8 @@ def run_episode(scenario, task_index: int = 0, seed=0, world=None, prepared=None
         ranges=rng.uniform(1.0, 5.0, size=(N_FIXES, k)), rho=np.full((N_FIXES, k), 1e-3),
         true_position=truth, snapshot=snap, snapshot_cov=np.broadcast_to(np.eye(2) * 1e-6, (N_FIXES, 2, 2)),
         fault_diameter=rng.uniform(0.5, 1.0, N_FIXES) * eps, fault_polygons=[np.zeros((4, 2))] * N_FIXES,
-        contained=rng.uniform(size=N_FIXES) < 0.95, predicted_tau=tau[idx], static_tau=tau[idx] * 0.8, nis=rng.chisquare(2, N_FIXES),
+        contained=rng.uniform(size=N_FIXES) < 0.95, predicted_tau=tau[idx], static_tau=tau[idx] * 0.8,
+        nis=rng.chisquare(2, N_FIXES),
         n_accepted=np.full(N_FIXES, k))
     summary = dict(reached=bool(rng.uniform() < 0.9), duration=10.0, steps=N_STEPS, fixes=N_FIXES,
                    rmse=float(np.sqrt(np.mean(error ** 2))), max_error=float(error.max()),

@@ -112,6 +112,19 @@ def test_claim7_counts_are_consistent(claims):
     lo, hi = n["ci95"]
     assert lo <= n["fraction"] <= hi
     assert n["steps"] > 100
+    # the moving robot breaks the paper's static PEF and keeps the motion-aware promise
+    assert n["fixes"] > 100
+    assert n["static_kept_frac"] < 0.5 < n["static_max_ratio"] - 0.2
+    assert n["moving_kept_frac"] == 1.0 and n["moving_max_ratio"] <= 1.02
+
+
+def test_claim7_verdict_turns_on_the_motion_aware_promise(claims):
+    from sim.paper_pef import verdict_planned_route
+
+    n = dict(claims[7]["numbers"], under_eps_max=3, runs=3, fraction=1.0)
+    assert verdict_planned_route(n)[0].startswith("holds only when the PEF describes the moving fix")
+    # negative control: a promise broken at some fix is no longer the condition under which it holds
+    assert not verdict_planned_route(dict(n, moving_kept_frac=0.98))[0].startswith("holds only when the PEF")
 
 
 # --- negative controls: a wrong model must change the verdict ----------------------------------

@@ -72,7 +72,7 @@ def test_empty_fix_log_is_written(tmp_path, scenario):
                     true_position=np.zeros((0, 2)), snapshot=np.zeros((0, 2)),
                     snapshot_cov=np.zeros((0, 2, 2)),
                     fault_diameter=np.zeros(0), fault_polygons=[], contained=np.zeros(0, bool),
-                    predicted_tau=np.zeros(0), nis=np.zeros(0), n_accepted=np.zeros(0, int))
+                    predicted_tau=np.zeros(0), static_tau=np.zeros(0), nis=np.zeros(0), n_accepted=np.zeros(0, int))
     rec.fixes = results.fix_columns(0, empty)
     results.write_record(layout, rec)
     assert results.read_fixes(tmp_path).num_rows == 0

@@ -70,7 +70,8 @@ def _fix_log(scenario, rng, error_scale: float) -> FixLog:
     return FixLog(t=np.arange(n) * 0.2, markers=np.tile([0, 1], (n, 1)), ranges=np.array(cols["ranges"]),
                   rho=np.array(cols["rho"]), true_position=truth, snapshot=np.array(cols["snapshot"]),
                   snapshot_cov=np.array(cols["cov"]), fault_diameter=np.array(cols["diam"]),
-                  fault_polygons=cols["polys"], contained=np.array(cols["contained"]), predicted_tau=tau, static_tau=tau,
+                  fault_polygons=cols["polys"], contained=np.array(cols["contained"]),
+                  predicted_tau=tau, static_tau=tau,
                   nis=np.zeros(n), n_accepted=np.full(n, 2))
 
 
