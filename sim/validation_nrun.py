@@ -30,6 +30,11 @@ from sim.validation_data import CheckResult, CheckStatus, SweepData
 
 NEES_DOF = 3
 """The filter's pose (x, y, theta)."""
+MIN_INDEPENDENT_STEPS = 10
+"""Fewer thinned steps than this and ``nees_nrun`` does not apply: with so few trials the
+binomial can hardly ever reject (at 2 trials, never below alpha = 0.0025), and a check that
+cannot fail must not read as a pass. It happens when the NEES stays correlated over most
+of a run (a badly mis-tuned filter: the pooled ``nees`` sees that one)."""
 
 
 def _fmt(x: float) -> str:
@@ -88,8 +93,15 @@ def _nees_matrix(data: SweepData) -> np.ndarray:
 def nees_nrun_why_not(data: SweepData) -> str | None:
     if data.steps is None or not len(data.steps):
         return "the sweep has no per-step table"
-    if _nees_matrix(data).shape[0] < 2:
+    m = _nees_matrix(data)
+    if m.shape[0] < 2:
         return "fewer than 2 finished runs with a per-step NEES"
+    spacing, _ = nrun.thinning_spacing(nrun.across_run_autocorrelation(m))
+    tested = len(range(0, m.shape[1], spacing))
+    if tested < MIN_INDEPENDENT_STEPS:
+        return (f"the NEES stays correlated over {spacing} steps (autocorrelation across runs above "
+                f"{nrun.MAX_THINNED_CORRELATION:g}): at most {tested} effectively independent steps, fewer "
+                f"than {MIN_INDEPENDENT_STEPS}")
     return None
 
 

@@ -22,7 +22,7 @@ ALPHA = 0.01 / 6  # per-check alpha of a uniform-noise sweep (6 statistical chec
 
 
 def _ar1_nees(rng, runs: int, steps: int, phi: float) -> np.ndarray:
-    """(runs, steps) NEES of a stationary 3-d AR(1) error with unit covariance."""
+    """Return the (runs, steps) NEES of a stationary 3-d AR(1) error with unit covariance."""
     w = rng.standard_normal((runs, steps, 3)) * np.sqrt(1 - phi**2)
     w[:, 0] = rng.standard_normal((runs, 3))  # start in the stationary distribution
     e = signal.lfilter([1.0], [1.0, -phi], w, axis=1)

@@ -25,7 +25,7 @@ RUNS = 60
 
 
 def _write(root, c: float, seed: int = 1):
-    """A sweep whose filter claims c times the true covariance (NEES and NIS divided by c)."""
+    """Write and load a sweep whose filter claims c times the true covariance (NEES, NIS divided by c)."""
     sc = scenarios.load("paper-two-markers")
     rng = np.random.default_rng(seed)
     sw = kf.simulate(RUNS, rng, fix_every=3000 // FIXES_PER_RUN)
