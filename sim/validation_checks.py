@@ -19,16 +19,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.consistency import Verdict, chi2_interval, clopper_pearson, fraction_test, nees_test
+from estimators.consistency import chi2_interval, clopper_pearson, fraction_test
 from estimators.fault_area import DEFAULT_TOLERANCE_FRACTION
 from estimators.linearized import chi2_2dof_ppf
 from scenarios.schema import NoiseModel, PefModel
+from sim import validation_nrun as nrun
 from sim import validation_null as null
 from sim.validation_data import CheckResult, CheckStatus, SweepData
 from sim.validation_promise import promise, promise_why_not
 
-NEES_DOF = 3
-"""The filter's pose (x, y, theta)."""
 EPISODE_GATE_PROBABILITY = 0.999
 """The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
 not stored, only that it exceeded ``chi2.ppf(0.999, 1)``."""
@@ -194,34 +193,6 @@ def coverage(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRe
 
 # -- filter consistency ---------------------------------------------------------------------
 
-def _ok_nees(data: SweepData) -> np.ndarray:
-    v = data.runs.mean_nees[data.runs.ok]
-    return v[np.isfinite(v)]
-
-
-def _nees_why_not(data: SweepData) -> str | None:
-    return None if _ok_nees(data).size else "no run finished with a NEES"
-
-
-def nees(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
-    """Average over runs of each run's time-averaged NEES in its two-sided chi2 interval.
-
-    Runs are the independent unit (:func:`estimators.consistency.nees_test`): the interval is
-    ``chi2(3N) / N``, conservative for the time-correlated steps of a run.
-    """
-    v = _ok_nees(data)
-    res = nees_test(v, NEES_DOF, alpha)
-    lo, hi = res.interval
-    detail = (f"mean over {v.size} runs of the time-averaged pose NEES ({NEES_DOF} dof), interval "
-              f"chi2({NEES_DOF}N)/N; verdict {res.verdict.value}"
-              + (" (filter overconfident)" if res.verdict is Verdict.ABOVE else "")
-              + (" (filter pessimistic)" if res.verdict is Verdict.BELOW else ""))
-    return CheckResult("nees", CheckStatus.PASS if res.passed else CheckStatus.FAIL, _fmt(res.statistic),
-                       f"[{_fmt(lo)}, {_fmt(hi)}]", alpha, detail,
-                       {"mean_nees": res.statistic, "interval": [lo, hi], "runs": v.size,
-                        "run_min": float(v.min()), "run_max": float(v.max())})
-
-
 def _updates(data: SweepData) -> tuple[int, int]:
     """Count the updates attempted and gated over all fixes.
 
@@ -290,8 +261,10 @@ CHECKS: tuple[Check, ...] = (
     Check("bound", False, _bound_why_not, bound),
     Check("tightness", True, _bound_why_not, tightness),
     Check("coverage", True, _coverage_why_not, coverage),
-    Check("nees", True, _nees_why_not, nees),
+    Check("nees", True, nrun.nees_why_not, nrun.nees),
     Check("nis", True, _nis_why_not, nis),
+    Check("nees_nrun", True, nrun.nees_nrun_why_not, nrun.nees_nrun),
+    Check("nis_nrun", True, nrun.nis_nrun_why_not, nrun.nis_nrun),
     Check("plan", True, _plan_why_not, plan),
 )
 """Every check, in the order they are reported."""

@@ -112,6 +112,8 @@ class FixTable:
     Attributes
     ----------
     run : (F,) int
+    fix : (F,) int
+        Index of the fix in its run, from 0.
     true_xy : (F, 2) float
         True position at the fix [m].
     snapshot_xy : (F, 2) float
@@ -138,6 +140,7 @@ class FixTable:
     """
 
     run: np.ndarray
+    fix: np.ndarray
     true_xy: np.ndarray
     snapshot_xy: np.ndarray
     snapshot_cov: np.ndarray
@@ -160,11 +163,41 @@ class FixTable:
 
 
 @dataclass(frozen=True)
+class StepTable:
+    """Per control step of a sweep, only what the checks read (S steps over all runs).
+
+    Attributes
+    ----------
+    run : (S,) int
+    step : (S,) int
+        Index of the step in its run, from 0 (control steps are at a fixed rate).
+    nees : (S,) float
+        Pose NEES (3 dof) at the step.
+    """
+
+    run: np.ndarray
+    step: np.ndarray
+    nees: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.run)
+
+
+STEP_COLUMNS = ["run", "step", "nees"]
+"""The columns of :data:`sim.results.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
+FIX_COLUMNS = ["run", "fix", "true_x", "true_y", "snapshot_x", "snapshot_y", "snapshot_error",
+               "snapshot_x_var", "snapshot_y_var", "snapshot_xy_cov", "fault_diameter", "predicted_tau",
+               "nis", "n_accepted", "contained", "markers"]
+"""The columns of :data:`sim.results.FIX_SCHEMA` that the checks read."""
+
+
+@dataclass(frozen=True)
 class SweepData:
     """A sweep's scenario and tables, as the checks consume them.
 
     ``q_scale`` is the filter's process-noise factor the sweep ran with (1 = the declared
-    model; anything else is a negative control).
+    model; anything else is a negative control). ``steps`` is None when the sweep has no
+    per-step table (the N-run NEES test then does not apply).
     """
 
     scenario: Scenario
@@ -172,6 +205,7 @@ class SweepData:
     fixes: FixTable
     source: str = "<memory>"
     q_scale: float = 1.0
+    steps: StepTable | None = None
 
 
 def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
@@ -202,7 +236,7 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
     cov[:, 0, 0], cov[:, 1, 1] = col("snapshot_x_var"), col("snapshot_y_var")
     cov[:, 0, 1] = cov[:, 1, 0] = col("snapshot_xy_cov")
     return FixTable(
-        run=col("run", np.int64, -1),
+        run=col("run", np.int64, -1), fix=col("fix", np.int64, -1),
         true_xy=np.column_stack([col("true_x"), col("true_y")]).reshape(n, 2),
         snapshot_xy=np.column_stack([col("snapshot_x"), col("snapshot_y")]).reshape(n, 2),
         snapshot_cov=cov, snapshot_error=col("snapshot_error"), predicted_tau=col("predicted_tau"),
@@ -212,11 +246,18 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
         static_tau=col("static_tau") if "static_tau" in fixes.column_names else None)
 
 
+def step_table(steps: pa.Table) -> StepTable:
+    """Convert a ``steps`` table (at least :data:`STEP_COLUMNS` of :data:`sim.results.STEP_SCHEMA`)."""
+    return StepTable(run=_np(steps, "run", np.int64, -1), step=_np(steps, "step", np.int64, -1),
+                     nees=_np(steps, "nees", float, math.nan))
+
+
 def from_tables(scenario: Scenario, runs: pa.Table, fixes: pa.Table, source: str = "<memory>",
-                q_scale: float = 1.0) -> SweepData:
-    """Build :class:`SweepData` from Arrow tables of the :mod:`sim.results` schemas."""
+                q_scale: float = 1.0, steps: pa.Table | None = None) -> SweepData:
+    """Build :class:`SweepData` from Arrow tables of the :mod:`sim.results` schemas (``steps`` optional)."""
     return SweepData(scenario=scenario, runs=run_table(runs),
-                     fixes=fix_table(fixes, scenario.sensor.markers_per_fix), source=source, q_scale=q_scale)
+                     fixes=fix_table(fixes, scenario.sensor.markers_per_fix), source=source, q_scale=q_scale,
+                     steps=None if steps is None or steps.num_rows == 0 else step_table(steps))
 
 
 def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> SweepData:
@@ -258,4 +299,5 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
             q_scale = float(json.loads(control.read_text(encoding="utf-8"))["q_scale"])
         except (OSError, ValueError, KeyError, TypeError):
             raise OutputError(f"{control}: unreadable; expected {{\"q_scale\": <number>}}") from None
-    return from_tables(stored, runs, results.read_fixes(layout.root), source=str(directory), q_scale=q_scale)
+    return from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS), source=str(directory),
+                       q_scale=q_scale, steps=results.read_steps(layout.root, columns=STEP_COLUMNS))

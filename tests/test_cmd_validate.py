@@ -7,7 +7,7 @@ fail the check they must.
 Sizes fit CI on 2 workers (about 2 minutes in all): paper-two-markers 20 runs, paper-docks
 10, warehouse 6; negative controls 6 runs each (their statistics are far outside the
 acceptance regions: 3x noise gives ~70 % containment misses, q_scale 0.01 a NEES of ~100).
-Each statistical check has false-alarm probability 0.0025 (family alpha 0.01 over 4 checks);
+Each statistical check has false-alarm probability 0.0017 (family alpha 0.01 over 6 checks);
 seeds are the scenarios' own, so the verdicts are reproducible.
 """
 
@@ -52,7 +52,7 @@ def _variant(tmp_path, name: str, extra: str, replace: tuple[str, str] = ("", ""
 
 
 UNIFORM_BUILTIN = {"containment": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
-                   "nees": PASS, "nis": PASS, "plan": PASS}
+                   "nees": PASS, "nis": PASS, "nees_nrun": PASS, "nis_nrun": PASS, "plan": PASS}
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +70,7 @@ def test_paper_two_markers_passes(two_markers):
     _, code, report = two_markers
     assert code == 0, report["failed"]
     assert _status(report) == UNIFORM_BUILTIN
-    assert report["runs"] == 20 and report["alpha_per_check"] == pytest.approx(0.0025)
+    assert report["runs"] == 20 and report["alpha_per_check"] == pytest.approx(0.01 / 6)
 
 
 @pytest.mark.parametrize(("name", "runs"), [("paper-docks", 10), ("warehouse", 6)])
@@ -89,7 +89,7 @@ def test_from_directory_reproduces_the_verdicts_and_prints_a_table(capsys, two_m
     code = cli.main(["validate", "paper-two-markers", "--from", str(out), "--alpha", "0.05"])
     text = capsys.readouterr().out
     assert code == 0
-    assert "family alpha 0.05 over 4 statistical checks: 0.0125 each" in text
+    assert "family alpha 0.05 over 6 statistical checks: 0.00833 each" in text
     header = next(line for line in text.splitlines() if line.startswith("check"))
     assert header.split() == ["check", "statistic", "acceptance", "region", "alpha", "verdict"]
     assert text.rstrip().endswith("all applicable checks passed")
@@ -144,7 +144,7 @@ def test_gaussian_coverage_and_its_negative_control(capsys, tmp_path):
                                       "--workers", "2"])
     assert code == 0, report["failed"]
     assert _status(report) == {"containment": NA, "bound": NA, "tightness": NA, "coverage": PASS,
-                               "nees": PASS, "nis": PASS, "plan": PASS}
+                               "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS}
     noisy = _variant(tmp_path, "paper-two-markers", "[sensor.actual]\nrelative_error = 2.0e-4\n"
                      "absolute_error = 0.0003\n", gauss)
     code, report = _validate(capsys, [noisy, "--runs", "6", "--workers", "2"])

@@ -8,7 +8,7 @@ deliberately wrong one (must fail the named check). No physics: these run in sec
 
 Statistical verdicts use fixed seeds; each check's false-alarm probability is the per-check
 alpha of the report (family 0.01 split over the statistical checks), so a model-drawn sweep
-fails a given check with probability at most 0.0025 per seed.
+fails a given check with probability at most 0.002 per seed.
 """
 
 from __future__ import annotations
@@ -107,18 +107,20 @@ def _status(report) -> dict[str, CheckStatus]:
 
 def test_model_sweep_passes_every_applicable_check(uniform_model):
     assert _status(uniform_model) == {"containment": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
-                                      "nees": PASS, "nis": PASS, "plan": PASS}
+                                      "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS,
+                                      "plan": PASS}
     assert uniform_model.passed and uniform_model.failed == []
     assert uniform_model.fixes == RUNS * FIXES_PER_RUN
 
 
 def test_bonferroni_split_over_the_statistical_checks_that_apply(uniform_model):
-    # tightness, nees, nis, plan apply; containment and bound cannot fail under the model.
-    assert uniform_model.statistical == 4
-    assert uniform_model.alpha_per_check == pytest.approx(0.01 / 4)
+    # tightness, nees, nis, nis_nrun, plan apply (no per-step table: nees_nrun does not);
+    # containment and bound cannot fail under the model.
+    assert uniform_model.statistical == 5
+    assert uniform_model.alpha_per_check == pytest.approx(0.01 / 5)
     alphas = {c.name: c.alpha for c in uniform_model.checks}
-    assert alphas == {"containment": 0.0, "bound": 0.0, "tightness": 0.0025, "coverage": None,
-                      "nees": 0.0025, "nis": 0.0025, "plan": 0.0025}
+    assert alphas == {"containment": 0.0, "bound": 0.0, "tightness": 0.002, "coverage": None,
+                      "nees": 0.002, "nis": 0.002, "nees_nrun": None, "nis_nrun": 0.002, "plan": 0.002}
     json.dumps(uniform_model.to_dict(), allow_nan=False)  # JSON-ready, no NaN
 
 
@@ -150,7 +152,7 @@ def test_gaussian_coverage_passes_and_an_understated_covariance_fails(tmp_path):
     sc = _scenario("gaussian")
     good = validation.validate(write_sweep(tmp_path / "good", sc, seed=4))
     assert _status(good) == {"containment": NA, "bound": NA, "tightness": NA, "coverage": PASS,
-                             "nees": PASS, "nis": PASS, "plan": PASS}
+                             "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS}
     bad = validation.validate(write_sweep(tmp_path / "bad", sc, seed=5, error_scale=2.0))
     assert bad.check("coverage").status is FAIL
     # Independent count: errors twice the model's leave ~1 - exp(-chi2_95 / 8) inside.
@@ -169,7 +171,7 @@ def test_nees_and_nis_against_scipy(uniform_model, tmp_path):
     n = uniform_model.check("nis").values["updates"]
     assert n == RUNS * FIXES_PER_RUN * 2
     lo, hi = uniform_model.check("nis").values["interval"]
-    a = 0.0025
+    a = uniform_model.alpha_per_check
     assert (lo, hi) == pytest.approx((stats.chi2.ppf(a / 2, n) / n, stats.chi2.isf(a / 2, n) / n))
     lo, hi = uniform_model.check("nees").values["interval"]
     dof = 3 * RUNS
@@ -181,7 +183,7 @@ def test_plan_fails_when_too_few_runs_stay_under_eps_max(tmp_path):
     plan = report.check("plan")
     # 1 of 5: the Clopper-Pearson upper bound p solves P(X <= 1 | 5, p) = alpha / 2 (0.87 < 0.95).
     assert plan.status is FAIL and plan.values["successes"] == 1
-    upper = optimize.brentq(lambda p: stats.binom.cdf(1, 5, p) - 0.0025 / 2, 0.01, 0.999999, xtol=1e-12)
+    upper = optimize.brentq(lambda p: stats.binom.cdf(1, 5, p) - report.alpha_per_check / 2, 0.01, 0.999999, xtol=1e-12)
     assert plan.values["ci"][1] == pytest.approx(upper)
 
 
