@@ -51,7 +51,7 @@ def _variant(tmp_path, name: str, extra: str, replace: tuple[str, str] = ("", ""
     return str(path)
 
 
-UNIFORM_BUILTIN = {"containment": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
+UNIFORM_BUILTIN = {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
                    "nees": PASS, "nis": PASS, "nees_nrun": PASS, "nis_nrun": PASS, "plan": PASS}
 
 
@@ -143,7 +143,7 @@ def test_gaussian_coverage_and_its_negative_control(capsys, tmp_path):
     code, report = _validate(capsys, [_variant(tmp_path, "paper-two-markers", "", gauss), "--runs", "12",
                                       "--workers", "2"])
     assert code == 0, report["failed"]
-    assert _status(report) == {"containment": NA, "bound": NA, "tightness": NA, "coverage": PASS,
+    assert _status(report) == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
                                "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS}
     noisy = _variant(tmp_path, "paper-two-markers", "[sensor.actual]\nrelative_error = 2.0e-4\n"
                      "absolute_error = 0.0003\n", gauss)

@@ -106,7 +106,7 @@ def _status(report) -> dict[str, CheckStatus]:
 
 
 def test_model_sweep_passes_every_applicable_check(uniform_model):
-    assert _status(uniform_model) == {"containment": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
+    assert _status(uniform_model) == {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
                                       "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS,
                                       "plan": PASS}
     assert uniform_model.passed and uniform_model.failed == []
@@ -115,11 +115,11 @@ def test_model_sweep_passes_every_applicable_check(uniform_model):
 
 def test_bonferroni_split_over_the_statistical_checks_that_apply(uniform_model):
     # tightness, nees, nis, nis_nrun, plan apply (no per-step table: nees_nrun does not);
-    # containment and bound cannot fail under the model.
+    # containment, promise and bound cannot fail under the model.
     assert uniform_model.statistical == 5
     assert uniform_model.alpha_per_check == pytest.approx(0.01 / 5)
     alphas = {c.name: c.alpha for c in uniform_model.checks}
-    assert alphas == {"containment": 0.0, "bound": 0.0, "tightness": 0.002, "coverage": None,
+    assert alphas == {"containment": 0.0, "promise": 0.0, "bound": 0.0, "tightness": 0.002, "coverage": None,
                       "nees": 0.002, "nis": 0.002, "nees_nrun": None, "nis_nrun": 0.002, "plan": 0.002}
     json.dumps(uniform_model.to_dict(), allow_nan=False)  # JSON-ready, no NaN
 
@@ -137,6 +137,9 @@ def test_three_times_the_noise_fails_containment_and_bound(tmp_path):
     s = _status(report)
     assert s["containment"] is FAIL and s["bound"] is FAIL
     assert report.check("containment").values["misses"] > 0
+    # three times the noise makes realised fault areas no larger (the bounds are the declared
+    # ones): the promise is about the size of the area, containment about where the truth is
+    assert s["promise"] is PASS
     assert report.check("bound").values["exceedances"] > 0
 
 
@@ -151,7 +154,7 @@ def test_a_third_of_the_noise_fails_tightness(tmp_path):
 def test_gaussian_coverage_passes_and_an_understated_covariance_fails(tmp_path):
     sc = _scenario("gaussian")
     good = validation.validate(write_sweep(tmp_path / "good", sc, seed=4))
-    assert _status(good) == {"containment": NA, "bound": NA, "tightness": NA, "coverage": PASS,
+    assert _status(good) == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
                              "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS}
     bad = validation.validate(write_sweep(tmp_path / "bad", sc, seed=5, error_scale=2.0))
     assert bad.check("coverage").status is FAIL
