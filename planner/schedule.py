@@ -17,8 +17,10 @@ Slowing down (the paper's compromise between speed and accuracy)
     search names is driven at half the speed and the search runs again: slower, the robot fixes
     more often per metre (the sensor's rate is in time), so drift between fixes shrinks too.
     Neither goes below ``planning.min_fix_speed``; a path is inadmissible only when that does
-    not help. The schedule's ``speed`` is the resulting profile and ``slowdown_time`` its cost. Fix starts are at least ``max(1 / fix_rate_hz, k * measurement_time)`` seconds apart.
-The first fix is taken at standstill at the start of the path (before departure).
+    not help. The schedule's ``speed`` is the resulting profile and ``slowdown_time`` its cost.
+
+Fix starts are at least ``max(1 / fix_rate_hz, k * measurement_time)`` seconds apart. The first
+fix is taken at standstill at the start of the path (before departure).
 
 Schedule choice (:func:`make_schedule`)
     The path is sampled at a fine spacing; every sample is a candidate fix start. A backward

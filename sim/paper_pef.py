@@ -296,7 +296,7 @@ def reproduce_planned_route(out: Path, options: Options, rng: np.random.Generato
 
 
 def _guarantee(mc_dir: Path, n: int) -> dict:
-    """The set-membership guarantee at every fix, under the static PEF and under the promise.
+    """Measure the set-membership guarantee at every fix, under the static PEF and under the promise.
 
     A fix keeps a prediction when its realised fault-area diameter is within it, allowing the
     promise check's tolerance (:mod:`sim.validation_promise`: 2 % and twice the polygonisation

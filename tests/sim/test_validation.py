@@ -106,7 +106,8 @@ def _status(report) -> dict[str, CheckStatus]:
 
 
 def test_model_sweep_passes_every_applicable_check(uniform_model):
-    assert _status(uniform_model) == {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
+    assert _status(uniform_model) == {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS,
+                                      "coverage": NA,
                                       "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS,
                                       "plan": PASS}
     assert uniform_model.passed and uniform_model.failed == []
