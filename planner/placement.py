@@ -28,15 +28,14 @@ point would be far too slow.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numba
 import numpy as np
+import tomli_w
 
 from planner import pef_kernels
 from planner.cover import MILP_TIME_LIMIT, PairCover, solve_exact
@@ -281,43 +280,6 @@ def _scenario_dict(sc: Scenario) -> dict:
     return d
 
 
-def _toml_key(k: str) -> str:
-    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else json.dumps(k)
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        if isinstance(v, float) and not math.isfinite(v):
-            return "nan" if v != v else ("-inf" if v < 0 else "inf")
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"no TOML form for {type(v).__name__}")
-
-
-def _toml(d: dict, prefix: str = "") -> list[str]:
-    """TOML lines of a dict: its plain keys, then sub-tables, then arrays of tables."""
-    def is_aot(v):
-        return isinstance(v, list) and v and all(isinstance(x, dict) for x in v)
-
-    lines = [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d.items()
-             if not isinstance(v, dict) and not is_aot(v)]
-    for k, v in d.items():
-        name = f"{prefix}{_toml_key(k)}"
-        if isinstance(v, dict):
-            lines += ["", f"[{name}]", *_toml(v, name + ".")]
-        elif is_aot(v):
-            for item in v:
-                lines += ["", f"[[{name}]]", *_toml(item, name + ".")]
-    return lines
-
-
 def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, path: str | Path) -> Path:
     """Write ``scenario`` with the placement's markers as a new scenario TOML file.
 
@@ -348,7 +310,7 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     if data is None:
         data = _scenario_dict(scenario)
     data["markers"] = [{"id": i, "position": [float(x), float(y)]} for i, (x, y) in result.markers]
-    text = "\n".join(_toml(data)).lstrip("\n") + "\n"
+    text = tomli_w.dumps(data)
     out = Path(path)
     scn.loads(text, source=str(out))  # a bug here must not leave a broken file behind
     try:

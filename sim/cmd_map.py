@@ -1,7 +1,7 @@
 """``pefsim map``: the PEF map of a scenario (PNG figure, NPZ arrays, JSON summary).
 
-Without ``-o``, ``--npz`` or ``--json`` it writes ``<scenario-name>-map.png`` in the current
-directory and prints a short summary.
+It prints a short summary (``--json``: a machine-readable one) and writes only what it is asked
+to: the figure with ``-o``, the arrays with ``--npz``, a recording with ``--rrd``.
 """
 
 from __future__ import annotations
@@ -116,8 +116,6 @@ def run(args: argparse.Namespace) -> int:
         pef_map = pef.grid(resolution)
     eps_max = sc.planning.eps_max
     png = args.output
-    if png is None and args.npz is None and not args.json:
-        png = f"{sc.name}-map.png"
     if args.npz is not None:
         _write_npz(Path(args.npz), pef_map)
     if png is not None:

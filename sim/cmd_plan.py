@@ -13,7 +13,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--to", dest="goal", metavar="B", help="goal dock (default: the first task's)")
     p.add_argument("--free", action="store_true",
                    help="free-space grid search even if there is a route network")
-    p.add_argument("-o", "--output", metavar="PNG", help="figure file (default: <name>-plan.png)")
+    p.add_argument("-o", "--output", metavar="PNG", help="write the figure here (nothing is written without it)")
     p.add_argument("--rrd", metavar="FILE",
                    help="write a rerun recording of the map, the candidate routes and the schedule")
     p.add_argument("--json", action="store_true", help="machine-readable output")
@@ -94,8 +94,8 @@ def run(args: argparse.Namespace) -> int:
         check_writable(args.rrd)
     pef = PEF(sc)
     plan = plan_route(sc, start, goal, free=True if args.free else None, pef=pef)
-    pef_map = pef.grid()
-    out = plot_plan(sc, plan, pef_map, args.output or f"{sc.name}-plan.png")
+    pef_map = pef.grid() if (args.output or args.rrd) else None
+    out = plot_plan(sc, plan, pef_map, args.output) if args.output else None
     if args.rrd:
         from sim.recording import write_static_rrd
 
@@ -116,5 +116,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"schedule: {len(sch.fixes)} fixes, {n_sw} marker switches, largest fix promise "
               f"{worst_fix * 1000:.2f} mm (moving fix), worst predicted error {sch.worst * 1000:.2f} mm; "
               f"{n_slow} fixes slowed down (+{sch.slowdown_time:.2f} s)")
-    print(f"wrote {out}")
+    if out is not None:
+        print(f"wrote {out}")
     return 0

@@ -65,13 +65,14 @@ def test_model_option_and_json_only_writes_no_file(tmp_path, capsys, monkeypatch
     assert doc["tau_max"] == pytest.approx(ref.tau[np.isfinite(ref.tau)].max())
 
 
-def test_default_writes_named_png_and_prints_a_summary(tmp_path, capsys, monkeypatch):
+def test_default_prints_a_summary_and_writes_nothing(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, _ = run_cli(capsys, "map", "paper-docks", "--resolution", "0.5")
     assert code == 0
-    png = tmp_path / "paper-docks-map.png"
-    assert png.read_bytes()[:8] == PNG_MAGIC
-    assert "navigation region" in out and "paper-docks-map.png" in out and "mm" in out
+    assert "navigation region" in out and "mm" in out and "wrote" not in out
+    assert list(tmp_path.iterdir()) == []
+    code, out, _ = run_cli(capsys, "map", "paper-docks", "--resolution", "0.5", "-o", "m.png")
+    assert (tmp_path / "m.png").read_bytes()[:8] == PNG_MAGIC and "wrote m.png" in out
 
 
 def test_bad_model_and_resolution_are_bad_input(capsys):

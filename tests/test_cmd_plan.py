@@ -62,12 +62,14 @@ def test_json_fields_and_consistency(docks_json):
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_text_output_and_default_figure_name(capsys, tmp_path, monkeypatch):
+def test_text_output_writes_nothing_unasked(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, err = run_cli(capsys, "plan", "paper-two-markers")
     assert code == 0 and err == ""
-    assert "chosen: F1" in out and "schedule:" in out
-    assert (tmp_path / "paper-two-markers-plan.png").is_file()
+    assert "chosen: F1" in out and "schedule:" in out and "wrote" not in out
+    assert list(tmp_path.iterdir()) == []
+    code, out, _ = run_cli(capsys, "plan", "paper-two-markers", "--json")
+    assert code == 0 and list(tmp_path.iterdir()) == []
 
 
 def test_free_flag(capsys, tmp_path):
