@@ -143,8 +143,11 @@ def test_gaussian_coverage_and_its_negative_control(capsys, tmp_path):
     code, report = _validate(capsys, [_variant(tmp_path, "paper-two-markers", "", gauss), "--runs", "12",
                                       "--workers", "2"])
     assert code == 0, report["failed"]
-    assert _status(report) == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
-                               "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS}
+    status = _status(report)
+    # with 12 runs the thinned per-step NEES may keep fewer than 10 steps (then not applicable)
+    assert status.pop("nees_nrun") in (PASS, NA)
+    assert status == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
+                      "nees": PASS, "nis": PASS, "nis_nrun": PASS, "plan": PASS}
     noisy = _variant(tmp_path, "paper-two-markers", "[sensor.actual]\nrelative_error = 2.0e-4\n"
                      "absolute_error = 0.0003\n", gauss)
     code, report = _validate(capsys, [noisy, "--runs", "6", "--workers", "2"])
