@@ -48,7 +48,7 @@ import numba
 import numpy as np
 from scipy import stats
 
-from estimators import motion
+from estimators import compiled, motion
 from estimators.measurements import bound_std, wrap_angle
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
@@ -395,3 +395,7 @@ class Localizer:
         z = float(measured_bearing)
         return self._gated_update(z, predicted, _wrap_scalar(z - predicted), self._bearing_var,
                                   _wrapped_residual)
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

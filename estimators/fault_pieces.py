@@ -15,6 +15,7 @@ import numba
 import numpy as np
 import shapely
 
+from estimators import compiled
 from estimators.annuli import arc_steps
 
 
@@ -95,3 +96,7 @@ def wedge_piece(marker, beta, xi, center, half):
     ring[1:, 0] = mx + length * np.cos(phi)
     ring[1:, 1] = my + length * np.sin(phi)
     return shapely.polygons(ring)
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

@@ -38,6 +38,7 @@ import math
 import numba
 import numpy as np
 
+from estimators import compiled
 from estimators.linearized import strip_max_vertex_sq_k
 from planner import pef_pairs
 from planner.kernel_threads import run_ranges
@@ -339,3 +340,7 @@ def best_subset_grid(x, y, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_pp
     px, py = np.tile(x, y.size), np.repeat(y, x.size)
     best_subset(px, py, mx, my, vis.reshape(vis.shape[0], -1), rel, ab, tan_xi, model, subsets, chi2_ppf,
                 tau.reshape(-1), best.reshape(-1, best.shape[-1]))
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

@@ -28,6 +28,7 @@ import math
 import numba
 import numpy as np
 
+from estimators import compiled
 from planner.pef_scalar import diagonal_of_offsets
 
 #: Grid tiles: rows x columns of cells per block.
@@ -320,3 +321,7 @@ def blocks_grid(t0, t1, x, y, mx, my, vis, rel, ab, subsets, margin, tau, best):
                 tau[cell + i] = taub[o + i]
             for i in range(u(2 * tw)):
                 best[u(2) * cell + i] = bestb[u(2) * o + i]
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

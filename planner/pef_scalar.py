@@ -12,6 +12,7 @@ import math
 import numba
 import numpy as np
 
+from estimators import compiled
 from estimators.linearized import info_lambda_max_inv_k, strip_max_vertex_sq_k
 
 PARALLELOGRAM, STRIPS, GDOP = 0, 1, 2
@@ -106,3 +107,7 @@ def subset_tau(model, px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b)
     if model == GDOP:
         return tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b)
     return tau_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

@@ -37,6 +37,7 @@ import numba
 import numpy as np
 import tomli_w
 
+from estimators import compiled
 from planner import pef_kernels
 from planner.cover import MILP_TIME_LIMIT, PairCover, solve_exact
 from planner.sites import candidate_sites, cover_points
@@ -318,3 +319,7 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     except OSError as exc:
         raise OutputError(f"{out}: cannot write the placed scenario: {exc}") from None
     return out
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

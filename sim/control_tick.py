@@ -7,10 +7,8 @@ the same compiled kernels the classes use (:func:`sim.physics.odometry.odometry_
 :func:`estimators.ekf.predict_step`, :func:`sim.follower.command_step`), so the two paths cannot
 drift apart. The objects stay the owners of their state: the kernel works on their arrays.
 
-numba caches ``_tick`` compiled with those kernels inlined, and its cache is keyed on this file
-only: after editing one of them, clear the cache (delete the ``__pycache__`` folders), or the
-episode keeps the old code (``tests/sim/test_control_tick.py`` then fails, as the classes
-recompile and the fused step does not).
+numba caches ``_tick`` compiled with those kernels inlined; :func:`estimators.compiled.keep_fresh`
+keys that cache on their files too, so an edit of any of them is compiled on the next import.
 """
 
 from __future__ import annotations
@@ -18,6 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from estimators import compiled
 from estimators.ekf import predict_step
 from sim.follower import command_step
 from sim.physics.odometry import odometry_step
@@ -86,3 +85,7 @@ class ControlTick:
         if used_up:
             odo.refill()
         return v, omega, done, s
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)
