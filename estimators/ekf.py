@@ -50,6 +50,7 @@ from scipy import stats
 
 from estimators import motion
 from estimators.measurements import bound_std, wrap_angle
+from estimators.motion_quantised import propagate_moments_quantised
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
 
@@ -90,8 +91,8 @@ def _wrap_scalar(a: float) -> float:
     return math.pi - (math.pi - a) % (2.0 * math.pi)
 
 
-# Localizer.predict_params (float64, shape (6,)): what a predict step needs besides x and P.
-WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED = range(6)
+# Localizer.predict_params (float64, shape (7,)): what a predict step needs besides x and P.
+WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED, QUANT_VAR = range(7)
 
 
 @numba.njit(cache=True)
@@ -106,14 +107,17 @@ def predict_step(x, P, d_left, d_right, params):
         The filter's state and covariance (:meth:`Localizer.state_arrays`).
     d_left, d_right : float
         Wheel travel measured by the encoders over the step (nominal radius) [m].
-    params : ndarray, shape (6,)
+    params : ndarray, shape (7,)
         :attr:`Localizer.predict_params`.
     """
     wheel_base, rel_var, base_var, q = params[WHEEL_BASE], params[REL_VAR], params[BASE_VAR], params[Q_SCALE]
     var_left = q * (rel_var * d_left * d_left + base_var)
     var_right = q * (rel_var * d_right * d_right + base_var)
-    if params[BIASED] > 0.0:
-        walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
+    walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
+    if params[QUANT_VAR] > 0.0:
+        propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right,
+                                    q * params[QUANT_VAR], walk_var)
+    elif params[BIASED] > 0.0:
         motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var)
     else:
         motion.propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right)
@@ -166,12 +170,20 @@ class Localizer:
         Random-walk std of ``e`` per square root of metre travelled (mean of both wheels)
         [1/sqrt(m)]; 0 (default) makes ``e`` a random constant. Only with
         ``estimate_wheel_bias``.
+    encoder_residual_state : bool
+        Model encoder quantisation exactly: the state gains each wheel's centred quantisation
+        residual ``(q_left, q_right)`` [m] (last two entries of :attr:`full_x`) and the white
+        ``tick^2 / 12`` term leaves the process noise (module docstring,
+        :mod:`estimators.motion_quantised`). Off by default (the white approximation).
+    residual0 : array_like, shape (2,), optional
+        The residuals at the start, centred [m], when they are known (the encoders were zeroed
+        at a known angle): used with variance 0. By default zero-mean with ``tick^2 / 12``.
     """
 
     def __init__(self, robot: RobotSpec, sensor: SensorSpec, markers, x0, P0,
                  gate_probability: float | None = 0.999, q_scale: float = 1.0,
                  include_systematic: bool = False, estimate_wheel_bias: bool = False,
-                 bias_walk_std: float = 0.0):
+                 bias_walk_std: float = 0.0, encoder_residual_state: bool = False, residual0=None):
         # filterpy imports all its subpackages (~1 s): only pay for it when a filter is built.
         from filterpy.kalman import ExtendedKalmanFilter
 
@@ -208,6 +220,12 @@ class Localizer:
         self._std_per_bound = bound_std(1.0, sensor.noise)
         self._bearing_var = (sensor.bearing_error * self._std_per_bound) ** 2
         self._variance_terms = motion.variance_terms(robot, include_systematic)
+        self.encoder_residual_state = bool(encoder_residual_state)
+        quant_var = 0.0
+        if self.encoder_residual_state:
+            # The residuals carry the quantisation: it leaves the white per-step term.
+            quant_var = self._variance_terms[1] - motion.VARIANCE_FLOOR
+            self._variance_terms = (self._variance_terms[0], motion.VARIANCE_FLOOR)
         self.estimate_wheel_bias = bool(estimate_wheel_bias)
         self.bias_walk_std = float(bias_walk_std)
         P0_sym = 0.5 * (P0_arr + P0_arr.T)
@@ -217,13 +235,23 @@ class Localizer:
             x0_arr = np.r_[x0_arr, 0.0]
             P0_sym = np.block([[P0_sym, np.zeros((3, 1))], [np.zeros((1, 3)), np.array([[bias_std**2]])]])
             dim = 4
+        if self.encoder_residual_state:
+            if residual0 is None:
+                q_mean, q_var = np.zeros(2), quant_var   # counted from an unknown point in a tick
+            else:
+                q_mean, q_var = _check_matrix("residual0", residual0, (2,)), 0.0
+            x0_arr = np.r_[x0_arr, q_mean]
+            P0_sym = np.block([[P0_sym, np.zeros((dim, 2))], [np.zeros((2, dim)), q_var * np.eye(2)]])
+            dim += 2
+        elif residual0 is not None:
+            raise SimulationError("Localizer: residual0: given without encoder_residual_state")
         self._kf = ExtendedKalmanFilter(dim_x=dim, dim_z=1)
         self._kf.x = np.ascontiguousarray(x0_arr)
         self._kf.x[2] = _wrap_scalar(self._kf.x[2])
         self._kf.P = np.ascontiguousarray(P0_sym)
         rel_var, base_var = self._variance_terms
         self.predict_params = np.array([robot.wheel_base, rel_var, base_var, self.q_scale,
-                                        self.bias_walk_std**2, float(self.estimate_wheel_bias)])
+                                        self.bias_walk_std**2, float(self.estimate_wheel_bias), quant_var])
         # Measurement model at the current state, filled before each filterpy update; the
         # wheel-error column (if any) stays 0.
         self._H = np.zeros((1, dim))

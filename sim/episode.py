@@ -133,7 +133,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     from estimators.ekf import Localizer
     from sim.fix_recorder import FixRecorder
     from sim.physics.laser import LaserSensor
-    from sim.physics.odometry import WheelOdometry
+    from sim.physics.odometry import WheelOdometry, centred_residual
 
     rng_start, rng_laser, rng_odo = _streams(ss)
     task = scenario.tasks[task_index]
@@ -152,11 +152,15 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             f"{scenario.source}: tasks[{task_index}]: {n_visible} marker(s) visible from dock {task.start} "
             f"at {list(dock.position)}, a fix needs {k}")
 
+    # The encoders are zeroed at the start angles, so their residuals there are known exactly.
+    angles0 = world.robot.wheel_angles()
+    residual0 = [centred_residual(float(a), robot) for a in angles0]
     loc = Localizer(robot, scenario.sensor, scenario.marker_positions(), np.array(dock.pose), P0,
-                    q_scale=q_scale, estimate_wheel_bias=True)
+                    q_scale=q_scale, estimate_wheel_bias=True, encoder_residual_state=True,
+                    residual0=residual0)
     # The simulated floor's random slip, per unit of travel, goes into the odometry readings;
     # the odometry's dead reckoning carries the ranges of a fix to its end (FixRecorder).
-    odo = WheelOdometry(robot, world.robot.wheel_angles(), np.array(dock.pose),
+    odo = WheelOdometry(robot, angles0, np.array(dock.pose),
                         slip_std=actual.odometry_noise, rng=rng_odo)
     fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
     follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
