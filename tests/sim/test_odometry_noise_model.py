@@ -34,8 +34,16 @@ from estimators.ekf import Localizer, predict_step
 from scenarios.schema import RobotSpec, SensorSpec
 from sim.episode import CONTROL_STEPS
 from sim.physics.config import PhysicsConfig
-from sim.physics.odometry import (NEXT_NORMAL, TICKS_LEFT, TICKS_PER_REV, TICKS_RIGHT, WheelOdometry, _arc, centred_residual,
-                                  odometry_step)
+from sim.physics.odometry import (
+    NEXT_NORMAL,
+    TICKS_LEFT,
+    TICKS_PER_REV,
+    TICKS_RIGHT,
+    WheelOdometry,
+    _arc,
+    centred_residual,
+    odometry_step,
+)
 
 ROBOT = RobotSpec()                 # the scenarios' defaults: 2048 ticks, 0.2 % wheel error, 1 % slip
 DT = CONTROL_STEPS * PhysicsConfig().time_step   # control step of an episode [s]
