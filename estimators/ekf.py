@@ -260,8 +260,7 @@ class Localizer:
 
     @property
     def full_x(self) -> np.ndarray:
-        """Whole state, a copy: shape (3,) pose, (4,) pose and wheel error ``e`` [-], and with the
-        encoder residuals [m] two more entries at the end."""
+        """Whole state, a copy: (3,) pose, (4,) with the wheel error ``e`` [-]; +2 encoder residuals [m]."""
         return self._kf.x.copy()
 
     @property
