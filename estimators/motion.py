@@ -32,8 +32,8 @@ standstill. The exact treatment carries the residuals as states:
 :mod:`estimators.motion_quantised`, selected by ``Localizer(encoder_residual_state=True)``
 (what an episode uses); there the per-wheel variance here keeps only the slip and the floor.
 
-The optional systematic term treats the DECLARED wheel-radius error bound (``RobotSpec.wheel_radius_error``) as a one-sigma white error per
-increment. A systematic error actually adds up linearly (n steps give n times the error, not
+The optional systematic term treats the DECLARED wheel-radius error bound
+(``RobotSpec.wheel_radius_error``) as a one-sigma white error per increment. A systematic error actually adds up linearly (n steps give n times the error, not
 sqrt(n) times), so the term does not model the accumulated drift of a biased wheel; it only
 widens the filter so a robot whose actual wheels differ from the nominal ones is not
 over-trusted. It is off by default. To model the coherent drift itself, estimate the error:
