@@ -182,9 +182,10 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     def read_odometry() -> None:
         d_left, d_right = odo.update(wheel_angles())
         predict(d_left, d_right)
+        counts["reads"] += 1
 
     next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
-    counts = {"merged": 0}
+    counts = {"merged": 0, "reads": 0}   # reads: odometry reads outside the control ticks
 
     fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
 
@@ -219,7 +220,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             if due_step < end:
                 world.step(max(due_step - world.steps, 0))
                 read_odometry()
-                fixes.measure_due(odo.pose, world.true_pose(), world.time)
+                # every control tick reads the odometry once: n of them so far
+                fixes.measure_due(odo.pose, world.true_pose(), world.time, n + counts["reads"])
             else:
                 world.step(end - world.steps)
 

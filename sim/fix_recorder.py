@@ -32,6 +32,7 @@ class _Pending:
     ranges: list[float] = field(default_factory=list)
     bearings: list[float] = field(default_factory=list)
     dr_at: list[np.ndarray] = field(default_factory=list)
+    reads_at: list[int | None] = field(default_factory=list)
     nis: float = 0.0
     accepted: int = 0
 
@@ -107,22 +108,47 @@ class FixRecorder:
         per_metre = 3.0 * r.odometry_noise + abs(r.wheel_radius_error) + 3.0 * heading_std
         return 2.0 * tick + per_metre * np.asarray(travelled)
 
-    def shift_var(self, travelled: np.ndarray) -> np.ndarray:
-        """Return the variance of the odometry error of a shift over ``travelled`` metres (M,) [m^2].
+    def shift_var(self, travelled: np.ndarray, reads: np.ndarray | None = None,
+                  along_cos: np.ndarray | None = None) -> np.ndarray:
+        """Return the variance of each range's error from the odometry error of its shift (M,) [m^2].
 
-        Quantisation of two encoder readings, random slip, the systematic wheel error, and the
-        filter's heading uncertainty turning the shift.
+        Along the shift: the two encoder readings' quantisation (the shift's error is the
+        difference of two residuals, ``tick^2 / 12`` for the wheels' mean; none when both ends
+        are the same reading) and the random slip, drawn per odometry read on each wheel
+        (``odometry_noise^2 d^2 / (2 n)`` for ``n`` equal increments). Across it: the filter's
+        heading uncertainty turning the shift. The wheel-radius error is left out: to first
+        order the wheels' mean travel does not see it. Each part is projected on the range's
+        direction.
+
+        Parameters
+        ----------
+        travelled : numpy.ndarray, shape (M,)
+            Length of each shift [m].
+        reads : numpy.ndarray, shape (M,), optional
+            Odometry reads over each shift; by default one (the slip of one increment).
+        along_cos : numpy.ndarray, shape (M,), optional
+            Cosine between each shift and its range's direction; by default 1 for the along
+            part and 1 for the across part (an upper bound).
         """
         r = self.scenario.robot
         tick = 2.0 * math.pi * r.wheel_radius / r.encoder_ticks
-        d = np.asarray(travelled)
-        per_metre = r.odometry_noise**2 + r.wheel_radius_error**2 + self.loc.heading_var
-        return tick**2 / 12.0 + per_metre * d**2
+        d = np.asarray(travelled, dtype=float)
+        n = np.ones(d.shape) if reads is None else np.asarray(reads, dtype=float)
+        along = np.where(n > 0, tick**2 / 12.0, 0.0) + r.odometry_noise**2 * d**2 / (2.0 * np.maximum(n, 1.0))
+        across = self.loc.heading_var * d**2
+        if along_cos is None:
+            return along + across
+        c2 = np.asarray(along_cos, dtype=float) ** 2
+        return along * c2 + across * (1.0 - c2)
 
     # -- measuring -----------------------------------------------------------------------
 
-    def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float) -> None:
-        """Take the measurement that is due now (the caller has predicted the EKF up to ``t``)."""
+    def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None = None) -> None:
+        """Take the measurement that is due now (the caller has predicted the EKF up to ``t``).
+
+        ``reads`` counts the odometry reads so far (any origin): the shifts' slip variance
+        depends on how many increments they span (None: counted as one, an upper bound).
+        """
         p = self.pending
         i = p.markers.pop(0)
         p.due.pop(0)
@@ -145,10 +171,11 @@ class FixRecorder:
             p.measured.append(i)
             p.ranges.append(m.measured_range)
             p.dr_at.append(np.array(dr_pose, dtype=float))
+            p.reads_at.append(reads)
         if not p.markers:
-            self._finish(dr_pose, true_pose, t)
+            self._finish(dr_pose, true_pose, t, reads)
 
-    def _finish(self, dr_end: np.ndarray, true_pose: np.ndarray, t: float) -> None:
+    def _finish(self, dr_end: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None) -> None:
         p, self.pending = self.pending, None
         if len(p.measured) < 2:
             self.skipped += 1  # a marker vanished behind an obstacle mid-fix: no fix
@@ -161,12 +188,20 @@ class FixRecorder:
         rot = float(x_est[2]) - float(dr_end[2])
         c, s = math.cos(rot), math.sin(rot)
         ex, ey = float(dr_end[0]), float(dr_end[1])
-        shifted, travelled = np.empty((len(idx), 2)), np.empty(len(idx))
+        shifted, travelled, along_cos = np.empty((len(idx), 2)), np.empty(len(idx)), np.ones(len(idx))
+        px, py = float(x_est[0]), float(x_est[1])
         for j, (i, at) in enumerate(zip(p.measured, p.dr_at, strict=True)):
             dx, dy = ex - float(at[0]), ey - float(at[1])
-            shifted[j, 0] = self.markers[i, 0] + (c * dx - s * dy)
-            shifted[j, 1] = self.markers[i, 1] + (s * dx + c * dy)
+            wx, wy = c * dx - s * dy, s * dx + c * dy
+            shifted[j, 0] = self.markers[i, 0] + wx
+            shifted[j, 1] = self.markers[i, 1] + wy
             travelled[j] = math.hypot(dx, dy)
+            ux, uy = px - shifted[j, 0], py - shifted[j, 1]
+            norm = travelled[j] * math.hypot(ux, uy)
+            if norm > 0.0:
+                along_cos[j] = (wx * ux + wy * uy) / norm
+        reads_over = (None if reads is None or None in p.reads_at
+                      else np.array([reads - at for at in p.reads_at], dtype=float))
         ranges = np.array(p.ranges)
         rho = self.sensor.range_bound(ranges)
         # The shift is itself measured: the fault area widens each range by a bound on the
@@ -183,7 +218,8 @@ class FixRecorder:
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
-                            extra_var=self.shift_var(travelled), fault_margin=self.shift_bound(travelled))
+                            extra_var=self.shift_var(travelled, reads_over, along_cos),
+                            fault_margin=self.shift_bound(travelled))
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty
