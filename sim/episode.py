@@ -129,11 +129,44 @@ def run_episode(scenario: Scenario, task_index: int = 0, seed: int | np.random.S
             world.close()
 
 
-def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> EpisodeResult:
+def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float = 1.0, **overrides):
+    """Build the filter an episode runs, on the declared robot and sensor.
+
+    The pose with the relative wheel-radius error and both encoders' quantisation residuals in
+    the state (:mod:`estimators.ekf`); the encoders are zeroed at ``wheel_angles``, so the
+    residuals there are known exactly.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    pose : array_like, shape (3,)
+        Start estimate (x [m], y [m], theta [rad]).
+    P0 : array_like, shape (3, 3)
+        Its covariance.
+    wheel_angles : array_like, shape (2,)
+        Wheel angles (left, right) where the odometry starts counting [rad].
+    q_scale : float
+        Multiplies the process noise (1 = the declared model; negative controls).
+    **overrides
+        Other :class:`estimators.ekf.Localizer` arguments, for tests that compare models.
+
+    Returns
+    -------
+    estimators.ekf.Localizer
+    """
     from estimators.ekf import Localizer
+    from sim.physics.odometry import centred_residual
+
+    kw = {"q_scale": q_scale, "estimate_wheel_bias": True, "encoder_residual_state": True, **overrides}
+    if kw["encoder_residual_state"] and "residual0" not in kw:
+        kw["residual0"] = [centred_residual(float(a), scenario.robot) for a in wheel_angles]
+    return Localizer(scenario.robot, scenario.sensor, scenario.marker_positions(), pose, P0, **kw)
+
+
+def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> EpisodeResult:
     from sim.fix_recorder import FixRecorder
     from sim.physics.laser import LaserSensor
-    from sim.physics.odometry import WheelOdometry, centred_residual
+    from sim.physics.odometry import WheelOdometry
 
     rng_start, rng_laser, rng_odo = _streams(ss)
     task = scenario.tasks[task_index]
@@ -152,12 +185,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             f"{scenario.source}: tasks[{task_index}]: {n_visible} marker(s) visible from dock {task.start} "
             f"at {list(dock.position)}, a fix needs {k}")
 
-    # The encoders are zeroed at the start angles, so their residuals there are known exactly.
     angles0 = world.robot.wheel_angles()
-    residual0 = [centred_residual(float(a), robot) for a in angles0]
-    loc = Localizer(robot, scenario.sensor, scenario.marker_positions(), np.array(dock.pose), P0,
-                    q_scale=q_scale, estimate_wheel_bias=True, encoder_residual_state=True,
-                    residual0=residual0)
+    loc = episode_localizer(scenario, np.array(dock.pose), P0, angles0, q_scale=q_scale)
     # The simulated floor's random slip, per unit of travel, goes into the odometry readings;
     # the odometry's dead reckoning carries the ranges of a fix to its end (FixRecorder).
     odo = WheelOdometry(robot, angles0, np.array(dock.pose),
