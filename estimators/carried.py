@@ -69,11 +69,15 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
     return np.where(d > 0.0, tick + per_metre * d, 0.0)
 
 
-def shift_var(robot: RobotSpec, travelled, heading_var: float) -> np.ndarray:
-    """Variance of the odometry error of a shift over ``travelled`` metres [m^2].
+def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along_cos=None) -> np.ndarray:
+    """Variance of each range's error from the odometry error of its shift [m^2].
 
-    Quantisation of two encoder readings, random slip, the systematic wheel error, and the
-    heading uncertainty turning the shift; 0 for a shift of exactly 0.
+    Along the shift: the two encoder readings' quantisation (the shift's error is the
+    difference of two residuals, ``tick^2 / 12`` for the wheels' mean; none when both ends are
+    the same reading) and the random slip, drawn per odometry read on each wheel
+    (``odometry_noise^2 d^2 / (2 n)`` for ``n`` equal increments). Across it: the heading
+    uncertainty turning the shift. The wheel-radius error is left out: to first order the
+    wheels' mean travel does not see it. Each part is projected on the range's direction.
 
     Parameters
     ----------
@@ -83,16 +87,28 @@ def shift_var(robot: RobotSpec, travelled, heading_var: float) -> np.ndarray:
         Length of each shift [m], >= 0.
     heading_var : float
         Variance of the heading the shift is turned with [rad^2].
+    reads : array_like, shape (k,), optional
+        Odometry reads over each shift; by default one (the slip of one increment).
+    along_cos : array_like, shape (k,), optional
+        Cosine between each shift and its range's direction; by default 1 for the along part
+        and 1 for the across part (an upper bound).
 
     Returns
     -------
     numpy.ndarray, shape (k,)
-        Variance [m^2].
+        Variance [m^2]; 0 for a shift of exactly 0.
     """
     d = np.asarray(travelled, dtype=float)
     tick = encoder_tick(robot)
-    per_metre = robot.odometry_noise**2 + robot.wheel_radius_error**2 + max(heading_var, 0.0)
-    return np.where(d > 0.0, tick * tick / 12.0 + per_metre * d * d, 0.0)
+    n = np.ones(d.shape) if reads is None else np.asarray(reads, dtype=float)
+    along = np.where(n > 0, tick**2 / 12.0, 0.0) + robot.odometry_noise**2 * d**2 / (2.0 * np.maximum(n, 1.0))
+    across = max(heading_var, 0.0) * d**2
+    if along_cos is None:
+        out = along + across
+    else:
+        c2 = np.asarray(along_cos, dtype=float) ** 2
+        out = along * c2 + across * (1.0 - c2)
+    return np.where(d > 0.0, out, 0.0)
 
 
 def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -24,16 +24,49 @@ with variance (``wheel_variances``)
           [+ (wheel_radius_error * |d_w|)**2]       optional, see below
 
 and the pose covariance grows by ``Q = G diag(var_left, var_right) G^T``. The quantisation term
-is a white approximation: a real encoder's count error is bounded and does not accumulate, so
-over many steps this term is pessimistic. The optional systematic term treats the DECLARED
-wheel-radius error bound (``RobotSpec.wheel_radius_error``) as a one-sigma white error per
-increment. A systematic error actually adds up linearly (n steps give n times the error, not
-sqrt(n) times), so the term does not model the accumulated drift of a biased wheel; it only
-widens the filter so a robot whose actual wheels differ from the nominal ones is not
-over-trusted. It is off by default. To model the coherent drift itself, estimate the error:
-:func:`propagate_moments_biased` propagates the pose augmented with the relative wheel-radius
-error ``e`` (a random constant in the state, see :class:`estimators.ekf.Localizer`'s
-``estimate_wheel_bias``).
+is a white approximation: a real encoder's count error is bounded and does not accumulate (the
+reported travel is ``true + q_{k-1} - q_k`` with ``q`` the residual below the last tick edge, so
+the errors telescope: an MA(1) noise), and over many steps this term is pessimistic: over 24
+steps at 60 Hz (0.4 s between fixes) it halves the pose NEES (1.53 against 3), and it grows at
+standstill. The exact treatment carries the residuals as states:
+:mod:`estimators.motion_quantised`, selected by ``Localizer(encoder_residual_state=True)``
+(what an episode uses); there the per-wheel variance here keeps only the slip and the floor.
+
+The optional systematic term treats the DECLARED wheel-radius error bound
+(``RobotSpec.wheel_radius_error``) as a one-sigma white error per increment. A systematic error
+actually adds up linearly (n steps give n times the error, not sqrt(n) times), so the term does
+not model the accumulated drift of a biased wheel; it only widens the filter so a robot whose
+actual wheels differ from the nominal ones is not over-trusted. It is off by default. To model
+the coherent drift itself, estimate the error: :func:`propagate_moments_biased` propagates the
+pose augmented with the relative wheel-radius error ``e`` (a random constant in the state, see
+:class:`estimators.ekf.Localizer`'s ``estimate_wheel_bias``).
+
+Checked against the simulated hardware (warehouse episodes) and left as it is:
+- physics slip of PyBullet's wheel contacts along the wheels: true travel over kinematic travel
+  with the actual radii is 1 + 1.9e-5 (left) and 1 + 0.9e-5 (right), ~1 mm over 40 m: below
+  1e-3 of the declared random slip's variance (1 % per increment, ~0.15 mm per 60 Hz step) over
+  any window between fixes, so not modelled;
+- NOT modelled, and the largest remaining mismatch: sideways slip in turns. The chassis slides
+  outwards at a slip angle of 2.6e-3 rad per m/s^2 of centripetal acceleration (a fit that
+  explains 94 % of the per-step lateral residual; ~0.3-0.6 mm between two fixes in a
+  0.5 m/s^2 turn, ~3 mm over a 2 s turn). The filter is optimistic there (warehouse: NEES 3.6
+  over its 1 m/s, 0.57 rad/s turn, 2.9-3.0 on the straights; 3.09 on average over 200 runs).
+  Modelling it needs the step's duration in the predict (the slip angle is ``k v omega``) and a
+  declared cornering compliance ``k``;
+- NOT modelled either, and what makes ``paper-two-markers`` (0.1 mm laser, 5 cm wheels) fail NIS
+  (1.042 against [0.964, 1.037] at 200 runs): its robot creeps against the kinematics at
+  ~+0.06 mm/s along and ~+0.1 mm/s sideways at a steady 0.5 m/s (a crab angle of ~2e-4 rad) and
+  at -0.14 mm/s along, -0.24 mm/s sideways while braking at 0.45 m/s^2 (a creep proportional to
+  the traction force); pose NEES there is 5.6 over the last second. The white quantisation
+  term used to hide it; a model needs the step's duration and declared creep coefficients;
+- wheel-radius error: the simulated wheels are ``r (1 -/+ e)`` with the actual ``e`` (0.002 in
+  the built-ins) and the filter's prior std is ``|e|``: the squared error of the prior mean
+  equals its variance, what consistency asks of a random constant;
+- slip: the simulation draws ``slip * |d| * N(0, 1)`` on the quantised travel, the model's
+  ``odometry_noise^2 d^2`` uses the reported travel: a factor ``1 + odometry_noise^2`` apart;
+- standstill on the dock: with the residual states the pose covariance stays bounded; the
+  white term added ``tick^2 / 12`` per wheel and step for as long as the robot held (a few
+  steps per episode: the first fix takes 40 ms).
 
 Hot paths are numba kernels (``cache=True``); the first call in a fresh environment compiles.
 """

@@ -4,7 +4,8 @@ At 60 Hz the control step runs ~2,500 times per minute-long episode, and thousan
 make a sweep. Done as Python calls (encoders, dead reckoning, filter predict, logging, pure
 pursuit) it cost ~30 us per step against ~225 us of physics; chained here it is one dispatch of
 the same compiled kernels the classes use (:func:`sim.physics.odometry.odometry_step`,
-:func:`estimators.ekf.predict_step`, :func:`sim.follower.command_step`), so the two paths cannot
+:func:`estimators.predict.predict_step` with the motion kernels of :mod:`estimators.motion` and
+:mod:`estimators.motion_quantised`, :func:`sim.follower.command_step`), so the two paths cannot
 drift apart. The objects stay the owners of their state: the kernel works on their arrays.
 
 numba caches ``_tick`` compiled with those kernels inlined; :func:`estimators.compiled.keep_fresh`

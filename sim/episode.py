@@ -129,8 +129,41 @@ def run_episode(scenario: Scenario, task_index: int = 0, seed: int | np.random.S
             world.close()
 
 
-def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> EpisodeResult:
+def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float = 1.0, **overrides):
+    """Build the filter an episode runs, on the declared robot and sensor.
+
+    The pose with the relative wheel-radius error and both encoders' quantisation residuals in
+    the state (:mod:`estimators.ekf`); the encoders are zeroed at ``wheel_angles``, so the
+    residuals there are known exactly.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    pose : array_like, shape (3,)
+        Start estimate (x [m], y [m], theta [rad]).
+    P0 : array_like, shape (3, 3)
+        Its covariance.
+    wheel_angles : array_like, shape (2,)
+        Wheel angles (left, right) where the odometry starts counting [rad].
+    q_scale : float
+        Multiplies the process noise (1 = the declared model; negative controls).
+    **overrides
+        Other :class:`estimators.ekf.Localizer` arguments, for tests that compare models.
+
+    Returns
+    -------
+    estimators.ekf.Localizer
+    """
     from estimators.ekf import Localizer
+    from sim.physics.odometry import centred_residual
+
+    kw = {"q_scale": q_scale, "estimate_wheel_bias": True, "encoder_residual_state": True, **overrides}
+    if kw["encoder_residual_state"] and "residual0" not in kw:
+        kw["residual0"] = [centred_residual(float(a), scenario.robot) for a in wheel_angles]
+    return Localizer(scenario.robot, scenario.sensor, scenario.marker_positions(), pose, P0, **kw)
+
+
+def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> EpisodeResult:
     from sim.fix_recorder import FixRecorder
     from sim.physics.laser import LaserSensor
     from sim.physics.odometry import WheelOdometry
@@ -152,11 +185,11 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             f"{scenario.source}: tasks[{task_index}]: {n_visible} marker(s) visible from dock {task.start} "
             f"at {list(dock.position)}, a fix needs {k}")
 
-    loc = Localizer(robot, scenario.sensor, scenario.marker_positions(), np.array(dock.pose), P0,
-                    q_scale=q_scale, estimate_wheel_bias=True)
+    angles0 = world.robot.wheel_angles()
+    loc = episode_localizer(scenario, np.array(dock.pose), P0, angles0, q_scale=q_scale)
     # The simulated floor's random slip, per unit of travel, goes into the odometry readings;
     # the odometry's dead reckoning carries the ranges of a fix to its end (FixRecorder).
-    odo = WheelOdometry(robot, world.robot.wheel_angles(), np.array(dock.pose),
+    odo = WheelOdometry(robot, angles0, np.array(dock.pose),
                         slip_std=actual.odometry_noise, rng=rng_odo)
     fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
     follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
@@ -183,9 +216,10 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     def read_odometry() -> None:
         d_left, d_right = odo.update(wheel_angles())
         predict(d_left, d_right)
+        counts["reads"] += 1
 
     next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
-    counts = {"merged": 0}
+    counts = {"merged": 0, "reads": 0}   # reads: odometry reads outside the control ticks
 
     fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
 
@@ -220,7 +254,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             if due_step < end:
                 world.step(max(due_step - world.steps, 0))
                 read_odometry()
-                fixes.measure_due(odo.pose, world.true_pose(), world.time)
+                # every control tick reads the odometry once: n of them so far
+                fixes.measure_due(odo.pose, world.true_pose(), world.time, n + counts["reads"])
             else:
                 world.step(end - world.steps)
 

@@ -36,6 +36,7 @@ class _Pending:
     ranges: list[float] = field(default_factory=list)
     bearings: list[float] = field(default_factory=list)
     dr_at: list[np.ndarray] = field(default_factory=list)
+    reads_at: list[int | None] = field(default_factory=list)
     nis: float = 0.0
     accepted: int = 0
     scheduled: object = None
@@ -110,8 +111,12 @@ class FixRecorder:
 
     # -- measuring -----------------------------------------------------------------------
 
-    def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float) -> None:
-        """Take the measurement that is due now (the caller has predicted the EKF up to ``t``)."""
+    def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None = None) -> None:
+        """Take the measurement that is due now (the caller has predicted the EKF up to ``t``).
+
+        ``reads`` counts the odometry reads so far (any origin): the shifts' slip variance
+        depends on how many increments they span (None: counted as one, an upper bound).
+        """
         p = self.pending
         slot = p.attempted
         p.attempted += 1
@@ -137,10 +142,11 @@ class FixRecorder:
             p.slots.append(slot)
             p.ranges.append(m.measured_range)
             p.dr_at.append(np.array(dr_pose, dtype=float))
+            p.reads_at.append(reads)
         if not p.markers:
-            self._finish(dr_pose, true_pose, t)
+            self._finish(dr_pose, true_pose, t, reads)
 
-    def _finish(self, dr_end: np.ndarray, true_pose: np.ndarray, t: float) -> None:
+    def _finish(self, dr_end: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None) -> None:
         p, self.pending = self.pending, None
         if len(p.measured) < 2:
             self.skipped += 1  # a marker vanished behind an obstacle mid-fix: no fix
@@ -153,6 +159,13 @@ class FixRecorder:
         at = np.array([[float(d[0]), float(d[1])] for d in p.dr_at])
         shifted, travelled = carry(self.markers[idx], at, (float(dr_end[0]), float(dr_end[1])),
                                    float(x_est[2]) - float(dr_end[2]))
+        # each shift's direction against its range's (from the shifted marker to the estimate)
+        w = shifted - self.markers[idx]
+        u = x_est[:2] - shifted
+        norm = travelled * np.hypot(u[:, 0], u[:, 1])
+        along_cos = np.where(norm > 0.0, (w * u).sum(axis=1) / np.where(norm > 0.0, norm, 1.0), 1.0)
+        reads_over = (None if reads is None or None in p.reads_at
+                      else np.array([reads - at for at in p.reads_at], dtype=float))
         ranges = np.array(p.ranges)
         rho = self.sensor.range_bound(ranges)
         heading_var = max(self.loc.heading_var, 0.0)  # the shift is turned with the filter's heading
@@ -170,7 +183,7 @@ class FixRecorder:
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
-                            extra_var=shift_var(self.robot, travelled, heading_var),
+                            extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos),
                             fault_margin=shift_bound(self.robot, travelled, math.sqrt(heading_var)))
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)

@@ -30,6 +30,17 @@ def encoder_ticks(angle: float, ticks_per_rev: int) -> int:
     return math.floor(angle * ticks_per_rev / (2.0 * math.pi))
 
 
+def centred_residual(angle: float, spec: RobotSpec) -> float:
+    """Part of the wheel's rotation at ``angle`` [rad] below its last tick edge, as travel, centred [m].
+
+    ``r angle - tick * count - tick / 2`` (nominal radius ``r``, ``tick = 2 pi r / encoder_ticks``):
+    in ``[-tick/2, tick/2)``, the quantisation residual the filter's encoder state
+    (:mod:`estimators.motion_quantised`) holds.
+    """
+    tick = 2.0 * math.pi * spec.wheel_radius / spec.encoder_ticks
+    return spec.wheel_radius * angle - tick * encoder_ticks(angle, spec.encoder_ticks) - 0.5 * tick
+
+
 def integrate_arc(pose: np.ndarray, d_left: float, d_right: float, wheel_base: float) -> np.ndarray:
     """Dead-reckon one step of a differential drive along a circular arc.
 

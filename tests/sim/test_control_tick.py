@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 import scenarios
 from estimators.ekf import Localizer
@@ -13,20 +14,22 @@ from sim.follower import PurePursuit
 from sim.physics.odometry import WheelOdometry
 
 
-def _parts(sc, path):
+def _parts(sc, path, kw):
     pose0 = np.array([0.0, 0.0, 0.0])
     loc = Localizer(sc.robot, sc.sensor, sc.marker_positions(), pose0, np.diag([1e-6, 1e-6, 1e-6]),
-                    estimate_wheel_bias=True)
+                    estimate_wheel_bias=True, **kw)
     odo = WheelOdometry(sc.robot, np.zeros(2), pose0, slip_std=0.01, rng=np.random.default_rng(3))
     fol = PurePursuit(path=path, speed=np.full(len(path), 0.8), max_speed=1.0, max_yaw_rate=1.0)
     return loc, odo, fol
 
 
-def test_compiled_step_matches_the_objects_methods():
+@pytest.mark.parametrize("kw", [{}, {"encoder_residual_state": True, "residual0": [1e-5, -2e-5]}],
+                         ids=["bias", "bias+encoder-residuals (the episode's)"])
+def test_compiled_step_matches_the_objects_methods(kw):
     sc = scenarios.load("paper-two-markers")
     path = np.column_stack([np.linspace(0.0, 4.0, 81), 0.3 * np.sin(np.linspace(0.0, 3.0, 81))])
-    loc_a, odo_a, fol_a = _parts(sc, path)
-    loc_b, odo_b, fol_b = _parts(sc, path)
+    loc_a, odo_a, fol_a = _parts(sc, path, kw)
+    loc_b, odo_b, fol_b = _parts(sc, path, kw)
     n = 700  # > 512 steps: the slip normals' block is refilled on the way
     log = np.empty((n, LOG_COLUMNS))
     tick = ControlTick(odo_b, loc_b, fol_b, log, 1 / 60)
@@ -65,7 +68,7 @@ def test_the_log_holds_the_estimate_after_the_predict():
     # from the logged one, so a log written too early would be caught.
     sc = scenarios.load("paper-two-markers")
     path = np.column_stack([np.linspace(0.0, 4.0, 81), np.zeros(81)])
-    loc, odo, fol = _parts(sc, path)
+    loc, odo, fol = _parts(sc, path, {})
     log = np.empty((1, LOG_COLUMNS))
     before = loc.x
     ControlTick(odo, loc, fol, log, 1 / 60)((0.5, 0.6), (0.0, 0.0, 0.0), 0.0, 0, 0.0, True)
