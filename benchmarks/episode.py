@@ -30,7 +30,7 @@ from pathlib import Path
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 import scenarios  # noqa: E402
-from sim.episode import prepare, run_episode  # noqa: E402
+from sim.episode.drive import prepare, run_episode  # noqa: E402
 from sim.physics.world import PhysicsWorld  # noqa: E402
 
 

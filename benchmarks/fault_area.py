@@ -28,10 +28,11 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__)
 import numpy as np  # noqa: E402
 
 import scenarios  # noqa: E402
-import sim.episode  # noqa: E402
-import sim.fix_recorder  # noqa: E402
-from estimators import fault_area, lsq  # noqa: E402
-from estimators.annuli import two_annuli_region  # noqa: E402
+import sim.episode.drive  # noqa: E402
+import sim.episode.fixes  # noqa: E402
+from estimators import lsq  # noqa: E402
+from estimators.fault import exact as fault_area  # noqa: E402
+from estimators.fault.annuli import two_annuli_region  # noqa: E402
 from estimators.measurements import range_std  # noqa: E402
 from estimators.snapshot import snapshot_fix  # noqa: E402
 
@@ -44,12 +45,12 @@ def record_fixes(name: str = "warehouse") -> list[tuple[tuple, dict]]:
         calls.append((args, kwargs))
         return snapshot_fix(*args, **kwargs)
 
-    original = sim.fix_recorder.snapshot_fix
-    sim.fix_recorder.snapshot_fix = recording
+    original = sim.episode.fixes.snapshot_fix
+    sim.episode.fixes.snapshot_fix = recording
     try:
-        sim.episode.run_episode(scenarios.load(name), 0, seed=1)
+        sim.episode.drive.run_episode(scenarios.load(name), 0, seed=1)
     finally:
-        sim.fix_recorder.snapshot_fix = original
+        sim.episode.fixes.snapshot_fix = original
     if not calls:
         raise SystemExit("benchmark: the episode made no snapshot fixes (did fix_recorder change?)")
     return calls

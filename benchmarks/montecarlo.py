@@ -37,8 +37,8 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__)
 import numpy as np  # noqa: E402
 
 import scenarios  # noqa: E402
-from sim import results  # noqa: E402
-from sim.montecarlo import default_api, sweep  # noqa: E402
+from sim.montecarlo import results  # noqa: E402
+from sim.montecarlo.engine import default_api, sweep  # noqa: E402
 
 SCENARIO = "paper-docks"
 
@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> dict:
                    harness_overhead_target=0.05, sweep_vs_bare=round(wall_1 / (n * episode_s), 3),
                    cpu_per_run_1=round(cpu_1, 3), cpu_per_run_2=round(cpu_2, 3))
         if not args.no_ray and importlib.util.find_spec("ray") is not None:
-            from sim.executors import start_ray
+            from sim.montecarlo.executors import start_ray
 
             start = time.perf_counter()
             ray, _ = start_ray(2, None)

@@ -130,7 +130,7 @@ import time, sys
 t0 = time.perf_counter()
 sys.path.insert(0, {root!r})
 import scenarios
-from planner.pef import PEF
+from planner.pef.map import PEF
 sc = scenarios.load("warehouse")
 t1 = time.perf_counter()
 for model in ("parallelogram", "gdop"):
@@ -163,9 +163,9 @@ def main() -> None:
     ap.add_argument("--no-cold", action="store_true", help="skip the cold-compile subprocess")
     args = ap.parse_args()
 
-    from estimators.linearized import chi2_2dof_ppf
-    from planner.pef import PEF
-    from planner.visibility import box_params
+    from estimators.fault.linearized import chi2_2dof_ppf
+    from planner.pef.map import PEF
+    from planner.pef.visibility import box_params
 
     load_before = os.getloadavg()[0]
     warm = first_call_overhead(None)

@@ -23,9 +23,9 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 import numpy as np  # noqa: E402
 
 import scenarios  # noqa: E402
-from planner import cover, placement  # noqa: E402
-from planner.pef import PEF  # noqa: E402
-from planner.sites import candidate_sites, route_points  # noqa: E402
+from planner.pef.map import PEF  # noqa: E402
+from planner.placement import cover, placement  # noqa: E402
+from planner.placement.sites import candidate_sites, route_points  # noqa: E402
 
 N_SITES, N_POINTS, BASELINE_PAIRS = 200, 2000, 200
 

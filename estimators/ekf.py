@@ -50,7 +50,7 @@ the encoders at known angles. ``q_scale`` scales the residual variance too.
 Also checked against the simulation and not modelled, because it is negligible: ``R`` at the
 predicted instead of the true range (``Re * |error|`` ~ 1e-7 m against ``rho`` ~ 2 mm); the laser
 sits at the axle midpoint, the point the pose describes, and each measurement is taken at the
-physics step the odometry was read and predicted to (``sim.episode``): no lever arm, no time
+physics step the odometry was read and predicted to (``sim.episode.drive``): no lever arm, no time
 offset. The odometry side (physics slip, wheel-radius prior, slip model, standstill) is in
 :mod:`estimators.motion`.
 """

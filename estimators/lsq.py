@@ -139,7 +139,7 @@ def solve_position(markers: np.ndarray, meas_ranges: np.ndarray, std: np.ndarray
     Minimises ``sum(residual_j^2 / std_j^2)`` starting at ``prior``, halving steps that do not
     decrease it. This usually stays on the prior's side of the line through two markers but
     does not guarantee it: :func:`estimators.snapshot.snapshot_fix` and
-    :func:`estimators.fault_area.exact_fault_area` resolve the mirror ambiguity explicitly.
+    :func:`estimators.fault.exact.exact_fault_area` resolve the mirror ambiguity explicitly.
 
     Parameters
     ----------

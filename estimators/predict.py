@@ -1,7 +1,7 @@
 """The Localizer's predict step as one compiled kernel over its state arrays.
 
 Kept apart from :mod:`estimators.ekf` (which re-exports it) so that a control loop can call it
-from compiled code (``sim.control_tick``). Which motion model runs is chosen by
+from compiled code (``sim.episode.control_tick``). Which motion model runs is chosen by
 ``params``: with ``QUANT_VAR > 0`` the encoder residuals are states
 (:func:`estimators.motion_quantised.propagate_moments_quantised`), else the pose alone or the
 pose with the wheel-radius error (:mod:`estimators.motion`).
@@ -24,7 +24,7 @@ WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED, QUANT_VAR = range(7)
 def predict_step(x, P, d_left, d_right, params):
     """Run the Localizer's predict on its state arrays, in place (see :meth:`Localizer.predict`).
 
-    Compiled so that a control loop can call it from compiled code (``sim.control_tick``).
+    Compiled so that a control loop can call it from compiled code (``sim.episode.control_tick``).
 
     Parameters
     ----------

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.annuli import marker_side
-from estimators.fault_area import FaultArea, exact_fault_area
+from estimators.fault.annuli import marker_side
+from estimators.fault.exact import FaultArea, exact_fault_area
 from estimators.lsq import solve_position
 from estimators.measurements import (
     bearing_std,

@@ -200,7 +200,7 @@ class PlanningSpec:
     """Lexicographic criteria order; empty means weighted sum."""
     heading_std_deg: float = 0.3
     """Heading std of the filter the promise of a moving fix assumes [deg] (it turns the
-    odometry shift of the fix's earlier ranges, :mod:`estimators.carried`)."""
+    odometry shift of the fix's earlier ranges, :mod:`estimators.fault.carried`)."""
     min_fix_speed: float = 0.05
     """Slowest speed the planner may slow down to for a fix [m/s]."""
 

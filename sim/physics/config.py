@@ -2,7 +2,7 @@
 
 The defaults are chosen for speed: 20 solver iterations instead of pybullet's 50 (a step
 costs ~0.75x; see ``benchmarks/physics.py``). The test
-``tests/sim/test_world.py::test_fast_config_tracks_reference`` shows that a fixed ~20 s
+``tests/sim/physics/test_world.py::test_fast_config_tracks_reference`` shows that a fixed ~20 s
 wheel-command sequence drives within 1 cm of :meth:`PhysicsConfig.reference` (pybullet's
 defaults at 240 Hz); measured 3.5 mm (step commands) and 1.8 mm (ramped at 5 rad/s^2).
 10 iterations drift 1.04 cm with step commands and a 60 Hz time step 1.8 cm, so neither is used.

@@ -86,7 +86,7 @@ METRES_PER_TICK, TICKS_PER_REV, SLIP_STD, WHEEL_BASE = range(4)
 def odometry_step(state, params, normals, angle_left, angle_right):
     """Read the encoders at the wheel angles [rad]; advance ``state`` in place.
 
-    Compiled so that a control loop can call it from compiled code (``sim.control_tick``).
+    Compiled so that a control loop can call it from compiled code (``sim.episode.control_tick``).
 
     Parameters
     ----------

@@ -26,7 +26,7 @@ import rerun.blueprint as rrb
 
 from scenarios.errors import OutputError
 from scenarios.schema import Scenario
-from sim.episode_types import EpisodeResult
+from sim.episode.types import EpisodeResult
 from sim.recording import entities as E
 from sim.recording.episode import log_result
 from sim.recording.static import log_pef_map, log_plan, log_scene
@@ -142,10 +142,10 @@ def log_static(rec: rr.RecordingStream, scenario: Scenario, pef_map: Any = None,
         Target stream.
     scenario : scenarios.schema.Scenario
         Workspace, obstacles, markers (labelled with their ids) and docks.
-    pef_map : planner.pef.PefMap, optional
+    pef_map : planner.pef.map.PefMap, optional
         ``x`` (nx,), ``y`` (ny,) cell centres [m] and ``tau`` (ny, nx) [m]: logged as the
         heatmap ``world/pef`` and the ε_max contour ``world/region``.
-    plan : planner.plan.Plan, optional
+    plan : planner.routes.plan.Plan, optional
         Candidate routes, chosen route, reference path and fix schedule.
     """
     log_scene(rec, scenario)
@@ -163,7 +163,7 @@ def log_episode(rec: rr.RecordingStream, result: EpisodeResult, scenario: Scenar
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    result : sim.episode_types.EpisodeResult
+    result : sim.episode.types.EpisodeResult
         Steps (T) and fixes (F) of the episode.
     scenario : scenarios.schema.Scenario
         The scenario the episode ran in.

@@ -11,7 +11,7 @@ import numpy as np
 import rerun as rr
 
 from scenarios.schema import Scenario
-from sim.episode_types import EpisodeResult, FixLog, StepLog
+from sim.episode.types import EpisodeResult, FixLog, StepLog
 from sim.recording import entities as E
 from sim.recording.geometry import covariance_ellipses, heading_vectors, strip_polygons
 
@@ -60,7 +60,7 @@ def log_steps(rec: rr.RecordingStream, steps: StepLog, scenario: Scenario, eps_m
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    steps : sim.episode_types.StepLog
+    steps : sim.episode.types.StepLog
         T control steps.
     scenario : scenarios.schema.Scenario
         For the robot size (arrow length) and the ellipse probability (``gdop_level``).
@@ -110,7 +110,7 @@ def log_fixes(rec: rr.RecordingStream, fixes: FixLog, scenario: Scenario,
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    fixes : sim.episode_types.FixLog
+    fixes : sim.episode.types.FixLog
         F fixes of k markers.
     scenario : scenarios.schema.Scenario
         For marker positions and ids.

@@ -103,7 +103,7 @@ def strip_polygons(positions: np.ndarray, marker_xy: np.ndarray, rho: np.ndarray
     This is the parallelogram of DESIGN section 1 for k = 2 and the centrally symmetric
     strip polygon for k > 2. Its vertices are the pairwise intersections of the strips'
     boundary lines that satisfy every strip. Same polygon as
-    :func:`estimators.linearized.strip_polygon` (the tests compare them), vectorised over
+    :func:`estimators.fault.linearized.strip_polygon` (the tests compare them), vectorised over
     fixes: a loop over that function costs ~30x more for a recording's hundred fixes.
 
     Parameters

@@ -93,7 +93,7 @@ def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float) -> None:
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    pef_map : planner.pef.PefMap or alike
+    pef_map : planner.pef.map.PefMap or alike
         Needs ``x`` (nx,), ``y`` (ny,) cell centres [m] and ``tau`` (ny, nx) [m], inf where
         too few markers are visible.
     eps_max : float
@@ -119,7 +119,7 @@ def plan_markdown(plan: Any) -> str:
 
     Parameters
     ----------
-    plan : planner.plan.Plan or alike
+    plan : planner.routes.plan.Plan or alike
         Optional attributes (``start``, ``goal``, ``reason``, a candidate's ``length``,
         ``max_tau``, ``why_not``) are shown when present.
 
@@ -146,7 +146,7 @@ def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario) -> None:
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    plan : planner.plan.Plan or alike
+    plan : planner.routes.plan.Plan or alike
         Uses ``candidates`` (each ``.polyline`` (n, 2) [m], ``.admissible``, ``.id``),
         ``chosen`` (index or None), ``path`` (N, 2) [m] or None and ``schedule.fixes``
         (each ``.position`` (x, y) [m], ``.markers`` (marker indices), ``.tau`` [m],

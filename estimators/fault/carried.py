@@ -1,0 +1,210 @@
+"""A fix taken while moving: earlier ranges carried to the fix time by odometry.
+
+The laser measures a fix's k markers one after another, ``measurement_time`` apart, while the
+robot drives on. A range ``r_i`` taken at ``p_i`` to marker ``M_i`` is, seen from the fix's end
+position ``p_end``, a range to the *shifted* marker ``M_i + (p_end - p_i)``; the shift is
+dead-reckoned, so each range's error band widens by a bound on the odometry error of its shift
+(:func:`shift_bound`). The fault area of the fix is the intersection of the annuli
+``| |p - M_i'| - r_i | <= rho_i + shift_bound_i``.
+
+One construction serves both sides of the promise (DESIGN section 1):
+
+- the simulation's **realised** fault area (``sim.episode.fixes``): measured ranges,
+  dead-reckoned displacements turned into the world frame with the filter's heading, and the
+  filter's heading std;
+- the planner's **predicted** fault area (:func:`promised_fault_area`, used by
+  ``planner.schedule.schedule``): noise-free ranges at the planned poses, the planned displacements, and
+  the heading std the plan assumes (``planning.heading_std_deg``).
+
+A range taken at the fix time itself (the last one) has travelled 0 and is not widened.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from estimators.fault.exact import FaultArea, exact_fault_area
+from scenarios.schema import RobotSpec, SensorSpec
+
+K_SIGMA = 3.0
+"""Multiple of a random error's std taken as its bound in :func:`shift_bound` (99.73 %)."""
+
+
+def encoder_tick(robot: RobotSpec) -> float:
+    """Wheel travel per encoder tick ``2 pi r / ticks`` [m]."""
+    return 2.0 * math.pi * robot.wheel_radius / robot.encoder_ticks
+
+
+def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
+    """Bound on the odometry error of a dead-reckoned shift over ``travelled`` metres [m].
+
+    Each wheel's travel between two encoder readings is off by less than one tick (both
+    readings are floors of the true angle): along the track less than ``tick``, and the heading
+    by less than ``2 tick / b``, which turns the rest of the shift. Add the declared random slip
+    and the heading error the shift is turned with (as ``K_SIGMA`` bounds), and the systematic
+    wheel error, over the distance. A shift of exactly 0 (the same encoder reading) has no
+    error.
+
+    Parameters
+    ----------
+    robot : RobotSpec
+        The declared robot (``wheel_radius``, ``encoder_ticks``, ``odometry_noise``,
+        ``wheel_radius_error``).
+    travelled : array_like, shape (k,)
+        Length of each shift [m], >= 0.
+    heading_std : float
+        Standard deviation of the heading the shift is turned with [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (k,)
+        Bound [m].
+    """
+    d = np.asarray(travelled, dtype=float)
+    tick = encoder_tick(robot)
+    per_metre = (K_SIGMA * robot.odometry_noise + abs(robot.wheel_radius_error) + K_SIGMA * max(heading_std, 0.0)
+                 + 2.0 * tick / robot.wheel_base)
+    return np.where(d > 0.0, tick + per_metre * d, 0.0)
+
+
+def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along_cos=None) -> np.ndarray:
+    """Variance of each range's error from the odometry error of its shift [m^2].
+
+    Along the shift: the two encoder readings' quantisation (the shift's error is the
+    difference of two residuals, ``tick^2 / 12`` for the wheels' mean; none when both ends are
+    the same reading) and the random slip, drawn per odometry read on each wheel
+    (``odometry_noise^2 d^2 / (2 n)`` for ``n`` equal increments). Across it: the heading
+    uncertainty turning the shift. The wheel-radius error is left out: to first order the
+    wheels' mean travel does not see it. Each part is projected on the range's direction.
+
+    Parameters
+    ----------
+    robot : RobotSpec
+        The declared robot.
+    travelled : array_like, shape (k,)
+        Length of each shift [m], >= 0.
+    heading_var : float
+        Variance of the heading the shift is turned with [rad^2].
+    reads : array_like, shape (k,), optional
+        Odometry reads over each shift; by default one (the slip of one increment).
+    along_cos : array_like, shape (k,), optional
+        Cosine between each shift and its range's direction; by default 1 for the along part
+        and 1 for the across part (an upper bound).
+
+    Returns
+    -------
+    numpy.ndarray, shape (k,)
+        Variance [m^2]; 0 for a shift of exactly 0.
+    """
+    d = np.asarray(travelled, dtype=float)
+    tick = encoder_tick(robot)
+    n = np.ones(d.shape) if reads is None else np.asarray(reads, dtype=float)
+    along = np.where(n > 0, tick**2 / 12.0, 0.0) + robot.odometry_noise**2 * d**2 / (2.0 * np.maximum(n, 1.0))
+    across = max(heading_var, 0.0) * d**2
+    if along_cos is None:
+        out = along + across
+    else:
+        c2 = np.asarray(along_cos, dtype=float) ** 2
+        out = along * c2 + across * (1.0 - c2)
+    return np.where(d > 0.0, out, 0.0)
+
+
+def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Shift each marker by the displacement from where its range was taken to the fix's end.
+
+    Parameters
+    ----------
+    markers : array_like, shape (k, 2)
+        Positions of the measured markers [m], in measurement order.
+    at : array_like, shape (k, 2)
+        Position at each measurement in the displacement's frame (dead reckoning, or the
+        world for a plan) [m].
+    end : array_like, shape (2,)
+        Position at the fix's end, same frame [m].
+    rotation : float
+        Angle from the displacement's frame to the world frame [rad] (0 for a plan).
+
+    Returns
+    -------
+    shifted : numpy.ndarray, shape (k, 2)
+        ``M_i + R(rotation) (end - at_i)`` [m].
+    travelled : numpy.ndarray, shape (k,)
+        ``|end - at_i|`` [m].
+    """
+    m = np.asarray(markers, dtype=float).reshape(-1, 2)
+    d = np.asarray(end, dtype=float).reshape(1, 2) - np.asarray(at, dtype=float).reshape(-1, 2)
+    c, s = math.cos(rotation), math.sin(rotation)
+    shifted = np.column_stack([m[:, 0] + c * d[:, 0] - s * d[:, 1], m[:, 1] + s * d[:, 0] + c * d[:, 1]])
+    return shifted, np.hypot(d[:, 0], d[:, 1])
+
+
+def promised_fault_area(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float) -> FaultArea:
+    """Fault area of a moving fix from noise-free ranges at planned positions (the promise).
+
+    The ranges ``|p_i - M_i|`` are exact; each is carried to the last position (:func:`carry`)
+    and its band ``rho(r_i)`` widened by :func:`shift_bound`, exactly as the simulation builds a
+    realised fault area from measured ranges. Bearings are not part of the promise.
+
+    Parameters
+    ----------
+    sensor : SensorSpec
+        The declared sensor (range bound ``Re r + rho0``).
+    robot : RobotSpec
+        The declared robot (odometry bound).
+    markers : array_like, shape (k, 2)
+        The fix's markers in measurement order [m].
+    poses : array_like, shape (k, 2)
+        Planned position at each measurement [m]; the last is the fix's position.
+    heading_std : float
+        Heading std the plan assumes at the fix [rad].
+
+    Returns
+    -------
+    FaultArea
+        The component at the fix's position; its ``diameter`` is the fix's ``predicted_tau``.
+    """
+    m = np.asarray(markers, dtype=float).reshape(-1, 2)
+    p = np.asarray(poses, dtype=float).reshape(-1, 2)
+    ranges = np.hypot(p[:, 0] - m[:, 0], p[:, 1] - m[:, 1])
+    shifted, travelled = carry(m, p, p[-1])
+    rho = sensor.range_bound(ranges) + shift_bound(robot, travelled, heading_std)
+    return exact_fault_area(shifted, ranges, rho, p[-1])
+
+
+def promised_parallelogram(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float) -> np.ndarray:
+    """Linearised diameter of two-marker moving fixes, vectorised (the schedule's search model).
+
+    The parallelogram of :func:`promised_fault_area`'s construction: unit vectors from each
+    marker to where it was measured (a shift keeps the direction from the shifted marker to
+    the end), half-widths ``rho(r_i) + shift_bound_i``, diagonal of paper eq. 12.
+
+    Parameters
+    ----------
+    sensor, robot, heading_std
+        As in :func:`promised_fault_area`.
+    markers : array_like, shape (..., 2, 2)
+        The two markers of each fix, in measurement order [m].
+    poses : array_like, shape (..., 2, 2)
+        Planned position at each of the two measurements [m].
+
+    Returns
+    -------
+    numpy.ndarray, shape (...)
+        Diameter [m]; inf where the geometry is degenerate.
+    """
+    m = np.asarray(markers, dtype=float)
+    p = np.asarray(poses, dtype=float)
+    d = p - m
+    r = np.hypot(d[..., 0], d[..., 1])
+    u = d / np.where(r > 0, r, 1.0)[..., None]
+    dd = p[..., 1, :] - p[..., 0, :]
+    travelled = np.hypot(dd[..., 0], dd[..., 1])
+    rho0 = sensor.range_bound(r[..., 0]) + shift_bound(robot, travelled, heading_std)
+    rho1 = sensor.range_bound(r[..., 1])
+    sin_a = np.abs(u[..., 0, 0] * u[..., 1, 1] - u[..., 0, 1] * u[..., 1, 0])
+    cos_a = np.abs(u[..., 0, 0] * u[..., 1, 0] + u[..., 0, 1] * u[..., 1, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        diag = 2.0 / sin_a * np.sqrt(rho0 * rho0 + rho1 * rho1 + 2.0 * rho0 * rho1 * cos_a)
+    return np.where((sin_a > 1e-12) & (r.min(axis=-1) > 0), diag, np.inf)

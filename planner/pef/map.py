@@ -1,0 +1,339 @@
+"""The Position Error Function: predicted position error tau at points and on grids.
+
+``tau(p)`` is the error of the best visible subset of k markers at ``p`` under a model
+(DESIGN section 1), computed from the *declared* sensor (``scenario.sensor``):
+
+- ``parallelogram`` (k = 2, ranges only): long diagonal of the linearised parallelogram;
+- ``strips``: diameter of the intersection of the linearised strips of the subset, with the
+  tangential bearing strips when the sensor measures bearings;
+- ``gdop``: major axis (diameter) of the ``planning.gdop_level`` confidence ellipse of the
+  least-squares fix with ``sigma = rho / 3`` (:mod:`estimators.fault.linearized`), bearings included
+  as tangential rows. Every model reports a diameter (the paper's d), so eps_max means the same
+  under each; they agree where their assumptions overlap (``tests/planner/pef/test_models_agree.py``);
+- ``exact``: diameter of the exact fault area of noise-free measurements
+  (:func:`estimators.fault.exact.fault_area_of_point`, polygon clipping). It is slow (a
+  polygon clipping per point and subset): use it on points and coarse grids. To keep it
+  tractable only the subsets whose linearised (strips) diameter is within a factor
+  ``exact_margin`` of the best linearised one are clipped; with the default 1.5 this finds the
+  exact minimum whenever the linearisation is within 20 % of the exact diameter for every
+  subset ((1 + 0.2) / (1 - 0.2) = 1.5), true far beyond the paper's Re < 1 % regime.
+  ``exact_margin=inf`` clips every subset.
+
+``tau`` is inf where fewer than k markers are visible, outside the workspace and inside
+obstacles. Points and grids go through the same kernels (:mod:`planner.pef.kernels`); a grid
+is its cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
+with the same values as on the points). The kernels rank candidate subsets in float32 and
+recompute the winner's tau in float64: tau is exact for the chosen subset and within ~1e-6
+relative of the minimum. Speed and the one-off numba compilation (kernels are compiled per model on first use
+in a fresh checkout, then loaded from the on-disk cache) are measured by
+``benchmarks/pef_map.py``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.fault.linearized import chi2_2dof_ppf
+from planner.pef import kernels as pef_kernels
+from planner.pef.visibility import scenario_visible_grid, scenario_visible_points
+from scenarios.errors import PlanningError
+from scenarios.schema import PefModel, Scenario
+
+#: Default factor for the ``exact`` model's candidate subsets (see the module docstring).
+EXACT_MARGIN = 1.5
+#: Largest grid :meth:`PEF.grid` builds (cells), to turn a typo in the resolution into an error.
+MAX_CELLS = 25_000_000
+
+_KERNEL_MODEL = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
+                 PefModel.GDOP: pef_kernels.GDOP}
+
+
+@dataclass(frozen=True)
+class PefResult:
+    """PEF at points.
+
+    Attributes
+    ----------
+    tau : ndarray, shape (N,)
+        Predicted error [m]; inf where no k-subset is visible or the point is not free.
+    best : ndarray of int, shape (N, k)
+        Marker indices (into ``scenario.markers``) of the best subset, ascending; -1 where none.
+    """
+
+    tau: np.ndarray
+    best: np.ndarray
+
+
+@dataclass(frozen=True)
+class PefMap:
+    """PEF on the cell centres of a grid covering the workspace.
+
+    Attributes
+    ----------
+    x : ndarray, shape (nx,)
+        Cell-centre x coordinates [m].
+    y : ndarray, shape (ny,)
+        Cell-centre y coordinates [m].
+    tau : ndarray, shape (ny, nx)
+        Predicted error [m]; inf where fewer than k markers are visible or inside obstacles.
+    best : ndarray of int, shape (ny, nx, k)
+        Marker indices of the best subset; -1 where none.
+    free : ndarray of bool, shape (ny, nx)
+        Cell centre in free space (in the workspace, outside every obstacle).
+    model : PefModel
+        The error model.
+    cell_size : (float, float)
+        Cell width and height [m] (the workspace divided evenly, closest to the resolution).
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    tau: np.ndarray
+    best: np.ndarray
+    free: np.ndarray
+    model: PefModel
+    cell_size: tuple[float, float]
+
+    def navigable(self, eps_max: float) -> np.ndarray:
+        """Cells of the navigation region ``tau < eps_max``, shape (ny, nx) bool."""
+        return self.free & (self.tau < eps_max)
+
+
+def grid_centres(size: tuple[float, float], resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cell centres of the grid that divides the workspace evenly into cells of about ``resolution``.
+
+    Parameters
+    ----------
+    size : (float, float)
+        Workspace width and height [m].
+    resolution : float
+        Wanted cell size [m] > 0.
+
+    Returns
+    -------
+    x : ndarray, shape (nx,)
+        ``(i + 1/2) * width / nx`` with ``nx = max(1, round(width / resolution))`` [m].
+    y : ndarray, shape (ny,)
+        Likewise for the height [m].
+    """
+    if not (resolution > 0.0 and math.isfinite(resolution)):
+        raise PlanningError(f"resolution: expected a positive number of metres, got {resolution}")
+    out = []
+    for extent in size:
+        n = max(1, int(round(extent / resolution)))
+        out.append((np.arange(n) + 0.5) * (extent / n))
+    cells = out[0].size * out[1].size
+    if cells > MAX_CELLS:
+        raise PlanningError(f"resolution: {resolution} m gives {cells} cells (at most {MAX_CELLS})")
+    return out[0], out[1]
+
+
+class PEF:
+    """The position error function of a scenario.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Workspace, obstacles, markers and the declared sensor.
+    model : PefModel or str, optional
+        Error model; default ``scenario.planning.pef_model``.
+    k : int, optional
+        Markers per fix; default ``scenario.sensor.markers_per_fix``.
+    exact_margin : float
+        Candidate factor of the ``exact`` model (see the module docstring).
+    """
+
+    def __init__(self, scenario: Scenario, model: PefModel | str | None = None, k: int | None = None,
+                 exact_margin: float = EXACT_MARGIN):
+        self.scenario = scenario
+        self.sensor = scenario.sensor
+        try:
+            self.model = PefModel(model) if model is not None else scenario.planning.pef_model
+        except ValueError:
+            choices = ", ".join(m.value for m in PefModel)
+            raise PlanningError(f"model: expected one of {choices}, got {model!r}") from None
+        self.k = int(k) if k is not None else scenario.sensor.markers_per_fix
+        if self.k < 1:
+            raise PlanningError(f"k: expected at least 1 marker per fix, got {self.k}")
+        if self.model is PefModel.PARALLELOGRAM and self.k != 2:
+            raise PlanningError(f"k: the parallelogram model needs k = 2, got {self.k} (use strips or gdop)")
+        if not exact_margin >= 1.0:
+            raise PlanningError(f"exact_margin: expected >= 1, got {exact_margin}")
+        self.exact_margin = float(exact_margin)
+        self.markers = scenario.marker_positions()
+        n = len(self.markers)
+        combos = list(itertools.combinations(range(n), self.k)) if n >= self.k else []
+        self.subsets = np.array(combos, dtype=np.int64).reshape(len(combos), self.k)
+        self.chi2_ppf = chi2_2dof_ppf(scenario.planning.gdop_level)
+
+    # --- visibility ---------------------------------------------------------------------------
+
+    def visible(self, points: np.ndarray) -> np.ndarray:
+        """Markers visible from points (range and line of sight), shape (N, M) bool.
+
+        Parameters
+        ----------
+        points : ndarray, shape (N, 2)
+            Points [m]; rows all False where a point is not free.
+        """
+        vis, _ = scenario_visible_points(self.scenario, _points(points))
+        return vis.T
+
+    # --- evaluation ---------------------------------------------------------------------------
+
+    def at(self, points: np.ndarray) -> PefResult:
+        """Evaluate the PEF at arbitrary points.
+
+        Parameters
+        ----------
+        points : ndarray, shape (N, 2)
+            Points [m].
+
+        Returns
+        -------
+        PefResult
+            ``tau`` (N,) [m] and ``best`` (N, k) marker indices.
+        """
+        pts = _points(points)
+        vis, _ = scenario_visible_points(self.scenario, pts)
+        return self._evaluate(np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), vis)
+
+    def grid(self, resolution: float | None = None) -> PefMap:
+        """Evaluate the PEF on the cell centres of a grid over the workspace.
+
+        Parameters
+        ----------
+        resolution : float, optional
+            Cell size [m]; default ``scenario.planning.resolution``. The workspace is divided
+            evenly, so the cells are as close to this size as an integer count allows.
+
+        Returns
+        -------
+        PefMap
+        """
+        res = float(resolution) if resolution is not None else self.scenario.planning.resolution
+        x, y = grid_centres(self.scenario.workspace.size, res)
+        vis, free = scenario_visible_grid(self.scenario, x, y)
+        if self.model is PefModel.EXACT:
+            px, py = np.tile(x, y.size), np.repeat(y, x.size)
+            r = self._evaluate(px, py, vis.reshape(vis.shape[0], -1))
+            tau, best = r.tau.reshape(y.size, x.size), r.best.reshape(y.size, x.size, self.k)
+        else:
+            tau, best = self._kernel_grid(x, y, vis)
+        size = self.scenario.workspace.size
+        return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
+                      cell_size=(size[0] / x.size, size[1] / y.size))
+
+    def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:
+        """Evaluate the model's error of one given marker subset at points.
+
+        Parameters
+        ----------
+        points : ndarray, shape (N, 2)
+            Points [m].
+        subset : ndarray of int, shape (k,)
+            Marker indices.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            tau [m]; inf where a marker of the subset is not visible (or the point not free).
+        """
+        pts = _points(points)
+        sub = np.asarray(subset, dtype=np.int64).reshape(1, -1)
+        if sub.shape[1] != self.k:
+            raise PlanningError(f"subset: expected {self.k} marker indices, got {sub.shape[1]}")
+        if np.any(sub < 0) or np.any(sub >= len(self.markers)) or len(set(sub[0].tolist())) != self.k:
+            raise PlanningError(f"subset: expected {self.k} distinct marker indices "
+                                f"in [0, {len(self.markers)}), got {sub[0].tolist()}")
+        vis, _ = scenario_visible_points(self.scenario, pts)
+        if self.model is PefModel.EXACT:
+            return self._exact_subset(pts, vis, sub[0])
+        return self._kernel(pts[:, 0].copy(), pts[:, 1].copy(), vis, sub, _KERNEL_MODEL[self.model])[0]
+
+    # --- internals ----------------------------------------------------------------------------
+
+    def _kernel(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray, subsets: np.ndarray,
+                model: int) -> tuple[np.ndarray, np.ndarray]:
+        """Return tau (N,) and the chosen subset's markers (N, k) for points (px, py), vis (M, N)."""
+        n = px.size
+        tau = np.empty(n)
+        best = np.empty((n, subsets.shape[1]), dtype=np.int64)
+        if n == 0:
+            return tau, best
+        if subsets.shape[0] == 0:
+            tau.fill(np.inf)
+            best.fill(-1)
+            return tau, best
+        tan_xi = math.tan(self.sensor.bearing_error) if self.sensor.uses_bearing else 0.0
+        pef_kernels.best_subset(
+            px, py, np.ascontiguousarray(self.markers[:, 0]), np.ascontiguousarray(self.markers[:, 1]),
+            np.ascontiguousarray(vis), float(self.sensor.relative_error),
+            float(self.sensor.absolute_error), tan_xi, model, subsets, self.chi2_ppf, tau, best)
+        return tau, best
+
+    def _kernel_grid(self, x: np.ndarray, y: np.ndarray, vis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return tau (ny, nx) and the best subsets (ny, nx, k) on cell centres x, y; vis (M, ny, nx)."""
+        tau = np.empty((y.size, x.size))
+        best = np.empty((y.size, x.size, self.k), dtype=np.int64)
+        if self.subsets.shape[0] == 0:
+            tau.fill(np.inf)
+            best.fill(-1)
+            return tau, best
+        tan_xi = math.tan(self.sensor.bearing_error) if self.sensor.uses_bearing else 0.0
+        pef_kernels.best_subset_grid(
+            x, y, np.ascontiguousarray(self.markers[:, 0]), np.ascontiguousarray(self.markers[:, 1]),
+            np.ascontiguousarray(vis), float(self.sensor.relative_error), float(self.sensor.absolute_error),
+            tan_xi, _KERNEL_MODEL[self.model], self.subsets, self.chi2_ppf, tau, best)
+        return tau, best
+
+    def _evaluate(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> PefResult:
+        if self.model is PefModel.EXACT:
+            tau, best = self._exact(px, py, vis)
+        else:
+            tau, best = self._kernel(px, py, vis, self.subsets, _KERNEL_MODEL[self.model])
+        return PefResult(tau=tau, best=best)
+
+    def _exact(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact model: clip the candidate subsets chosen by their linearised diameters."""
+        n, nsub = px.size, len(self.subsets)
+        if n == 0 or nsub == 0:
+            return np.full(n, np.inf), np.full((n, self.k), -1, dtype=np.int64)
+        lin = np.empty((n, nsub))
+        for s in range(nsub):
+            lin[:, s] = self._kernel(px, py, vis, self.subsets[s:s + 1], pef_kernels.STRIPS)[0]
+        best_lin = lin.min(axis=1, keepdims=True)
+        cand = np.isfinite(lin) & (lin <= self.exact_margin * best_lin)
+        pts = np.column_stack([px, py])
+        exact = np.full((n, nsub), np.inf)
+        for s in range(nsub):
+            rows = np.flatnonzero(cand[:, s])
+            if rows.size:
+                exact[rows, s] = self._exact_subset(pts[rows], vis[:, rows], self.subsets[s])
+        idx = np.where(np.isfinite(exact).any(axis=1), exact.argmin(axis=1), -1)
+        best = np.where(idx[:, None] >= 0, self.subsets[np.maximum(idx, 0)], -1)
+        return exact.min(axis=1), best
+
+    def _exact_subset(self, pts: np.ndarray, vis: np.ndarray, subset: np.ndarray) -> np.ndarray:
+        """Exact fault-area diameters of one ``subset`` (k,) at ``pts`` (N, 2); inf where hidden."""
+        from estimators.fault.exact import fault_area_of_point
+
+        out = np.full(len(pts), np.inf)
+        mk = self.markers[subset]
+        for i in np.flatnonzero(vis[subset].all(axis=0)):
+            rho = self.sensor.range_bound(np.hypot(*(pts[i] - mk).T))
+            out[i] = fault_area_of_point(mk, pts[i], rho, bearing_error=self.sensor.bearing_error).diameter
+        return out
+
+
+def _points(points: np.ndarray) -> np.ndarray:
+    p = np.asarray(points, dtype=float)
+    if p.ndim == 1 and p.shape[0] == 2:
+        p = p[None, :]
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise PlanningError(f"points: expected shape (N, 2), got {np.shape(points)}")
+    return np.ascontiguousarray(p)

@@ -1,0 +1,325 @@
+"""Marker placement: the fewest markers, among candidate sites, that keep every point under eps_max.
+
+A point is covered when some visible subset of k chosen markers has ``tau < eps_max`` under the
+scenario's PEF model. For k = 2 the coverage of a point is by *pairs* of sites: a set cover
+over pairs, the MILP (site variables z_j, pair variables y_jl)::
+
+    min sum_j z_j  s.t.  sum_{pairs good at i} y_jl >= 1 for every point i,
+                         y_jl <= z_j,  y_jl <= z_l,  z binary,  0 <= y <= 1
+
+:mod:`planner.placement.cover` solves the same problem without the pair variables (equivalent
+independent-set cuts generated as needed: far fewer rows, a tighter LP; see there). For k > 2
+a good *pair* is used as a sufficient condition (adding markers to a subset only shrinks the
+strip intersection and adds GDOP information) together with ``sum_{j visible from i} z_j >= k``;
+a point that only k mediocre markers together could cover, without a good pair among them, is
+reported uncovered (conservative).
+
+Size limit: with at most :data:`MILP_MAX_SITES` useful sites (in some good pair), ``auto``
+runs the exact solver (LP cutting planes, then HiGHS MILP rounds via
+:func:`scipy.optimize.milp`) within the time limit; it reports ``optimal`` when the bound
+meets the best cover. Above it, the greedy cover (with pair lookahead) is reported with the
+LP relaxation's lower bound. Per-pair tau comes from the PEF's own kernel
+(:func:`planner.pef.kernels.subset_tau`) on the points' visible sites, visibility from
+:class:`planner.pef.map.PEF` over a scenario copy whose markers are the sites; the ``exact``
+model is optimised with its linearisation (``strips``): clipping polygons for every pair and
+point would be far too slow.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numba
+import numpy as np
+import tomli_w
+
+from estimators import compiled
+from planner.pef import kernels as pef_kernels
+from planner.placement.cover import MILP_TIME_LIMIT, PairCover, solve_exact
+from planner.placement.sites import candidate_sites, cover_points
+from scenarios.errors import OutputError, PlanningError
+from scenarios.schema import Marker, PefModel, Scenario
+
+MILP_MAX_SITES = 150
+"""Largest number of useful sites (in some good pair) for which ``auto`` runs integer rounds."""
+TAU_MARGIN = 1e-5
+"""Pairs count as good when ``tau < eps_max (1 - TAU_MARGIN)``: the PEF selects its best
+subset in float32, so its tau may exceed the float64 minimum by ~1e-6 relative."""
+
+
+@dataclass(frozen=True, eq=False)
+class PlacementResult:
+    """Chosen markers and how good the choice is.
+
+    Attributes
+    ----------
+    markers : list of (str, (float, float))
+        Marker ids and positions [m].
+    count : int
+    lower_bound : int
+        No placement among the sites covers the coverable points with fewer markers.
+    optimal : bool
+        ``count`` is proven minimal (MILP solved to optimality).
+    uncovered : ndarray, shape (U, 2)
+        Points no subset of sites can cover [m].
+    method : str
+        ``milp`` or ``greedy``.
+    sites : ndarray, shape (S, 2)
+        The candidate sites [m].
+    points : ndarray, shape (N, 2)
+        The points to cover [m].
+    chosen : ndarray of int, shape (count,)
+        Indices of the chosen sites.
+    """
+
+    markers: list[tuple[str, tuple[float, float]]]
+    count: int
+    lower_bound: int
+    optimal: bool
+    uncovered: np.ndarray
+    method: str
+    sites: np.ndarray
+    points: np.ndarray
+    chosen: np.ndarray
+
+
+@numba.njit(parallel=True, cache=True)
+def _good_pairs_kernel(px, py, sx, sy, vis, model, rel, ab, tan_xi, chi2, limit, offsets, out_j, out_l):
+    """Count (``offsets`` None-like: size 0) or list the good pairs of every point.
+
+    ``vis`` (N, S); pairs ``(j, l)``, j < l, both visible and tau < limit. Returns the counts.
+    """
+    n, s = vis.shape
+    counts = np.zeros(n, dtype=np.int64)
+    for i in numba.prange(n):
+        seen = np.empty(s, dtype=np.int64)
+        m = 0
+        for j in range(s):
+            if vis[i, j]:
+                seen[m] = j
+                m += 1
+        sub = np.empty(2, dtype=np.int64)
+        nx, ny, b = np.empty(4), np.empty(4), np.empty(4)
+        c = 0
+        for a in range(m):
+            for z in range(a + 1, m):
+                sub[0], sub[1] = seen[a], seen[z]
+                t = pef_kernels.subset_tau(model, px[i], py[i], sx, sy, sub, rel, ab, tan_xi, chi2, nx, ny, b)
+                if t < limit:
+                    if offsets.size:
+                        out_j[offsets[i] + c] = seen[a]
+                        out_l[offsets[i] + c] = seen[z]
+                    c += 1
+        counts[i] = c
+    return counts
+
+
+def _site_scenario(scenario: Scenario, sites: np.ndarray) -> Scenario:
+    markers = tuple(Marker(f"S{j}", (float(x), float(y))) for j, (x, y) in enumerate(sites))
+    return dataclasses.replace(scenario, markers=markers)
+
+
+def _model(scenario: Scenario) -> PefModel:
+    m = scenario.planning.pef_model
+    return PefModel.STRIPS if m is PefModel.EXACT else m
+
+
+def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_max: float):
+    """Good pairs of sites at every point.
+
+    Returns
+    -------
+    cover : PairCover
+        The cover problem over the coverable points (rows deduplicated).
+    coverable : ndarray of bool, shape (N,)
+        Points some subset of sites can cover.
+    """
+    from planner.pef.map import PEF
+
+    k = scenario.sensor.markers_per_fix
+    pef = PEF(_site_scenario(scenario, sites), model=_model(scenario), k=2)
+    vis = np.ascontiguousarray(pef.visible(points))
+    kernel_model = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
+                    PefModel.GDOP: pef_kernels.GDOP}[pef.model]
+    sensor = scenario.sensor
+    tan_xi = math.tan(sensor.bearing_error) if sensor.uses_bearing else 0.0
+    args = (np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]),
+            np.ascontiguousarray(sites[:, 0]), np.ascontiguousarray(sites[:, 1]), vis, kernel_model,
+            float(sensor.relative_error), float(sensor.absolute_error), tan_xi, float(pef.chi2_ppf),
+            float(eps_max) * (1.0 - TAU_MARGIN))
+    empty = np.zeros(0, dtype=np.int64)
+    counts = _good_pairs_kernel(*args, empty, empty, empty)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    out_j, out_l = np.empty(offsets[-1], dtype=np.int64), np.empty(offsets[-1], dtype=np.int64)
+    _good_pairs_kernel(*args, offsets, out_j, out_l)
+    coverable = (counts > 0) & (vis.sum(axis=1) >= k)
+
+    n_sites = len(sites)
+    key = out_j * n_sites + out_l
+    pair_keys, pair_of_entry = np.unique(key, return_inverse=True)
+    point_of_entry = np.repeat(np.arange(len(points)), counts)
+    keep = coverable[point_of_entry]
+    # rows: identical (good-pair set, visible set) points merge into one weighted row
+    rows: dict[bytes, int] = {}
+    row_of = np.empty(int(coverable.sum()), dtype=np.int64)
+    first_point = []
+    for n_i, i in enumerate(np.flatnonzero(coverable)):
+        sig = pair_of_entry[offsets[i]:offsets[i + 1]].tobytes() + np.packbits(vis[i]).tobytes()
+        row_of[n_i] = rows.setdefault(sig, len(rows))
+        if row_of[n_i] == len(first_point):
+            first_point.append(i)
+    first_point = np.asarray(first_point, dtype=np.int64)
+    is_first = np.zeros(len(points), dtype=bool)
+    is_first[first_point] = True
+    row_index = np.full(len(points), -1)
+    row_index[first_point] = np.arange(len(first_point))
+    sel = keep & is_first[point_of_entry]
+    er, ep = row_index[point_of_entry[sel]], pair_of_entry[sel]
+    pj, pl = pair_keys // n_sites, pair_keys % n_sites
+    cover = PairCover(weight=np.bincount(row_of, minlength=len(first_point)).astype(float), row_of=row_of,
+                   row_ptr=np.searchsorted(er, np.arange(len(first_point) + 1)), ep=ep, ea=pj[ep], eb=pl[ep],
+                   pj=pj, pl=pl, vis=np.ascontiguousarray(vis[first_point]), n_sites=n_sites)
+    return cover, coverable
+
+
+def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarray | None = None,
+          eps_max: float | None = None, method: str = "auto",
+          time_limit: float = MILP_TIME_LIMIT) -> PlacementResult:
+    """Find the fewest markers among candidate sites that cover every coverable point.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Sensor, obstacles, PEF model, k, and the defaults below.
+    points : ndarray, shape (N, 2), optional
+        Points to cover [m]; default :func:`planner.placement.sites.cover_points`.
+    sites : ndarray, shape (S, 2), optional
+        Candidate sites [m]; default :func:`planner.placement.sites.candidate_sites`.
+    eps_max : float, optional
+        Allowed error [m]; default ``scenario.planning.eps_max``.
+    method : {"auto", "milp", "greedy"}
+        ``auto``: the exact solver with at most :data:`MILP_MAX_SITES` useful sites, else
+        greedy (with the LP bound).
+    time_limit : float
+        Time limit of the solver's LP and MILP rounds [s].
+
+    Returns
+    -------
+    PlacementResult
+    """
+    if method not in ("auto", "milp", "greedy"):
+        raise PlanningError(f"placement method: expected auto, milp or greedy, got {method!r}")
+    pts = cover_points(scenario) if points is None else np.asarray(points, dtype=float).reshape(-1, 2)
+    cand = candidate_sites(scenario) if sites is None else np.asarray(sites, dtype=float).reshape(-1, 2)
+    eps = scenario.planning.eps_max if eps_max is None else float(eps_max)
+    k = scenario.sensor.markers_per_fix
+    cov, coverable = build_cover(scenario, pts, cand, eps)
+    chosen, bound, optimal, used = np.zeros(len(cand), dtype=bool), 0.0, True, "greedy"
+    if coverable.any():
+        used_sites = int(np.unique(np.concatenate([cov.pj, cov.pl])).size)
+        integral = method == "milp" or (method == "auto" and used_sites <= MILP_MAX_SITES)
+        chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral)
+        used = "milp" if integral else "greedy"
+        bound = max(bound, float(k))
+    idx = np.flatnonzero(chosen)
+    lower = min(math.ceil(bound - 1e-6), len(idx))
+    markers = [(f"P{n + 1}", (float(cand[j, 0]), float(cand[j, 1]))) for n, j in enumerate(idx)]
+    return PlacementResult(markers=markers, count=len(idx), lower_bound=lower,
+                           optimal=bool(optimal and lower == len(idx)), uncovered=pts[~coverable],
+                           method=used, sites=cand, points=pts, chosen=idx)
+
+
+def scenario_with_markers(scenario: Scenario, result: PlacementResult) -> Scenario:
+    """Return a copy of ``scenario`` whose markers are the placement's."""
+    return dataclasses.replace(scenario, markers=tuple(Marker(i, p) for i, p in result.markers))
+
+
+# --------------------------------------------------------------------------- writing TOML
+
+
+def _scenario_dict(sc: Scenario) -> dict:
+    """Turn a scenario into a TOML-shaped dict (angles back in degrees, defaults written out)."""
+    def spec(obj, base=None):
+        out = {}
+        for f in dataclasses.fields(obj):
+            v = getattr(obj, f.name)
+            if base is not None and v == getattr(base, f.name):
+                continue
+            key, v = (("bearing_error_deg", math.degrees(v)) if f.name == "bearing_error"
+                      else (f.name, v.value if hasattr(v, "value") else v))
+            out[key] = v
+        return out
+
+    d: dict = {"name": sc.name, "seed": sc.seed, "description": sc.description,
+               "workspace": {"size": list(sc.workspace.size)},
+               "obstacles": [{"center": list(o.center), "size": list(o.size), "yaw_deg": math.degrees(o.yaw)}
+                             for o in sc.obstacles],
+               "markers": [{"id": m.id, "position": list(m.position)} for m in sc.markers],
+               "sensor": spec(sc.sensor), "robot": spec(sc.robot)}
+    if sc.sensor_actual != sc.sensor:
+        d["sensor"]["actual"] = spec(sc.sensor_actual, sc.sensor)
+    if sc.robot_actual != sc.robot:
+        d["robot"]["actual"] = spec(sc.robot_actual, sc.robot)
+    pl = sc.planning
+    d["planning"] = {"eps_max": pl.eps_max, "pef_model": pl.pef_model.value, "gdop_level": pl.gdop_level,
+                     "resolution": pl.resolution, "weights": spec(pl.weights),
+                     "heading_std_deg": pl.heading_std_deg, "min_fix_speed": pl.min_fix_speed}
+    if pl.order:
+        d["planning"]["order"] = list(pl.order)
+    d["docks"] = [{"name": k.name, "pose": [k.pose[0], k.pose[1], math.degrees(k.pose[2])]} for k in sc.docks]
+    if sc.routes is not None:
+        d["routes"] = {"nodes": {k: list(v) for k, v in sc.routes.nodes.items()},
+                       "segments": [list(s) for s in sc.routes.segments], "traffic": dict(sc.routes.traffic)}
+    d["tasks"] = [{"from": t.start, "to": t.goal} for t in sc.tasks]
+    d["montecarlo"] = {"runs": sc.montecarlo.runs, "success_target": sc.montecarlo.success_target}
+    d["placement"] = {"candidates": [list(c) for c in sc.placement.candidates],
+                      "spacing": sc.placement.spacing, "cover": sc.placement.cover}
+    return d
+
+
+def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, path: str | Path) -> Path:
+    """Write ``scenario`` with the placement's markers as a new scenario TOML file.
+
+    The scenario's source TOML (``scenario.text``) is re-serialised with its other keys kept
+    (comments are lost) when it still describes ``scenario``; otherwise (a modified copy) the
+    scenario object itself is written out, defaults included.
+    The text is validated with :func:`scenarios.loads` before writing.
+
+    Raises
+    ------
+    PlanningError
+        The placement has fewer than k markers (nothing coverable).
+    OutputError
+        The file cannot be written.
+    """
+    import scenarios as scn
+
+    if result.count < scenario.sensor.markers_per_fix:
+        raise PlanningError(f"placement chose {result.count} markers, fewer than markers_per_fix = "
+                            f"{scenario.sensor.markers_per_fix}: nothing to write")
+    data = None
+    if scenario.text:
+        try:
+            if scn.loads(scenario.text, source=scenario.source) == scenario:
+                data = tomllib.loads(scenario.text)
+        except (scn.PefsimError, tomllib.TOMLDecodeError):
+            data = None
+    if data is None:
+        data = _scenario_dict(scenario)
+    data["markers"] = [{"id": i, "position": [float(x), float(y)]} for i, (x, y) in result.markers]
+    text = tomli_w.dumps(data)
+    out = Path(path)
+    scn.loads(text, source=str(out))  # a bug here must not leave a broken file behind
+    try:
+        out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot write the placed scenario: {exc}") from None
+    return out
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

@@ -1,0 +1,161 @@
+"""Where markers may go and which points they must serve: candidate sites and cover points.
+
+Candidate sites are the scenario's ``placement.candidates`` when given; otherwise points along
+the workspace walls and the obstacle faces, ``placement.spacing`` apart (each edge split into
+``ceil(length / spacing)`` equal parts, one site at the middle of each part, so corners, where
+line of sight grazes, are avoided). Sites sit exactly on the faces, as the built-in markers do;
+line of sight treats a face point as visible from its open side (:mod:`planner.pef.visibility`).
+
+Cover points are what placement must keep under ``eps_max`` (``placement.cover``):
+
+- ``routes``: the route network's segments sampled at the PEF resolution (plus a straight
+  link from a task dock that is not a network node to its nearest node); without a network,
+  the drivable path between each task's docks from :func:`planner.routes.plan.plan_route`, planned as
+  if accuracy did not matter (a PEF that is 0 everywhere); without tasks, as ``free``;
+- ``free``: the centres of a grid over the free space where the robot fits (clearance to
+  walls and obstacles >= robot radius), at the PEF resolution or coarser, so that there are
+  at most :data:`MAX_FREE_POINTS` of them.
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from scenarios.errors import PlanningError
+from scenarios.schema import Scenario
+
+MAX_FREE_POINTS = 2000
+"""Largest number of free-space cover points; the grid is coarsened to stay under it."""
+
+
+def _edge_sites(a: np.ndarray, b: np.ndarray, spacing: float) -> np.ndarray:
+    length = float(np.hypot(*(b - a)))
+    if length == 0.0:
+        return np.zeros((0, 2))
+    n = max(1, math.ceil(length / spacing))
+    f = (np.arange(n) + 0.5) / n
+    return a + f[:, None] * (b - a)
+
+
+def candidate_sites(scenario: Scenario, spacing: float | None = None) -> np.ndarray:
+    """Candidate marker sites, shape (S, 2) [m] (see module doc).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Uses ``placement`` (candidates, spacing), the workspace and the obstacles.
+    spacing : float, optional
+        Distance between sampled sites [m]; default ``scenario.placement.spacing``.
+        Ignored when the scenario lists candidates.
+    """
+    if scenario.placement.candidates:
+        return np.array(scenario.placement.candidates, dtype=float).reshape(-1, 2)
+    spacing = scenario.placement.spacing if spacing is None else float(spacing)
+    if not spacing > 0.0:
+        raise PlanningError(f"placement.spacing: expected a positive number of metres, got {spacing}")
+    w, h = scenario.workspace.size
+    rings = [np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])]
+    rings += [ob.corners() for ob in scenario.obstacles]
+    parts = [_edge_sites(r[i], r[(i + 1) % 4], spacing) for r in rings for i in range(4)]
+    sites = np.vstack(parts)
+    tol = 1e-9
+    ok = (sites[:, 0] >= -tol) & (sites[:, 0] <= w + tol) & (sites[:, 1] >= -tol) & (sites[:, 1] <= h + tol)
+    for ob in scenario.obstacles:
+        ok &= ~np.array([ob.contains(p, margin=-1e-6) for p in sites])
+    sites = np.clip(sites[ok], 0.0, [w, h])
+    _, first = np.unique(np.round(sites, 9), axis=0, return_index=True)
+    return sites[np.sort(first)]
+
+
+def _sample_segment(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
+    n = max(1, math.ceil(float(np.hypot(*(b - a))) / step))
+    return a + (np.arange(n + 1) / n)[:, None] * (b - a)
+
+
+def free_points(scenario: Scenario, spacing: float | None = None) -> np.ndarray:
+    """Grid centres in free space where the robot fits, shape (N, 2) [m], N <= MAX_FREE_POINTS.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    spacing : float, optional
+        Grid step [m]; default the PEF resolution, coarsened to keep N <= MAX_FREE_POINTS.
+    """
+    from planner.routes.criteria import clearance
+
+    w, h = scenario.workspace.size
+    step = scenario.planning.resolution if spacing is None else float(spacing)
+    while True:
+        nx, ny = max(1, round(w / step)), max(1, round(h / step))
+        x, y = (np.arange(nx) + 0.5) * w / nx, (np.arange(ny) + 0.5) * h / ny
+        pts = np.column_stack([np.tile(x, ny), np.repeat(y, nx)])
+        pts = pts[clearance(pts, scenario) >= scenario.robot.radius]
+        if len(pts) <= MAX_FREE_POINTS or spacing is not None:
+            return pts
+        step *= math.sqrt(len(pts) / MAX_FREE_POINTS) * 1.01
+
+
+class _FlatPEF:
+    """A PEF that is 0 everywhere: plans the drivable route regardless of accuracy."""
+
+    def __init__(self, scenario: Scenario):
+        self.scenario = scenario
+
+    def at(self, points):
+        p = np.asarray(points, dtype=float).reshape(-1, 2)
+        return SimpleNamespace(tau=np.zeros(len(p)), best=np.zeros((len(p), 0), dtype=int))
+
+    def grid(self, resolution=None):
+        from planner.pef.map import grid_centres
+
+        res = self.scenario.planning.resolution if resolution is None else resolution
+        x, y = grid_centres(self.scenario.workspace.size, res)
+        size = self.scenario.workspace.size
+        return SimpleNamespace(x=x, y=y, tau=np.zeros((y.size, x.size)), free=np.ones((y.size, x.size), bool),
+                               cell_size=(size[0] / x.size, size[1] / y.size))
+
+
+def route_points(scenario: Scenario, step: float | None = None) -> np.ndarray:
+    """Points along the routes the robot drives, shape (N, 2) [m] (see module doc).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    step : float, optional
+        Sampling step along the routes [m]; default the PEF resolution.
+    """
+    step = scenario.planning.resolution if step is None else float(step)
+    parts = []
+    if scenario.routes is not None:
+        nodes = {k: np.asarray(v, dtype=float) for k, v in scenario.routes.nodes.items()}
+        parts += [_sample_segment(nodes[a], nodes[b], step) for a, b in scenario.routes.segments]
+        used = {name for t in scenario.tasks for name in (t.start, t.goal)}
+        for name in sorted(used - set(nodes)):
+            p = np.asarray(scenario.dock(name).position, dtype=float)
+            nearest = min(nodes.values(), key=lambda q: float(np.hypot(*(q - p))))
+            parts.append(_sample_segment(p, nearest, step))
+    elif scenario.tasks:
+        try:
+            from planner.routes.plan import plan_route
+        except ImportError:
+            return free_points(scenario)
+        flat = _FlatPEF(scenario)
+        for t in scenario.tasks:
+            plan = plan_route(scenario, t.start, t.goal, free=True, pef=flat, schedule=False)
+            path = np.asarray(plan.path, dtype=float)
+            parts += [_sample_segment(path[i], path[i + 1], step) for i in range(len(path) - 1)]
+    else:
+        return free_points(scenario)
+    pts = np.vstack(parts)
+    _, first = np.unique(np.round(pts, 9), axis=0, return_index=True)
+    return pts[np.sort(first)]
+
+
+def cover_points(scenario: Scenario) -> np.ndarray:
+    """Return the points placement must cover (``scenario.placement.cover``), shape (N, 2) [m]."""
+    if scenario.placement.cover == "free":
+        return free_points(scenario)
+    return route_points(scenario)

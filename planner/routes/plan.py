@@ -1,0 +1,200 @@
+"""Route planning between two docks: candidates, criteria, choice, smooth path, schedule.
+
+:func:`plan_route` gathers candidate routes (through the scenario's route network, or by
+free-space grid search; :mod:`planner.routes.candidates`), each turned into a drivable path and
+scored at the PEF resolution, ranks the admissible ones (:mod:`planner.routes.criteria`),
+re-checks the best at a quarter of the resolution with :meth:`PEF.at` and gives it a
+measurement schedule (:mod:`planner.schedule.schedule`); a candidate that fails either is marked
+inadmissible and the next one is taken.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.routes import criteria
+from planner.routes.candidates import Candidate, TauFn, free_candidates, network_candidates
+from planner.routes.ranking import Ranking, rank
+from scenarios.errors import PlanningError
+from scenarios.schema import Scenario
+
+# The chosen path is re-checked at this fraction of the PEF resolution.
+FINE_FRACTION = 0.25
+
+
+@dataclass
+class Plan:
+    """A planned route between two docks.
+
+    Attributes
+    ----------
+    start, goal : str
+        Dock names.
+    eps_max : float
+        Allowed error [m].
+    candidates : list of Candidate
+    chosen : int or None
+        Index into ``candidates``.
+    reason : str
+        Why the chosen route won.
+    path : ndarray, shape (N, 2)
+        Smoothed reference path, samples at most the PEF resolution apart [m].
+    s : ndarray, shape (N,)
+        Arc length [m].
+    speed : ndarray, shape (N,)
+        Reference speed [m/s]: slower on arcs, 0 at sharp-corner stops and at the goal.
+    schedule : planner.schedule.schedule.Schedule
+        Where to take fixes and with which markers.
+    """
+
+    start: str
+    goal: str
+    eps_max: float
+    candidates: list[Candidate]
+    chosen: int | None
+    reason: str
+    path: np.ndarray
+    s: np.ndarray
+    speed: np.ndarray
+    schedule: object
+
+
+# ------------------------------------------------------------------------------- choosing
+
+
+def _rank(scenario: Scenario, cands: list[Candidate]) -> Ranking:
+    values = np.array([c.vector() for c in cands]).reshape(-1, len(criteria.CRITERIA))
+    adm = np.array([c.admissible for c in cands], bool)
+    ranking = rank(values, adm, scenario.planning.weights, scenario.planning.order)
+    for c, sc, p in zip(cands, ranking.scores, ranking.pareto, strict=True):
+        c.score, c.pareto = float(sc), bool(p)
+    return ranking
+
+
+def _reason(scenario: Scenario, cands: list[Candidate], ranking: Ranking, chosen: int,
+            dropped: list[str]) -> str:
+    c = cands[chosen]
+    n = int(sum(x.admissible for x in cands))
+    w = scenario.planning.weights
+    if ranking.lexicographic:
+        why = f"first in lexicographic order {' > '.join(ranking.lexicographic)} among {n} admissible"
+    else:
+        ws = ", ".join(f"{k} {getattr(w, k):g}" for k in criteria.CRITERIA)
+        why = f"lowest weighted score {c.score:.3f} among {n} admissible (weights {ws})"
+    tail = "; on the Pareto front" if c.pareto else ""
+    if dropped:
+        tail += "; skipped " + ", ".join(dropped)
+    return (f"{c.id}: {why} — max tau {c.max_tau * 1000:.2f} mm, {c.time:.1f} s, "
+            f"traffic {c.traffic:.2f}, clearance {c.min_clearance:.2f} m, turning {c.turning:.2f} rad{tail}")
+
+
+def _fine_check(scenario: Scenario, cand: Candidate, tau_fn: TauFn) -> str:
+    """Re-check a path at a quarter of the resolution; the reason it fails or ''."""
+    pts, _ = criteria.sample_polyline(cand.path.points, scenario.planning.resolution * FINE_FRACTION)
+    tau = np.asarray(tau_fn(pts), float)
+    i = int(np.argmax(np.where(np.isnan(tau), np.inf, tau)))
+    if not tau[i] < scenario.planning.eps_max:
+        cand.max_tau = max(cand.max_tau, float(tau[i]))
+        cand.worst_point = (float(pts[i, 0]), float(pts[i, 1]))
+        return (f"tau {tau[i]:.4g} m >= eps_max {scenario.planning.eps_max:g} m at "
+                f"({pts[i, 0]:.2f}, {pts[i, 1]:.2f}) on fine re-check")
+    cl = float(criteria.clearance(pts, scenario).min())
+    if cl < scenario.robot.radius:
+        cand.min_clearance = min(cand.min_clearance, cl)
+        return f"clearance {cl:.3f} m < robot radius {scenario.robot.radius:g} m on fine re-check"
+    return ""
+
+
+def _no_route(scenario: Scenario, start: str, goal: str, cands: list[Candidate]) -> PlanningError:
+    best = min(cands, key=lambda c: (c.max_tau, -c.min_clearance))
+    return PlanningError(f"no admissible route from {start!r} to {goal!r} among {len(cands)} candidates "
+                         f"(eps_max {scenario.planning.eps_max:g} m); best {best.id}: {best.why_not}")
+
+
+def _make_schedule(scenario: Scenario, pef, cand: Candidate):
+    from planner.schedule.schedule import make_schedule
+    return make_schedule(scenario, pef, cand.path.points, cand.speed)
+
+
+def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = None, pef=None,
+               schedule: bool = True) -> Plan:
+    """Plan a route from dock ``start`` to dock ``goal``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    start, goal : str
+        Dock names.
+    free : bool, optional
+        Free-space grid search (True) or the route network (False); default the network
+        when the scenario has one.
+    pef : planner.pef.map.PEF, optional
+        The PEF to plan with (anything with ``at`` and ``grid``); default ``PEF(scenario)``.
+    schedule : bool
+        Compute the chosen route's measurement schedule (needs a real PEF).
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    PlanningError
+        Unknown or unreachable dock, or no admissible route (names the best candidate's worst
+        point and τ there).
+    """
+    names = [d.name for d in scenario.docks]
+    for name in (start, goal):
+        if name not in names:
+            raise PlanningError(f"unknown dock {name!r} (docks: {', '.join(names) or 'none'})")
+    if start == goal:
+        raise PlanningError(f"start and goal are the same dock {start!r}")
+    if pef is None:
+        from planner.pef.map import PEF
+        pef = PEF(scenario)
+    tau_fn = lambda p: np.asarray(pef.at(np.asarray(p, float).reshape(-1, 2)).tau, float)
+    use_free = scenario.routes is None if free is None else free
+    if not use_free and scenario.routes is None:
+        raise PlanningError(f"scenario {scenario.name!r} has no route network: plan in free space")
+    if use_free:
+        cands = free_candidates(scenario, start, goal, pef, tau_fn)
+    else:
+        cands = network_candidates(scenario, start, goal, tau_fn)
+    dropped: list[str] = []
+    while True:
+        ranking = _rank(scenario, cands)
+        if not ranking.order:
+            raise _no_route(scenario, start, goal, cands)
+        chosen = ranking.order[0]
+        cand = cands[chosen]
+        why = _fine_check(scenario, cand, tau_fn)
+        sched = None
+        if not why and schedule:
+            try:
+                sched = _make_schedule(scenario, pef, cand)
+            except PlanningError as exc:
+                why = f"no measurement schedule ({exc})"
+            else:
+                # the slow-downs for fixes are part of the drive
+                cand.slowdown = sched.slowdown_time
+                cand.time += sched.slowdown_time
+                cand.speed = sched.speed
+        if not why:
+            break
+        cand.admissible, cand.why_not = False, why
+        dropped.append(f"{cand.id} ({why})")
+    return Plan(start=start, goal=goal, eps_max=scenario.planning.eps_max, candidates=cands,
+                chosen=chosen, reason=_reason(scenario, cands, ranking, chosen, dropped),
+                path=cand.path.points, s=cand.path.s, speed=cand.speed, schedule=sched)
+
+
+def plan_task(scenario: Scenario, task_index: int, free: bool | None = None, pef=None) -> Plan:
+    """Plan the scenario's task number ``task_index`` (0-based); see :func:`plan_route`."""
+    if not 0 <= task_index < len(scenario.tasks):
+        raise PlanningError(f"task {task_index}: scenario {scenario.name!r} has {len(scenario.tasks)} tasks")
+    t = scenario.tasks[task_index]
+    return plan_route(scenario, t.start, t.goal, free=free, pef=pef)
+
+

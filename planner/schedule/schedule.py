@@ -1,0 +1,339 @@
+"""The measurement schedule: where along a path to take fixes, and with which markers.
+
+Between fixes the robot dead-reckons, so the predicted position error at arc length ``s`` is
+the error of the last *completed* fix plus the drift since that fix started::
+
+    err(s) = tau_i + drift_bound(s - s_i, turned(s_i -> s))   for s in (c_i, c_{i+1}]
+
+where fix ``i`` starts at ``s_i`` and completes at ``c_i`` (it measures its ``k`` markers one
+after another, ``k * measurement_time`` seconds, while the robot moves on), and ``tau_i`` is its
+promise ``predicted_tau``: the fault-area diameter of that moving fix, its earlier ranges
+carried to the last by odometry (:mod:`planner.schedule.promise`). A fix is admissible when its promise
+is under ``eps_max / (1 + PROMISE_TOLERANCE)``.
+
+Slowing down (the paper's compromise between speed and accuracy)
+    Where no fix is admissible at the planned speed, the fix is taken slower (its earlier ranges
+    are shifted less; :mod:`planner.schedule.promise`). Where no schedule exists at all, the stretch the
+    search names is driven at half the speed and the search runs again: slower, the robot fixes
+    more often per metre (the sensor's rate is in time), so drift between fixes shrinks too.
+    Neither goes below ``planning.min_fix_speed``; a path is inadmissible only when that does
+    not help. The schedule's ``speed`` is the resulting profile and ``slowdown_time`` its cost.
+
+Fix starts are at least ``max(1 / fix_rate_hz, k * measurement_time)`` seconds apart. The first
+fix is taken at standstill at the start of the path (before departure).
+
+Schedule choice (:func:`make_schedule`)
+    The path is sampled at a fine spacing; every sample is a candidate fix start. A backward
+    pass marks the samples from which the rest of the path can be completed (using the best
+    subset's ``tau`` at every sample, which is what reaches farthest), so the forward pass
+    never walks into a dead end: it is complete on the sampled path (finds a schedule whenever
+    one exists with fixes starting at samples). Forward policy ``"often"`` (default) starts
+    each fix as early as the rate allows among the completable samples (lowest error);
+    ``"sparse"`` as late as the drift allows (fewest fixes). A window's fixes at the planned
+    speed are preferred to slowed ones, and slow-downs are only tried when no schedule exists
+    without them.
+    Subset policy: keep the previous fix's subset while its ``tau`` over the new stretch is
+    within ``(1 + switch_tolerance)`` of the best subset's and the rest stays completable;
+    otherwise take the best subset. ``switch`` marks the fixes whose subset differs from the
+    previous fix's: the points where the robot must change the markers it measures.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+
+from planner.routes.pathtime import Kinematics, sample_track
+from planner.routes.smoothing import acceleration_limited
+from planner.schedule import promise
+from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
+from planner.schedule.search import StretchError, Windows, search
+from scenarios.errors import PlanningError
+from scenarios.schema import Scenario
+
+MAX_SUBSETS = 400
+"""Above this many k-subsets of path-visible markers, only the PEF's pointwise-best subsets
+along the path are considered (cost: one ``tau_subset`` call per subset)."""
+
+
+@dataclass(frozen=True)
+class ScheduledFix:
+    """One fix of the schedule.
+
+    Attributes
+    ----------
+    s : float
+        Arc length along the path where the fix starts [m].
+    position : tuple of float
+        (x, y) where the fix starts [m].
+    markers : tuple of int
+        Indices into ``scenario.markers`` measured, in order.
+    tau : float
+        The static PEF (the paper's, a robot standing still) of this subset, largest over the
+        stretch the fix is taken over [m].
+    switch : bool
+        The subset differs from the previous fix's (always False for the first fix).
+    predicted_tau : float
+        The fix's promise: fault-area diameter of the moving fix the robot makes, its ranges
+        measured one after another at ``poses`` and carried to the last one by odometry
+        (:mod:`planner.schedule.promise`) [m].
+    speed : float
+        Mean planned speed over the fix [m/s] (0 for the standstill fix before departure).
+    slowed : bool
+        The plan slows down for this fix (its promise would break at the cruising speed).
+    poses : tuple of (x, y)
+        Planned position at each measurement, in order [m].
+    """
+
+    s: float
+    position: tuple[float, float]
+    markers: tuple[int, ...]
+    tau: float
+    switch: bool
+    predicted_tau: float = math.inf
+    speed: float = 0.0
+    slowed: bool = False
+    poses: tuple[tuple[float, float], ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Schedule:
+    """A measurement schedule along a path.
+
+    Attributes
+    ----------
+    fixes : tuple of ScheduledFix
+        The fixes, in path order.
+    s : ndarray, shape (N,)
+        Arc length of the input path's points [m].
+    predicted_error : ndarray, shape (N,)
+        Predicted position error (last completed fix's tau + drift) at those points [m].
+    worst : float
+        Largest predicted error along the whole path, checked at the fine spacing and at every
+        fix completion point [m].
+    speed : ndarray, shape (N,)
+        Speed at the path's points with the slow-downs for fixes [m/s].
+    slowdown_time : float
+        Time the slow-downs add to the drive [s].
+    """
+
+    fixes: tuple[ScheduledFix, ...]
+    s: np.ndarray
+    predicted_error: np.ndarray
+    worst: float
+    speed: np.ndarray
+    slowdown_time: float = 0.0
+
+
+def _candidate_subsets(pef, xy: np.ndarray, k: int) -> list[tuple[int, ...]]:
+    vis = np.asarray(pef.visible(xy), dtype=bool)
+    seen = np.flatnonzero(vis.any(axis=0))
+    if math.comb(len(seen), k) <= MAX_SUBSETS:
+        # only subsets seen together from some sample can ever be used
+        return [tuple(int(m) for m in c) for c in combinations(seen, k) if vis[:, list(c)].all(axis=1).any()]
+    best = np.asarray(pef.at(xy).best)
+    ok = (best >= 0).all(axis=1)
+    return [tuple(int(m) for m in row) for row in np.unique(np.sort(best[ok], axis=1), axis=0)]
+
+
+def _stretch_tau(tau: np.ndarray, tau_c: np.ndarray, c_idx: np.ndarray) -> np.ndarray:
+    """Largest tau over each sample's fix stretch (samples j .. c_idx[j] - 1 and the completion).
+
+    ``tau`` (C, n) at the samples, ``tau_c`` (C, n) at the exact completion points.
+    """
+    n = tau.shape[1]
+    j = np.arange(n)
+    out = np.maximum(tau, tau_c)
+    for off in range(1, int((c_idx - j).max(initial=0)) + 1):
+        idx = np.minimum(j + off, n - 1)
+        out = np.where(j + off < c_idx, np.maximum(out, tau[:, idx]), out)
+    return out
+
+
+def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray | None = None, *,
+                  spacing: float | None = None, policy: str = "often",
+                  switch_tolerance: float = 0.2, k_sigma: float = K_SIGMA,
+                  heading_error: float = 0.0, increment: float | None = DEFAULT_INCREMENT) -> Schedule:
+    """Choose fixes along ``path`` so that the predicted error stays under ``eps_max``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Uses ``sensor`` (fix rate, measurement time, k), ``robot`` (drift, max speed) and
+        ``planning.eps_max``.
+    pef : planner.pef.map.PEF
+        PEF over ``scenario`` (its ``visible``, ``tau_subset`` and ``at`` are used).
+    path : ndarray, shape (N, 2)
+        Path vertices [m], in driving order.
+    speed : ndarray, shape (N,), optional
+        Speed at the vertices [m/s], constant acceleration between them (see
+        :class:`Kinematics`); default the robot's ``max_speed`` everywhere.
+    spacing : float, optional
+        Sampling step of the check and of candidate fix starts [m]; default the smaller of
+        the PEF resolution and a quarter of the distance covered between two fixes.
+    policy : {"often", "sparse"}
+        Fix as early as the rate allows, or as late as the drift allows.
+    switch_tolerance : float
+        Keep the previous subset while its tau is within this fraction of the best's.
+    k_sigma, heading_error, increment
+        Passed to :func:`planner.schedule.drift.drift_bound`.
+
+    Returns
+    -------
+    Schedule
+
+    Raises
+    ------
+    PlanningError
+        If no schedule keeps the error under ``eps_max``; names the worst stretch.
+    """
+    if policy not in ("often", "sparse"):
+        raise PlanningError(f"schedule policy: expected 'often' or 'sparse', got {policy!r}")
+    path = np.asarray(path, dtype=float).reshape(-1, 2)
+    if len(path) == 0:
+        raise PlanningError("schedule: empty path")
+    sensor, robot = scenario.sensor, scenario.robot
+    k = int(getattr(pef, "k", None) or sensor.markers_per_fix)
+    v = (np.full(len(path), robot.max_speed) if speed is None
+         else np.asarray(speed, dtype=float).reshape(-1))
+    if v.shape != (len(path),) or np.any(v < 0) or not np.all(np.isfinite(v)):
+        raise PlanningError(f"schedule: expected {len(path)} finite speeds >= 0, got shape {v.shape}")
+    fix_time = k * sensor.measurement_time
+    gap = max(1.0 / sensor.fix_rate_hz, fix_time)
+    if spacing is None:
+        spacing = min(scenario.planning.resolution, 0.25 * max(v.max(), 1e-9) * gap)
+    if spacing <= 0:
+        raise PlanningError(f"schedule: spacing must be > 0, got {spacing}")
+
+    drift = functools.partial(drift_bound, robot, k_sigma=k_sigma, heading_error=heading_error,
+                              increment=increment)
+    s_v = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    t_planned = Kinematics(s_v, v).t_v[-1]
+    v_try = v
+    while True:
+        try:
+            return _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
+                            t_planned)
+        except StretchError as exc:
+            slower = _slow_stretch(s_v, v_try, exc.stretch, scenario.planning.min_fix_speed)
+            if slower is None:
+                raise
+            v_try = slower
+
+
+def _slow_stretch(s_v: np.ndarray, v: np.ndarray, stretch: tuple[float, float], v_min: float) -> np.ndarray | None:
+    """Halve the speed over a stretch (not below ``v_min``), braking into it; None if it is at ``v_min``.
+
+    Slower, the robot fixes more often per metre (the sensor's rate is in time) and each fix's
+    earlier ranges are shifted less: drift and promise both shrink.
+    """
+    a, b = stretch
+    lo = max(int(np.searchsorted(s_v, a, side="right")) - 1, 0)
+    hi = min(int(np.searchsorted(s_v, b, side="left")), len(s_v) - 1)
+    cap = np.array(v, dtype=float)
+    part = cap[lo:hi + 1]
+    if np.all(part <= v_min * (1.0 + 1e-9)):
+        return None
+    cap[lo:hi + 1] = np.minimum(part, np.maximum(0.5 * part, v_min))
+    return acceleration_limited(s_v, cap)
+
+
+def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned) -> Schedule:
+    """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists."""
+    sensor, eps = scenario.sensor, scenario.planning.eps_max
+    fix_time = k * sensor.measurement_time
+    tr = sample_track(path, v, spacing, fix_time, gap, measurements=k)
+    n = len(tr.s)
+    subsets = _candidate_subsets(pef, tr.xy, k)
+    if not subsets:
+        tau = np.full((1, 2 * n), np.inf)
+        subsets = [tuple(range(k))]
+    else:
+        # tau at the samples and at the exact completion points of fixes started there
+        both = np.vstack([tr.xy, tr.xy_c])
+        tau = np.stack([np.asarray(pef.tau_subset(both, np.asarray(c)), dtype=float) for c in subsets])
+    tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
+    lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
+          else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
+    limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
+
+    pl = Windows(tr, drift, eps, gap)
+    taus = np.stack([x.tau for x in lv])
+    try:
+        chosen, level = search(pl, taus[:1], limit, k, policy, switch_tolerance)  # no slow-down
+    except PlanningError:
+        if len(lv) == 1:
+            raise
+        chosen, level = search(pl, taus, limit, k, policy, switch_tolerance)
+    starts = np.array([j for j, _, _ in chosen])
+    fix_level = level[starts].copy()
+    pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k)
+
+    fixes = tuple(
+        ScheduledFix(s=float(tr.s[j]), position=(float(tr.xy[j, 0]), float(tr.xy[j, 1])),
+                     markers=order[i], tau=float(tau_s[c, j]), switch=i > 0 and c != chosen[i - 1][1],
+                     predicted_tau=float(pred[i]), speed=_fix_speed(kin, tr.s[j], k, sensor.measurement_time, i),
+                     slowed=bool(fix_level[i] > 0), poses=tuple(tuple(map(float, q)) for q in poses[i]))
+        for i, (j, c, _) in enumerate(chosen))
+    completes = tr.c[starts]
+    active = np.maximum(np.searchsorted(completes, tr.s, side="left") - 1, 0)
+    fj = starts[active]
+    err = pred[active] + drift(tr.s - tr.s[fj], tr.turn_in - tr.turn_ex[fj])
+    # just before each later fix completes, the previous fix still holds
+    handover = [pl.err_at_completion(starts[i], pred[i], starts[i + 1]) for i in range(len(starts) - 1)]
+    worst = float(max([err.max(), *handover]))
+    if not worst < eps:
+        i = int(np.argmax(err))
+        f = int(np.searchsorted(starts, i, side="right")) - 1
+        raise StretchError(f"no measurement schedule keeps the error under eps_max = {eps:.4g} m: the exact "
+                           f"promises of the chosen fixes reach {worst:.4g} m near s = {tr.s[i]:.2f} m",
+                           (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
+    return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
+                    worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
+
+
+def _fix_speed(kin, s0: float, k: int, mt: float, i: int) -> float:
+    """Mean planned speed over a fix started at ``s0`` [m/s] (0 for the standstill fix, i = 0)."""
+    if i == 0:
+        return 0.0
+    t0 = float(kin.t_at(np.array(s0)))
+    return float((kin.s_at(np.array(t0 + k * mt)) - s0) / (k * mt))
+
+
+def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
+    """Slow the chosen fixes down until each exact promise is under ``limit``.
+
+    The search scores fixes with the construction's parallelogram; the exact promise
+    (:func:`planner.schedule.promise.predict`) can differ a little, and at the final speed profile the
+    robot may still be braking: a fix over the limit is taken at the next slower level.
+    """
+    mt = scenario.sensor.measurement_time
+    s_v = tr.kin.s_v
+    while True:
+        order = [tuple(reversed(subsets[c])) if lv[fix_level[i]].flipped[c, j] else subsets[c]
+                 for i, (j, c, _) in enumerate(chosen)]
+        slow = []
+        for i, (j, _, _) in enumerate(chosen):
+            if fix_level[i] > 0:
+                vf = float(lv[fix_level[i]].speed[j])
+                slow.append((float(tr.s[j]), float(tr.s[j]) + vf * k * mt * 1.01, vf))
+        v_new = promise.slowed_speeds(s_v, v, slow)
+        pred, poses, kin = promise.predict(scenario, path, v_new, tr.s[[j for j, _, _ in chosen]], order)
+        bad = np.flatnonzero(~(pred < limit))
+        if len(bad) == 0:
+            return pred, poses, kin, v_new, order
+        for i in bad:
+            j, c, _ = chosen[i]
+            slower = [lvl for lvl in range(fix_level[i] + 1, len(lv)) if np.isfinite(lv[lvl].tau[c, j])]
+            if not slower:
+                x, y = tr.xy[j]
+                raise StretchError(
+                    f"no measurement schedule keeps the error under eps_max = {scenario.planning.eps_max:.4g} m: "
+                    f"the fix at s = {tr.s[j]:.2f} m ({x:.2f}, {y:.2f}) promises {pred[i]:.4g} m even at "
+                    f"{scenario.planning.min_fix_speed:g} m/s (limit {limit:.4g} m = eps_max / "
+                    f"{1 + promise.PROMISE_TOLERANCE:g})", (float(tr.s[j]), float(tr.s[j]) + 0.1))
+            fix_level[i] = slower[0]

@@ -1,0 +1,74 @@
+"""The ``pefsim`` command line: parses arguments, dispatches, and owns error reporting.
+
+Each command lives in its own module ``sim/cli/<name>.py`` exposing ``register(subparsers)``
+(which adds the parser and sets ``func``). Commands import their heavy dependencies inside
+``func`` so that ``pefsim --help`` and ``pefsim list`` start fast.
+
+Errors derived from :class:`scenarios.PefsimError` become one line on stderr and exit code 2;
+anything else is a bug and shows its traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from typing import Any
+
+from scenarios import PefsimError
+
+COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper")
+
+EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse's own usage errors are bad input too
+        self.exit(EXIT_BAD_INPUT, f"pefsim: error: {message}\n")
+
+
+def print_json(obj: Any) -> None:
+    """Print ``obj`` as JSON on stdout (the machine-readable form of every summary)."""
+    json.dump(obj, sys.stdout, indent=2, allow_nan=False, default=_jsonable)
+    sys.stdout.write("\n")
+
+
+def _jsonable(o: Any) -> Any:
+    import numpy as np
+
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="pefsim", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name in COMMANDS:
+        importlib.import_module(f"sim.cli.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        code = args.func(args)
+    except PefsimError as exc:
+        print(f"pefsim: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("pefsim: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        # the reader went away (``pefsim ... | head``): not an error of ours
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    return EXIT_OK if code is None else int(code)
+

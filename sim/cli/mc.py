@@ -1,0 +1,82 @@
+"""``pefsim mc``: a Monte-Carlo sweep of seeded episodes, written as Parquet, with a report."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("mc", help="Monte-Carlo sweep: N seeded episodes to Parquet, with a report",
+                       description="Run N seeded episodes of a scenario headless, write one row per run "
+                                   "(runs.parquet), per step (steps/) and per fix (fixes/) as runs finish, "
+                                   "and an HTML report (report.html).")
+    p.add_argument("scenario", help="scenario file or built-in name")
+    p.add_argument("--runs", type=int, help="number of runs (default: the scenario's montecarlo.runs, "
+                                            "or the earlier sweep's with --resume)")
+    p.add_argument("--task", type=int, help="drive only this task index (default: run i drives task i %% n)")
+    p.add_argument("--workers", type=int, help="worker processes or Ray actors (default: CPU count)")
+    p.add_argument("--executor", default="local", choices=("local", "ray"), help="where runs execute")
+    p.add_argument("--address", help="Ray cluster address (with --executor ray; default starts one)")
+    p.add_argument("--out", help="output directory (default: mc-<scenario name>)")
+    p.add_argument("--resume", action="store_true", help="complete the missing runs of --out")
+    p.add_argument("--rrd-every", type=int, default=0, metavar="M",
+                   help="write a rerun recording of every M-th run to OUT/recordings/")
+    p.add_argument("--no-report", action="store_true", help="skip report.html")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import scenarios
+    from scenarios.errors import ScenarioError
+    from sim.cli import print_json
+    from sim.montecarlo import engine as montecarlo
+
+    if args.address and args.executor != "ray":
+        raise ScenarioError(f"--address: needs --executor ray, got --executor {args.executor}")
+    scenario = scenarios.load(args.scenario)
+    rrd_every = args.rrd_every
+    if rrd_every > 0 and not _recording_available():
+        print("pefsim: warning: sim.recording is not available; --rrd-every ignored", file=sys.stderr)
+        rrd_every = 0
+    summary = montecarlo.sweep(scenario, args.out, runs=args.runs, task=args.task, workers=args.workers,
+                               executor=args.executor, address=args.address, resume=args.resume,
+                               rrd_every=rrd_every)
+    report = None
+    if not args.no_report:
+        from sim.report.page import write_report
+
+        report = write_report(summary.out, scenario)
+    if args.json:
+        out = summary.to_dict()
+        out["report"] = str(report) if report else None
+        print_json(out)
+        return 0
+    print(format_summary(summary, report))
+    return 0
+
+
+def _recording_available() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("sim.recording") is not None
+
+
+def format_summary(s, report: os.PathLike | None) -> str:
+    """Format a :class:`~sim.montecarlo.engine.SweepSummary` as the lines ``pefsim mc`` prints."""
+    lines = [f"{s.runs} runs in {s.out}: {s.ok} ok, {s.crashed} crashed, {s.reached} reached the goal, "
+             f"{s.violation_runs} exceeded eps_max"]
+    if s.runs:
+        lo, hi = s.success_ci
+        lines.append(f"success {s.success_fraction:.3f} (95% CI {lo:.3f} .. {hi:.3f}), "
+                     f"target {s.success_target:.3f}")
+    if s.executed:
+        rate = f", {s.runs_per_minute:.1f} runs/min" if s.runs_per_minute else ""
+        lines.append(f"this invocation ran {s.executed} runs in {s.wall_time:.1f} s{rate}")
+    else:
+        lines.append("nothing to run: every run was already finished")
+    if report:
+        lines.append(f"report: {report}")
+    return "\n".join(lines)

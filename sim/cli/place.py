@@ -1,0 +1,134 @@
+"""``pefsim place``: the fewest markers, among candidate sites, that keep the routes under eps_max.
+
+Prints the marker count, whether it is proven optimal (else the lower bound), and the markers.
+``-o`` writes the scenario with these markers (loadable, covering every coverable point);
+``--png`` draws the sites, chosen markers and points to cover; ``--json`` prints the result.
+
+Points that no subset of candidate sites can cover are always reported: without ``--json``
+the summary is printed and the command fails with one line naming how many and the first
+few (exit 2); with ``--json`` they are listed under ``uncovered`` and the exit code is 2 as
+well. ``-o`` and ``--png`` are still written in that case (covering the coverable points).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+EPILOG = ("exit codes: 0 every point covered; 2 bad input, or some points cannot be covered by any "
+          "candidate sites (listed under 'uncovered' with --json, else named in one error line; "
+          "-o and --png are still written)")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("place", help="fewest markers that keep the routes under eps_max",
+                       description="The fewest markers, among candidate sites, that keep the routes "
+                                   "(or free space) under eps_max.", epilog=EPILOG)
+    p.add_argument("scenario", help="scenario file or built-in name")
+    p.add_argument("-o", "--output", metavar="TOML", help="write the scenario with the placed markers")
+    p.add_argument("--png", metavar="FILE", help="figure: candidate sites, chosen markers, points to cover")
+    p.add_argument("--json", action="store_true",
+                   help="print markers (id, position), count, lower_bound, optimal, method, "
+                        "points, sites, uncovered ([x, y] points no sites can cover)")
+    p.add_argument("--method", choices=("auto", "milp", "greedy"), default="auto",
+                   help="auto: exact (cutting planes + HiGHS MILP) for small instances, else greedy "
+                        "with the LP lower bound")
+    p.add_argument("--time-limit", type=float, default=None, metavar="S",
+                   help="time limit of the exact solver in seconds (default 30)")
+    p.set_defaults(func=run)
+
+
+def summary(result) -> dict:
+    """Build the ``--json`` document of a placement (positions in metres)."""
+    return {
+        "count": int(result.count),
+        "lower_bound": int(result.lower_bound),
+        "optimal": bool(result.optimal),
+        "method": result.method,
+        "markers": [{"id": i, "position": [float(x), float(y)]} for i, (x, y) in result.markers],
+        "points": int(len(result.points)),
+        "sites": int(len(result.sites)),
+        "uncovered": [[float(x), float(y)] for x, y in result.uncovered],
+    }
+
+
+def _plot(path: Path, scenario, result) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Polygon
+
+    from scenarios.errors import OutputError
+
+    w, h = scenario.workspace.size
+    fig = Figure(figsize=(8, 8 * h / w + 0.6))
+    ax = fig.add_subplot()
+    ax.add_patch(Polygon([[0, 0], [w, 0], [w, h], [0, h]], closed=True, fill=False, color="black"))
+    for corners in scenario.obstacle_corners():
+        ax.add_patch(Polygon(corners, closed=True, color="0.6"))
+    pts, sites = result.points, result.sites
+    ax.plot(pts[:, 0], pts[:, 1], ".", ms=2, color="tab:blue", label=f"points to cover ({len(pts)})")
+    ax.plot(sites[:, 0], sites[:, 1], "o", ms=4, mfc="none", color="0.4",
+            label=f"candidate sites ({len(sites)})")
+    if len(result.uncovered):
+        u = result.uncovered
+        ax.plot(u[:, 0], u[:, 1], "x", ms=4, color="tab:red", label=f"uncoverable ({len(u)})")
+    for mid, (x, y) in result.markers:
+        ax.annotate(mid, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    if result.markers:
+        m = [p for _, p in result.markers]
+        ax.plot(*zip(*m, strict=True), "*", ms=14, color="tab:orange", mec="black",
+                label=f"markers ({len(m)})")
+    state = "optimal" if result.optimal else f"lower bound {result.lower_bound}"
+    ax.set_title(f"{scenario.name}: {result.count} markers ({state}), "
+                 f"eps_max = {scenario.planning.eps_max:g} m")
+    ax.set_aspect("equal")
+    ax.set_xlim(-0.5, w + 0.5)
+    ax.set_ylim(-0.5, h + 0.5)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=8)
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=120, bbox_inches="tight")
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write the figure: {exc.strerror or exc}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    import scenarios
+    from planner.placement.placement import MILP_TIME_LIMIT, place, write_scenario_with_markers
+    from scenarios.errors import PlanningError
+    from sim.cli import print_json
+
+    sc = scenarios.load(args.scenario)
+    limit = MILP_TIME_LIMIT if args.time_limit is None else args.time_limit
+    if not limit > 0:
+        raise PlanningError(f"--time-limit: expected a positive number of seconds, got {limit}")
+    result = place(sc, method=args.method, time_limit=limit)
+    written = []
+    written_toml = args.output is not None and result.count >= sc.sensor.markers_per_fix
+    if written_toml:
+        written.append(write_scenario_with_markers(sc, result, args.output))
+    if args.png is not None:
+        _plot(Path(args.png), sc, result)
+        written.append(args.png)
+    n_bad = len(result.uncovered)
+    if args.json:
+        print_json(summary(result))
+        return 2 if n_bad else 0
+    state = "optimal" if result.optimal else f"not proven optimal, lower bound {result.lower_bound}"
+    n_pts = len(result.points)
+    print(f"{sc.name}: {result.count} markers ({state}; {result.method}) cover {n_pts - n_bad} of {n_pts} "
+          f"points under eps_max = {sc.planning.eps_max:g} m, from {len(result.sites)} candidate sites")
+    for mid, (x, y) in result.markers:
+        print(f"  {mid:<5} {x:8.3f} {y:8.3f}")
+    for path in written:
+        print(f"wrote {path}")
+    if n_bad:
+        first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in result.uncovered[:3])
+        note = "; -o not written: no markers" if args.output and not written_toml else ""
+        raise PlanningError(f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
+                            f"(first: {first}){note}")
+    return 0

@@ -1,0 +1,121 @@
+"""``pefsim plan``: candidate routes between two docks, their criteria, the choice and why."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plan", help="candidate routes, criteria table, choice, schedule")
+    p.add_argument("scenario", help="scenario file or built-in name")
+    p.add_argument("--from", dest="start", metavar="A", help="start dock (default: the first task's)")
+    p.add_argument("--to", dest="goal", metavar="B", help="goal dock (default: the first task's)")
+    p.add_argument("--free", action="store_true",
+                   help="free-space grid search even if there is a route network")
+    p.add_argument("-o", "--output", metavar="PNG", help="write the figure here (nothing is written without it)")
+    p.add_argument("--rrd", metavar="FILE",
+                   help="write a rerun recording of the map, the candidate routes and the schedule")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=run)
+
+
+def _num(x: float) -> float | None:
+    """JSON has no inf/NaN: those become null."""
+    return float(x) if math.isfinite(x) else None
+
+
+def plan_json(scenario, plan) -> dict:
+    """Build the ``--json`` document of a plan."""
+    cands = []
+    for c in plan.candidates:
+        cands.append({
+            "id": c.id, "nodes": list(c.nodes) if c.nodes is not None else None,
+            "length": _num(c.length), "time": _num(c.time), "max_tau": _num(c.max_tau),
+            "mean_tau": _num(c.mean_tau), "traffic": _num(c.traffic), "min_clearance": _num(c.min_clearance),
+            "turning": _num(c.turning), "slowdown": _num(c.slowdown), "admissible": c.admissible, "pareto": c.pareto,
+            "score": _num(c.score), "why_not": c.why_not or None})
+    ids = scenario.marker_ids()
+    fixes = []
+    if plan.schedule is not None:
+        for f in plan.schedule.fixes:
+            fixes.append({"x": f.position[0], "y": f.position[1], "s": f.s,
+                          "markers": [ids[i] for i in f.markers], "tau": _num(f.tau),
+                          "predicted_tau": _num(f.predicted_tau), "speed": f.speed, "slowed": f.slowed,
+                          "switch": f.switch})
+    return {
+        "scenario": scenario.name, "start": plan.start, "goal": plan.goal, "eps_max": plan.eps_max,
+        "candidates": cands,
+        "chosen": plan.candidates[plan.chosen].id if plan.chosen is not None else None,
+        "chosen_index": plan.chosen, "reason": plan.reason,
+        "path": [[float(x), float(y)] for x, y in plan.path],
+        "schedule": fixes,
+    }
+
+
+def _table(plan) -> str:
+    head = (f"{'id':<4} {'route':<28} {'len[m]':>7} {'time[s]':>7} {'max τ[mm]':>9} {'mean τ[mm]':>10} "
+            f"{'slow[s]':>7} {'traffic':>7} {'clear[m]':>8} {'turn[rad]':>9} {'score':>6}  note")
+    rows = [head, "-" * len(head)]
+    for i, c in enumerate(plan.candidates):
+        route = "-".join(c.nodes) if c.nodes is not None else c.origin
+        if len(route) > 28:
+            route = route[:25] + "..."
+        note = ("CHOSEN " if i == plan.chosen else "") + ("pareto" if c.pareto else "")
+        if not c.admissible:
+            note = "inadmissible: " + c.why_not
+        score = f"{c.score:6.3f}" if math.isfinite(c.score) else "     -"
+        slow = f"{c.slowdown:7.2f}" if math.isfinite(c.slowdown) else "      -"
+        rows.append(f"{c.id:<4} {route:<28} {c.length:7.2f} {c.time:7.1f} {c.max_tau * 1000:9.2f} "
+                    f"{c.mean_tau * 1000:10.2f} {slow} {c.traffic:7.2f} {c.min_clearance:8.2f} {c.turning:9.2f} "
+                    f"{score}  {note.strip()}")
+    return "\n".join(rows)
+
+
+def run(args: argparse.Namespace) -> int:
+    import scenarios
+    from planner.pef.map import PEF
+    from planner.routes.plan import plan_route
+    from scenarios.errors import PlanningError
+    from sim.cli import print_json
+    from sim.report.plan_figure import plot_plan
+
+    sc = scenarios.load(args.scenario)
+    start, goal = args.start, args.goal
+    if (start is None) != (goal is None):
+        raise PlanningError("give both --from and --to, or neither (then the first task is planned)")
+    if start is None:
+        if not sc.tasks:
+            raise PlanningError(f"scenario {sc.name!r} has no tasks: give --from and --to")
+        start, goal = sc.tasks[0].start, sc.tasks[0].goal
+    if args.rrd:
+        from sim.recording import check_writable
+
+        check_writable(args.rrd)
+    pef = PEF(sc)
+    plan = plan_route(sc, start, goal, free=True if args.free else None, pef=pef)
+    pef_map = pef.grid() if (args.output or args.rrd) else None
+    out = plot_plan(sc, plan, pef_map, args.output) if args.output else None
+    if args.rrd:
+        from sim.recording import write_static_rrd
+
+        write_static_rrd(args.rrd, sc, pef_map=pef_map, plan=plan)
+    if args.json:
+        print_json(plan_json(sc, plan))
+        return 0
+    kind = "free space" if plan.candidates and plan.candidates[0].nodes is None else "route network"
+    print(f"{sc.name}: {start} -> {goal}, eps_max {plan.eps_max * 1000:g} mm, {kind}, "
+          f"{len(plan.candidates)} candidates")
+    print(_table(plan))
+    print(f"chosen: {plan.reason}")
+    if plan.schedule is not None:
+        n_sw = sum(f.switch for f in plan.schedule.fixes)
+        sch = plan.schedule
+        n_slow = sum(f.slowed for f in sch.fixes)
+        worst_fix = max(f.predicted_tau for f in sch.fixes)
+        print(f"schedule: {len(sch.fixes)} fixes, {n_sw} marker switches, largest fix promise "
+              f"{worst_fix * 1000:.2f} mm (moving fix), worst predicted error {sch.worst * 1000:.2f} mm; "
+              f"{n_slow} fixes slowed down (+{sch.slowdown_time:.2f} s)")
+    if out is not None:
+        print(f"wrote {out}")
+    return 0

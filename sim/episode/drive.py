@@ -1,0 +1,342 @@
+"""One episode: plan, drive on the estimate, measure, estimate, and record what happened.
+
+The loop runs at the control rate (a whole number of physics steps); fixes interrupt it at the
+physics step each measurement falls due, so every measurement happens at its own time while
+the robot keeps moving. Randomness comes from three generators spawned from the episode's
+seed: the start pose, the laser noise and the odometry slip noise.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios import PlanningError, Scenario, SimulationError
+from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
+from sim.episode.follower import PurePursuit, wheel_speeds
+from sim.episode.types import EpisodeResult, StepLog
+
+CONTROL_STEPS = 4
+"""Physics steps per control step: 60 Hz control at pybullet's 240 Hz. An odometry increment
+is then at most 1.7 cm at 1 m/s, inside the 2 cm the planner's drift bound assumes."""
+
+START_POS_STD = 0.001
+"""Standard deviation of the start position about the dock [m]: docks are calibrated."""
+START_YAW_STD = math.radians(0.1)
+"""Standard deviation of the start heading about the dock's [rad]."""
+
+
+@dataclass
+class Prepared:
+    """What an episode needs that does not depend on its seed: the plan and the PEF.
+
+    Build it once per scenario and task (:func:`prepare`) and pass it to every run.
+    """
+
+    task_index: int
+    plan: object  # planner.routes.plan.Plan
+    pef: object  # planner.pef.map.PEF
+
+
+def check_task(scenario: Scenario, task_index: int) -> None:
+    """Raise :class:`SimulationError` unless ``task_index`` names a task of ``scenario``."""
+    n = len(scenario.tasks)
+    if not (isinstance(task_index, (int, np.integer)) and 0 <= task_index < n):
+        raise SimulationError(f"{scenario.source}: task {task_index}: expected a task index in 0..{n - 1} "
+                              f"({n} tasks)" if n else f"{scenario.source}: tasks: the scenario has no task")
+
+
+def prepare(scenario: Scenario, task_index: int = 0, pef=None) -> Prepared:
+    """Plan task ``task_index`` of ``scenario`` once (raises PlanningError if it cannot)."""
+    from planner.pef.map import PEF
+    from planner.routes.plan import plan_task
+
+    check_task(scenario, task_index)
+    pef = pef if pef is not None else PEF(scenario)
+    task = scenario.tasks[task_index]
+    where = f"{scenario.source}: tasks[{task_index}] ({task.start} -> {task.goal})"
+    dock = scenario.dock(task.start)
+    k = scenario.sensor.markers_per_fix
+    seen = int(pef.visible(np.array([dock.position])).sum())
+    if seen < k:
+        raise SimulationError(f"{where}: {seen} marker(s) visible from dock {task.start} at "
+                              f"{list(dock.position)}, a fix needs {k}")
+    try:
+        plan = plan_task(scenario, task_index, pef=pef)
+    except PlanningError as exc:
+        raise PlanningError(f"{where}: {exc}") from None
+    if plan.schedule is None:
+        raise PlanningError(f"{scenario.source}: task {task_index}: the plan has no measurement schedule")
+    return Prepared(task_index=task_index, plan=plan, pef=pef)
+
+
+def seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:
+    """Return the episode's SeedSequence from an int or a SeedSequence (used as is)."""
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, (bool, float)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SimulationError(f"seed: expected a non-negative integer, got {seed!r}")
+    return np.random.SeedSequence(int(seed))
+
+
+def _streams(ss: np.random.SeedSequence) -> tuple[np.random.Generator, ...]:
+    # Children are derived from (entropy, spawn_key) rather than ss.spawn(), which counts
+    # calls: the same seed must give the same streams however often it is used.
+    keys = ("start", "laser", "odometry")
+    return tuple(np.random.default_rng(np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, j)))
+                 for j, _ in enumerate(keys))
+
+
+def run_episode(scenario: Scenario, task_index: int = 0, seed: int | np.random.SeedSequence = 0,
+                world=None, prepared: Prepared | None = None, time_limit: float | None = None,
+                q_scale: float = 1.0) -> EpisodeResult:
+    """Drive task ``task_index`` once and return every array of interest.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    task_index : int
+        Index into ``scenario.tasks``.
+    seed : int or numpy.random.SeedSequence
+        Root of the episode's random streams.
+    world : sim.physics.world.PhysicsWorld, optional
+        A world built for ``scenario`` to reuse (it is reset); by default one is built and closed.
+    prepared : Prepared, optional
+        The plan and PEF from :func:`prepare` (computed here when not given).
+    time_limit : float, optional
+        Give up after this many simulated seconds [s]; default 3x the planned time + 30 s.
+    q_scale : float
+        Multiplies the filter's process noise (1 = the declared model; negative controls).
+
+    Returns
+    -------
+    EpisodeResult
+    """
+    from sim.physics.world import PhysicsWorld
+
+    check_task(scenario, task_index)
+    ss = seed_sequence(seed)
+    prepared = prepared if prepared is not None else prepare(scenario, task_index)
+    own_world = world is None
+    world = PhysicsWorld(scenario) if own_world else world
+    try:
+        return _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale)
+    finally:
+        if own_world:
+            world.close()
+
+
+def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float = 1.0, **overrides):
+    """Build the filter an episode runs, on the declared robot and sensor.
+
+    The pose with the relative wheel-radius error and both encoders' quantisation residuals in
+    the state (:mod:`estimators.ekf`); the encoders are zeroed at ``wheel_angles``, so the
+    residuals there are known exactly.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    pose : array_like, shape (3,)
+        Start estimate (x [m], y [m], theta [rad]).
+    P0 : array_like, shape (3, 3)
+        Its covariance.
+    wheel_angles : array_like, shape (2,)
+        Wheel angles (left, right) where the odometry starts counting [rad].
+    q_scale : float
+        Multiplies the process noise (1 = the declared model; negative controls).
+    **overrides
+        Other :class:`estimators.ekf.Localizer` arguments, for tests that compare models.
+
+    Returns
+    -------
+    estimators.ekf.Localizer
+    """
+    from estimators.ekf import Localizer
+    from sim.physics.odometry import centred_residual
+
+    kw = {"q_scale": q_scale, "estimate_wheel_bias": True, "encoder_residual_state": True, **overrides}
+    if kw["encoder_residual_state"] and "residual0" not in kw:
+        kw["residual0"] = [centred_residual(float(a), scenario.robot) for a in wheel_angles]
+    return Localizer(scenario.robot, scenario.sensor, scenario.marker_positions(), pose, P0, **kw)
+
+
+def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> EpisodeResult:
+    from sim.episode.fixes import FixRecorder
+    from sim.physics.laser import LaserSensor
+    from sim.physics.odometry import WheelOdometry
+
+    rng_start, rng_laser, rng_odo = _streams(ss)
+    task = scenario.tasks[task_index]
+    plan, pef = prepared.plan, prepared.pef
+    robot, actual = scenario.robot, scenario.robot_actual
+    k = scenario.sensor.markers_per_fix
+    dock = scenario.dock(task.start)
+
+    P0 = np.diag([START_POS_STD**2, START_POS_STD**2, START_YAW_STD**2])
+    true_start = np.array(dock.pose) + rng_start.multivariate_normal(np.zeros(3), P0)
+    world.reset(true_start)
+    laser = LaserSensor(world, scenario.sensor_actual, scenario.marker_positions())
+    n_visible = int(laser.visible_all().sum())
+    if n_visible < k:
+        raise SimulationError(
+            f"{scenario.source}: tasks[{task_index}]: {n_visible} marker(s) visible from dock {task.start} "
+            f"at {list(dock.position)}, a fix needs {k}")
+
+    angles0 = world.robot.wheel_angles()
+    loc = episode_localizer(scenario, np.array(dock.pose), P0, angles0, q_scale=q_scale)
+    # The simulated floor's random slip, per unit of travel, goes into the odometry readings;
+    # the odometry's dead reckoning carries the ranges of a fix to its end (FixRecorder).
+    odo = WheelOdometry(robot, angles0, np.array(dock.pose),
+                        slip_std=actual.odometry_noise, rng=rng_odo)
+    fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
+    follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
+                           max_yaw_rate=robot.max_yaw_rate)
+    schedule = plan.schedule
+    fix_s = np.array([f.s for f in schedule.fixes])
+    # The schedule spaces fix starts by the sensor's rate in planned time, but a start can only
+    # happen at a control step: holding two starts a full period apart would delay each fix by up
+    # to one control step more than the last, until a fix is skipped (the robot then fixes
+    # ~0.2 s of travel away from where the plan promised). Starts may come up to one control
+    # step closer, so each fix starts within one control step of its planned place.
+    min_gap = 1.0 / scenario.sensor.fix_rate_hz - CONTROL_STEPS * world.config.time_step
+
+    dt_phys = world.config.time_step
+    dt_ctrl = CONTROL_STEPS * dt_phys
+    planned_time = float(np.sum(np.diff(plan.s) / np.maximum(plan.speed[1:], 0.05)))
+    t_max = time_limit if time_limit is not None else 3.0 * planned_time + 30.0
+    n_max = int(t_max / dt_ctrl) + 2
+    log = np.empty((n_max, LOG_COLUMNS))
+    tick = ControlTick(odo, loc, follower, log, dt_ctrl)
+
+    wheel_angles, predict = world.robot.wheel_angle_pair, loc.predict
+
+    def read_odometry() -> None:
+        d_left, d_right = odo.update(wheel_angles())
+        predict(d_left, d_right)
+        counts["reads"] += 1
+
+    next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
+    counts = {"merged": 0, "reads": 0}   # reads: odometry reads outside the control ticks
+
+    fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
+
+    def start_fix(s_now: float, t: float) -> None:
+        # Start the latest scheduled fix the robot has passed, when the laser is free again.
+        nonlocal next_fix, last_fix_start
+        if fixes.pending is not None or next_fix >= len(fix_s_list) or s_now < fix_s_list[next_fix] \
+                or t - last_fix_start < min_gap - 1e-9:
+            return
+        f = bisect.bisect_right(fix_s_list, s_now) - 1
+        # scheduled fixes the laser could not start in time are merged into this one: count them
+        counts["merged"] += f - next_fix
+        subset = fixes.choose_subset(schedule.fixes[f].markers, loc.x[:2])
+        if subset is None:
+            fixes.skipped += 1
+        else:
+            fixes.start(subset, t, schedule.fixes[f])
+            last_fix_start = t
+        next_fix = f + 1
+
+    step = world.step
+
+    def advance() -> None:
+        # One control period, stopping at each physics step a measurement falls due.
+        if fixes.pending is None:
+            step(CONTROL_STEPS)
+            return
+        end = world.steps + CONTROL_STEPS
+        while world.steps < end:
+            due = fixes.next_due
+            due_step = math.ceil(due / dt_phys - 1e-9) if due < math.inf else end
+            if due_step < end:
+                world.step(max(due_step - world.steps, 0))
+                read_odometry()
+                # every control tick reads the odometry once: n of them so far
+                fixes.measure_due(odo.pose, world.true_pose(), world.time, n + counts["reads"])
+            else:
+                world.step(end - world.steps)
+
+    # The schedule's first fix is taken at standstill on the dock, before the robot leaves.
+    holding = len(fix_s) > 0 and fix_s[0] <= 1e-9
+    s_now = 0.0
+    true_pose, set_wheel_speeds = world.robot.true_pose_tuple, world.robot.set_wheel_speeds
+    radius, base = robot.wheel_radius, robot.wheel_base
+    while n < n_max:
+        t = world.time
+        # odometry, predict, log row n (the arc length of this step's estimate) and, unless the
+        # robot is held or done, the follower's command from this step's estimate
+        v, omega, cmd_done, s_cmd = tick(wheel_angles(), true_pose(), t, n, s_now, not (holding or done))
+        n += 1
+        if done:
+            break
+        if holding:
+            start_fix(0.0, t)
+            holding = fixes.pending is not None
+            if holding:
+                set_wheel_speeds(0.0, 0.0)
+                advance()
+                continue
+            v, omega, cmd_done, s_cmd = follower.command(loc.x, dt_ctrl)
+            log[n - 1, LOG_S] = s_cmd
+        s_now, done = s_cmd, cmd_done
+        if done:
+            set_wheel_speeds(0.0, 0.0)
+            continue
+        start_fix(s_now, t)
+        set_wheel_speeds(*wheel_speeds(v, omega, radius, base))
+        advance()
+
+    log = log[:n]
+    steps = _step_log(log[:, LOG_T], log[:, LOG_TRUE], log[:, LOG_EST], log[:, LOG_COV].reshape(n, 3, 3),
+                      log[:, LOG_S], schedule, pef)
+    fix_log = fixes.log()
+    goal = np.array(scenario.dock(task.goal).position)
+    reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=
+                   follower.goal_tolerance + scenario.planning.eps_max)
+    return EpisodeResult(
+        scenario_name=scenario.name, task_index=task_index, seed=_seed_repr(ss),
+        eps_max=scenario.planning.eps_max, steps=steps, fixes=fix_log, plan=plan,
+        summary={**_summary(steps, fix_log, reached, scenario.planning.eps_max, ss, fixes.skipped,
+                            counts["merged"]), "scheduled_fixes": len(fix_s)})
+
+
+def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:
+    err_xy = true_pose[:, :2] - est_pose[:, :2]
+    dth = (true_pose[:, 2] - est_pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
+    e = np.column_stack([err_xy, dth])
+    nees = np.einsum("ti,ti->t", e, np.linalg.solve(est_cov, e[:, :, None])[:, :, 0])
+    predicted = np.interp(s_est, schedule.s, schedule.predicted_error)
+    pef_tau = pef.at(true_pose[:, :2]).tau
+    return StepLog(t=t, true_pose=true_pose, est_pose=est_pose, est_cov=est_cov,
+                   error=np.hypot(err_xy[:, 0], err_xy[:, 1]), predicted_tau=predicted,
+                   pef_tau=pef_tau, nees=nees)
+
+
+def _seed_repr(ss: np.random.SeedSequence) -> int | str:
+    if not ss.spawn_key:
+        return int(ss.entropy)
+    return f"{ss.entropy}:{'/'.join(str(k) for k in ss.spawn_key)}"
+
+
+def _summary(steps: StepLog, fixes, reached: bool, eps_max: float, ss, skipped: int, merged: int) -> dict:
+    err = steps.error
+    acc = fixes.n_accepted.sum()
+    return {
+        "reached": reached,
+        "duration": float(steps.t[-1]),
+        "steps": int(len(steps.t)),
+        "fixes": int(len(fixes.t)),
+        "skipped_fixes": int(skipped),
+        "merged_fixes": int(merged),
+        "rmse": float(np.sqrt(np.mean(err**2))),
+        "max_error": float(err.max()),
+        "max_predicted_tau": float(np.max(steps.predicted_tau)),
+        "eps_max": float(eps_max),
+        "violations": int(np.sum(err > eps_max)),
+        "seed": _seed_repr(ss),
+        "mean_nees": float(np.mean(steps.nees)),
+        "mean_nis": float(fixes.nis.sum() / acc) if acc else math.nan,
+    }

@@ -1,0 +1,247 @@
+"""One fix at a time: measure, update the EKF, judge the fix.
+
+The chosen markers are measured one after another; each fix is judged against its own exact
+fault area and the plan's promise for it.
+
+The robot keeps moving while it measures (``measurement_time`` per marker), so a fix's ranges
+are taken at different places. The snapshot fix brings them to the time of the last one with
+the dead-reckoned displacement since each measurement: a range taken at p_i to marker M_i is a
+range from p_end to the shifted marker M_i + (p_end - p_i), its band widened by the odometry
+bound of the shift (:mod:`estimators.fault.carried`, the construction the planner's promise uses on
+noise-free ranges at the planned poses). Each fix logs the promise (``predicted_tau``) and the
+paper's static PEF of its subset at the truth (``static_tau``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_var
+from estimators.snapshot import snapshot_fix
+from scenarios import SimulationError
+from sim.episode.types import FixLog
+
+
+@dataclass
+class _Pending:
+    """A fix under way: markers still to measure and what has been measured so far."""
+
+    markers: list[int]
+    due: list[float]
+    measured: list[int] = field(default_factory=list)
+    ranges: list[float] = field(default_factory=list)
+    bearings: list[float] = field(default_factory=list)
+    dr_at: list[np.ndarray] = field(default_factory=list)
+    reads_at: list[int | None] = field(default_factory=list)
+    nis: float = 0.0
+    accepted: int = 0
+    scheduled: object = None
+    attempted: int = 0
+    slots: list[int] = field(default_factory=list)
+
+
+class FixRecorder:
+    """Runs fixes during an episode and accumulates their :class:`FixLog`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    pef : planner.pef.map.PEF
+        The declared-model PEF (predicts τ for a fix's subset at the true position).
+    laser : sim.physics.laser.LaserSensor
+        The simulated (actual) sensor.
+    localizer : estimators.ekf.Localizer
+    rng : numpy.random.Generator
+        The sensor's noise stream.
+    """
+
+    def __init__(self, scenario, pef, laser, localizer, rng: np.random.Generator) -> None:
+        self.scenario = scenario
+        self.sensor = scenario.sensor  # declared: what the filter and the fault area assume
+        self.robot = scenario.robot
+        self.k = scenario.sensor.markers_per_fix
+        self.markers = scenario.marker_positions()
+        self.pef = pef
+        self.laser = laser
+        self.loc = localizer
+        self.rng = rng
+        self.pending: _Pending | None = None
+        self.skipped = 0
+        self._rows: list[dict] = []
+        self._polygons: list[np.ndarray] = []
+
+    # -- starting ------------------------------------------------------------------------
+
+    def choose_subset(self, scheduled: tuple[int, ...], est_xy: np.ndarray) -> list[int] | None:
+        """Choose the markers of a fix.
+
+        The scheduled subset if the laser sees all of it, else the best visible one by the PEF
+        at the *estimated* position (the robot does not know the truth); None if fewer than k
+        markers are visible.
+        """
+        if self.laser.visible_all(scheduled).all():  # the usual case: two rays, not M
+            return list(scheduled)
+        seen = np.flatnonzero(self.laser.visible_all())
+        if len(seen) < self.k:
+            return None
+        best, best_tau = None, math.inf
+        for sub in itertools.combinations(seen.tolist(), self.k):
+            tau = float(self.pef.tau_subset(est_xy[None, :], np.array(sub))[0])
+            if tau < best_tau:
+                best, best_tau = list(sub), tau
+        return best if best is not None else list(seen[: self.k])
+
+    def start(self, subset: list[int], t: float, scheduled=None) -> None:
+        """Start a fix of ``subset`` (measured in that order) at time ``t`` [s].
+
+        ``scheduled`` is the schedule's fix (``planner.schedule.schedule.ScheduledFix``) this one
+        takes; its promise becomes the fix's ``predicted_tau``.
+        """
+        mt = self.sensor.measurement_time
+        self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))],
+                                scheduled=scheduled)
+
+    @property
+    def next_due(self) -> float:
+        return self.pending.due[0] if self.pending else math.inf
+
+    # -- measuring -----------------------------------------------------------------------
+
+    def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None = None) -> None:
+        """Take the measurement that is due now (the caller has predicted the EKF up to ``t``).
+
+        ``reads`` counts the odometry reads so far (any origin): the shifts' slip variance
+        depends on how many increments they span (None: counted as one, an upper bound).
+        """
+        p = self.pending
+        slot = p.attempted
+        p.attempted += 1
+        i = p.markers.pop(0)
+        p.due.pop(0)
+        try:
+            m = self.laser.measure(i, self.rng)  # it checks the line of sight itself
+        except SimulationError:
+            m = None  # the marker went behind an obstacle during the fix
+        if m is not None:
+            res = self.loc.update_range(i, m.measured_range)
+            p.nis += res.nis if res.accepted else 0.0
+            p.accepted += int(res.accepted)
+            if self.sensor.uses_bearing:
+                # The declared model expects a bearing; hardware declared bearing-free in
+                # [sensor.actual] (xi = 0) measures it without error.
+                b = m.measured_bearing if m.measured_bearing is not None else m.true_bearing
+                rb = self.loc.update_bearing(i, b)
+                p.nis += rb.nis if rb.accepted else 0.0
+                p.accepted += int(rb.accepted)
+                p.bearings.append(b)
+            p.measured.append(i)
+            p.slots.append(slot)
+            p.ranges.append(m.measured_range)
+            p.dr_at.append(np.array(dr_pose, dtype=float))
+            p.reads_at.append(reads)
+        if not p.markers:
+            self._finish(dr_pose, true_pose, t, reads)
+
+    def _finish(self, dr_end: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None) -> None:
+        p, self.pending = self.pending, None
+        if len(p.measured) < 2:
+            self.skipped += 1  # a marker vanished behind an obstacle mid-fix: no fix
+            return
+        idx = np.array(p.measured)
+        # Dead reckoning drifts in heading without bound; only its displacement over the fix is
+        # trusted, turned into the world frame with the filter's heading. (A fix has a few
+        # measurements: plain floats, numpy's per-call cost would dominate.)
+        x_est = self.loc.x
+        at = np.array([[float(d[0]), float(d[1])] for d in p.dr_at])
+        shifted, travelled = carry(self.markers[idx], at, (float(dr_end[0]), float(dr_end[1])),
+                                   float(x_est[2]) - float(dr_end[2]))
+        # each shift's direction against its range's (from the shifted marker to the estimate)
+        w = shifted - self.markers[idx]
+        u = x_est[:2] - shifted
+        norm = travelled * np.hypot(u[:, 0], u[:, 1])
+        along_cos = np.where(norm > 0.0, (w * u).sum(axis=1) / np.where(norm > 0.0, norm, 1.0), 1.0)
+        reads_over = (None if reads is None or None in p.reads_at
+                      else np.array([reads - at for at in p.reads_at], dtype=float))
+        ranges = np.array(p.ranges)
+        rho = self.sensor.range_bound(ranges)
+        heading_var = max(self.loc.heading_var, 0.0)  # the shift is turned with the filter's heading
+        # The shift is itself measured: the fault area widens each range by a bound on the
+        # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
+        # the least-squares weights add its variance.
+        bearings, bearing_error = None, self.sensor.bearing_error
+        if p.bearings:
+            # Each bearing was taken at its own heading: turn it into the frame of the last one
+            # by the dead-reckoned turn since, so that one heading (the filter's) serves all.
+            turned = np.array([float(dr_end[2]) - float(d[2]) for d in p.dr_at])
+            bearings = np.array(p.bearings) - turned
+            # the filter's heading is not exact: widen the wedges by its 3-sigma bound
+            bearing_error += 3.0 * math.sqrt(max(float(self.loc.P[2, 2]), 0.0))
+        snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
+                            bearings=bearings, bearing_error=bearing_error,
+                            heading=float(x_est[2]) if bearings is not None else None,
+                            extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos),
+                            fault_margin=shift_bound(self.robot, travelled, math.sqrt(heading_var)))
+        fa = snap.fault_area
+        truth = np.asarray(true_pose[:2], dtype=float)
+        pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty
+        self._rows.append(dict(
+            t=t, markers=p.measured + [-1] * pad, ranges=p.ranges + [math.nan] * pad,
+            rho=rho.tolist() + [math.nan] * pad, true_position=truth,
+            snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
+            contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted,
+            predicted_tau=self._promise(p)))
+        self._polygons.append(fa.ring)
+
+    def _promise(self, p: _Pending) -> float:
+        """Return the plan's promise for this fix [m].
+
+        The scheduled fix's, or the same construction for the markers actually measured at the
+        scheduled poses (a fallback subset, a marker lost mid-fix).
+        """
+        f = p.scheduled
+        if f is None or not f.poses:
+            return math.inf
+        if tuple(p.measured) == tuple(f.markers):
+            return float(f.predicted_tau)
+        poses = np.array(f.poses)[p.slots]
+        area = promised_fault_area(self.sensor, self.robot, self.markers[p.measured], poses,
+                                   self.scenario.planning.heading_std)
+        return math.inf if area.is_empty else float(area.diameter)
+
+    def _static(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
+        """Return the static PEF τ (the paper's) of each fix's subset at its true position, (F,) [m]."""
+        out = np.full(len(markers), math.inf)
+        full = np.all(markers >= 0, axis=1)
+        if not full.any():
+            return out
+        subsets, which = np.unique(markers[full], axis=0, return_inverse=True)
+        rows = np.flatnonzero(full)
+        for j, sub in enumerate(subsets):
+            sel = rows[which.ravel() == j]
+            out[sel] = self.pef.tau_subset(truth[sel], sub)
+        return out
+
+    # -- result --------------------------------------------------------------------------
+
+    def log(self) -> FixLog:
+        rows, k = self._rows, self.k
+
+        def col(name, shape, dtype=float):
+            if not rows:
+                return np.zeros((0, *shape), dtype=dtype)
+            return np.array([r[name] for r in rows], dtype=dtype).reshape(len(rows), *shape)
+
+        markers = col("markers", (k,), int)
+        truth = col("true_position", (2,))
+        return FixLog(
+            t=col("t", ()), markers=col("markers", (k,), int), ranges=col("ranges", (k,)),
+            rho=col("rho", (k,)), true_position=col("true_position", (2,)),
+            snapshot=col("snapshot", (2,)), snapshot_cov=col("snapshot_cov", (2, 2)),
+            fault_diameter=col("fault_diameter", ()), fault_polygons=list(self._polygons),
+            contained=col("contained", (), bool), predicted_tau=col("predicted_tau", ()),
+            static_tau=self._static(markers, truth),
+            nis=col("nis", ()), n_accepted=col("n_accepted", (), int))

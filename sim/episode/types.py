@@ -1,0 +1,121 @@
+"""What one episode returns: per-step and per-fix arrays and a summary.
+
+Kept apart from the episode loop so that recording, Monte-Carlo and validation can depend on
+the result's shape without importing pybullet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class StepLog:
+    """Per control step arrays, T steps (the control rate, not the physics rate).
+
+    Attributes
+    ----------
+    t : (T,) float
+        Simulation time [s].
+    true_pose : (T, 3) float
+        True pose (x [m], y [m], theta [rad]) from the physics world.
+    est_pose : (T, 3) float
+        EKF estimate.
+    est_cov : (T, 3, 3) float
+        EKF covariance [m^2, m rad, rad^2].
+    error : (T,) float
+        Position error |true - estimate| [m].
+    predicted_tau : (T,) float
+        Planner's predicted error bound at the true position: the PEF τ of the scheduled
+        subset's last fix plus the drift since it (the schedule's promise at this arc length) [m].
+    pef_tau : (T,) float
+        PEF τ (best visible subset) at the true position [m]; inf where not enough markers.
+    nees : (T,) float
+        Normalised estimation error squared of the full pose (3 dof).
+    """
+
+    t: np.ndarray
+    true_pose: np.ndarray
+    est_pose: np.ndarray
+    est_cov: np.ndarray
+    error: np.ndarray
+    predicted_tau: np.ndarray
+    pef_tau: np.ndarray
+    nees: np.ndarray
+
+
+@dataclass
+class FixLog:
+    """Per fix arrays, F fixes of k markers each.
+
+    Attributes
+    ----------
+    t : (F,) float
+        Time the fix completed (its last measurement) [s].
+    markers : (F, k) int
+        Marker indices measured, in order.
+    ranges : (F, k) float
+        Measured ranges [m].
+    rho : (F, k) float
+        Declared range bounds ρ = Re·r + ρ0 used by the filter and the fault area [m].
+    true_position : (F, 2) float
+        True position when the fix completed [m].
+    snapshot : (F, 2) float
+        Snapshot least-squares position from this fix alone [m] (earlier measurements of the
+        fix are carried to the completion time by odometry).
+    snapshot_cov : (F, 2, 2) float
+        Its least-squares covariance [m^2].
+    fault_diameter : (F,) float
+        Diameter of the realised exact fault area [m] (nan if empty: inconsistent data).
+    fault_polygons : list of (n_i, 2) float arrays
+        Exterior rings of the realised exact fault areas [m].
+    contained : (F,) bool
+        True position inside the realised fault area (within the polygonisation tolerance).
+    predicted_tau : (F,) float
+        The plan's promise for the fix: fault-area diameter of the moving fix at the planned
+        poses (``planner.schedule.schedule.ScheduledFix.predicted_tau``, or the same construction for a
+        fallback subset) [m].
+    static_tau : (F,) float
+        The paper's static PEF τ of the fix's subset at the true position [m].
+    nis : (F,) float
+        Sum over the fix's accepted updates of the normalised innovation squared.
+    n_accepted : (F,) int
+        Updates that passed the gate.
+    """
+
+    t: np.ndarray
+    markers: np.ndarray
+    ranges: np.ndarray
+    rho: np.ndarray
+    true_position: np.ndarray
+    snapshot: np.ndarray
+    snapshot_cov: np.ndarray
+    fault_diameter: np.ndarray
+    fault_polygons: list[np.ndarray]
+    contained: np.ndarray
+    predicted_tau: np.ndarray
+    static_tau: np.ndarray
+    nis: np.ndarray
+    n_accepted: np.ndarray
+
+
+@dataclass
+class EpisodeResult:
+    """Everything one episode produced. ``summary`` is JSON-ready (see :func:`summary_keys`)."""
+
+    scenario_name: str
+    task_index: int
+    seed: int
+    eps_max: float
+    steps: StepLog
+    fixes: FixLog
+    plan: Any  # planner.routes.plan.Plan; typed loosely to keep this module free of planner imports
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+SUMMARY_KEYS = ("reached", "duration", "steps", "fixes", "rmse", "max_error", "max_predicted_tau",
+                "eps_max", "violations", "seed", "mean_nees", "mean_nis")
+"""Keys of :attr:`EpisodeResult.summary` (``pefsim run --json`` prints them)."""

@@ -1,0 +1,1 @@
+"""Results back to the user's tools: TUM trajectories (tum)."""

@@ -1,0 +1,253 @@
+"""The figures of a Monte-Carlo report, each from plain arrays to a matplotlib ``Figure``.
+
+Figures are built on ``matplotlib.figure.Figure`` directly (no pyplot), so nothing here
+touches a global backend or window state; :func:`png_bytes` renders one to PNG.
+"""
+
+from __future__ import annotations
+
+import io
+from typing import Any
+
+import matplotlib
+import numpy as np
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon, Rectangle
+
+from scenarios.schema import Scenario
+
+MAX_POINTS = 20_000
+"""Scatter plots draw at most this many points (a fixed-seed subsample); statistics use all."""
+
+OK_COLOUR, BAD_COLOUR, BOUND_COLOUR, LIMIT_COLOUR = "tab:blue", "tab:red", "tab:green", "black"
+
+
+def png_bytes(fig: Figure, dpi: int = 110) -> bytes:
+    """Render the figure as PNG bytes."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def _ecdf(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    v = np.sort(values[np.isfinite(values)])
+    return v, np.arange(1, v.size + 1) / max(v.size, 1)
+
+
+def _subsample(n: int, limit: int = MAX_POINTS) -> np.ndarray:
+    if n <= limit:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(0).choice(n, size=limit, replace=False))
+
+
+def error_cdf(step_error: np.ndarray, step_tau: np.ndarray, run_max_error: np.ndarray,
+              eps_max: float) -> Figure:
+    """Left: distributions of the error, the predicted bound and each run's largest error, with ε_max.
+
+    Right: distribution of error / predicted bound per step; the part right of 1 broke the bound.
+
+    Parameters
+    ----------
+    step_error, step_tau : ndarray, shape (S,)
+        Position error and predicted bound τ of every step of every run [m].
+    run_max_error : ndarray, shape (R,)
+        Largest error of each run [m].
+    eps_max : float
+        Allowed error [m].
+    """
+    fig = Figure(figsize=(11, 4.2))
+    ax, ax_r = fig.subplots(1, 2)
+    for values, label, style in ((step_error, "error (all steps)", dict(color=OK_COLOUR)),
+                                 (step_tau, "predicted bound τ (all steps)",
+                                  dict(color=BOUND_COLOUR, ls="--")),
+                                 (run_max_error, "largest error of each run", dict(color="tab:purple"))):
+        x, p = _ecdf(np.asarray(values, dtype=float) * 1e3)
+        if x.size:
+            ax.step(x, p, where="post", label=label, **style)
+    ax.axvline(eps_max * 1e3, color=LIMIT_COLOUR, lw=1.5, label=f"ε_max = {eps_max * 1e3:g} mm")
+    over = np.mean(step_error > eps_max) if step_error.size else 0.0
+    ax.set(xlabel="error [mm]", ylabel="fraction ≤ x", ylim=(0, 1.02),
+           title=f"Error distribution ({over:.2%} of steps above ε_max)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(step_error, dtype=float) / np.asarray(step_tau, dtype=float)
+    x, p = _ecdf(ratio)
+    if x.size:
+        ax_r.step(x, p, where="post", color=OK_COLOUR)
+    ax_r.axvline(1.0, color=BOUND_COLOUR, ls="--", label="error = predicted bound")
+    broke = np.mean(ratio[np.isfinite(ratio)] > 1.0) if x.size else 0.0
+    ax_r.set(xlabel="error / predicted bound τ", ylabel="fraction ≤ x", ylim=(0, 1.02),
+             title=f"Error against the bound ({broke:.2%} of steps above it)")
+    ax_r.grid(alpha=0.3)
+    ax_r.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_diameter: np.ndarray) -> Figure:
+    """Per fix: the snapshot error and the realised fault-area diameter against the plan's promise.
+
+    The promise is the fault-area diameter of the moving fix the plan made (ranges one after
+    another at the planned poses, carried by odometry): the same construction as the realised
+    area, so the right panel compares like with like. Points above y = x exceed the promise.
+
+    Parameters
+    ----------
+    predicted_tau, snapshot_error, fault_diameter : ndarray, shape (F,)
+        The fix's promise, the snapshot fix's position error, and the realised exact
+        fault-area diameter [m].
+    """
+    fig = Figure(figsize=(11, 4.6))
+    axes = fig.subplots(1, 2)
+    tau = np.asarray(predicted_tau, dtype=float) * 1e3
+    for ax, values, name in ((axes[0], snapshot_error, "snapshot-fix error"),
+                             (axes[1], fault_diameter, "realised fault-area diameter")):
+        y = np.asarray(values, dtype=float) * 1e3
+        keep = np.isfinite(tau) & np.isfinite(y)
+        above = keep & (y > tau)
+        idx = _subsample(int(keep.sum()))
+        xs, ys, bad = tau[keep][idx], y[keep][idx], above[keep][idx]
+        ax.scatter(xs[~bad], ys[~bad], s=6, alpha=0.4, color=OK_COLOUR, lw=0, label="within τ")
+        ax.scatter(xs[bad], ys[bad], s=10, alpha=0.8, color=BAD_COLOUR, lw=0, label="above τ")
+        top = float(max(np.max(xs, initial=0.0), np.max(ys, initial=0.0))) * 1.05 or 1.0
+        ax.plot([0, top], [0, top], color=LIMIT_COLOUR, lw=1, label="y = x")
+        n = int(keep.sum())
+        share = above.sum() / n if n else 0.0
+        ax.set(xlim=(0, top), ylim=(0, top), xlabel="promised τ of the moving fix [mm]", ylabel=f"{name} [mm]",
+               title=f"{name.capitalize()}: {above.sum()} of {n} fixes above τ ({share:.2%})")
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def worst_error_grid(x: np.ndarray, y: np.ndarray, error: np.ndarray, size: tuple[float, float],
+                     cells_long_side: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Find the largest error observed in each cell of a grid over the workspace.
+
+    Parameters
+    ----------
+    x, y, error : ndarray, shape (S,)
+        True positions [m] and errors [m] of all steps.
+    size : (float, float)
+        Workspace width and height [m].
+    cells_long_side : int
+        Cells along the longer side (square cells).
+
+    Returns
+    -------
+    edges_x : ndarray, shape (nx + 1,)
+    edges_y : ndarray, shape (ny + 1,)
+    worst : ndarray, shape (ny, nx)
+        Largest error per cell [m]; nan where no step passed.
+    """
+    cell = max(size) / cells_long_side
+    nx, ny = max(1, int(np.ceil(size[0] / cell))), max(1, int(np.ceil(size[1] / cell)))
+    ix = np.clip((np.asarray(x) / cell).astype(int), 0, nx - 1)
+    iy = np.clip((np.asarray(y) / cell).astype(int), 0, ny - 1)
+    worst = np.full(ny * nx, -np.inf)
+    finite = np.isfinite(error)
+    np.maximum.at(worst, iy[finite] * nx + ix[finite], np.asarray(error)[finite])
+    worst[np.isneginf(worst)] = np.nan
+    return np.arange(nx + 1) * cell, np.arange(ny + 1) * cell, worst.reshape(ny, nx)
+
+
+def _scene(ax: Any, scenario: Scenario) -> None:
+    for corners in scenario.obstacle_corners():
+        ax.add_patch(Polygon(corners, closed=True, facecolor="0.35", edgecolor="0.1", zorder=3))
+    m = scenario.marker_positions()
+    ax.scatter(m[:, 0], m[:, 1], marker="^", s=60, color="white", edgecolors="black", zorder=4)
+    ax.set(xlim=(0, scenario.workspace.width), ylim=(0, scenario.workspace.height),
+           xlabel="x [m]", ylabel="y [m]")
+    ax.set_aspect("equal")
+
+
+def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarray, error: np.ndarray,
+                    eps_max: float) -> Figure:
+    """Draw the predicted PEF map beside the largest observed error per cell.
+
+    Left: the PEF τ map with the navigation-region border τ = ε_max. Right: the largest
+    observed error per cell on the same colour scale. The scale ends at ε_max; values above it
+    are red (and outlined cells on the right).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Workspace, obstacles and markers.
+    pef_map : planner.pef.map.PefMap or None
+        The predicted map (``x``, ``y``, ``tau``); None draws the observed panel only.
+    x, y, error : ndarray, shape (S,)
+        True positions and errors of all steps [m].
+    eps_max : float
+        Allowed error [m].
+    """
+    # The scale ends at ε_max: everything over the limit shows in one alarm colour.
+    norm = Normalize(0.0, eps_max * 1e3)
+    cmap = matplotlib.colormaps["viridis"].with_extremes(over="tab:red")
+    panels = 2 if pef_map is not None else 1
+    fig = Figure(figsize=(6.0 * panels, 6.0 * scenario.workspace.height / scenario.workspace.width + 1.2))
+    axes = np.atleast_1d(fig.subplots(1, panels))
+    image = None
+    if pef_map is not None:
+        ax = axes[0]
+        tau = np.where(np.isfinite(pef_map.tau), pef_map.tau, np.nan) * 1e3
+        cx, cy = pef_map.cell_size
+        extent = (pef_map.x[0] - cx / 2, pef_map.x[-1] + cx / 2,
+                  pef_map.y[0] - cy / 2, pef_map.y[-1] + cy / 2)
+        image = ax.imshow(tau, origin="lower", extent=extent, cmap=cmap, norm=norm, interpolation="nearest")
+        if np.any(np.isfinite(tau)) and np.nanmin(tau) < eps_max * 1e3 < np.nanmax(tau):
+            ax.contour(pef_map.x, pef_map.y, tau, levels=[eps_max * 1e3], colors="white", linewidths=1.2)
+        _scene(ax, scenario)
+        ax.set_title(f"Predicted τ ({pef_map.model.value} model)\nwhite line: τ = ε_max", fontsize=10)
+    ax = axes[-1]
+    ex, ey, worst = worst_error_grid(x, y, error, scenario.workspace.size)
+    if pef_map is not None:
+        ax.imshow(np.isfinite(pef_map.tau), origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=4,
+                  interpolation="nearest")
+    mesh = ax.pcolormesh(ex, ey, np.ma.masked_invalid(worst * 1e3), cmap=cmap, norm=norm)
+    image = image or mesh
+    cell = ex[1] - ex[0]
+    for j, i in zip(*np.nonzero(worst > eps_max), strict=True):
+        ax.add_patch(Rectangle((ex[i], ey[j]), cell, cell, fill=False, edgecolor="black", lw=1.0,
+                               zorder=5))
+    _scene(ax, scenario)
+    n_bad = int(np.sum(worst > eps_max))
+    ax.set_title(f"Largest observed error per cell\n{n_bad} cells above ε_max (red, outlined)", fontsize=10)
+    fig.colorbar(image, ax=list(axes), label="error [mm]; red: above ε_max", shrink=0.85, extend="max")
+    return fig
+
+
+def failure_rate(failed: np.ndarray, allowed: float, ci_lower: np.ndarray, ci_upper: np.ndarray) -> Figure:
+    """Plot the failure rate as runs accumulate, with its 95 % Clopper-Pearson band and the allowed rate.
+
+    Parameters
+    ----------
+    failed : ndarray of bool, shape (R,)
+        Whether run i failed (crashed, did not reach its goal, or exceeded ε_max), in run order.
+    allowed : float
+        Allowed failure rate, 1 - success_target.
+    ci_lower, ci_upper : ndarray, shape (R,)
+        Confidence interval of the rate after the first i + 1 runs.
+    """
+    fig = Figure(figsize=(7.5, 4.0))
+    ax = fig.subplots()
+    n = np.arange(1, failed.size + 1)
+    rate = np.cumsum(failed) / n
+    ax.fill_between(n, ci_lower, ci_upper, color=OK_COLOUR, alpha=0.2, step="post",
+                    label="95 % Clopper-Pearson")
+    ax.step(n, rate, where="post", color=OK_COLOUR, label="failure rate")
+    ax.axhline(allowed, color=BAD_COLOUR, ls="--", label=f"allowed (1 - success target) = {allowed:.3g}")
+    if failed.size:
+        ax.set_title(f"Failure rate {rate[-1]:.3f} [{ci_lower[-1]:.3f}, {ci_upper[-1]:.3f}] "
+                     f"after {failed.size} runs")
+    top = max(0.05, float(np.max(ci_upper, initial=0.0)), allowed) * 1.05
+    ax.set(xlabel="runs", ylabel="fraction of runs failed", ylim=(0, top), xlim=(1, max(2, failed.size)))
+    ax.xaxis.get_major_locator().set_params(integer=True)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,303 @@
+"""What validation reads and returns: a sweep's tables as named numpy arrays, and check results.
+
+A sweep directory (layout in :mod:`sim.montecarlo.results`) is read once into a :class:`SweepData`; the
+checks in :mod:`sim.validation.checks` are pure functions of it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from scenarios import loads
+from scenarios.errors import OutputError
+from scenarios.schema import Scenario
+from sim.montecarlo import results
+from sim.montecarlo.results import SweepLayout
+
+NEGATIVE_CONTROL_JSON = "negative-control.json"
+"""Written into a sweep directory that ``pefsim validate --q-scale`` ran with a mis-tuned
+filter, so that a later ``--from`` says so (``{"q_scale": 0.01}``)."""
+
+
+class CheckStatus(str, Enum):
+    """Verdict of one check."""
+
+    PASS = "pass"
+    FAIL = "FAIL"
+    NOT_APPLICABLE = "not applicable"
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Outcome of one validation check.
+
+    Attributes
+    ----------
+    name : str
+        Check name (``containment``, ``bound``, ...).
+    status : CheckStatus
+    statistic : str
+        The observed statistic, formatted ("" when not applicable).
+    acceptance : str
+        The acceptance region the statistic is compared with.
+    alpha : float or None
+        False-alarm probability of the check (0 for a check that cannot fail under the
+        model; None when not applicable).
+    detail : str
+        One line: what was compared, how the threshold was derived, or why not applicable.
+    values : dict
+        The numbers behind the row, JSON-ready (no NaN: None instead).
+    """
+
+    name: str
+    status: CheckStatus
+    statistic: str = ""
+    acceptance: str = ""
+    alpha: float | None = None
+    detail: str = ""
+    values: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "status": self.status.value, "statistic": self.statistic,
+                "acceptance": self.acceptance, "alpha": self.alpha, "detail": self.detail,
+                "values": {k: _json_number(v) for k, v in self.values.items()}}
+
+
+def _json_number(v: Any) -> Any:
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, (list, tuple)):
+        return [_json_number(x) for x in v]
+    return v
+
+
+@dataclass(frozen=True)
+class RunTable:
+    """Per run of a sweep, N runs (crashed runs included, with ``ok`` False).
+
+    Attributes
+    ----------
+    run : (N,) int
+    ok : (N,) bool
+        The episode ran to its end (status "ok").
+    succeeded : (N,) bool
+        Ran, reached its goal and never exceeded eps_max (:func:`sim.montecarlo.engine.succeeded`).
+    mean_nees : (N,) float
+        Time-averaged NEES of the pose (3 dof); NaN for a crashed run.
+    """
+
+    run: np.ndarray
+    ok: np.ndarray
+    succeeded: np.ndarray
+    mean_nees: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.run)
+
+
+@dataclass(frozen=True)
+class FixTable:
+    """Per fix of a sweep, F fixes of k markers.
+
+    Attributes
+    ----------
+    run : (F,) int
+    fix : (F,) int
+        Index of the fix in its run, from 0.
+    true_xy : (F, 2) float
+        True position at the fix [m].
+    snapshot_xy : (F, 2) float
+        Snapshot least-squares position [m].
+    snapshot_cov : (F, 2, 2) float
+        Its covariance [m^2].
+    snapshot_error : (F,) float
+        ``|snapshot - truth|`` [m].
+    predicted_tau : (F,) float
+        The plan's promise for the fix (moving-fix fault-area diameter at the planned poses) [m]
+        (inf: no promise).
+    contained : (F,) bool
+        Truth inside the realised exact fault area.
+    fault_diameter : (F,) float
+        Realised fault-area diameter [m] (NaN: empty, inconsistent measurements).
+    nis : (F,) float
+        Sum of the NIS of the fix's accepted updates.
+    n_accepted : (F,) int
+        Updates that passed the filter's gate.
+    markers : (F, k) int
+        Marker indices measured (-1 where a marker dropped out of the fix).
+    static_tau : (F,) float or None
+        The paper's static PEF of the fix's subset at the truth [m] (None: not in the sweep).
+    """
+
+    run: np.ndarray
+    fix: np.ndarray
+    true_xy: np.ndarray
+    snapshot_xy: np.ndarray
+    snapshot_cov: np.ndarray
+    snapshot_error: np.ndarray
+    predicted_tau: np.ndarray
+    contained: np.ndarray
+    fault_diameter: np.ndarray
+    nis: np.ndarray
+    n_accepted: np.ndarray
+    markers: np.ndarray
+    static_tau: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.run)
+
+    @property
+    def full(self) -> np.ndarray:
+        """(F,) bool: every scheduled marker of the fix was measured."""
+        return np.all(self.markers >= 0, axis=1)
+
+
+@dataclass(frozen=True)
+class StepTable:
+    """Per control step of a sweep, only what the checks read (S steps over all runs).
+
+    Attributes
+    ----------
+    run : (S,) int
+    step : (S,) int
+        Index of the step in its run, from 0 (control steps are at a fixed rate).
+    nees : (S,) float
+        Pose NEES (3 dof) at the step.
+    """
+
+    run: np.ndarray
+    step: np.ndarray
+    nees: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.run)
+
+
+STEP_COLUMNS = ["run", "step", "nees"]
+"""The columns of :data:`sim.montecarlo.results.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
+FIX_COLUMNS = ["run", "fix", "true_x", "true_y", "snapshot_x", "snapshot_y", "snapshot_error",
+               "snapshot_x_var", "snapshot_y_var", "snapshot_xy_cov", "fault_diameter", "predicted_tau",
+               "nis", "n_accepted", "contained", "markers"]
+"""The columns of :data:`sim.montecarlo.results.FIX_SCHEMA` that the checks read."""
+
+
+@dataclass(frozen=True)
+class SweepData:
+    """A sweep's scenario and tables, as the checks consume them.
+
+    ``q_scale`` is the filter's process-noise factor the sweep ran with (1 = the declared
+    model; anything else is a negative control). ``steps`` is None when the sweep has no
+    per-step table (the N-run NEES test then does not apply).
+    """
+
+    scenario: Scenario
+    runs: RunTable
+    fixes: FixTable
+    source: str = "<memory>"
+    q_scale: float = 1.0
+    steps: StepTable | None = None
+
+
+def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
+    col = table.column(name).fill_null(fill)
+    return np.asarray(col.to_numpy(zero_copy_only=False), dtype=dtype)
+
+
+def run_table(runs: pa.Table) -> RunTable:
+    """Convert a ``runs`` table (:data:`sim.montecarlo.results.RUN_SCHEMA`) to a :class:`RunTable`."""
+    from sim.montecarlo.engine import succeeded
+
+    status = np.asarray(runs.column("status").to_pylist(), dtype=object)
+    return RunTable(run=_np(runs, "run", np.int64, -1), ok=status == "ok",
+                    succeeded=np.asarray(succeeded(runs), dtype=bool),
+                    mean_nees=_np(runs, "mean_nees", float, math.nan))
+
+
+def fix_table(fixes: pa.Table, k: int) -> FixTable:
+    """Convert a ``fixes`` table (:data:`sim.montecarlo.results.FIX_SCHEMA`) to a :class:`FixTable`."""
+    n = fixes.num_rows
+
+    def col(name, dtype=float, fill=math.nan):
+        return _np(fixes, name, dtype, fill)
+
+    flat = np.asarray(fixes.column("markers").combine_chunks().flatten().to_numpy(zero_copy_only=False))
+    width = flat.size // n if n else k
+    cov = np.empty((n, 2, 2))
+    cov[:, 0, 0], cov[:, 1, 1] = col("snapshot_x_var"), col("snapshot_y_var")
+    cov[:, 0, 1] = cov[:, 1, 0] = col("snapshot_xy_cov")
+    return FixTable(
+        run=col("run", np.int64, -1), fix=col("fix", np.int64, -1),
+        true_xy=np.column_stack([col("true_x"), col("true_y")]).reshape(n, 2),
+        snapshot_xy=np.column_stack([col("snapshot_x"), col("snapshot_y")]).reshape(n, 2),
+        snapshot_cov=cov, snapshot_error=col("snapshot_error"), predicted_tau=col("predicted_tau"),
+        contained=col("contained", bool, False), fault_diameter=col("fault_diameter"),
+        nis=col("nis"), n_accepted=col("n_accepted", np.int64, 0),
+        markers=flat.astype(np.int64).reshape(n, width),
+        static_tau=col("static_tau") if "static_tau" in fixes.column_names else None)
+
+
+def step_table(steps: pa.Table) -> StepTable:
+    """Convert a ``steps`` table (at least :data:`STEP_COLUMNS` of :data:`sim.montecarlo.results.STEP_SCHEMA`)."""
+    return StepTable(run=_np(steps, "run", np.int64, -1), step=_np(steps, "step", np.int64, -1),
+                     nees=_np(steps, "nees", float, math.nan))
+
+
+def from_tables(scenario: Scenario, runs: pa.Table, fixes: pa.Table, source: str = "<memory>",
+                q_scale: float = 1.0, steps: pa.Table | None = None) -> SweepData:
+    """Build :class:`SweepData` from Arrow tables of the :mod:`sim.montecarlo.results` schemas (``steps`` optional)."""
+    return SweepData(scenario=scenario, runs=run_table(runs),
+                     fixes=fix_table(fixes, scenario.sensor.markers_per_fix), source=source, q_scale=q_scale,
+                     steps=None if steps is None or steps.num_rows == 0 else step_table(steps))
+
+
+def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> SweepData:
+    """Read sweep directory ``directory`` (written by :func:`sim.montecarlo.engine.sweep`).
+
+    Parameters
+    ----------
+    directory : path
+        The sweep directory.
+    scenario : Scenario, optional
+        When given, the directory must have been made from exactly this scenario text.
+
+    Returns
+    -------
+    SweepData
+        With the scenario parsed from ``directory/scenario.toml``.
+
+    Raises
+    ------
+    OutputError
+        Not a sweep directory, no finished run, or made from another scenario.
+    """
+    layout = SweepLayout(Path(directory))
+    try:
+        text = layout.scenario_toml.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        raise OutputError(f"{directory}: not a pefsim mc directory (no readable scenario.toml)") from None
+    if scenario is not None and text != scenario.text:
+        raise OutputError(f"{directory}: was made from another scenario (its scenario.toml differs from "
+                          f"{scenario.source})")
+    stored = loads(text, source=str(layout.scenario_toml))
+    runs = results.read_runs(layout.root)
+    if runs.num_rows == 0:
+        raise OutputError(f"{directory}: holds no finished run")
+    q_scale = 1.0
+    control = layout.root / NEGATIVE_CONTROL_JSON
+    if control.exists():
+        try:
+            q_scale = float(json.loads(control.read_text(encoding="utf-8"))["q_scale"])
+        except (OSError, ValueError, KeyError, TypeError):
+            raise OutputError(f"{control}: unreadable; expected {{\"q_scale\": <number>}}") from None
+    return from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS), source=str(directory),
+                       q_scale=q_scale, steps=results.read_steps(layout.root, columns=STEP_COLUMNS))

@@ -1,0 +1,81 @@
+"""The promise check: every realised fix within what the plan promised for it (DESIGN section 6).
+
+The plan promises each fix the fault-area diameter of the moving fix the robot makes
+(:mod:`planner.schedule.promise`): noise-free ranges at the planned poses, carried to the fix time with
+the odometry bound. The simulation builds the realised fault area of the same construction from
+the measured ranges (:mod:`estimators.fault.carried`). Under bounded (uniform) noise the two differ
+only through
+
+- the polygonisation: the realised polygon reaches up to ``tol = DEFAULT_TOLERANCE_FRACTION *
+  min(rho)`` beyond its arcs, so its diameter up to ``2 tol`` beyond the exact one;
+- noise, curvature and the robot's pose and speed being a little off the plan:
+  ``planner.schedule.promise.PROMISE_TOLERANCE`` (2 %), the margin the planner keeps under ``eps_max``;
+- the filter's heading std exceeding the one the plan assumed (``planning.heading_std_deg``):
+  that is a broken promise, and what the check is there to catch.
+
+So a fix passes when ``fault_diameter <= (1 + PROMISE_TOLERANCE) * predicted_tau + 2 tol`` and
+``fault_diameter < eps_max``. A fix without a finite promise fails. The check is
+deterministic (false-alarm probability 0), like containment.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
+from planner.schedule.promise import PROMISE_TOLERANCE
+from scenarios.schema import NoiseModel, PefModel
+from sim.validation.data import CheckResult, CheckStatus, SweepData
+
+SET_MEMBERSHIP_MODELS = (PefModel.EXACT, PefModel.PARALLELOGRAM, PefModel.STRIPS)
+
+
+def promise_why_not(data: SweepData) -> str | None:
+    """Return why the promise check does not apply to ``data``, or None."""
+    if data.scenario.sensor.noise is not NoiseModel.UNIFORM:
+        return "the declared noise is gaussian: realised fault areas are not bounded by the promise"
+    if data.scenario.planning.pef_model not in SET_MEMBERSHIP_MODELS:
+        return f"pef_model {data.scenario.planning.pef_model.value} gives a probability region, not a bound"
+    if not np.isfinite(data.fixes.fault_diameter).any():
+        return "the sweep has no fix with a realised fault area"
+    return None
+
+
+def promise_allowance(data: SweepData) -> np.ndarray:
+    """Largest realised diameter each fix may have under its promise, shape (F,) [m]."""
+    fx = data.fixes
+    rho = data.scenario.sensor.range_bound(np.linalg.norm(
+        fx.true_xy[:, None, :] - data.scenario.marker_positions()[np.maximum(fx.markers, 0)], axis=2))
+    tol = DEFAULT_TOLERANCE_FRACTION * np.min(np.where(fx.markers >= 0, rho, np.inf), axis=1)
+    return (1.0 + PROMISE_TOLERANCE) * fx.predicted_tau + 2.0 * tol
+
+
+def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
+    """Check every realised fault-area diameter against the fix's promise and eps_max."""
+    fx = data.fixes
+    eps = data.scenario.planning.eps_max
+    real = np.isfinite(fx.fault_diameter)
+    d, pred = fx.fault_diameter[real], fx.predicted_tau[real]
+    no_promise = ~np.isfinite(pred)
+    allowed = promise_allowance(data)[real]
+    over = ~no_promise & (d > allowed)
+    over_eps = d >= eps
+    ratio = np.where(no_promise, np.nan, d / np.where(no_promise, 1.0, pred))
+    worst = float(np.nanmax(ratio)) if np.isfinite(ratio).any() else math.nan
+    bad = int(np.sum(no_promise | over | over_eps))
+    detail = (f"realised fault-area diameter <= (1 + {PROMISE_TOLERANCE:g}) x the plan's promise (moving fix at the "
+              f"planned poses) + 2 x polygon tolerance ({DEFAULT_TOLERANCE_FRACTION:g} min rho), and < eps_max = "
+              f"{eps:g} m; {int(no_promise.sum())} fixes without a promise, {int(over.sum())} over it, "
+              f"{int(over_eps.sum())} at or over eps_max")
+    if bad:
+        first = int(np.flatnonzero(real)[np.flatnonzero(no_promise | over | over_eps)[0]])
+        detail += f"; first in run {int(fx.run[first])}"
+    return CheckResult("promise", CheckStatus.FAIL if bad else CheckStatus.PASS,
+                       f"max ratio {worst:.4g}, {bad}/{d.size} broken",
+                       f"<= {1 + PROMISE_TOLERANCE:g} x promise and < eps_max", 0.0, detail,
+                       {"max_ratio": worst if math.isfinite(worst) else None, "broken": bad, "fixes": int(d.size),
+                        "without_promise": int(no_promise.sum()), "over_promise": int(over.sum()),
+                        "over_eps_max": int(over_eps.sum()), "max_diameter": float(d.max()) if d.size else None,
+                        "tolerance": PROMISE_TOLERANCE})

@@ -1,0 +1,135 @@
+"""The motion-aware promise: the moving map, slow-downs, and the construction shared with the simulation."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import scenarios
+from estimators.fault.carried import carry, promised_fault_area, promised_parallelogram, shift_bound
+from planner.pef.map import PEF
+from planner.routes.plan import plan_task
+from planner.schedule.promise import PROMISE_TOLERANCE, moving_map
+from scenarios.errors import PlanningError
+
+
+@pytest.fixture(scope="module")
+def warehouse():
+    sc = scenarios.load("warehouse")
+    return sc, PEF(sc)
+
+
+def test_carry_shifts_markers_so_the_range_holds_at_the_end():
+    rng = np.random.default_rng(3)
+    markers = rng.uniform(0, 10, (2, 2))
+    at = rng.uniform(0, 10, (2, 2))
+    end = at[1] + [0.3, -0.1]
+    shifted, travelled = carry(markers, at, end)
+    # a range taken at p_i to M_i is the same range from the end to the shifted marker
+    np.testing.assert_allclose(np.hypot(*(end - shifted).T), np.hypot(*(at - markers).T), rtol=1e-12)
+    np.testing.assert_allclose(travelled, np.hypot(*(end - at).T), rtol=1e-12)
+
+
+def test_unshifted_range_is_not_widened(warehouse):
+    sc, _ = warehouse
+    b = shift_bound(sc.robot, np.array([0.0, 0.02]), 0.003)
+    assert b[0] == 0.0 and b[1] > 0.0
+
+
+def test_standstill_promise_is_the_static_exact_pef(warehouse):
+    sc, _ = warehouse
+    exact = PEF(sc, model="exact")
+    p = np.array([3.0, 2.0])
+    sub = np.array([1, 5])
+    area = promised_fault_area(sc.sensor, sc.robot, sc.marker_positions()[sub], np.array([p, p]), 0.01)
+    assert area.diameter == pytest.approx(float(exact.tau_subset(p[None], sub)[0]), rel=1e-9)
+
+
+def test_moving_map_at_zero_speed_is_the_static_map(warehouse):
+    sc, pef = warehouse
+    static, moving = pef.grid(0.5), moving_map(sc, pef, 0.0, 0.5)
+    fin = np.isfinite(static.tau)
+    np.testing.assert_array_equal(fin, np.isfinite(moving.tau))
+    np.testing.assert_allclose(moving.tau[fin], static.tau[fin], rtol=1e-12)
+
+
+def test_moving_map_matches_the_construction_in_every_direction(warehouse):
+    """Independent: the exact fault area of the moving fix at each cell, driven four ways.
+
+    The map takes the marker directions at the cell; a fix driven at v moves v * mt (2 cm), so
+    a marker's direction is off by delta <= v mt / r and the angle alpha between them by as
+    much. The diagonal 2/sin(alpha) sqrt(...) then changes by at most about
+    (1 + |cot(alpha)|) delta relative (first order); the exact area differs from its
+    parallelogram by O(rho / r) < 0.2 %.
+    """
+    sc, pef = warehouse
+    v, mt = 1.0, sc.sensor.measurement_time
+    mm = moving_map(sc, pef, v, 0.5)
+    static = pef.grid(0.5)
+    iy, ix = np.nonzero(mm.free & (mm.tau < sc.planning.eps_max))
+    pick = np.random.default_rng(0).choice(len(iy), 60, replace=False)
+    worst, static_worst = 0.0, 0.0
+    for c in pick:
+        end = np.array([mm.x[ix[c]], mm.y[iy[c]]])
+        pair = mm.best[iy[c], ix[c]]
+        d = end - sc.marker_positions()[pair]
+        r = np.hypot(d[:, 0], d[:, 1])
+        sin_a = abs(d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]) / (r[0] * r[1])
+        allowed = (1.0 + np.sqrt(1.0 - sin_a**2) / sin_a) * v * mt / r.min() + 2e-3
+        for ang in (0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi):
+            start = end - v * mt * np.array([np.cos(ang), np.sin(ang)])
+            area = promised_fault_area(sc.sensor, sc.robot, sc.marker_positions()[pair], np.array([start, end]),
+                                       sc.planning.heading_std)
+            worst = max(worst, abs(area.diameter / mm.tau[iy[c], ix[c]] - 1.0) / allowed)
+            static_worst = max(static_worst, abs(area.diameter / static.tau[iy[c], ix[c]] - 1.0))
+    assert worst < 1.0
+    # negative control: the paper's static map does not describe the moving fix
+    assert static_worst > 0.05
+
+
+def test_parallelogram_of_the_construction_tracks_its_exact_area(warehouse):
+    sc, _ = warehouse
+    rng = np.random.default_rng(1)
+    m = sc.marker_positions()
+    for _ in range(30):
+        i, j = rng.choice(len(m), 2, replace=False)
+        end = rng.uniform([2, 2], [28, 18])
+        poses = np.array([end - [0.02, 0.0], end])
+        lin = float(promised_parallelogram(sc.sensor, sc.robot, m[[i, j]], poses, 0.005))
+        exact = promised_fault_area(sc.sensor, sc.robot, m[[i, j]], poses, 0.005).diameter
+        if np.isfinite(lin) and lin < 0.1:
+            assert exact == pytest.approx(lin, rel=2e-3)
+
+
+def _variant(sc, **planning):
+    return dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, **planning))
+
+
+def test_schedule_slows_down_where_cruising_breaks_it(warehouse):
+    sc, _ = warehouse
+    fast = dataclasses.replace(sc, robot=dataclasses.replace(sc.robot, max_speed=2.0))
+    plan = plan_task(fast, 0)
+    sch = plan.schedule
+    assert sch.slowdown_time > 0.0
+    assert np.all(sch.speed <= plan.candidates[plan.chosen].speed + 1e-12)
+    assert np.min(sch.speed[sch.speed > 0]) >= fast.planning.min_fix_speed - 1e-12
+    assert plan.candidates[plan.chosen].slowdown == pytest.approx(sch.slowdown_time)
+    assert all(f.predicted_tau * (1 + PROMISE_TOLERANCE) < fast.planning.eps_max for f in sch.fixes)
+    assert sch.worst < fast.planning.eps_max
+    # negative control: forbidden to slow down (minimum speed = cruising speed), no route is admissible
+    with pytest.raises(PlanningError, match="no admissible route"):
+        plan_task(_variant(fast, min_fix_speed=2.0), 0)
+
+
+def test_built_in_plans_promise_every_fix(warehouse):
+    sc, _ = warehouse
+    for task in range(len(sc.tasks)):
+        sch = plan_task(sc, task).schedule
+        tau = np.array([f.predicted_tau for f in sch.fixes])
+        assert np.all(np.isfinite(tau)) and np.all(tau * (1 + PROMISE_TOLERANCE) < sc.planning.eps_max)
+        # moving fixes promise more than the robot standing still, the standstill fix exactly that
+        static = np.array([f.tau for f in sch.fixes])
+        assert tau[0] == pytest.approx(static[0], rel=1e-3)
+        assert np.all(tau[1:] > static[1:])

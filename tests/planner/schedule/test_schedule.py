@@ -1,0 +1,229 @@
+"""make_schedule: the promised error bound re-computed independently at fine spacing."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+import numpy as np
+import pytest
+
+import scenarios
+from estimators.fault.carried import promised_fault_area
+from planner.pef.map import PEF
+from planner.schedule.drift import drift_bound
+from planner.schedule.promise import PROMISE_TOLERANCE
+from planner.schedule.schedule import Schedule, make_schedule
+from scenarios.errors import PlanningError
+
+FINE = 0.005  # check spacing [m]
+
+
+@pytest.fixture(scope="module")
+def warehouse():
+    sc = scenarios.load("warehouse")
+    return sc, PEF(sc)
+
+
+def route(sc, names):
+    return np.array([sc.routes.nodes[n] for n in names], dtype=float)
+
+
+def arc_length(path):
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+
+
+def motion(path, speed):
+    """t(s) and s(t) for vertex speeds with constant acceleration between vertices (scalar)."""
+    s_v = arc_length(path)
+    dur = 2 * np.diff(s_v) / (speed[:-1] + speed[1:])
+    t_v = np.concatenate([[0.0], np.cumsum(dur)])
+
+    def t_of(s):
+        i = min(int(np.searchsorted(s_v, s, side="right")) - 1, len(dur) - 1)
+        v0, v1, ds = speed[i], speed[i + 1], s - s_v[i]
+        v = math.sqrt(v0 ** 2 + (v1 ** 2 - v0 ** 2) * ds / (s_v[i + 1] - s_v[i]))
+        return t_v[i] + (2 * ds / (v0 + v) if ds > 0 else 0.0)
+
+    def s_of(t):
+        if t >= t_v[-1]:
+            return s_v[-1]
+        i = int(np.searchsorted(t_v, t, side="right")) - 1
+        a, tau = (speed[i + 1] - speed[i]) / dur[i], t - t_v[i]
+        return s_v[i] + speed[i] * tau + 0.5 * a * tau ** 2
+
+    return t_of, s_of
+
+
+def turned_between(path, a, b):
+    """Absolute heading change at the vertices with a <= s <= b [rad]; b may be an array."""
+    s = arc_length(path)
+    h = np.arctan2(*np.diff(path, axis=0)[:, ::-1].T)
+    turns = np.abs((np.diff(h) + math.pi) % (2 * math.pi) - math.pi)
+    sv = s[1:-1]
+    b = np.asarray(b, dtype=float)
+    return np.sum(np.where((sv >= a) & (sv <= b[..., None]), turns, 0.0), axis=-1)
+
+
+def independent_check(sc, pef, path, speed, sched: Schedule):
+    """Worst predicted error re-computed from the fixes alone, at FINE spacing.
+
+    A fix i taken from s_i measures k markers one after another (k * measurement_time); it
+    completes at c_i (the first fix at standstill: c_0 = 0). Its promise is the fault area of
+    noise-free ranges at the positions of the k measurements (at the schedule's speeds, slow-
+    downs included), carried to c_i with the odometry bound; until the next fix completes the
+    error is that promise plus the drift since s_i. The static tau each fix reports is checked
+    too (largest of tau_subset over its stretch, sampled at FINE). Returns the worst error and
+    checks the sensor rate on the way.
+    """
+    s_v = arc_length(path)
+    assert np.all(sched.speed <= speed + 1e-12), "a slow-down may only lower the planned speed"
+    speed = sched.speed
+    t_of, s_of = motion(path, speed)
+    k, mt = sc.sensor.markers_per_fix, sc.sensor.measurement_time
+    gap = max(1 / sc.sensor.fix_rate_hz, k * mt)
+    xy_of = lambda s: np.column_stack([np.interp(s, s_v, path[:, 0]), np.interp(s, s_v, path[:, 1])])
+    fixes = sched.fixes
+    assert fixes[0].s == 0.0
+    starts = np.array([f.s for f in fixes])
+    t_start = np.array([t_of(x) for x in starts])
+    t_start[0] = -k * mt
+    assert np.all(np.diff(t_start) >= gap * (1 - 1e-6)), "fixes closer than the sensor rate allows"
+    comp = np.array([s_of(t) for t in t_start + k * mt])
+    comp[0] = 0.0
+    worst = 0.0
+    for i, f in enumerate(fixes):
+        stretch = np.append(np.arange(f.s, comp[i], FINE), comp[i])
+        static = float(np.max(pef.tau_subset(xy_of(stretch), np.array(sorted(f.markers)))))
+        assert f.tau >= static * (1 - 1e-9) - 1e-12, f"fix {i} reports tau {f.tau} below {static}"
+        at = np.array([s_of(t) for t in t_start[i] + mt * np.arange(1, k + 1)]) if i else np.zeros(k)
+        poses = xy_of(at)
+        tau = promised_fault_area(sc.sensor, sc.robot, sc.marker_positions()[list(f.markers)], poses,
+                                  sc.planning.heading_std).diameter
+        assert f.predicted_tau == pytest.approx(tau, rel=1e-6), f"fix {i}: promise {f.predicted_tau} vs {tau}"
+        assert f.predicted_tau * (1 + PROMISE_TOLERANCE) < sc.planning.eps_max
+        end = comp[i + 1] if i + 1 < len(fixes) else s_v[-1]
+        s = np.append(np.arange(comp[i], end, FINE), end)
+        turned = turned_between(path, f.s, s)
+        err = tau + drift_bound(sc.robot, s - f.s, turned)
+        worst = max(worst, float(err.max()))
+        if i > 0:
+            assert f.switch == (set(f.markers) != set(fixes[i - 1].markers))
+    return worst
+
+
+@pytest.mark.parametrize("policy", ["often", "sparse"])
+def test_schedule_keeps_error_under_eps(warehouse, policy):
+    sc, pef = warehouse
+    path = route(sc, ["A", "C", "e1", "e2", "B"])
+    sched = make_schedule(sc, pef, path, policy=policy)
+    speed = np.full(len(path), sc.robot.max_speed)
+    worst = independent_check(sc, pef, path, speed, sched)
+    assert worst < sc.planning.eps_max
+    assert sched.worst < sc.planning.eps_max
+    assert sched.s == pytest.approx(arc_length(path))
+    assert np.all(sched.predicted_error <= sched.worst) and np.all(sched.predicted_error > 0)
+    # the schedule's own worst is the same quantity, sampled more coarsely
+    assert sched.worst == pytest.approx(worst, rel=0.02)
+    assert all(0 <= m < len(sc.markers) for f in sched.fixes for m in f.markers)
+
+
+def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(warehouse):
+    sc, pef = warehouse
+    path = route(sc, ["A", "w1", "w2", "D", "B"])
+    often = make_schedule(sc, pef, path)
+    sparse = make_schedule(sc, pef, path, policy="sparse")
+    assert len(sparse.fixes) < len(often.fixes)
+    assert often.worst < sparse.worst < sc.planning.eps_max
+    eager = make_schedule(sc, pef, path, switch_tolerance=0.0)
+    assert sum(f.switch for f in often.fixes) <= sum(f.switch for f in eager.fixes)
+    # with no tolerance every fix uses a subset of least tau over its stretch
+    assert all(f.tau <= g.tau * 1.2 + 1e-12 for f, g in zip(often.fixes, eager.fixes, strict=False)
+               if f.s == g.s)
+
+
+def test_speed_profile_with_stops(warehouse):
+    sc, pef = warehouse
+    corner = route(sc, ["A", "C", "e1"])
+    # densify, slow down to a stop at the corner C and at the goal
+    s = arc_length(corner)
+    fine_s = np.linspace(0, s[-1], 200)
+    fine_s = np.unique(np.append(fine_s, s))
+    path = np.column_stack([np.interp(fine_s, s, corner[:, 0]), np.interp(fine_s, s, corner[:, 1])])
+    speed = np.clip(np.minimum(np.abs(fine_s - s[1]), s[-1] - fine_s), 0.0, sc.robot.max_speed)
+    speed[0] = 0.3
+    sched = make_schedule(sc, pef, path, speed)
+    worst = independent_check(sc, pef, path, speed, sched)
+    assert worst < sc.planning.eps_max
+
+
+def parse_stretch(msg):
+    m = re.search(r"from s = ([\d.]+) m .* to s = ([\d.]+) m the predicted error reaches ([\d.e+-]+|inf) m",
+                  msg)
+    assert m, msg
+    return float(m.group(1)), float(m.group(2)), float(m.group(3))
+
+
+def test_blind_stretch_is_named():
+    sc = scenarios.load("paper-two-markers")
+    sc = dataclasses.replace(sc, sensor=dataclasses.replace(sc.sensor, max_range=4.0),
+                             planning=dataclasses.replace(sc.planning, eps_max=0.01))
+    pef = PEF(sc)
+    path = np.array([[2.5, 0.5], [2.5, 4.8]])
+    with pytest.raises(PlanningError, match="no measurement schedule") as exc:
+        make_schedule(sc, pef, path)
+    a, b, err = parse_stretch(str(exc.value))
+    assert "fewer than 2 markers visible" in str(exc.value)
+    # independent: where the markers drop out of range along the path (about s = 2.62 m)
+    y = np.linspace(0.5, 4.8, 4301)
+    n_vis = pef.visible(np.column_stack([np.full_like(y, 2.5), y])).sum(axis=1)
+    s_blind = float(y[np.argmax(n_vis < 2)] - 0.5)
+    assert 2.0 < s_blind < 3.0
+    # the last fix is taken before the blind point; dead-reckoning from it, the error crosses
+    # eps_max at the named start of the stretch (re-computed here from the named fix)
+    m = re.search(r"last usable fix at s = ([\d.]+) m with tau ([\d.e+-]+) m", str(exc.value))
+    s_fix, tau_fix = float(m.group(1)), float(m.group(2))
+    assert s_fix <= s_blind <= b
+    eps = sc.planning.eps_max
+    # candidate starts are sampled a quarter of a fix gap apart (2.5 cm at 0.5 m/s): the
+    # crossing lies within one sample before the named start
+    before, after = (tau_fix + drift_bound(sc.robot, a - s_fix + ds) for ds in (-0.03, 0.01))
+    assert before < eps <= after
+    assert err >= eps
+
+
+def test_drift_limited_stretch_is_named(warehouse):
+    sc, pef = warehouse
+    path = route(sc, ["A", "C"])
+    fast = np.full(len(path), 6.0)  # 1.2 m between fixes: drift alone exceeds eps
+    no_slowing = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, min_fix_speed=6.0))
+    with pytest.raises(PlanningError) as exc:
+        make_schedule(no_slowing, pef, path, fast)
+    a, b, err = parse_stretch(str(exc.value))
+    assert 0.0 <= a <= b and err >= sc.planning.eps_max
+    # independently: the first fix's tau plus drift reaches eps before the next fix completes
+    tau0 = float(pef.at(path[:1]).tau[0])
+    reach = 6.0 * (1 / sc.sensor.fix_rate_hz + 2 * sc.sensor.measurement_time)
+    assert tau0 + drift_bound(sc.robot, reach) >= sc.planning.eps_max
+    assert a <= reach
+    # at a walking pace the same path is fine
+    make_schedule(sc, pef, path, np.full(len(path), 0.5))
+    # and allowed to slow down, the planner finds that pace where it needs it, at a cost in time
+    slowed = make_schedule(sc, pef, path, fast)
+    assert slowed.slowdown_time > 0.0 and slowed.worst < sc.planning.eps_max
+    assert slowed.speed.min() >= sc.planning.min_fix_speed and slowed.speed.max() <= 6.0
+
+
+def test_start_without_enough_markers():
+    sc = scenarios.load("paper-two-markers")
+    sc = dataclasses.replace(sc, sensor=dataclasses.replace(sc.sensor, max_range=1.0))
+    with pytest.raises(PlanningError, match=r"from s = 0.00 m .*no usable fix at the start"):
+        make_schedule(sc, PEF(sc), np.array([[2.5, 2.5], [3.0, 3.0]]))
+
+
+def test_single_point_path(warehouse):
+    sc, pef = warehouse
+    sched = make_schedule(sc, pef, route(sc, ["A"]))
+    assert len(sched.fixes) == 1 and sched.fixes[0].tau == pytest.approx(pef.at(route(sc, ["A"])).tau[0])
+    assert sched.predicted_error == pytest.approx([sched.fixes[0].tau])

@@ -1,0 +1,69 @@
+"""``pefsim place``: JSON fields, a loadable placed scenario with full coverage, exit codes."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+import scenarios
+from planner.pef.map import PEF
+from planner.placement.sites import cover_points
+from sim.cli import main
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_json_and_written_scenario(capsys, tmp_path):
+    toml, png = tmp_path / "placed.toml", tmp_path / "placed.png"
+    code, out, _ = run_cli(capsys, "place", "paper-docks", "--json", "-o", str(toml), "--png", str(png))
+    assert code == 0
+    doc = json.loads(out)
+    assert {"markers", "count", "lower_bound", "optimal", "uncovered"} <= set(doc)
+    assert doc["count"] == len(doc["markers"]) and doc["uncovered"] == []
+    assert isinstance(doc["optimal"], bool) and doc["lower_bound"] <= doc["count"]
+    assert all(set(m) == {"id", "position"} and len(m["position"]) == 2 for m in doc["markers"])
+    placed = scenarios.load(toml)
+    written = [[m.id, list(m.position)] for m in placed.markers]
+    assert written == [[m["id"], m["position"]] for m in doc["markers"]]
+    original = scenarios.load("paper-docks")
+    assert placed.planning == original.planning and placed.routes == original.routes
+    tau = PEF(placed).at(cover_points(placed)).tau
+    assert np.all(tau < placed.planning.eps_max)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_text_summary(capsys):
+    code, out, _ = run_cli(capsys, "place", "paper-two-markers")
+    assert code == 0
+    assert "markers (optimal" in out and "cover" in out
+    assert sum(line.startswith("  P") for line in out.splitlines()) == int(out.split(": ")[1].split()[0])
+
+
+def uncoverable_file(tmp_path):
+    text = scenarios.load("paper-docks").text
+    path = tmp_path / "short.toml"
+    path.write_text(text.replace("max_range = 20.0", "max_range = 4.0"))
+    return path
+
+
+def test_uncoverable_points_exit_2(capsys, tmp_path):
+    path = uncoverable_file(tmp_path)
+    code, out, err = run_cli(capsys, "place", str(path))
+    assert code == 2
+    assert err.count("\n") == 1 and "points cannot be covered by any candidate sites (first: (" in err
+    assert "markers" in out  # the summary is still printed
+    code, out, _ = run_cli(capsys, "place", str(path), "--json")
+    assert code == 2
+    doc = json.loads(out)
+    n = int(err.split("pefsim: error: ")[1].split()[0])
+    assert len(doc["uncovered"]) == n > 0 and all(len(p) == 2 for p in doc["uncovered"])
+
+
+def test_bad_time_limit(capsys):
+    code, _, err = run_cli(capsys, "place", "paper-docks", "--time-limit", "0")
+    assert code == 2 and "--time-limit" in err
