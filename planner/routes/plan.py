@@ -58,7 +58,7 @@ class Plan:
     path: np.ndarray
     s: np.ndarray
     speed: np.ndarray
-    schedule: object
+    schedule: Schedule | None
 
 
 # ------------------------------------------------------------------------------- choosing

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.pef.map import PEF
+from planner.routes.plan import Plan
 from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.follower import PurePursuit, wheel_speeds
@@ -37,8 +39,8 @@ class Prepared:
     """
 
     task_index: int
-    plan: object  # planner.routes.plan.Plan
-    pef: object  # planner.pef.map.PEF
+    plan: Plan
+    pef: PEF
 
 
 def check_task(scenario: Scenario, task_index: int) -> None:

@@ -7,9 +7,12 @@ the result's shape without importing pybullet.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # the type only: results readers need not import the planner
+    from planner.routes.plan import Plan
 
 
 @dataclass
@@ -112,7 +115,7 @@ class EpisodeResult:
     eps_max: float
     steps: StepLog
     fixes: FixLog
-    plan: Any  # planner.routes.plan.Plan; typed loosely to keep this module free of planner imports
+    plan: Plan
     summary: dict[str, Any] = field(default_factory=dict)
 
 
