@@ -26,8 +26,9 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 import numpy as np  # noqa: E402
 
 import scenarios  # noqa: E402
+from planner import plan
 from planner.pef.map import PEF  # noqa: E402
-from planner.routes import criteria, gridsearch, network, plan, ranking  # noqa: E402
+from planner.routes import criteria, gridsearch, network, ranking  # noqa: E402
 from scenarios.schema import Dock, Marker, Obstacle, RouteNetwork, Task  # noqa: E402
 
 

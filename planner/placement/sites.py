@@ -10,7 +10,7 @@ Cover points are what placement must keep under ``eps_max`` (``placement.cover``
 
 - ``routes``: the route network's segments sampled at the PEF resolution (plus a straight
   link from a task dock that is not a network node to its nearest node); without a network,
-  the drivable path between each task's docks from :func:`planner.routes.plan.plan_route`, planned as
+  the drivable path between each task's docks from :func:`planner.plan.plan_route`, planned as
   if accuracy did not matter (a PEF that is 0 everywhere); without tasks, as ``free``;
 - ``free``: the centres of a grid over the free space where the robot fits (clearance to
   walls and obstacles >= robot radius), at the PEF resolution or coarser, so that there are
@@ -139,7 +139,7 @@ def route_points(scenario: Scenario, step: float | None = None) -> np.ndarray:
             parts.append(_sample_segment(p, nearest, step))
     elif scenario.tasks:
         try:
-            from planner.routes.plan import plan_route
+            from planner.plan import plan_route
         except ImportError:
             return free_points(scenario)
         flat = _FlatPEF(scenario)

@@ -1,6 +1,5 @@
 """Routes between docks.
 
-The route network (network), free-space search (gridsearch),
-candidates, smoothing and speeds, criteria, ranking, time along a path (pathtime), and the
-plan that ties them together (plan).
+The route network (network), free-space search (gridsearch), candidates, smoothing and
+speeds, criteria and ranking. :mod:`planner.plan` ties a route to its measurement schedule.
 """

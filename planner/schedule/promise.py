@@ -34,12 +34,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.fault.carried import promised_fault_area, promised_parallelogram
-from planner.routes.pathtime import Kinematics, Track
 from planner.routes.smoothing import acceleration_limited
+from planner.schedule.pathtime import Kinematics, Track
 from scenarios.schema import Scenario
 
 SPEED_LEVELS = (1.0, 0.5, 0.25)
 """Fractions of the planned speed tried for a fix, before ``planning.min_fix_speed``."""
+MAX_SUBSETS = 400
+"""Above this many k-subsets of path-visible markers, only the PEF's pointwise-best subsets
+along the path are considered (cost: one ``tau_subset`` call per subset)."""
 PROMISE_TOLERANCE = 0.02
 """Relative excess of a realised fault-area diameter over its promise the validation allows."""
 
@@ -204,7 +207,7 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
     ranges (the robot moves a few centimetres during a fix, metres from the markers: the
     direction changes by less than that ratio, whatever way it drives), the better of the two
     measurement orders, and the best visible pair, the static map's candidate pairs when there
-    are more than :data:`planner.schedule.schedule.MAX_SUBSETS`.
+    are more than :data:`MAX_SUBSETS`.
 
     Parameters
     ----------
@@ -239,7 +242,6 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
     xy = np.column_stack([xx.ravel(), yy.ravel()])
     vis = pef.visible(xy)
     markers = scenario.marker_positions()
-    from planner.schedule.schedule import MAX_SUBSETS
     if len(markers) * (len(markers) - 1) // 2 <= MAX_SUBSETS:
         pairs = [(i, j) for i in range(len(markers)) for j in range(i + 1, len(markers))]
     else:

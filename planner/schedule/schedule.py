@@ -47,17 +47,14 @@ from itertools import combinations
 
 import numpy as np
 
-from planner.routes.pathtime import Kinematics, sample_track
 from planner.routes.smoothing import acceleration_limited
 from planner.schedule import promise
 from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
+from planner.schedule.pathtime import Kinematics, sample_track
+from planner.schedule.promise import MAX_SUBSETS
 from planner.schedule.search import StretchError, Windows, search
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
-
-MAX_SUBSETS = 400
-"""Above this many k-subsets of path-visible markers, only the PEF's pointwise-best subsets
-along the path are considered (cost: one ``tau_subset`` call per subset)."""
 
 
 @dataclass(frozen=True)

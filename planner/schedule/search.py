@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.routes.pathtime import Track
+from planner.schedule.pathtime import Track
 from scenarios.errors import PlanningError
 
 

@@ -75,7 +75,7 @@ def _table(plan) -> str:
 def run(args: argparse.Namespace) -> int:
     import scenarios
     from planner.pef.map import PEF
-    from planner.routes.plan import plan_route
+    from planner.plan import plan_route
     from scenarios.errors import PlanningError
     from sim.cli import print_json
     from sim.report.plan_figure import plot_plan

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.pef.map import PEF
-from planner.routes.plan import Plan
+from planner.plan import Plan
 from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.follower import PurePursuit, wheel_speeds
@@ -54,7 +54,7 @@ def check_task(scenario: Scenario, task_index: int) -> None:
 def prepare(scenario: Scenario, task_index: int = 0, pef=None) -> Prepared:
     """Plan task ``task_index`` of ``scenario`` once (raises PlanningError if it cannot)."""
     from planner.pef.map import PEF
-    from planner.routes.plan import plan_task
+    from planner.plan import plan_task
 
     check_task(scenario, task_index)
     pef = pef if pef is not None else PEF(scenario)

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:  # the type only: results readers need not import the planner
-    from planner.routes.plan import Plan
+    from planner.plan import Plan
 
 
 @dataclass

@@ -145,7 +145,7 @@ def log_static(rec: rr.RecordingStream, scenario: Scenario, pef_map: Any = None,
     pef_map : planner.pef.map.PefMap, optional
         ``x`` (nx,), ``y`` (ny,) cell centres [m] and ``tau`` (ny, nx) [m]: logged as the
         heatmap ``world/pef`` and the ε_max contour ``world/region``.
-    plan : planner.routes.plan.Plan, optional
+    plan : planner.plan.Plan, optional
         Candidate routes, chosen route, reference path and fix schedule.
     """
     log_scene(rec, scenario)

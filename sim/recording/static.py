@@ -119,7 +119,7 @@ def plan_markdown(plan: Any) -> str:
 
     Parameters
     ----------
-    plan : planner.routes.plan.Plan or alike
+    plan : planner.plan.Plan or alike
         Optional attributes (``start``, ``goal``, ``reason``, a candidate's ``length``,
         ``max_tau``, ``why_not``) are shown when present.
 
@@ -146,7 +146,7 @@ def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario) -> None:
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    plan : planner.routes.plan.Plan or alike
+    plan : planner.plan.Plan or alike
         Uses ``candidates`` (each ``.polyline`` (n, 2) [m], ``.admissible``, ``.id``),
         ``chosen`` (index or None), ``path`` (N, 2) [m] or None and ``schedule.fixes``
         (each ``.position`` (x, y) [m], ``.markers`` (marker indices), ``.tau`` [m],

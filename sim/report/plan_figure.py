@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 
-from planner.routes.plan import Plan
+from planner.plan import Plan
 from scenarios.errors import OutputError
 from scenarios.schema import Scenario
 
@@ -26,7 +26,7 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
     scenario : Scenario
         Obstacles, markers, docks and the route network.
     plan : Plan
-        From :func:`planner.routes.plan.plan_route`.
+        From :func:`planner.plan.plan_route`.
     pef_map : planner.pef.map.PefMap
         ``x`` (nx,), ``y`` (ny,), ``tau`` (ny, nx) [m].
     path : str or Path

@@ -24,12 +24,9 @@ from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from estimators.fault.linearized import chi2_2dof_ppf
 from scenarios.schema import NoiseModel, PefModel
 from sim.validation import nrun, null
-from sim.validation.data import CheckResult, CheckStatus, SweepData
+from sim.validation.data import EPISODE_GATE_PROBABILITY, CheckResult, CheckStatus, SweepData
 from sim.validation.promise import promise, promise_why_not
 
-EPISODE_GATE_PROBABILITY = 0.999
-"""The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
-not stored, only that it exceeded ``chi2.ppf(0.999, 1)``."""
 SET_MEMBERSHIP_MODELS = (PefModel.EXACT, PefModel.PARALLELOGRAM, PefModel.STRIPS)
 """PEF models whose tau is the diameter of a fault area (a bound); gdop's is that of a probability ellipse."""
 

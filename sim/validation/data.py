@@ -22,6 +22,9 @@ from scenarios.schema import Scenario
 from sim.montecarlo import results
 from sim.montecarlo.results import SweepLayout
 
+EPISODE_GATE_PROBABILITY = 0.999
+"""The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
+not stored, only that it exceeded ``chi2.ppf(0.999, 1)``."""
 NEGATIVE_CONTROL_JSON = "negative-control.json"
 """Written into a sweep directory that ``pefsim validate --q-scale`` ran with a mis-tuned
 filter, so that a later ``--from`` says so (``{"q_scale": 0.01}``)."""

@@ -26,7 +26,7 @@ import numpy as np
 
 from estimators import nrun
 from estimators.consistency import Verdict
-from sim.validation.data import CheckResult, CheckStatus, SweepData
+from sim.validation.data import EPISODE_GATE_PROBABILITY, CheckResult, CheckStatus, SweepData
 
 NEES_DOF = 3
 """The filter's pose (x, y, theta)."""
@@ -139,7 +139,6 @@ def _fix_sums(data: SweepData) -> tuple[np.ndarray, np.ndarray, int]:
     """Per run and fix index: NIS sum (gated updates at the gate value), its dof, gated count."""
     from scipy import stats
 
-    from sim.validation.checks import EPISODE_GATE_PROBABILITY  # here: that module imports this one
 
     fx = data.fixes
     per_marker = 2 if data.scenario.sensor.uses_bearing else 1

@@ -10,7 +10,7 @@ import pytest
 import scenarios
 from estimators.fault.carried import carry, promised_fault_area, promised_parallelogram, shift_bound
 from planner.pef.map import PEF
-from planner.routes.plan import plan_task
+from planner.plan import plan_task
 from planner.schedule.promise import PROMISE_TOLERANCE, moving_map
 from scenarios.errors import PlanningError
 

@@ -89,7 +89,7 @@ def synthetic_episode(scenario, n_steps: int = 600, n_fixes: int = 30, seed: int
 
 
 def synthetic_plan(scenario, path_xy: np.ndarray) -> SimpleNamespace:
-    """Stand-in for planner.routes.plan.Plan with the attribute names recording uses."""
+    """Stand-in for planner.plan.Plan with the attribute names recording uses."""
     a, b = path_xy[0], path_xy[-1]
     detour = np.array([a, [a[0], b[1]], b])
     candidates = [SimpleNamespace(polyline=np.array([a, b]), admissible=True, id="direct"),

@@ -30,8 +30,7 @@ from sim.montecarlo import results
 from sim.montecarlo.results import RunRecord, SweepLayout
 from sim.validation import null
 from sim.validation import suite as validation
-from sim.validation.checks import EPISODE_GATE_PROBABILITY
-from sim.validation.data import NEGATIVE_CONTROL_JSON
+from sim.validation.data import EPISODE_GATE_PROBABILITY, NEGATIVE_CONTROL_JSON
 from sim.validation.suite import CheckStatus
 
 RUNS, FIXES_PER_RUN, NEES_STEPS = 5, 60, 50

@@ -17,6 +17,7 @@ import numpy as np
 from planner.routes import criteria
 from planner.routes.candidates import Candidate, TauFn, free_candidates, network_candidates
 from planner.routes.ranking import Ranking, rank
+from planner.schedule.schedule import Schedule, make_schedule
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
@@ -114,7 +115,6 @@ def _no_route(scenario: Scenario, start: str, goal: str, cands: list[Candidate])
 
 
 def _make_schedule(scenario: Scenario, pef, cand: Candidate):
-    from planner.schedule.schedule import make_schedule
     return make_schedule(scenario, pef, cand.path.points, cand.speed)
 
 

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import scenarios
+from planner import plan
 from planner.pef.map import PEF
-from planner.routes import candidates, criteria, plan
+from planner.routes import candidates, criteria
 from scenarios.errors import PlanningError
 from scenarios.schema import Dock, Obstacle, RouteNetwork, Weights
 
