@@ -22,21 +22,9 @@ from sim.physics.odometry import WheelOdometry, encoder_ticks, integrate_arc
 from sim.physics.quiet import pb
 from sim.physics.robot import urdf_text
 from sim.physics.world import PhysicsWorld
+from tests.conftest import flat_text
 
-FLAT = """
-name = "flat"
-[workspace]
-size = [40.0, 40.0]
-[[markers]]
-id = "a"
-position = [0.0, 0.0]
-[[markers]]
-id = "b"
-position = [40.0, 0.0]
-[sensor]
-[planning]
-eps_max = 0.05
-[robot]
+ROBOT = """[robot]
 wheel_radius = 0.1
 wheel_base = 0.5
 mass = 20.0
@@ -50,7 +38,7 @@ WHEEL_ACCEL = 5.0   # ramp limit [rad/s^2] = 0.5 m/s^2 at r = 0.1, far below mu 
 
 
 def flat(e: float = 0.0):
-    return scenarios.loads(FLAT.format(e=e))
+    return scenarios.loads(flat_text(40.0, ROBOT.format(e=e)))
 
 
 def ramp_to(world: PhysicsWorld, cur, target, accel: float = WHEEL_ACCEL, odo: WheelOdometry | None = None):
@@ -80,7 +68,7 @@ def arc_length(p0: np.ndarray, p1: np.ndarray) -> float:
 
 
 def test_urdf_is_built_from_the_actual_spec():
-    sc = scenarios.loads(FLAT.format(e=0.01) + "mass = 30.0\nwheel_radius = 0.12\n")
+    sc = scenarios.loads(flat_text(40.0, ROBOT.format(e=0.01) + "mass = 30.0\nwheel_radius = 0.12\n"))
     spec, cfg = sc.robot_actual, PhysicsConfig()
     assert sc.robot.wheel_radius == 0.1 and spec.wheel_radius == 0.12
     root = ET.fromstring(urdf_text(spec, cfg))

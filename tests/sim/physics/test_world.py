@@ -12,22 +12,10 @@ from scenarios.errors import SimulationError
 from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced
 from sim.physics.world import PhysicsWorld
+from tests.conftest import flat_text
 
 # An empty floor, so command sequences never touch a wall.
-FLAT = """
-name = "flat"
-[workspace]
-size = [30.0, 30.0]
-[[markers]]
-id = "a"
-position = [0.0, 0.0]
-[[markers]]
-id = "b"
-position = [30.0, 0.0]
-[sensor]
-[planning]
-eps_max = 0.05
-"""
+FLAT = flat_text(30.0)
 
 # (duration [s], left, right [rad/s]): straight, turn in place, arc, stop, arc (~20 s).
 SEQUENCE = [(5.0, 5.0, 5.0), (3.0, -2.0, 2.0), (3.0, 8.0, 4.0), (2.0, 0.0, 0.0), (7.0, 3.0, 6.0)]
