@@ -244,28 +244,34 @@ def nis_test(nis_values, dof: int, alpha: float) -> ConsistencyResult:
     return average_test(nis_values, dof, alpha)
 
 
-def clopper_pearson(k: int, n: int, alpha: float) -> tuple[float, float]:
-    """Exact two-sided (1 - alpha) confidence interval of a binomial fraction.
+def clopper_pearson(k, n, alpha: float):
+    """Exact two-sided (1 - alpha) confidence interval of a binomial fraction, elementwise.
 
     Parameters
     ----------
-    k : int
+    k : int or array_like of int
         Successes.
-    n : int
-        Trials.
+    n : int or array_like of int
+        Trials, broadcast against ``k``.
     alpha : float
         One minus the confidence level; each tail gets ``alpha / 2``.
 
     Returns
     -------
-    lo, hi : float
-        Bounds of the true success probability.
+    lo, hi : float, or numpy.ndarray for array input
+        Bounds of the true success probability; ``lo = 0`` where ``k = 0`` and ``hi = 1``
+        where ``k = n``.
     """
     _check_alpha(alpha)
-    if n < 1 or not 0 <= k <= n:
+    k_arr, n_arr = np.asarray(k), np.asarray(n)
+    if np.any(n_arr < 1) or np.any(k_arr < 0) or np.any(k_arr > n_arr):
         raise SimulationError(f"clopper_pearson: need 0 <= k <= n and n >= 1, got k={k}, n={n}")
-    lo = 0.0 if k == 0 else float(stats.beta.ppf(alpha / 2, k, n - k + 1))
-    hi = 1.0 if k == n else float(stats.beta.isf(alpha / 2, k + 1, n - k))
+    kf, nf = k_arr.astype(float), n_arr.astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lo = np.where(kf > 0, stats.beta.ppf(alpha / 2, kf, nf - kf + 1), 0.0)
+        hi = np.where(kf < nf, stats.beta.isf(alpha / 2, kf + 1, nf - kf), 1.0)
+    if lo.ndim == 0:
+        return float(lo), float(hi)
     return lo, hi
 
 

@@ -6,6 +6,9 @@ on one line and exits with code 2. Anything else is a bug and shows a traceback.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+
 
 class PefsimError(Exception):
     """Root of all errors caused by input (files, arguments, infeasible requests)."""
@@ -29,3 +32,26 @@ class SimulationError(PefsimError):
 
 class OutputError(PefsimError):
     """A result cannot be written (unwritable path, conflicting output directory, ...)."""
+
+
+@contextlib.contextmanager
+def output_errors(path, action: str) -> Iterator[None]:
+    """Turn an ``OSError`` raised inside the block into one :class:`OutputError` line.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file or directory being written (named in the message).
+    action : str
+        What could not be done, for the message ("write the figure", "create the output
+        directory", ...).
+
+    Raises
+    ------
+    OutputError
+        ``"<path>: cannot <action>: <reason>"``.
+    """
+    try:
+        yield
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot {action}: {exc.strerror or exc}") from None

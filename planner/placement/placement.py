@@ -41,7 +41,7 @@ from estimators import compiled
 from planner.pef import kernels as pef_kernels
 from planner.placement.cover import MILP_TIME_LIMIT, PairCover, solve_exact
 from planner.placement.sites import candidate_sites, cover_points
-from scenarios.errors import OutputError, PlanningError
+from scenarios.errors import PlanningError, output_errors
 from scenarios.schema import Marker, PefModel, Scenario
 
 MILP_MAX_SITES = 150
@@ -314,10 +314,8 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     text = tomli_w.dumps(data)
     out = Path(path)
     scn.loads(text, source=str(out))  # a bug here must not leave a broken file behind
-    try:
+    with output_errors(out, "write the placed scenario"):
         out.write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise OutputError(f"{out}: cannot write the placed scenario: {exc}") from None
     return out
 
 

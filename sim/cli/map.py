@@ -7,8 +7,10 @@ to: the figure with ``-o``, the arrays with ``--npz``, a recording with ``--rrd`
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
+
+from scenarios.errors import output_errors
+from sim.jsonable import json_number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,10 +31,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write a rerun recording of the static layers (map, region, markers, docks)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary")
     p.set_defaults(func=run)
-
-
-def _num(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 def map_summary(pef_map, eps_max: float, resolution: float) -> dict:
@@ -65,9 +63,9 @@ def map_summary(pef_map, eps_max: float, resolution: float) -> dict:
         "resolution": float(resolution),
         "eps_max": float(eps_max),
         "fraction_navigable": float(np.count_nonzero(tau_free < eps_max) / n_free) if n_free else 0.0,
-        "tau_min": _num(finite.min()) if finite.size else None,
-        "tau_median": _num(float(np.median(finite))) if finite.size else None,
-        "tau_max": _num(finite.max()) if finite.size else None,
+        "tau_min": json_number(finite.min()) if finite.size else None,
+        "tau_median": json_number(float(np.median(finite))) if finite.size else None,
+        "tau_max": json_number(finite.max()) if finite.size else None,
         "cells": int(pef_map.tau.size),
         "shape": [int(pef_map.y.size), int(pef_map.x.size)],
         "free_cells": n_free,
@@ -77,23 +75,17 @@ def map_summary(pef_map, eps_max: float, resolution: float) -> dict:
 def _write_npz(path: Path, pef_map) -> None:
     import numpy as np
 
-    from scenarios.errors import OutputError
 
-    try:
+    with output_errors(path, "write the map arrays"):
         with open(path, "wb") as fh:  # a file object: numpy must not append ".npz" to the name
             np.savez_compressed(fh, tau=pef_map.tau, x=pef_map.x, y=pef_map.y, best=pef_map.best)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write the map arrays: {exc.strerror or exc}") from None
 
 
 def _write_png(path: Path, scenario, pef_map, eps_max: float, k: int) -> None:
-    from scenarios.errors import OutputError
     from sim.report.map_figure import plot_map
 
-    try:
+    with output_errors(path, "write the figure"):
         plot_map(scenario, pef_map, eps_max, path, k)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write the figure: {exc.strerror or exc}") from None
 
 
 def run(args: argparse.Namespace) -> int:

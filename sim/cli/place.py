@@ -15,6 +15,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from scenarios.errors import output_errors
+
 EPILOG = ("exit codes: 0 every point covered; 2 bad input, or some points cannot be covered by any "
           "candidate sites (listed under 'uncovered' with --json, else named in one error line; "
           "-o and --png are still written)")
@@ -59,7 +61,6 @@ def _plot(path: Path, scenario, result) -> None:
     from matplotlib.figure import Figure
     from matplotlib.patches import Polygon
 
-    from scenarios.errors import OutputError
 
     w, h = scenario.workspace.size
     fig = Figure(figsize=(8, 8 * h / w + 0.6))
@@ -90,10 +91,8 @@ def _plot(path: Path, scenario, result) -> None:
     ax.set_ylabel("y [m]")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=8)
     fig.tight_layout()
-    try:
+    with output_errors(path, "write the figure"):
         fig.savefig(path, dpi=120, bbox_inches="tight")
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write the figure: {exc.strerror or exc}") from None
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from sim.jsonable import json_number
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help="candidate routes, criteria table, choice, schedule")
@@ -20,28 +22,25 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _num(x: float) -> float | None:
-    """JSON has no inf/NaN: those become null."""
-    return float(x) if math.isfinite(x) else None
-
-
 def plan_json(scenario, plan) -> dict:
     """Build the ``--json`` document of a plan."""
     cands = []
     for c in plan.candidates:
         cands.append({
             "id": c.id, "nodes": list(c.nodes) if c.nodes is not None else None,
-            "length": _num(c.length), "time": _num(c.time), "max_tau": _num(c.max_tau),
-            "mean_tau": _num(c.mean_tau), "traffic": _num(c.traffic), "min_clearance": _num(c.min_clearance),
-            "turning": _num(c.turning), "slowdown": _num(c.slowdown), "admissible": c.admissible, "pareto": c.pareto,
-            "score": _num(c.score), "why_not": c.why_not or None})
+            "length": json_number(c.length), "time": json_number(c.time), "max_tau": json_number(c.max_tau),
+            "mean_tau": json_number(c.mean_tau), "traffic": json_number(c.traffic),
+            "min_clearance": json_number(c.min_clearance),
+            "turning": json_number(c.turning), "slowdown": json_number(c.slowdown), "admissible": c.admissible,
+            "pareto": c.pareto,
+            "score": json_number(c.score), "why_not": c.why_not or None})
     ids = scenario.marker_ids()
     fixes = []
     if plan.schedule is not None:
         for f in plan.schedule.fixes:
             fixes.append({"x": f.position[0], "y": f.position[1], "s": f.s,
-                          "markers": [ids[i] for i in f.markers], "tau": _num(f.tau),
-                          "predicted_tau": _num(f.predicted_tau), "speed": f.speed, "slowed": f.slowed,
+                          "markers": [ids[i] for i in f.markers], "tau": json_number(f.tau),
+                          "predicted_tau": json_number(f.predicted_tau), "speed": f.speed, "slowed": f.slowed,
                           "switch": f.switch})
     return {
         "scenario": scenario.name, "start": plan.start, "goal": plan.goal, "eps_max": plan.eps_max,

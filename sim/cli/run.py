@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 
 
@@ -26,6 +25,7 @@ def run(args: argparse.Namespace) -> int:
     from scenarios import OutputError, SimulationError
     from sim.cli import print_json
     from sim.episode.drive import check_task, prepare, run_episode
+    from sim.jsonable import json_number
 
     scenario = scenarios.load(args.scenario)
     check_task(scenario, args.task)
@@ -54,8 +54,7 @@ def run(args: argparse.Namespace) -> int:
             failures.append(str(exc))
 
     if args.json:
-        print_json({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                    for k, v in summary.items()})
+        print_json({k: json_number(v) for k, v in summary.items()})
     else:
         _print_human(scenario, args.task, summary)
     for msg in failures:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios import OutputError
+from scenarios.errors import output_errors
 
 
 def tum_rows(t: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -25,15 +25,13 @@ def write_tum(directory: str | Path, t: np.ndarray, true_pose: np.ndarray, est_p
     Returns the two paths. Raises :class:`OutputError` if the directory cannot be written.
     """
     d = Path(directory)
-    try:
+    with output_errors(d, "write TUM trajectories"):
         d.mkdir(parents=True, exist_ok=True)
         paths = (d / "groundtruth.txt", d / "estimate.txt")
         header = "# timestamp tx ty tz qx qy qz qw"
         for path, pose in zip(paths, (true_pose, est_pose), strict=True):
             # 9 decimals: nanoseconds and nanometres, so the RMSE recomputed from the files matches
             np.savetxt(path, tum_rows(t, pose), fmt="%.9f", header=header, comments="")
-    except OSError as exc:
-        raise OutputError(f"{d}: cannot write TUM trajectories: {exc.strerror or exc}") from None
     return paths
 
 

@@ -31,7 +31,7 @@ import pyarrow as pa
 import pyarrow.dataset as pads
 import pyarrow.parquet as pq
 
-from scenarios.errors import OutputError
+from scenarios.errors import OutputError, output_errors
 from sim.episode.types import FixLog, StepLog
 
 RUN_SCHEMA = pa.schema([
@@ -136,22 +136,16 @@ class SweepLayout:
     def check_writable(self) -> None:
         """Create the directory itself (not its tree) and write a probe; raises OutputError if impossible."""
         probe = self.root / f".probe{os.getpid()}"
-        try:
+        with output_errors(self.root, "create the output directory"):
             self.root.mkdir(parents=True, exist_ok=True)
             probe.write_bytes(b"")
             probe.unlink()
-        except OSError as exc:
-            raise OutputError(f"{self.root}: cannot create the output directory: "
-                              f"{exc.strerror or exc}") from None
 
     def make_dirs(self) -> None:
         """Create the directory tree; raises OutputError when that is impossible."""
-        try:
+        with output_errors(self.root, "create the output directory"):
             for d in (self.root, self.runs_dir, self.steps_dir, self.fixes_dir):
                 d.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"{self.root}: cannot create the output directory: "
-                              f"{exc.strerror or exc}") from None
 
 
 @dataclass

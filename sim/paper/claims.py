@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from scenarios.errors import OutputError
+from scenarios.errors import output_errors
+from sim.jsonable import json_number
 
 #: The paper's laser: 1 mm of error at 15 m (ch. 3), the relative range error Re [m/m].
 PAPER_RE = 1e-3 / 15.0
@@ -95,8 +96,8 @@ def sig(x: Any, digits: int = 4) -> Any:
     if isinstance(x, (int, np.integer)):
         return int(x)
     if isinstance(x, (float, np.floating)):
-        v = float(x)
-        if not math.isfinite(v):
+        v = json_number(float(x))
+        if v is None:
             return None
         return 0.0 if v == 0.0 else float(f"{v:.{digits}g}")
     return x
@@ -130,11 +131,9 @@ def save_figure(fig: Any, path: Path) -> Path:
     """Write a matplotlib ``Figure`` to ``path`` as PNG and return the path."""
     from sim.report.figures import png_bytes
 
-    try:
+    with output_errors(path, "write the figure"):
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(png_bytes(fig, dpi=100))
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write the figure: {exc.strerror or exc}") from None
     return path
 
 

@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from scenarios.errors import OutputError
+from scenarios.errors import output_errors
 from sim.paper.claims import DOES_NOT_HOLD, HOLDS, PAPER_RE, Claim, Options
 
 PAPER_TITLE = "Trajectory Planning Based on Position Error Analysis and Fault Area Modelling"
@@ -104,9 +104,7 @@ def write_page(out_dir: str | Path, claims: list[Claim], options: Options, secon
     """Write ``out_dir/index.html`` atomically and return its path."""
     path = Path(out_dir) / "index.html"
     tmp = path.with_suffix(".html.tmp")
-    try:
+    with output_errors(path, "write the report"):
         tmp.write_text(render(claims, options, seconds), encoding="utf-8")
         os.replace(tmp, path)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write the report: {exc.strerror or exc}") from None
     return path

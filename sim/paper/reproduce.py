@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.errors import OutputError
+from scenarios.errors import output_errors
 from sim.paper import geometry as geo
 from sim.paper import pef
 from sim.paper.claims import PAPER_SEED, Claim, Options
@@ -45,10 +45,8 @@ def reproduce(out_dir: str | Path, options: Options | None = None,
         In claim order.
     """
     out = Path(out_dir)
-    try:
+    with output_errors(out, "create the output directory"):
         (out / "figures").mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{out}: cannot create the output directory: {exc.strerror or exc}") from None
     options = options or Options()
     # One generator per claim, spawned from a fixed seed: a claim's numbers do not depend on
     # which other claims ran.

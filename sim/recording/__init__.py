@@ -24,7 +24,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from scenarios.errors import OutputError
+from scenarios.errors import OutputError, output_errors
 from scenarios.schema import Scenario
 from sim.episode.types import EpisodeResult
 from sim.recording import entities as E
@@ -87,11 +87,8 @@ def check_writable(path: str | os.PathLike[str]) -> Path:
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise OutputError(f"{path}: cannot write recording: directory {parent} does not exist")
-    try:
-        with open(p, "wb"):
-            pass  # an actual open, so that read-only mounts and ACLs are caught too (also as root)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write recording: {exc.strerror or exc}") from exc
+    with output_errors(path, "write recording"), open(p, "wb"):
+        pass  # an actual open, so that read-only mounts and ACLs are caught too (also as root)
     return p
 
 

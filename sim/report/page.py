@@ -16,7 +16,8 @@ import numpy as np
 import pyarrow as pa
 
 import scenarios
-from scenarios.errors import OutputError, PefsimError
+from estimators.consistency import clopper_pearson
+from scenarios.errors import PefsimError, output_errors
 from scenarios.schema import Scenario
 from sim.montecarlo import results
 from sim.montecarlo.engine import succeeded, summarize
@@ -34,32 +35,6 @@ class Figure:
     title: str
     caption: str
     png: bytes
-
-
-def clopper_pearson(k: np.ndarray, n: np.ndarray,
-                    confidence: float = CONFIDENCE) -> tuple[np.ndarray, np.ndarray]:
-    """Exact (Clopper-Pearson) two-sided interval of a binomial proportion k / n, elementwise.
-
-    Parameters
-    ----------
-    k, n : array_like of int
-        Successes and trials (n >= 1).
-    confidence : float
-        Coverage of the interval.
-
-    Returns
-    -------
-    lower, upper : ndarray
-        Interval bounds; lower = 0 where k = 0 and upper = 1 where k = n.
-    """
-    from scipy.stats import beta
-
-    k, n = np.asarray(k, dtype=float), np.asarray(n, dtype=float)
-    a = (1.0 - confidence) / 2.0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        lower = np.where(k > 0, beta.ppf(a, k, n - k + 1), 0.0)
-        upper = np.where(k < n, beta.ppf(1.0 - a, k + 1, n - k), 1.0)
-    return lower, upper
 
 
 def _pef_map(scenario: Scenario) -> Any:
@@ -108,7 +83,7 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                       "ε_max.", figs.png_bytes(fig)))
     failed = ~succeeded(runs)
     n = np.arange(1, failed.size + 1)
-    lower, upper = clopper_pearson(np.cumsum(failed), n)
+    lower, upper = clopper_pearson(np.cumsum(failed), n, 1.0 - CONFIDENCE)
     fig = figs.failure_rate(failed, 1.0 - scenario.montecarlo.success_target, lower, upper)
     out.append(Figure("failure_rate", "Failure rate and its confidence interval",
                       "A run fails when it crashes, does not reach its goal, or its error exceeds ε_max "
@@ -213,18 +188,14 @@ def write_report(root: str | Path, scenario: Scenario | None = None, pef_map: An
     """
     layout = SweepLayout(Path(root))
     if scenario is None:
-        try:
+        with output_errors(layout.scenario_toml, "read"):
             text = layout.scenario_toml.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise OutputError(f"{layout.scenario_toml}: cannot read: {exc.strerror or exc}") from None
         scenario = scenarios.loads(text, source=str(layout.scenario_toml))
     if pef_map is None:
         pef_map = _pef_map(scenario)
     figures = build_figures(scenario, layout.root, pef_map)
-    try:
+    with output_errors(layout.figures_dir, "create"):
         layout.figures_dir.mkdir(exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{layout.figures_dir}: cannot create: {exc.strerror or exc}") from None
     for f in figures:
         results.write_atomic(layout.figures_dir / f"{f.name}.png", f.png)
     results.write_atomic(layout.report_html, render_html(scenario, layout.root, figures).encode("utf-8"))

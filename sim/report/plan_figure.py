@@ -14,7 +14,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 
 from planner.plan import Plan
-from scenarios.errors import OutputError
+from scenarios.errors import output_errors
 from scenarios.schema import Scenario
 
 
@@ -109,8 +109,6 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=6, fontsize=8,
               frameon=False)
     out = Path(path)
-    try:
+    with output_errors(out, "write the plan figure"):
         fig.savefig(out)
-    except OSError as exc:
-        raise OutputError(f"{out}: cannot write the plan figure: {exc.strerror or exc}") from None
     return out

@@ -19,6 +19,7 @@ import pyarrow as pa
 from scenarios import loads
 from scenarios.errors import OutputError
 from scenarios.schema import Scenario
+from sim.jsonable import json_number
 from sim.montecarlo import results
 from sim.montecarlo.results import SweepLayout
 
@@ -71,17 +72,7 @@ class CheckResult:
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "status": self.status.value, "statistic": self.statistic,
                 "acceptance": self.acceptance, "alpha": self.alpha, "detail": self.detail,
-                "values": {k: _json_number(v) for k, v in self.values.items()}}
-
-
-def _json_number(v: Any) -> Any:
-    if isinstance(v, np.generic):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, (list, tuple)):
-        return [_json_number(x) for x in v]
-    return v
+                "values": {k: json_number(v) for k, v in self.values.items()}}
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ import numpy as np
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from planner.schedule.promise import PROMISE_TOLERANCE
 from scenarios.schema import NoiseModel, PefModel
+from sim.jsonable import json_number
 from sim.validation.data import CheckResult, CheckStatus, SweepData
 
 SET_MEMBERSHIP_MODELS = (PefModel.EXACT, PefModel.PARALLELOGRAM, PefModel.STRIPS)
@@ -75,7 +76,7 @@ def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRes
     return CheckResult("promise", CheckStatus.FAIL if bad else CheckStatus.PASS,
                        f"max ratio {worst:.4g}, {bad}/{d.size} broken",
                        f"<= {1 + PROMISE_TOLERANCE:g} x promise and < eps_max", 0.0, detail,
-                       {"max_ratio": worst if math.isfinite(worst) else None, "broken": bad, "fixes": int(d.size),
+                       {"max_ratio": json_number(worst), "broken": bad, "fixes": int(d.size),
                         "without_promise": int(no_promise.sum()), "over_promise": int(over.sum()),
                         "over_eps_max": int(over_eps.sum()), "max_diameter": float(d.max()) if d.size else None,
                         "tolerance": PROMISE_TOLERANCE})

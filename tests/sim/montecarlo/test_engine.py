@@ -282,7 +282,8 @@ def test_a_failing_recording_keeps_the_run_and_warns(tmp_path, two_tasks, monkey
 
 
 def test_report_is_self_contained(serial_sweep, two_tasks):
-    from sim.report.page import clopper_pearson, write_report
+    from estimators.consistency import clopper_pearson
+    from sim.report.page import write_report
 
     out, _ = serial_sweep
     x = (np.arange(40) + 0.5) * 0.5
@@ -300,7 +301,7 @@ def test_report_is_self_contained(serial_sweep, two_tasks):
     from scipy.stats import binomtest
 
     for k, n in ((0, 10), (3, 10), (10, 10), (47, 200)):
-        lo, hi = clopper_pearson(np.array([k]), np.array([n]))
+        lo, hi = clopper_pearson(np.array([k]), np.array([n]), 0.05)
         ci = binomtest(k, n).proportion_ci(0.95, method="exact")
         assert lo[0] == pytest.approx(ci.low, abs=1e-12) and hi[0] == pytest.approx(ci.high, abs=1e-12)
 
