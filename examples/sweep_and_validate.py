@@ -10,14 +10,21 @@ import sys
 
 import pefsim
 
-out = sys.argv[1] if len(sys.argv) > 1 else "sweep"
-runs = int(sys.argv[2]) if len(sys.argv) > 2 else 8
 
-sc = pefsim.load("paper-two-markers")
-directory = pefsim.sweep(sc, out=out, runs=runs, workers=2, resume=True)
-report = pefsim.validate(directory)
-print(f"{report.scenario}: {report.runs} runs, {report.fixes} fixes, family alpha {report.alpha:g}")
-for c in report.checks:
-    print(f"  {c.name:<12} {c.status.value:<15} {c.statistic:<28} {c.acceptance}")
-print("all checks pass" if report.passed else f"failed: {', '.join(report.failed)}")
-sys.exit(0 if report.passed else 1)
+def main() -> int:
+    """Sweep, validate, print the checks; 1 when a check fails."""
+    out = sys.argv[1] if len(sys.argv) > 1 else "sweep"
+    runs = int(sys.argv[2]) if len(sys.argv) > 2 else 8
+
+    sc = pefsim.load("paper-two-markers")
+    directory = pefsim.sweep(sc, out=out, runs=runs, workers=2, resume=True)
+    report = pefsim.validate(directory)
+    print(f"{report.scenario}: {report.runs} runs, {report.fixes} fixes, family alpha {report.alpha:g}")
+    for c in report.checks:
+        print(f"  {c.name:<12} {c.status.value:<15} {c.statistic:<28} {c.acceptance}")
+    print("all checks pass" if report.passed else f"failed: {', '.join(report.failed)}")
+    return 0 if report.passed else 1
+
+
+if __name__ == "__main__":  # the sweep's worker processes import this file: run only as a script
+    sys.exit(main())
