@@ -57,60 +57,20 @@ offset. The odometry side (physics slip, wheel-radius prior, slip model, standst
 
 from __future__ import annotations
 
-import functools
 import math
-from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from estimators import compiled, motion
-from estimators.measurements import bound_std, wrap_angle
+from estimators.measurements import bound_std
 from estimators.predict import BASE_VAR, BIASED, Q_SCALE, QUANT_VAR, REL_VAR, WALK_VAR, WHEEL_BASE, predict_step  # noqa: F401
+from estimators.update import UpdateResult, gate_threshold, wrap_scalar, wrapped_residual
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
 
 BIAS_STD_FLOOR = 1e-4
 """Smallest prior std of the estimated wheel-radius error [-]: a declared 0 still lets the
 filter learn a small error instead of freezing ``e`` at exactly 0."""
-
-
-@dataclass(frozen=True, slots=True)
-class UpdateResult:
-    """Outcome of one measurement update.
-
-    Attributes
-    ----------
-    accepted : bool
-        False when the gate rejected the measurement (the state was left unchanged).
-    nis : float
-        ``innovation**2 / innovation_var``, computed before the update, gated or not.
-    innovation : float
-        Measured minus predicted (range [m] or wrapped bearing [rad]).
-    innovation_var : float
-        ``H P H^T + R`` before the update [m^2 or rad^2].
-    """
-
-    accepted: bool
-    nis: float
-    innovation: float
-    innovation_var: float
-
-
-def _wrapped_residual(a, b):
-    return wrap_angle(a - b)
-
-
-def _wrap_scalar(a: float) -> float:
-    # The formula of measurements.wrap_angle ((-pi, pi]) on a float: ~0.1 µs instead of ~4 µs
-    # of array handling, which would dominate predict().
-    return math.pi - (math.pi - a) % (2.0 * math.pi)
-
-
-@functools.lru_cache(maxsize=16)
-def _gate_threshold(probability: float) -> float:
-    # scipy's ppf costs ~0.1 ms, as much as ~100 control steps; every episode asks the same
-    return float(stats.chi2.ppf(probability, 1))
 
 
 def _check_matrix(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
@@ -189,7 +149,7 @@ class Localizer:
         if gate_probability is None:
             self._gate = math.inf
         elif 0.0 < gate_probability < 1.0:
-            self._gate = _gate_threshold(float(gate_probability))
+            self._gate = gate_threshold(float(gate_probability))
         else:
             raise SimulationError(f"Localizer: gate_probability: expected a probability in (0, 1) or None, "
                                   f"got {gate_probability}")
@@ -230,7 +190,7 @@ class Localizer:
             raise SimulationError("Localizer: residual0: given without encoder_residual_state")
         self._kf = ExtendedKalmanFilter(dim_x=dim, dim_z=1)
         self._kf.x = np.ascontiguousarray(x0_arr)
-        self._kf.x[2] = _wrap_scalar(self._kf.x[2])
+        self._kf.x[2] = wrap_scalar(self._kf.x[2])
         self._kf.P = np.ascontiguousarray(P0_sym)
         rel_var, base_var = self._variance_terms
         self.predict_params = np.array([robot.wheel_base, rel_var, base_var, self.q_scale,
@@ -298,7 +258,7 @@ class Localizer:
             only (3 dof) also when the wheel error is estimated.
         """
         e = self._kf.x[:3] - np.asarray(true_pose, dtype=float)
-        e[2] = _wrap_scalar(e[2])
+        e[2] = wrap_scalar(e[2])
         return float(e @ np.linalg.solve(self._kf.P[:3, :3], e))
 
     # ---------------------------------------------------------------- predict
@@ -345,7 +305,7 @@ class Localizer:
         self._z[0] = z
         self._R[0, 0] = var
         self._kf.update(self._z, self._cached_H, self._cached_hx, R=self._R, residual=residual)
-        self._kf.x[2] = _wrap_scalar(self._kf.x[2])
+        self._kf.x[2] = wrap_scalar(self._kf.x[2])
         return UpdateResult(True, nis, innovation, s)
 
     def update_range(self, marker_index: int, measured_range: float) -> UpdateResult:
@@ -402,10 +362,10 @@ class Localizer:
         self._H[0, 0] = dy / r2
         self._H[0, 1] = -dx / r2
         self._H[0, 2] = -1.0
-        predicted = _wrap_scalar(math.atan2(dy, dx) - x[2])
+        predicted = wrap_scalar(math.atan2(dy, dx) - x[2])
         z = float(measured_bearing)
-        return self._gated_update(z, predicted, _wrap_scalar(z - predicted), self._bearing_var,
-                                  _wrapped_residual)
+        return self._gated_update(z, predicted, wrap_scalar(z - predicted), self._bearing_var,
+                                  wrapped_residual)
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

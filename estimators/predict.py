@@ -46,7 +46,7 @@ def predict_step(x, P, d_left, d_right, params):
         motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var)
     else:
         motion.propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right)
-    x[2] = math.pi - (math.pi - x[2]) % (2.0 * math.pi)  # ekf._wrap_scalar
+    x[2] = math.pi - (math.pi - x[2]) % (2.0 * math.pi)  # estimators.update.wrap_scalar
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed
