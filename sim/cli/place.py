@@ -59,15 +59,14 @@ def _plot(path: Path, scenario, result) -> None:
 
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
-    from matplotlib.patches import Polygon
+
+    from sim.report.scene import draw_scene
 
 
     w, h = scenario.workspace.size
     fig = Figure(figsize=(8, 8 * h / w + 0.6))
     ax = fig.add_subplot()
-    ax.add_patch(Polygon([[0, 0], [w, 0], [w, h], [0, h]], closed=True, fill=False, color="black"))
-    for corners in scenario.obstacle_corners():
-        ax.add_patch(Polygon(corners, closed=True, color="0.6"))
+    draw_scene(ax, scenario, labels=False)
     pts, sites = result.points, result.sites
     ax.plot(pts[:, 0], pts[:, 1], ".", ms=2, color="tab:blue", label=f"points to cover ({len(pts)})")
     ax.plot(sites[:, 0], sites[:, 1], "o", ms=4, mfc="none", color="0.4",
@@ -84,11 +83,6 @@ def _plot(path: Path, scenario, result) -> None:
     state = "optimal" if result.optimal else f"lower bound {result.lower_bound}"
     ax.set_title(f"{scenario.name}: {result.count} markers ({state}), "
                  f"eps_max = {scenario.planning.eps_max:g} m")
-    ax.set_aspect("equal")
-    ax.set_xlim(-0.5, w + 0.5)
-    ax.set_ylim(-0.5, h + 0.5)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=8)
     fig.tight_layout()
     with output_errors(path, "write the figure"):

@@ -13,9 +13,10 @@ import matplotlib
 import numpy as np
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
-from matplotlib.patches import Polygon, Rectangle
+from matplotlib.patches import Rectangle
 
 from scenarios.schema import Scenario
+from sim.report.scene import draw_pef, draw_scene, pef_extent
 
 MAX_POINTS = 20_000
 """Scatter plots draw at most this many points (a fixed-seed subsample); statistics use all."""
@@ -156,16 +157,6 @@ def worst_error_grid(x: np.ndarray, y: np.ndarray, error: np.ndarray, size: tupl
     return np.arange(nx + 1) * cell, np.arange(ny + 1) * cell, worst.reshape(ny, nx)
 
 
-def _scene(ax: Any, scenario: Scenario) -> None:
-    for corners in scenario.obstacle_corners():
-        ax.add_patch(Polygon(corners, closed=True, facecolor="0.35", edgecolor="0.1", zorder=3))
-    m = scenario.marker_positions()
-    ax.scatter(m[:, 0], m[:, 1], marker="^", s=60, color="white", edgecolors="black", zorder=4)
-    ax.set(xlim=(0, scenario.workspace.width), ylim=(0, scenario.workspace.height),
-           xlabel="x [m]", ylabel="y [m]")
-    ax.set_aspect("equal")
-
-
 def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarray, error: np.ndarray,
                     eps_max: float) -> Figure:
     """Draw the predicted PEF map beside the largest observed error per cell.
@@ -194,19 +185,13 @@ def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarr
     image = None
     if pef_map is not None:
         ax = axes[0]
-        tau = np.where(np.isfinite(pef_map.tau), pef_map.tau, np.nan) * 1e3
-        cx, cy = pef_map.cell_size
-        extent = (pef_map.x[0] - cx / 2, pef_map.x[-1] + cx / 2,
-                  pef_map.y[0] - cy / 2, pef_map.y[-1] + cy / 2)
-        image = ax.imshow(tau, origin="lower", extent=extent, cmap=cmap, norm=norm, interpolation="nearest")
-        if np.any(np.isfinite(tau)) and np.nanmin(tau) < eps_max * 1e3 < np.nanmax(tau):
-            ax.contour(pef_map.x, pef_map.y, tau, levels=[eps_max * 1e3], colors="white", linewidths=1.2)
-        _scene(ax, scenario)
+        image = draw_pef(ax, pef_map, eps_max, norm=norm, cmap=cmap, contour="white")
+        draw_scene(ax, scenario, labels=False, docks=False)
         ax.set_title(f"Predicted τ ({pef_map.model.value} model)\nwhite line: τ = ε_max", fontsize=10)
     ax = axes[-1]
     ex, ey, worst = worst_error_grid(x, y, error, scenario.workspace.size)
     if pef_map is not None:
-        ax.imshow(np.isfinite(pef_map.tau), origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=4,
+        ax.imshow(np.isfinite(pef_map.tau), origin="lower", extent=pef_extent(pef_map), cmap="Greys", vmin=0, vmax=4,
                   interpolation="nearest")
     mesh = ax.pcolormesh(ex, ey, np.ma.masked_invalid(worst * 1e3), cmap=cmap, norm=norm)
     image = image or mesh
@@ -214,7 +199,7 @@ def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarr
     for j, i in zip(*np.nonzero(worst > eps_max), strict=True):
         ax.add_patch(Rectangle((ex[i], ey[j]), cell, cell, fill=False, edgecolor="black", lw=1.0,
                                zorder=5))
-    _scene(ax, scenario)
+    draw_scene(ax, scenario, labels=False, docks=False)
     n_bad = int(np.sum(worst > eps_max))
     ax.set_title(f"Largest observed error per cell\n{n_bad} cells above ε_max (red, outlined)", fontsize=10)
     fig.colorbar(image, ax=list(axes), label="error [mm]; red: above ε_max", shrink=0.85, extend="max")

@@ -8,14 +8,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Polygon
 
 from planner.plan import Plan
 from scenarios.errors import output_errors
 from scenarios.schema import Scenario
+from sim.report.scene import MARKER_STYLE, draw_pef, draw_scene
 
 
 def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path:
@@ -46,27 +45,13 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
     fig = Figure(figsize=(10.0, 10.0 * h / w * 0.85 + 1.2), dpi=110, layout="constrained")
     ax = fig.add_subplot()
     eps = plan.eps_max
-    tau = np.asarray(pef_map.tau, float)
-    finite = tau[np.isfinite(tau)]
-    lo = max(float(finite.min()), eps * 1e-3) if finite.size else eps / 10
-    shown = np.where(np.isfinite(tau), np.clip(tau, lo, 2 * eps), np.nan)
-    dx, dy = pef_map.x[1] - pef_map.x[0], pef_map.y[1] - pef_map.y[0]
-    extent = (pef_map.x[0] - dx / 2, pef_map.x[-1] + dx / 2, pef_map.y[0] - dy / 2, pef_map.y[-1] + dy / 2)
-    im = ax.imshow(shown * 1000, origin="lower", extent=extent, cmap="viridis",
-                   norm=LogNorm(vmin=lo * 1000, vmax=2 * eps * 1000), interpolation="nearest")
-    outside = np.where(np.isfinite(tau) & (tau < eps), np.nan, 1.0)
-    ax.imshow(outside, origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=1.6, alpha=0.55,
-              interpolation="nearest")
-    if finite.size and finite.min() < eps < finite.max():
-        ax.contour(pef_map.x, pef_map.y, np.where(np.isfinite(tau), tau, 10 * eps), levels=[eps],
-                   colors="white", linewidths=0.8)
-    fig.colorbar(im, ax=ax, label="predicted error τ [mm] (grey: τ ≥ ε_max)", shrink=0.8)
-    for ob in scenario.obstacles:
-        ax.add_patch(Polygon(ob.corners(), closed=True, facecolor="0.25", edgecolor="black"))
+    im = draw_pef(ax, pef_map, eps)
+    fig.colorbar(im, ax=ax, label="predicted error τ [mm] (log scale; black line: τ = ε_max)", shrink=0.8)
+    draw_scene(ax, scenario)
     if scenario.routes is not None:
         for a, b in scenario.routes.segments:
             pa, pb = scenario.routes.nodes[a], scenario.routes.nodes[b]
-            ax.plot([pa[0], pb[0]], [pa[1], pb[1]], color="white", lw=0.6, alpha=0.5, zorder=2)
+            ax.plot([pa[0], pb[0]], [pa[1], pb[1]], color="black", lw=0.6, alpha=0.4, zorder=2)
     for i, c in enumerate(plan.candidates):
         if i == plan.chosen:
             continue
@@ -76,36 +61,23 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
         # Stagger the labels along the routes so that overlapping routes stay readable.
         frac = 0.2 + 0.6 * (i + 0.5) / len(plan.candidates)
         at = c.path.points[int(frac * (len(c.path.points) - 1))]
-        ax.annotate(c.id, at, fontsize=7, color="white", zorder=6)
+        ax.annotate(c.id, at, fontsize=7, color="black", zorder=6)
     if plan.chosen is not None:
         ax.plot(plan.path[:, 0], plan.path[:, 1], "-", lw=3.2, color="deeppink", zorder=4)
     if plan.schedule is not None and plan.schedule.fixes:
         fx = np.array([f.position for f in plan.schedule.fixes])
         sw = np.array([f.switch for f in plan.schedule.fixes])
-        ax.plot(fx[~sw, 0], fx[~sw, 1], "o", ms=1.8, color="white", mew=0, zorder=5)
+        ax.plot(fx[~sw, 0], fx[~sw, 1], "o", ms=1.8, color="black", mew=0, zorder=5)
         ax.plot(fx[sw, 0], fx[sw, 1], "D", ms=5, color="yellow", mec="black", mew=0.5, zorder=5)
-    m = scenario.marker_positions()
-    ax.plot(m[:, 0], m[:, 1], "^", ms=8, color="cyan", mec="black", zorder=6)
-    for mk in scenario.markers:
-        ax.annotate(mk.id, mk.position, textcoords="offset points", xytext=(4, 4), fontsize=8, zorder=6)
-    for d in scenario.docks:
-        ax.plot(*d.position, "s", ms=9, color="white", mec="black", zorder=6)
-        ax.annotate(d.name, d.position, textcoords="offset points", xytext=(5, -10), fontsize=9,
-                    fontweight="bold", color="white", zorder=6)
     chosen = plan.candidates[plan.chosen].id if plan.chosen is not None else "none"
     ax.set_title(f"{scenario.name}: {plan.start} → {plan.goal}, ε_max = {eps * 1000:g} mm, chosen {chosen}",
                  pad=14)
-    ax.set_xlim(0, w)
-    ax.set_ylim(0, h)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
     handles = [Line2D([], [], color="deeppink", lw=3.2, label="chosen"),
                Line2D([], [], color="tab:orange", lw=1.2, label="admissible candidate"),
                Line2D([], [], color="tab:red", lw=1.2, ls="--", label="inadmissible candidate"),
-               Line2D([], [], ls="", marker="o", ms=3, color="white", mec="black", mew=0.3, label="fix"),
+               Line2D([], [], ls="", marker="o", ms=3, color="black", mec="black", mew=0.3, label="fix"),
                Line2D([], [], ls="", marker="D", ms=5, color="yellow", mec="black", label="marker switch"),
-               Line2D([], [], ls="", marker="^", ms=7, color="cyan", mec="black", label="marker")]
+               Line2D([], [], ls="", marker="^", ms=7, color=MARKER_STYLE["c"], mec="black", label="marker")]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=6, fontsize=8,
               frameon=False)
     out = Path(path)

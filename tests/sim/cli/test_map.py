@@ -12,7 +12,7 @@ import pytest
 import scenarios
 from planner.pef.map import PEF
 from sim.cli import main
-from sim.report.map_figure import display_field
+from sim.report.scene import display_field
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
