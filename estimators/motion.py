@@ -107,6 +107,17 @@ def _arc_terms(theta, d_left, d_right, wheel_base):
 
 
 @numba.njit(cache=True)
+def arc_step(pose, d_left, d_right, wheel_base):
+    """Pose after one arc step (module docstring): ``(x, y, theta)`` floats in, floats out.
+
+    The one implementation of differential-drive dead reckoning: the filter's predict and the
+    simulated wheel odometry both step with it. The heading is left unwrapped.
+    """
+    ds, dtheta, _, k, _, c, s = _arc_terms(pose[2], d_left, d_right, wheel_base)
+    return pose[0] + ds * k * c, pose[1] + ds * k * s, pose[2] + dtheta
+
+
+@numba.njit(cache=True)
 def _propagate_rows(states, d_left, d_right, wheel_base, out):
     for i in range(states.shape[0]):
         ds, dtheta, _, k, _, c, s = _arc_terms(states[i, 2], d_left[i], d_right[i], wheel_base)

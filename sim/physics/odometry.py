@@ -15,6 +15,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from estimators import compiled
+from estimators.motion import arc_step
 from scenarios.schema import RobotSpec
 
 
@@ -58,22 +60,8 @@ def integrate_arc(pose: np.ndarray, d_left: float, d_right: float, wheel_base: f
     ndarray, shape (3,)
         Pose after the step; theta is not wrapped (it accumulates).
     """
-    return np.array(_arc((float(pose[0]), float(pose[1]), float(pose[2])), float(d_left), float(d_right),
-                         float(wheel_base)))
-
-
-@numba.njit(cache=True)
-def _arc(pose, d_left, d_right, wheel_base):
-    x, y, th = pose
-    ds = 0.5 * (d_left + d_right)
-    dth = (d_right - d_left) / wheel_base
-    if abs(dth) < 1e-9:
-        # Straight (to first order): the chord equals the arc.
-        c, s = math.cos(th + 0.5 * dth), math.sin(th + 0.5 * dth)
-        return x + ds * c, y + ds * s, th + dth
-    radius = ds / dth
-    return (x + radius * (math.sin(th + dth) - math.sin(th)),
-            y - radius * (math.cos(th + dth) - math.cos(th)), th + dth)
+    return np.array(arc_step((float(pose[0]), float(pose[1]), float(pose[2])), float(d_left), float(d_right),
+                             float(wheel_base)))
 
 
 # WheelOdometry.state (float64, shape (6,)): encoder counts, dead-reckoned pose, next slip normal.
@@ -119,7 +107,7 @@ def odometry_step(state, params, normals, angle_left, angle_right):
         d_left += slip * abs(d_left) * normals[k]
         d_right += slip * abs(d_right) * normals[k + 1]
         state[NEXT_NORMAL] = k + 2
-    x, y, th = _arc((state[POSE_X], state[POSE_Y], state[POSE_THETA]), d_left, d_right, params[WHEEL_BASE])
+    x, y, th = arc_step((state[POSE_X], state[POSE_Y], state[POSE_THETA]), d_left, d_right, params[WHEEL_BASE])
     state[POSE_X], state[POSE_Y], state[POSE_THETA] = x, y, th
     return d_left, d_right, slip > 0.0 and state[NEXT_NORMAL] + 2.0 > normals.size
 
@@ -188,3 +176,7 @@ class WheelOdometry:
     def pose(self) -> np.ndarray:
         """Dead-reckoned pose (x [m], y [m], theta [rad], theta unwrapped), shape (3,)."""
         return self.state[POSE_X:POSE_THETA + 1].copy()
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)

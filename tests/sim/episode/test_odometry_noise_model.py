@@ -34,6 +34,7 @@ import pytest
 import scenarios
 from estimators import consistency
 from estimators.ekf import predict_step
+from estimators.motion import arc_step
 from sim.episode.drive import CONTROL_STEPS, episode_localizer
 from sim.physics.config import PhysicsConfig
 from sim.physics.odometry import (
@@ -42,7 +43,6 @@ from sim.physics.odometry import (
     TICKS_PER_REV,
     TICKS_RIGHT,
     WheelOdometry,
-    _arc,
     centred_residual,
     odometry_step,
 )
@@ -82,7 +82,7 @@ def _dead_reckon(odo_state, odo_params, normals, angles0, rates, x0, P0, ekf_par
             tl, tr = rates[w, k, 0], rates[w, k, 1]
             angle_l += tl / radii[0]          # the rotation that rolls this travel
             angle_r += tr / radii[1]
-            tx, ty, tth = _arc((tx, ty, tth), tl, tr, wheel_base)
+            tx, ty, tth = arc_step((tx, ty, tth), tl, tr, wheel_base)
             d_left, d_right, _ = odometry_step(odo_state, odo_params, normals, angle_l, angle_r)
             predict_step(x, P, d_left, d_right, ekf_params)
         xs[w] = x
