@@ -31,7 +31,7 @@ from sim.montecarlo.engine import sweep
 from sim.montecarlo.results import SweepLayout
 from tests.sim.montecarlo import fake_episode as fe
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 @pytest.fixture(scope="module")
