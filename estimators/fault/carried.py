@@ -62,11 +62,11 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
     numpy.ndarray, shape (k,)
         Bound [m].
     """
-    d = np.asarray(travelled, dtype=float)
     tick = encoder_tick(robot)
     per_metre = (K_SIGMA * robot.odometry_noise + abs(robot.wheel_radius_error) + K_SIGMA * max(heading_std, 0.0)
                  + 2.0 * tick / robot.wheel_base)
-    return np.where(d > 0.0, tick + per_metre * d, 0.0)
+    # a fix has a few ranges: plain floats (numpy's per-call cost would dominate an episode's fixes)
+    return np.array([tick + per_metre * d if d > 0.0 else 0.0 for d in np.ravel(travelled).tolist()])
 
 
 def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along_cos=None) -> np.ndarray:
@@ -98,17 +98,20 @@ def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along
     numpy.ndarray, shape (k,)
         Variance [m^2]; 0 for a shift of exactly 0.
     """
-    d = np.asarray(travelled, dtype=float)
-    tick = encoder_tick(robot)
-    n = np.ones(d.shape) if reads is None else np.asarray(reads, dtype=float)
-    along = np.where(n > 0, tick**2 / 12.0, 0.0) + robot.odometry_noise**2 * d**2 / (2.0 * np.maximum(n, 1.0))
-    across = max(heading_var, 0.0) * d**2
-    if along_cos is None:
-        out = along + across
-    else:
-        c2 = np.asarray(along_cos, dtype=float) ** 2
-        out = along * c2 + across * (1.0 - c2)
-    return np.where(d > 0.0, out, 0.0)
+    d = np.ravel(travelled).tolist()
+    n = [1.0] * len(d) if reads is None else np.ravel(reads).tolist()
+    cos = None if along_cos is None else np.ravel(along_cos).tolist()
+    quant, slip2, hv = encoder_tick(robot) ** 2 / 12.0, robot.odometry_noise**2, max(heading_var, 0.0)
+    out = []
+    for j, dj in enumerate(d):  # a fix has a few ranges: plain floats
+        if dj <= 0.0:
+            out.append(0.0)
+            continue
+        along = (quant if n[j] > 0 else 0.0) + slip2 * dj * dj / (2.0 * max(n[j], 1.0))
+        across = hv * dj * dj
+        c2 = 1.0 if cos is None else cos[j] * cos[j]
+        out.append(along + across if cos is None else along * c2 + across * (1.0 - c2))
+    return np.array(out)
 
 
 def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -133,11 +136,16 @@ def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarr
     travelled : numpy.ndarray, shape (k,)
         ``|end - at_i|`` [m].
     """
-    m = np.asarray(markers, dtype=float).reshape(-1, 2)
-    d = np.asarray(end, dtype=float).reshape(1, 2) - np.asarray(at, dtype=float).reshape(-1, 2)
+    m = np.asarray(markers, dtype=float).reshape(-1, 2).tolist()
+    a = np.asarray(at, dtype=float).reshape(-1, 2).tolist()
+    ex, ey = float(end[0]), float(end[1])
     c, s = math.cos(rotation), math.sin(rotation)
-    shifted = np.column_stack([m[:, 0] + c * d[:, 0] - s * d[:, 1], m[:, 1] + s * d[:, 0] + c * d[:, 1]])
-    return shifted, np.hypot(d[:, 0], d[:, 1])
+    shifted, travelled = [], []
+    for (mx, my), (ax, ay) in zip(m, a, strict=True):  # a fix has a few ranges: plain floats
+        dx, dy = ex - ax, ey - ay
+        shifted.append((mx + c * dx - s * dy, my + s * dx + c * dy))
+        travelled.append(math.hypot(dx, dy))
+    return np.array(shifted).reshape(-1, 2), np.array(travelled)
 
 
 def promised_fault_area(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float) -> FaultArea:

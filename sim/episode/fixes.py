@@ -160,10 +160,13 @@ class FixRecorder:
         shifted, travelled = carry(self.markers[idx], at, (float(dr_end[0]), float(dr_end[1])),
                                    float(x_est[2]) - float(dr_end[2]))
         # each shift's direction against its range's (from the shifted marker to the estimate)
-        w = shifted - self.markers[idx]
-        u = x_est[:2] - shifted
-        norm = travelled * np.hypot(u[:, 0], u[:, 1])
-        along_cos = np.where(norm > 0.0, (w * u).sum(axis=1) / np.where(norm > 0.0, norm, 1.0), 1.0)
+        px, py = float(x_est[0]), float(x_est[1])
+        along_cos = []
+        for (sx, sy), (mx, my), d in zip(shifted.tolist(), self.markers[idx].tolist(), travelled.tolist(),
+                                         strict=True):
+            ux, uy = px - sx, py - sy
+            norm = d * math.hypot(ux, uy)
+            along_cos.append(((sx - mx) * ux + (sy - my) * uy) / norm if norm > 0.0 else 1.0)
         reads_over = (None if reads is None or None in p.reads_at
                       else np.array([reads - at for at in p.reads_at], dtype=float))
         ranges = np.array(p.ranges)
