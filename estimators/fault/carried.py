@@ -66,7 +66,8 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
     per_metre = (K_SIGMA * robot.odometry_noise + abs(robot.wheel_radius_error) + K_SIGMA * max(heading_std, 0.0)
                  + 2.0 * tick / robot.wheel_base)
     # a fix has a few ranges: plain floats (numpy's per-call cost would dominate an episode's fixes)
-    return np.array([tick + per_metre * d if d > 0.0 else 0.0 for d in np.ravel(travelled).tolist()])
+    out = [tick + per_metre * d if d > 0.0 else 0.0 for d in np.ravel(travelled).tolist()]
+    return np.array(out).reshape(np.shape(travelled))
 
 
 def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along_cos=None) -> np.ndarray:
@@ -111,7 +112,7 @@ def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along
         across = hv * dj * dj
         c2 = 1.0 if cos is None else cos[j] * cos[j]
         out.append(along + across if cos is None else along * c2 + across * (1.0 - c2))
-    return np.array(out)
+    return np.array(out).reshape(np.shape(travelled))
 
 
 def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
