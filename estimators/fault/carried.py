@@ -65,6 +65,9 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
     tick = encoder_tick(robot)
     per_metre = (K_SIGMA * robot.odometry_noise + abs(robot.wheel_radius_error) + K_SIGMA * max(heading_std, 0.0)
                  + 2.0 * tick / robot.wheel_base)
+    if np.size(travelled) > 8:  # the schedule's candidate fixes, all at once
+        d = np.asarray(travelled, dtype=float)
+        return np.where(d > 0.0, tick + per_metre * d, 0.0)
     # a fix has a few ranges: plain floats (numpy's per-call cost would dominate an episode's fixes)
     out = [tick + per_metre * d if d > 0.0 else 0.0 for d in np.ravel(travelled).tolist()]
     return np.array(out).reshape(np.shape(travelled))
