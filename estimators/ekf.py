@@ -194,7 +194,8 @@ class Localizer:
         self._kf.P = np.ascontiguousarray(P0_sym)
         rel_var, base_var = self._variance_terms
         self.predict_params = np.array([robot.wheel_base, rel_var, base_var, self.q_scale,
-                                        self.bias_walk_std**2, float(self.estimate_wheel_bias), quant_var])
+                                        self.bias_walk_std**2, float(self.estimate_wheel_bias), quant_var,
+                                        robot.turn_slip])
         # Measurement model at the current state, filled before each filterpy update; the
         # wheel-error column (if any) stays 0.
         self._H = np.zeros((1, dim))

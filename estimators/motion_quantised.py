@@ -45,7 +45,7 @@ from estimators.motion import _arc_terms, _jacobians_into
 
 @numba.njit(cache=True)
 def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right, quant_var,
-                                bias_walk_var):
+                                bias_walk_var, turn_slip=0.0):
     """EKF predict step of the pose augmented with the encoder residuals, in place.
 
     Parameters
@@ -67,6 +67,9 @@ def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var
         Variance of a new residual [m^2]: ``tick^2 / 12`` (already scaled).
     bias_walk_var : float
         Variance added to ``e`` over the step [-] (ignored without ``e``).
+    turn_slip : float
+        Declared outward slip per radian of the step's heading change [-]
+        (:func:`estimators.motion.propagate_moments`).
     """
     n = x.shape[0]
     biased = n == 6
@@ -78,7 +81,7 @@ def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var
     tl, tr = sl * ul, sr * ur
     F3 = np.empty((3, 3))
     G = np.empty((3, 2))
-    _jacobians_into(x[2], tl, tr, wheel_base, F3, G)
+    _jacobians_into(x[2], tl, tr, wheel_base, F3, G, turn_slip)
     A = np.zeros((n, n))
     for i in range(3):
         for j in range(3):
@@ -89,7 +92,7 @@ def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var
         A[i, iq + 1] = -sr * G[i, 1]
     if biased:
         A[3, 3] = 1.0
-    ds, dtheta, _, k, _, c, s = _arc_terms(x[2], tl, tr, wheel_base)
+    ds, dtheta, _, k, _, c, s = _arc_terms(x[2], tl, tr, wheel_base, turn_slip)
     x[0] += ds * k * c
     x[1] += ds * k * s
     x[2] += dtheta

@@ -16,8 +16,8 @@ import numba
 from estimators import compiled, motion
 from estimators.motion_quantised import propagate_moments_quantised
 
-# Localizer.predict_params (float64, shape (7,)): what a predict step needs besides x and P.
-WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED, QUANT_VAR = range(7)
+# Localizer.predict_params (float64, shape (8,)): what a predict step needs besides x and P.
+WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED, QUANT_VAR, TURN_SLIP = range(8)
 
 
 @numba.njit(cache=True)
@@ -32,20 +32,21 @@ def predict_step(x, P, d_left, d_right, params):
         The filter's state and covariance (:meth:`Localizer.state_arrays`).
     d_left, d_right : float
         Wheel travel measured by the encoders over the step (nominal radius) [m].
-    params : ndarray, shape (7,)
+    params : ndarray, shape (8,)
         :attr:`Localizer.predict_params`.
     """
     wheel_base, rel_var, base_var, q = params[WHEEL_BASE], params[REL_VAR], params[BASE_VAR], params[Q_SCALE]
     var_left = q * (rel_var * d_left * d_left + base_var)
     var_right = q * (rel_var * d_right * d_right + base_var)
     walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
+    slip = params[TURN_SLIP]
     if params[QUANT_VAR] > 0.0:
         propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right,
-                                    q * params[QUANT_VAR], walk_var)
+                                    q * params[QUANT_VAR], walk_var, slip)
     elif params[BIASED] > 0.0:
-        motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var)
+        motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var, slip)
     else:
-        motion.propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right)
+        motion.propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right, slip)
     x[2] = math.pi - (math.pi - x[2]) % (2.0 * math.pi)  # estimators.update.wrap_scalar
 
 

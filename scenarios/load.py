@@ -107,6 +107,7 @@ def _robot(t: Table, base: RobotSpec) -> RobotSpec:
         encoder_ticks=t.integer("encoder_ticks", base.encoder_ticks, low=1),
         wheel_radius_error=t.number("wheel_radius_error", base.wheel_radius_error, low=-0.2, high=0.2),
         odometry_noise=t.number("odometry_noise", base.odometry_noise, low=0.0, high=0.5),
+        turn_slip=t.number("turn_slip", base.turn_slip, low=-0.5, high=0.5),
         mass=t.number("mass", base.mass, **pos),
         max_wheel_torque=t.number("max_wheel_torque", base.max_wheel_torque, **pos),
     )

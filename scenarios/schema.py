@@ -158,6 +158,12 @@ class RobotSpec:
     odometry_noise : float
         Relative standard deviation of each wheel's travelled distance per increment
         (slip, floor), used by the filter's process noise [-].
+    turn_slip : float
+        Outward (sideways) slip of the axle midpoint over one odometry step per metre of travel
+        and radian of the step's heading change [-]: the step's chord points along
+        ``theta + (1/2 - turn_slip) dtheta`` instead of the arc's ``theta + dtheta/2``
+        (a slip angle of ``turn_slip * omega * T`` at yaw rate omega, odometry period T).
+        Measured on the simulated hardware, see :mod:`estimators.motion`.
     mass : float
         Chassis mass [kg].
     max_wheel_torque : float
@@ -172,6 +178,7 @@ class RobotSpec:
     encoder_ticks: int = 2048
     wheel_radius_error: float = 0.002
     odometry_noise: float = 0.01
+    turn_slip: float = 0.0
     mass: float = 20.0
     max_wheel_torque: float = 20.0
 

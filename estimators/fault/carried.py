@@ -47,6 +47,11 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
     wheel error, over the distance. A shift of exactly 0 (the same encoder reading) has no
     error.
 
+    The bound keeps a second tick (``2 tick`` along the track): the ``K_SIGMA`` parts are not
+    hard bounds (a 3-sigma heading error is exceeded at 0.27 % of fixes) and the physics
+    creeps a little beyond the declared model in turns (tens of micrometres over a fix). With
+    one tick, 200 warehouse episodes had one truth outside its fault area in 40,800 fixes.
+
     Parameters
     ----------
     robot : RobotSpec
@@ -67,9 +72,9 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
                  + 2.0 * tick / robot.wheel_base)
     if np.size(travelled) > 8:  # the schedule's candidate fixes, all at once
         d = np.asarray(travelled, dtype=float)
-        return np.where(d > 0.0, tick + per_metre * d, 0.0)
+        return np.where(d > 0.0, 2.0 * tick + per_metre * d, 0.0)
     # a fix has a few ranges: plain floats (numpy's per-call cost would dominate an episode's fixes)
-    out = [tick + per_metre * d if d > 0.0 else 0.0 for d in np.ravel(travelled).tolist()]
+    out = [2.0 * tick + per_metre * d if d > 0.0 else 0.0 for d in np.ravel(travelled).tolist()]
     return np.array(out).reshape(np.shape(travelled))
 
 

@@ -61,8 +61,8 @@ def test_same_seed_same_arrays_after_world_reset(prepared):
     assert digest(a) == digest(b) == digest(fresh)
     # negative control: another seed gives other numbers
     assert digest(other) != digest(a)
-    diff = np.flatnonzero(np.any(a.steps.est_pose != other.steps.est_pose[: len(a.steps.t)], axis=1)
-                          if len(other.steps.t) >= len(a.steps.t) else [0])
+    n = min(len(a.steps.t), len(other.steps.t))  # runs may end a step apart
+    diff = np.flatnonzero(np.any(a.steps.est_pose[:n] != other.steps.est_pose[:n], axis=1))
     assert diff.size > 0
 
 
