@@ -61,7 +61,7 @@ import math
 
 import numpy as np
 
-from estimators import compiled, motion
+from estimators import compiled, motion, process_noise
 from estimators.measurements import bound_std
 from estimators.predict import BASE_VAR, BIASED, Q_SCALE, QUANT_VAR, REL_VAR, WALK_VAR, WHEEL_BASE, predict_step  # noqa: F401
 from estimators.update import UpdateResult, gate_threshold, wrap_scalar, wrapped_residual
@@ -106,7 +106,7 @@ class Localizer:
         once, like ``bias_walk_std``, into :attr:`predict_params`.
     include_systematic : bool
         Add the declared wheel-radius error bound to the process noise
-        (:func:`estimators.motion.wheel_variances`).
+        (:func:`estimators.process_noise.wheel_variances`).
     estimate_wheel_bias : bool
         Augment the state with the relative wheel-radius error ``e`` (module docstring).
     bias_walk_std : float
@@ -162,7 +162,7 @@ class Localizer:
         # The noise std is linear in its bound: one factor per model, computed once.
         self._std_per_bound = bound_std(1.0, sensor.noise)
         self._bearing_var = (sensor.bearing_error * self._std_per_bound) ** 2
-        self._variance_terms = motion.variance_terms(robot, include_systematic)
+        self._variance_terms = process_noise.variance_terms(robot, include_systematic)
         self.encoder_residual_state = bool(encoder_residual_state)
         quant_var = 0.0
         if self.encoder_residual_state:

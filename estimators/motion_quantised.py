@@ -6,7 +6,7 @@ edge (``tick = 2 pi r / encoder_ticks`` [m]). The travel the odometry reports ov
 therefore ``d_k = r (phi_k - phi_{k-1}) - q_k + q_{k-1}``: the quantisation error of a step is the
 difference of two residuals, and over any window the errors telescope to ``q_start - q_end``.
 Added to the process noise as white noise of variance ``tick^2 / 12`` per step (what
-:func:`estimators.motion.wheel_variances` does) it grows without bound, at standstill too,
+:func:`estimators.process_noise.wheel_variances` does) it grows without bound, at standstill too,
 while the true error never exceeds one tick: the filter becomes pessimistic, the more the more
 often it predicts (60 Hz here) and the slower the robot moves.
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from estimators import consistency, measurements, motion
+from estimators import consistency, measurements, motion, process_noise
 from estimators.ekf import Localizer
 from scenarios.errors import SimulationError
 from scenarios.schema import NoiseModel, RobotSpec, SensorSpec
@@ -83,7 +83,7 @@ def test_predict_matches_linearised_moments():
         F, _ = motion.jacobians(x, dl, dr, ROBOT.wheel_base)
         loc.predict(dl, dr)
         np.testing.assert_allclose(loc.x, motion.propagate(x, dl, dr, ROBOT.wheel_base), atol=1e-15)
-        expected = F @ P @ F.T + q_scale * motion.process_cov(x, dl, dr, ROBOT)
+        expected = F @ P @ F.T + q_scale * process_noise.process_cov(x, dl, dr, ROBOT)
         np.testing.assert_allclose(loc.P, expected, rtol=1e-12)
 
 
@@ -154,7 +154,7 @@ def _simulate(seed: int, q_scale: float = 1.0, noise_factor: float = 1.0, bearin
     # Encoder readings (the commands, exactly); the true travel adds the model's wheel noise.
     enc_l = (SPEED - yaw_rate * half_base) * DT
     enc_r = (SPEED + yaw_rate * half_base) * DT
-    var_l, var_r = motion.wheel_variances(enc_l, enc_r, ROBOT)
+    var_l, var_r = process_noise.wheel_variances(enc_l, enc_r, ROBOT)
     gens = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(RUNS)]
     rng_truth = np.random.default_rng(np.random.SeedSequence(seed).spawn(RUNS + 1)[-1])
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from estimators import consistency, measurements, motion
+from estimators import consistency, measurements, motion, process_noise
 from estimators.ekf import BIAS_STD_FLOOR, Localizer
 from scenarios.errors import SimulationError
 from scenarios.schema import NoiseModel, RobotSpec, SensorSpec
@@ -110,7 +110,7 @@ def test_predict_matches_numerical_linearisation(dl, dr):
     dl_c, dr_c = dl * (1 - x0[3]), dr * (1 + x0[3])
     G = _central_jacobian(lambda d: motion.propagate(x0[:3], d[0], d[1], ROBOT.wheel_base),
                           np.array([dl_c, dr_c]), 1e-7)
-    var_l, var_r = motion.wheel_variances(dl, dr, ROBOT)
+    var_l, var_r = process_noise.wheel_variances(dl, dr, ROBOT)
     Q = np.zeros((4, 4))
     Q[:3, :3] = (G * [var_l, var_r]) @ G.T
     Q[3, 3] = walk_std**2 * 0.5 * (abs(dl) + abs(dr))

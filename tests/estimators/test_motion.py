@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from estimators import motion
+from estimators import motion, process_noise
 from scenarios.schema import RobotSpec
 
 BASE = 0.5  # wheel base [m]
@@ -91,10 +91,10 @@ def test_wheel_variances_components():
     robot = RobotSpec(wheel_radius=0.1, encoder_ticks=1000, odometry_noise=0.02, wheel_radius_error=0.005)
     tick = 2 * math.pi * 0.1 / 1000
     quant_var = tick**2 / 12 + motion.VARIANCE_FLOOR
-    vl, vr = motion.wheel_variances(0.0, 0.3, robot)
+    vl, vr = process_noise.wheel_variances(0.0, 0.3, robot)
     assert vl == pytest.approx(quant_var, rel=1e-12)
     assert vr == pytest.approx((0.02 * 0.3) ** 2 + quant_var, rel=1e-12)
-    _, vr_sys = motion.wheel_variances(0.0, -0.3, robot, include_systematic=True)
+    _, vr_sys = process_noise.wheel_variances(0.0, -0.3, robot, include_systematic=True)
     assert vr_sys == pytest.approx((0.02 * 0.3) ** 2 + (0.005 * 0.3) ** 2 + quant_var, rel=1e-12)
 
 
@@ -107,8 +107,8 @@ def test_process_cov_matches_sampled_spread():
     robot = RobotSpec(odometry_noise=0.05)
     x = np.array([1.0, 1.0, 0.8])
     dl, dr = 0.08, 0.12
-    Q = motion.process_cov(x, dl, dr, robot)
-    vl, vr = motion.wheel_variances(dl, dr, robot)
+    Q = process_noise.process_cov(x, dl, dr, robot)
+    vl, vr = process_noise.wheel_variances(dl, dr, robot)
     rng = np.random.default_rng(11)
     n = 200_000
     ends = motion.propagate(np.broadcast_to(x, (n, 3)), dl + rng.normal(scale=math.sqrt(vl), size=n),
@@ -126,8 +126,8 @@ def test_propagate_moments_is_the_ekf_predict():
     P = np.array([[4e-4, 1e-5, 2e-5], [1e-5, 3e-4, -1e-5], [2e-5, -1e-5, 1e-4]])
     dl, dr = 0.05, 0.07
     F, _ = motion.jacobians(x, dl, dr, robot.wheel_base)
-    vl, vr = motion.wheel_variances(dl, dr, robot)
-    expected_P = F @ P @ F.T + motion.process_cov(x, dl, dr, robot)
+    vl, vr = process_noise.wheel_variances(dl, dr, robot)
+    expected_P = F @ P @ F.T + process_noise.process_cov(x, dl, dr, robot)
     expected_x = motion.propagate(x, dl, dr, robot.wheel_base)
     xm, Pm = x.copy(), P.copy()
     motion.propagate_moments(xm, Pm, dl, dr, robot.wheel_base, vl, vr)
