@@ -44,8 +44,10 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
     readings are floors of the true angle): along the track less than ``tick``, and the heading
     by less than ``2 tick / b``, which turns the rest of the shift. Add the declared random slip
     and the heading error the shift is turned with (as ``K_SIGMA`` bounds), and the systematic
-    wheel error, over the distance. A shift of exactly 0 (the same encoder reading) has no
-    error.
+    wheel error, over the distance. Only the fix's last range, taken at the fix time, is not
+    shifted (its callers give it no margin); an earlier range whose encoders did not change
+    still has its bound, as the wheels may have turned by less than a tick and the robot crept
+    (an episode's standstill fix on the dock showed it: one truth outside its area in 40,800).
 
     The bound keeps a second tick (``2 tick`` along the track): the ``K_SIGMA`` parts are not
     hard bounds (a 3-sigma heading error is exceeded at 0.27 % of fixes) and the physics
@@ -72,9 +74,9 @@ def shift_bound(robot: RobotSpec, travelled, heading_std: float) -> np.ndarray:
                  + 2.0 * tick / robot.wheel_base)
     if np.size(travelled) > 8:  # the schedule's candidate fixes, all at once
         d = np.asarray(travelled, dtype=float)
-        return np.where(d > 0.0, 2.0 * tick + per_metre * d, 0.0)
+        return 2.0 * tick + per_metre * np.maximum(d, 0.0)
     # a fix has a few ranges: plain floats (numpy's per-call cost would dominate an episode's fixes)
-    out = [2.0 * tick + per_metre * d if d > 0.0 else 0.0 for d in np.ravel(travelled).tolist()]
+    out = [2.0 * tick + per_metre * max(d, 0.0) for d in np.ravel(travelled).tolist()]
     return np.array(out).reshape(np.shape(travelled))
 
 
@@ -157,7 +159,8 @@ def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarr
     return np.array(shifted).reshape(-1, 2), np.array(travelled)
 
 
-def promised_fault_area(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float) -> FaultArea:
+def promised_fault_area(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float,
+                        end=None, carried=None) -> FaultArea:
     """Fault area of a moving fix from noise-free ranges at planned positions (the promise).
 
     The ranges ``|p_i - M_i|`` are exact; each is carried to the last position (:func:`carry`)
@@ -176,6 +179,10 @@ def promised_fault_area(sensor: SensorSpec, robot: RobotSpec, markers, poses, he
         Planned position at each measurement [m]; the last is the fix's position.
     heading_std : float
         Heading std the plan assumes at the fix [rad].
+    end : array_like, shape (2,), optional
+        The fix's position, where the ranges are carried to; default the last pose.
+    carried : array_like of bool, shape (k,), optional
+        Which ranges are carried (get the shift bound); default all but the last.
 
     Returns
     -------
@@ -184,10 +191,12 @@ def promised_fault_area(sensor: SensorSpec, robot: RobotSpec, markers, poses, he
     """
     m = np.asarray(markers, dtype=float).reshape(-1, 2)
     p = np.asarray(poses, dtype=float).reshape(-1, 2)
+    end = p[-1] if end is None else np.asarray(end, dtype=float)
+    carried = np.arange(len(p)) < len(p) - 1 if carried is None else np.asarray(carried, dtype=bool)
     ranges = np.hypot(p[:, 0] - m[:, 0], p[:, 1] - m[:, 1])
-    shifted, travelled = carry(m, p, p[-1])
-    rho = sensor.range_bound(ranges) + shift_bound(robot, travelled, heading_std)
-    return exact_fault_area(shifted, ranges, rho, p[-1])
+    shifted, travelled = carry(m, p, end)
+    rho = sensor.range_bound(ranges) + np.where(carried, shift_bound(robot, travelled, heading_std), 0.0)
+    return exact_fault_area(shifted, ranges, rho, end)
 
 
 def promised_parallelogram(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float) -> np.ndarray:

@@ -216,7 +216,8 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
     pef : planner.pef.map.PEF
         The static PEF (visibility, free cells, candidate pairs).
     speed : float
-        Driving speed during the fix [m/s], >= 0 (0 gives the static map's geometry).
+        Driving speed during the fix [m/s], >= 0 (0: a fix at standstill, whose first range
+        still carries the encoders' sub-tick uncertainty).
     resolution : float, optional
         Cell size [m]; default ``planning.resolution``.
 

@@ -171,6 +171,8 @@ class FixRecorder:
                       else np.array([reads - at for at in p.reads_at], dtype=float))
         ranges = np.array(p.ranges)
         rho = self.sensor.range_bound(ranges)
+        # every range but one taken at the fix time is carried (unchanged encoders included)
+        carried = np.array(p.slots) < p.attempted - 1
         heading_var = max(self.loc.heading_var, 0.0)  # the shift is turned with the filter's heading
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
@@ -187,7 +189,8 @@ class FixRecorder:
                             bearings=bearings, bearing_error=bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
                             extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos),
-                            fault_margin=shift_bound(self.robot, travelled, math.sqrt(heading_var)))
+                            fault_margin=np.where(carried, shift_bound(self.robot, travelled, math.sqrt(heading_var)),
+                                                  0.0))
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty
@@ -210,9 +213,10 @@ class FixRecorder:
             return math.inf
         if tuple(p.measured) == tuple(f.markers):
             return float(f.predicted_tau)
-        poses = np.array(f.poses)[p.slots]
-        area = promised_fault_area(self.sensor, self.robot, self.markers[p.measured], poses,
-                                   self.scenario.planning.heading_std)
+        poses = np.array(f.poses)
+        area = promised_fault_area(self.sensor, self.robot, self.markers[p.measured], poses[p.slots],
+                                   self.scenario.planning.heading_std, end=poses[-1],
+                                   carried=np.array(p.slots) < len(poses) - 1)
         return math.inf if area.is_empty else float(area.diameter)
 
     def _static(self, markers: np.ndarray, truth: np.ndarray) -> np.ndarray:
