@@ -15,6 +15,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
+from planner.schedule.promise import PROMISE_TOLERANCE
 from scenarios.schema import Scenario
 from sim.report.scene import draw_pef, draw_scene, pef_extent
 
@@ -88,7 +89,8 @@ def error_cdf(step_error: np.ndarray, step_tau: np.ndarray, run_max_error: np.nd
     return fig
 
 
-def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_diameter: np.ndarray) -> Figure:
+def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_diameter: np.ndarray,
+                tolerance: float = PROMISE_TOLERANCE) -> Figure:
     """Per fix: the snapshot error and the realised fault-area diameter against the plan's promise.
 
     The promise is the fault-area diameter of the moving fix the plan made (ranges one after
@@ -100,25 +102,29 @@ def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_dia
     predicted_tau, snapshot_error, fault_diameter : ndarray, shape (F,)
         The fix's promise, the snapshot fix's position error, and the realised exact
         fault-area diameter [m].
+    tolerance : float
+        Relative excess of a realised diameter over its promise that still keeps it (the
+        promise check's, :data:`planner.schedule.promise.PROMISE_TOLERANCE`).
     """
     fig = Figure(figsize=(11, 4.6))
     axes = fig.subplots(1, 2)
     tau = np.asarray(predicted_tau, dtype=float) * 1e3
-    for ax, values, name in ((axes[0], snapshot_error, "snapshot-fix error"),
-                             (axes[1], fault_diameter, "realised fault-area diameter")):
+    for ax, values, name, tol in ((axes[0], snapshot_error, "snapshot-fix error", 0.0),
+                                  (axes[1], fault_diameter, "realised fault-area diameter", tolerance)):
         y = np.asarray(values, dtype=float) * 1e3
         keep = np.isfinite(tau) & np.isfinite(y)
-        above = keep & (y > tau)
+        above = keep & (y > tau * (1.0 + tol))
+        limit = "τ" if tol == 0.0 else f"{1 + tol:g} τ"
         idx = _subsample(int(keep.sum()))
         xs, ys, bad = tau[keep][idx], y[keep][idx], above[keep][idx]
-        ax.scatter(xs[~bad], ys[~bad], s=6, alpha=0.4, color=OK_COLOUR, lw=0, label="within τ")
-        ax.scatter(xs[bad], ys[bad], s=10, alpha=0.8, color=BAD_COLOUR, lw=0, label="above τ")
+        ax.scatter(xs[~bad], ys[~bad], s=6, alpha=0.4, color=OK_COLOUR, lw=0, label=f"within {limit}")
+        ax.scatter(xs[bad], ys[bad], s=10, alpha=0.8, color=BAD_COLOUR, lw=0, label=f"above {limit}")
         top = float(max(np.max(xs, initial=0.0), np.max(ys, initial=0.0))) * 1.05 or 1.0
         ax.plot([0, top], [0, top], color=LIMIT_COLOUR, lw=1, label="y = x")
         n = int(keep.sum())
         share = above.sum() / n if n else 0.0
         ax.set(xlim=(0, top), ylim=(0, top), xlabel="promised τ of the moving fix [mm]", ylabel=f"{name} [mm]",
-               title=f"{name.capitalize()}: {above.sum()} of {n} fixes above τ ({share:.2%})")
+               title=f"{name.capitalize()}: {above.sum()} of {n} fixes above {limit} ({share:.2%})")
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", fontsize=8)
