@@ -1,11 +1,14 @@
 """Physics settings of the PyBullet world (time step, solver, contact and geometry constants).
 
-The defaults are chosen for speed: 20 solver iterations instead of pybullet's 50 (a step
-costs ~0.75x; see ``benchmarks/physics.py``). The test
-``tests/sim/physics/test_world.py::test_fast_config_tracks_reference`` shows that a fixed ~20 s
-wheel-command sequence drives within 1 cm of :meth:`PhysicsConfig.reference` (pybullet's
-defaults at 240 Hz); measured 3.5 mm (step commands) and 1.8 mm (ramped at 5 rad/s^2).
-10 iterations drift 1.04 cm with step commands and a 60 Hz time step 1.8 cm, so neither is used.
+The solver runs pybullet's default 50 iterations. 20 were used for speed (a step costs ~0.75x,
+see ``benchmarks/physics.py``) and tracked the reference within 1 cm, but that is not accurate
+enough for a filter with a 0.1 mm laser: with 20 iterations the solver does not converge on the
+wheel contacts and the small robot of ``paper-two-markers`` crabs sideways by 0.41 mm over a
+3 m straight run (1.4e-4 rad), motion its encoders never see, and its filter fails NEES at 200
+runs (3.218 against [2.853, 3.151]). With 50 iterations the crab is 0.075 mm (2.5e-5 rad) and
+NEES 3.007; ``tests/sim/physics/test_world.py::test_built_in_robots_do_not_crab`` bounds it.
+The time step stays at pybullet's 1/240 s: the turn slip of its integrator scales with it
+(``RobotSpec.turn_slip``, see :mod:`estimators.motion`).
 """
 
 from __future__ import annotations
@@ -52,7 +55,7 @@ class PhysicsConfig:
     """
 
     time_step: float = 1.0 / 240.0
-    solver_iterations: int = 20
+    solver_iterations: int = 50
     gravity: float = 9.81
     floor_friction: float = 1.0
     wheel_friction: float = 1.0
@@ -77,5 +80,5 @@ class PhysicsConfig:
 
     @classmethod
     def reference(cls) -> PhysicsConfig:
-        """Return pybullet's own defaults (50 solver iterations at 240 Hz): the accuracy baseline."""
+        """Return pybullet's own defaults (50 solver iterations at 240 Hz), which are ours."""
         return cls(solver_iterations=50)

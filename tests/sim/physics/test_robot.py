@@ -1,6 +1,6 @@
 """The robot and its odometry: URDF from the actual spec, rolling and slip, systematic drift.
 
-Measured with the default PhysicsConfig (20 solver iterations, 240 Hz, friction 1 x 1):
+Measured with the PhysicsConfig of the time (20 solver iterations, 240 Hz, friction 1 x 1):
 - rolling with ramped commands: true travel / (joint angle x actual radius) = 1 +- 6e-6;
 - step command 0 -> 5 rad/s (0.5 m/s): 12.3 mm slip vs v^2/(2 mu g) = 12.7 mm;
 - spin in place (~179 deg): true / encoder heading change 0.99995 ramped, 1.002 stepped
