@@ -131,9 +131,11 @@ def route_points(scenario: Scenario, step: float | None = None) -> np.ndarray:
     parts = []
     if scenario.routes is not None:
         nodes = {k: np.asarray(v, dtype=float) for k, v in scenario.routes.nodes.items()}
-        parts += [_sample_segment(nodes[a], nodes[b], step) for a, b in scenario.routes.segments]
+        # segments that may not be driven (imported edges too close to obstacles) need no cover
+        parts += [_sample_segment(nodes[a], nodes[b], step) for i, (a, b) in enumerate(scenario.routes.segments)
+                  if not scenario.routes.why_not(i)]
         used = {name for t in scenario.tasks for name in (t.start, t.goal)}
-        for name in sorted(used - set(nodes)):
+        for name in sorted(n for n in used - set(nodes) if scenario.dock(n).node is None):
             p = np.asarray(scenario.dock(name).position, dtype=float)
             nearest = min(nodes.values(), key=lambda q: float(np.hypot(*(q - p))))
             parts.append(_sample_segment(p, nearest, step))
