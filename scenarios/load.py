@@ -14,13 +14,13 @@ from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table
+from scenarios.obstacle_table import read_obstacle
 from scenarios.routegraph import place_node_docks, read_node_dock, read_routes
 from scenarios.schema import (
     Dock,
     Marker,
     MonteCarloSpec,
     NoiseModel,
-    Obstacle,
     PefModel,
     PlacementSpec,
     PlanningSpec,
@@ -150,14 +150,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: str | Path
     workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True))
     ws_t.done()
 
-    obstacles = []
-    for t in root.array_of_tables("obstacles"):
-        obstacles.append(Obstacle(
-            center=t.vector("center", 2, what="[x, y]"),
-            size=t.vector("size", 2, what="[length, width] in metres", positive=True),
-            yaw=math.radians(t.number("yaw_deg", 0.0)),
-        ))
-        t.done()
+    obstacles = [read_obstacle(t) for t in root.array_of_tables("obstacles")]
 
     def free_point(t: Table, key: str, value: tuple[float, ...], what: str) -> None:
         p = value[:2]  # a dock's value is (x, y, yaw): only the position must be free

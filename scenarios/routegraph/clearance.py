@@ -11,21 +11,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import shapely
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import LineString
 
-from scenarios.schema import Obstacle
+from scenarios.obstacles import Obstacle
 
 
 def obstacle_geometry(obstacle: Obstacle) -> shapely.Geometry:
-    """Return the obstacle's area as a shapely geometry [m].
+    """Return the obstacle's solid region as a shapely geometry [m] (box, circle or polygon).
 
-    Uses the obstacle's own ``geometry()`` when the schema provides one (every obstacle kind),
-    else the polygon of its box corners.
+    A circle is its circumscribed polygon (:meth:`scenarios.obstacles.Obstacle.geometry`), the
+    shape the planner and the physics use, so a segment clear here is clear for them.
     """
-    own = getattr(obstacle, "geometry", None)
-    if callable(own):
-        return own()
-    return Polygon(obstacle.corners())
+    return obstacle.geometry()
 
 
 def segment_conflict(a: Sequence[float], b: Sequence[float], obstacles: Sequence[Obstacle],
