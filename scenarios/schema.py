@@ -269,6 +269,8 @@ class RouteNetwork:
         Node name -> the other properties read from the file (``frame``, ``metadata``, ...).
     source : str
         The graph file as named in errors ("" for a hand-written network).
+    layout : str
+        The LIF layout read (``routes.layout``), "" if none was named.
     """
 
     nodes: dict[str, tuple[float, float]]
@@ -278,6 +280,7 @@ class RouteNetwork:
     node_ids: dict[str, str] = field(default_factory=dict)
     node_properties: dict[str, dict] = field(default_factory=dict)
     source: str = ""
+    layout: str = ""
 
     def traffic_of(self, a: str, b: str) -> float:
         """Traffic density of segment a–b (0 when not listed)."""

@@ -72,8 +72,9 @@ def _from_file(t: Table, workspace, obstacles, radius, base_dir, origin) -> Rout
     layout = t.string("layout") if t.has("layout") else None
     nodes, edges, elsewhere = read_graph_file(path, str(path), layout=layout, scenario_file=t.file,
                                               layout_key=t.key("layout"), origin=origin)
-    return build_network(nodes, edges, str(path), workspace=workspace, obstacles=obstacles, radius=radius,
-                         known_elsewhere=elsewhere.__contains__)
+    net = build_network(nodes, edges, str(path), workspace=workspace, obstacles=obstacles, radius=radius,
+                        known_elsewhere=elsewhere.__contains__)
+    return replace(net, layout=layout or "")
 
 
 def _hand_written(t: Table, workspace, obstacles, radius, docks, free_point) -> RouteNetwork:
