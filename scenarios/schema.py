@@ -223,7 +223,7 @@ class RouteEdge:
     ----------
     ids : tuple of str
         Edge ids, one per directed edge merged into the segment (file order); a hand-written
-        segment gets one generated id (see :attr:`RouteNetwork.node_ids`).
+        segment gets two generated ids, one per direction (see :attr:`RouteNetwork.node_ids`).
     ends : tuple of (str, str)
         (start node, end node) of each id, node names.
     properties : tuple of dict
@@ -263,8 +263,9 @@ class RouteNetwork:
         for a network built in code without them.
     node_ids : dict[str, str]
         Node name -> id. An imported graph's node ids are its names; hand-written nodes get
-        ``"0", "1", ...`` in file order and their segments ``"n", "n+1", ...`` (n nodes), so
-        ids are unique across nodes and edges, as Nav2's route server requires.
+        ``"0", "1", ...`` in file order and segment i the directed edges ``n + 2i`` (a -> b) and
+        ``n + 2i + 1`` (b -> a) (n nodes), so ids are unique across nodes and edges, as Nav2's
+        route server requires.
     node_properties : dict[str, dict]
         Node name -> the other properties read from the file (``frame``, ``metadata``, ...).
     source : str

@@ -109,10 +109,11 @@ def _hand_written(t: Table, workspace, obstacles, radius, docks, free_point) -> 
             t.fail(key, f"{s[0]}-{s[1]} {why}")
         segments.append((s[0], s[1]))
     # Generated ids, unique across nodes and edges (Nav2 requires it): nodes 0..n-1 in file
-    # order, then the segments in file order.
+    # order, then two directed edges per segment (a->b, b->a: Nav2 edges are one-way) in file order.
+    n = len(nodes)
     node_ids = {name: str(i) for i, name in enumerate(nodes)}
-    edges = tuple(RouteEdge(ids=(str(len(nodes) + i),), ends=(seg,), properties=({},))
-                  for i, seg in enumerate(segments))
+    edges = tuple(RouteEdge(ids=(str(n + 2 * i), str(n + 2 * i + 1)), ends=((a, b), (b, a)), properties=({}, {}))
+                  for i, (a, b) in enumerate(segments))
     return RouteNetwork(nodes=nodes, segments=tuple(segments), edges=edges, node_ids=node_ids,
                         node_properties={name: {} for name in nodes})
 
