@@ -228,6 +228,10 @@ def network_candidates(scenario: Scenario, start: str, goal: str, tau_fn: TauFn)
         if dock.node is not None:  # the dock sits on a node: routes start there
             ends.append(dock.node)
             continue
+        on = [n for n, p in g.pos.items() if math.dist(p, dock.position) < 1e-9]
+        if name not in g.pos and on:  # a pose dock placed exactly on a node (an imported graph's)
+            ends.append(on[0])
+            continue
         network.attach(g, name, dock.position, lambda a, b: smoothing.segment_ok(a, b, clear, res / 2))
         ends.append(name)
     if ends[0] == ends[1]:
