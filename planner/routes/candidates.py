@@ -236,7 +236,7 @@ def network_candidates(scenario: Scenario, start: str, goal: str, tau_fn: TauFn)
         ends.append(name)
     if ends[0] == ends[1]:
         raise PlanningError(f"docks {start!r} and {goal!r} sit on the same node {ends[0]!r}")
-    routes, method = network.candidate_routes(g, ends[0], ends[1])
+    routes, method = network.candidate_routes(g, ends[0], ends[1], names=(start, goal))
     specs = [RouteSpec(f"R{i + 1}", [g.polyline(r)], tuple(r), g.segment_traffic(r), method)
              for i, r in enumerate(routes)]
     return make_candidates(scenario, specs, tau_fn)

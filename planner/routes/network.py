@@ -137,7 +137,7 @@ def k_shortest_paths(graph: RouteGraph, start: str, goal: str, k: int) -> list[l
 
 
 def candidate_routes(graph: RouteGraph, start: str, goal: str, k: int = 20,
-                     limit: int = MAX_ALL_PATHS) -> tuple[list[list[str]], str]:
+                     limit: int = MAX_ALL_PATHS, names: tuple[str, str] | None = None) -> tuple[list[list[str]], str]:
     """Candidate node sequences from ``start`` to ``goal``.
 
     Parameters
@@ -149,6 +149,8 @@ def candidate_routes(graph: RouteGraph, start: str, goal: str, k: int = 20,
         How many shortest paths to keep when the network is too large to enumerate.
     limit : int
         Enumerate all simple paths when there are at most this many.
+    names : (str, str), optional
+        Dock names of ``start`` and ``goal`` for messages, when they sit on nodes of other names.
 
     Returns
     -------
@@ -169,18 +171,22 @@ def candidate_routes(graph: RouteGraph, start: str, goal: str, k: int = 20,
     if paths is None:
         paths, method = k_shortest_paths(graph, start, goal, k), f"{k} shortest (Yen)"
     if not paths:
-        raise _unconnected(graph, start, goal)
+        raise _unconnected(graph, start, goal, names)
     paths.sort(key=lambda p: (round(graph.path_length(p), 9), p))
     return paths, method
 
 
-def _unconnected(graph: RouteGraph, start: str, goal: str) -> PlanningError:
+def _unconnected(graph: RouteGraph, start: str, goal: str, names: tuple[str, str] | None) -> PlanningError:
     """Build the error for docks no drivable route joins, naming the inadmissible segments in the way."""
+    if names is not None and names != (start, goal):
+        what = f"from {names[0]!r} to {names[1]!r} (nodes {start} and {goal})"
+    else:
+        what = f"from {start!r} to {goal!r}"
     try:
         through = nx.shortest_path(graph.g, start, goal, weight="weight")
     except nx.NetworkXNoPath:
-        return PlanningError(f"no route from {start!r} to {goal!r}: the route network does not connect them")
+        return PlanningError(f"no route {what}: the route network does not connect them")
     blocked = [graph.g.edges[a, b] for a, b in zip(through[:-1], through[1:], strict=True)]
-    blocked = [f"edge {e['label']} {e['why_not']}" for e in blocked if e["why_not"]]
-    return PlanningError(f"no admissible route from {start!r} to {goal!r}: the route network joins them only "
-                         "over inadmissible segments; the shortest such route needs " + "; ".join(blocked))
+    blocked = [f"edge {e['label']}: {e['why_not']}" for e in blocked if e["why_not"]]
+    return PlanningError(f"no admissible route {what}: the route network joins them only over inadmissible "
+                         "segments; the shortest such route uses " + "; ".join(blocked))
