@@ -174,6 +174,9 @@ class ConvexPieces:
         Vertex count of each piece (>= 3).
     owner : ndarray of int64, shape (P,)
         Index of the obstacle each piece belongs to.
+    inner : ndarray of bool, shape (P, V)
+        ``inner[p, k]``: edge k (from vertex k to k + 1) lies inside its obstacle, a cut
+        between two of its pieces, not on the obstacle's boundary.
 
     Compared and hashed by identity, so that kernels' preparations can be cached per object.
     """
@@ -181,6 +184,7 @@ class ConvexPieces:
     vertices: np.ndarray
     count: np.ndarray
     owner: np.ndarray
+    inner: np.ndarray
 
     def __len__(self) -> int:
         return int(self.count.size)
@@ -193,8 +197,14 @@ def pack_pieces(obstacles) -> ConvexPieces:
     verts = np.zeros((len(pieces), nv, 2))
     count = np.zeros(len(pieces), dtype=np.int64)
     owner = np.zeros(len(pieces), dtype=np.int64)
+    inner = np.zeros((len(pieces), nv), dtype=np.bool_)
     for i, (k, p) in enumerate(pieces):
         verts[i, :len(p)] = p
         verts[i, len(p):] = p[-1]
         count[i], owner[i] = len(p), k
-    return ConvexPieces(verts, count, owner)
+        if len(obstacles[k].pieces()) > 1:
+            # A cut's midpoint lies well inside the obstacle, a face's on its boundary.
+            mid = 0.5 * (p + np.roll(p, -1, axis=0))
+            scale = float(np.ptp(p, axis=0).max())
+            inner[i, :len(p)] = shapely.distance(obstacles[k].geometry().boundary, shapely.points(mid)) > 1e-9 * scale
+    return ConvexPieces(verts, count, owner, inner)
