@@ -82,16 +82,18 @@ def test_points_and_grid_agree_with_shapely_on_polygons_holes_and_circles(seed):
 
 
 def test_a_segment_along_a_cut_between_two_pieces_is_blocked():
-    # The U is cut into pieces along x = 4 and x = 6 (from y = 2 to 3): a sight line exactly
-    # along the cut runs through the solid bottom bar and must not slip between the pieces.
-    assert len(U_SHAPE.pieces()) > 1
+    # The U's bottom bar is cut off its arms along the diagonals (3, 2)-(4, 3) and (7, 2)-(6, 3):
+    # a sight line exactly along a cut runs through solid and must not slip between the pieces.
+    cuts = {tuple(sorted(map(tuple, (p[k], p[(k + 1) % len(p)])))) for p in U_SHAPE.pieces() for k in range(len(p))}
+    assert ((3.0, 2.0), (4.0, 3.0)) in cuts and ((6.0, 3.0), (7.0, 2.0)) in cuts
     pieces = pack_pieces([U_SHAPE])
-    vis, _ = visible_points([[4.0, 8.0], [6.0, 8.0], [5.0, 8.0], [4.0, 1.0]], [[4.0, 0.0], [6.0, 0.0]], pieces,
-                            100.0, BOUNDS)
+    markers = [[2.0, 1.0], [8.0, 1.0]]
+    vis, free = visible_points([[4.5, 3.5], [5.5, 3.5], [2.0, 1.5]], markers, pieces, 100.0, BOUNDS)
+    assert free.all()
     assert not vis[0, 0] and not vis[1, 1]      # along the cuts: blocked
-    assert not vis[0, 2] and vis[0, 3]          # through the bar; in front of it
-    vg, _ = visible_grid(np.array([3.0, 4.0, 5.0]), np.array([7.0, 8.0]), [[4.0, 0.0]], pieces, 100.0, BOUNDS)
-    assert not vg[0, :, 1].any()
+    assert vis[0, 2]                            # beside the U: seen
+    vg, _ = visible_grid(np.array([4.5, 5.5]), np.array([3.5]), markers, pieces, 100.0, BOUNDS)
+    assert not vg[0, 0, 0] and not vg[1, 0, 1]
 
 
 def test_inside_the_ring_sees_the_hole_faces_only():
