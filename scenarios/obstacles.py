@@ -133,16 +133,21 @@ class Obstacle:
         (round corners). A negative margin shrinks the obstacle: the point must be inside and
         at least ``-margin`` from its boundary.
         """
+        return bool(self.contains_points(np.asarray(p, float)[None, :2], margin)[0])
+
+    def contains_points(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """:meth:`contains` for many points: ``points`` (N, 2) [m], result (N,) bool."""
+        q = np.asarray(points, float).reshape(-1, 2)
         if self.kind == "box":
             c, s = math.cos(self.yaw), math.sin(self.yaw)
-            dx, dy = p[0] - self.center[0], p[1] - self.center[1]
+            dx, dy = q[:, 0] - self.center[0], q[:, 1] - self.center[1]
             lx, ly = c * dx + s * dy, -s * dx + c * dy
-            return abs(lx) <= self.size[0] / 2 + margin and abs(ly) <= self.size[1] / 2 + margin
-        pt = shapely.Point(float(p[0]), float(p[1]))
+            return (np.abs(lx) <= self.size[0] / 2 + margin) & (np.abs(ly) <= self.size[1] / 2 + margin)
         g = self._geometry
+        pts = shapely.points(q)
         if margin >= 0.0:
-            return bool(g.distance(pt) <= margin)
-        return bool(g.contains(pt) and g.boundary.distance(pt) >= -margin)
+            return shapely.distance(g, pts) <= margin
+        return shapely.contains(g, pts) & (shapely.distance(g.boundary, pts) >= -margin)
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Distance from each point to the obstacle, 0 inside; ``points`` (N, 2), result (N,) [m]."""

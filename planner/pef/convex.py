@@ -30,6 +30,8 @@ class PieceArrays:
 
     Attributes
     ----------
+    vertices : ndarray, shape (P, V, 2)
+        Corners of each piece, counter-clockwise [m] (padded as in ``ConvexPieces``).
     planes : ndarray, shape (P, V, 3)
         ``(nx, ny, c)`` of each edge: unit outward normal and offset [m]; rows past
         ``count[p]`` are unused.
@@ -50,6 +52,7 @@ class PieceArrays:
         The inward shift of ``shrunk`` [m].
     """
 
+    vertices: np.ndarray
     planes: np.ndarray
     sight: np.ndarray
     shrunk: np.ndarray
@@ -104,7 +107,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         # The moved piece is a piece when every moved edge still runs the way its edge does.
         se = np.roll(shrunk[p, :n], -1, axis=0) - shrunk[p, :n]
         blocks[p] = bool(np.all(np.einsum("ij,ij->i", se, e) > 0.0))
-    return PieceArrays(planes, sight, shrunk, count, bbox, blocks, float(shrink))
+    return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, blocks, float(shrink))
 
 
 @numba.njit(cache=True)
@@ -177,3 +180,42 @@ def shadow_halfplanes(mx, my, planes, sight, shrunk, count, p, out):
     out[nrow, 0], out[nrow, 1], out[nrow, 2] = by, -bx, -(by * mx - bx * my)
     nrow += 1
     return nrow
+
+
+@numba.njit(cache=True, nogil=True)
+def signed_distance_min(px, py, vertices, count, bbox, out):
+    """Lower ``out[n]`` to the signed distance from point n to the nearest piece [m].
+
+    Outside a piece the distance to it; inside, minus the distance to its nearest edge (the
+    box's signed distance for a box; inside an obstacle cut into pieces it is negative but
+    may be shallower than the depth in the whole obstacle). Pieces whose bounding box is
+    farther than ``out[n]`` already is are skipped.
+    """
+    for n in range(px.size):
+        x, y = px[n], py[n]
+        best = out[n]
+        for p in range(count.size):
+            gx = max(bbox[p, 0] - x, 0.0, x - bbox[p, 2])
+            gy = max(bbox[p, 1] - y, 0.0, y - bbox[p, 3])
+            if gx * gx + gy * gy >= best * best and best > 0.0:
+                continue
+            inside = True
+            d2 = np.inf
+            m = count[p]
+            for k in range(m):
+                ax, ay = vertices[p, k, 0], vertices[p, k, 1]
+                k1 = k + 1 if k + 1 < m else 0
+                ex, ey = vertices[p, k1, 0] - ax, vertices[p, k1, 1] - ay
+                wx, wy = x - ax, y - ay
+                if ex * wy - ey * wx < 0.0:
+                    inside = False
+                t = (wx * ex + wy * ey) / (ex * ex + ey * ey)
+                t = min(max(t, 0.0), 1.0)
+                qx, qy = wx - t * ex, wy - t * ey
+                q2 = qx * qx + qy * qy
+                if q2 < d2:
+                    d2 = q2
+            d = -np.sqrt(d2) if inside else np.sqrt(d2)
+            if d < best:
+                best = d
+        out[n] = best
