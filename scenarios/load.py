@@ -219,8 +219,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: str | Path
     if root.has("routes"):
         routes = read_routes(root.table("routes"), workspace=workspace, obstacles=obstacles,
                              radius=robot.radius, docks=docks, free_point=free_point,
-                             base_dir=None if base_dir is None else Path(base_dir),
-                             origin=getattr(workspace, "origin", (0.0, 0.0)))
+                             base_dir=None if base_dir is None else Path(base_dir))
     docks = place_node_docks(docks, dock_tables, routes, free_point)
 
     tasks = []

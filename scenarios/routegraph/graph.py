@@ -78,8 +78,7 @@ def finite_xy(file: str, key: str, value: Any, what: str) -> tuple[float, float]
 
 
 def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file: str,
-                    layout_key: str, origin: tuple[float, float] = (0.0, 0.0)
-                    ) -> tuple[list[GraphNode], list[GraphEdge], set[str]]:
+                    layout_key: str) -> tuple[list[GraphNode], list[GraphEdge], set[str]]:
     """Read the nodes and directed edges of a Nav2 GeoJSON or VDA LIF file.
 
     Returns the nodes, the edges and the ids of nodes that exist in the file outside the graph
@@ -95,8 +94,6 @@ def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file
         LIF only: the ``layoutId`` to read (needed when the file has several layouts).
     scenario_file, layout_key : str
         Scenario file and key path of ``layout`` (``routes.layout``), for its errors.
-    origin : (float, float)
-        The workspace's lower-left corner in the file's frame [m]: subtracted from positions.
 
     Raises
     ------
@@ -123,9 +120,6 @@ def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file
     else:
         raise ScenarioError(f"{shown}: expected a Nav2 route graph (a GeoJSON FeatureCollection) or a "
                             "VDA LIF file (an object with \"layouts\")")
-    ox, oy = origin
-    if ox or oy:
-        nodes = [GraphNode(n.id, (n.position[0] - ox, n.position[1] - oy), n.properties, n.key) for n in nodes]
     return nodes, edges, elsewhere
 
 
@@ -161,8 +155,9 @@ def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown:
         if n.id in pos:
             fail(shown, n.key, "expected a unique node id", n.id)
         if not workspace.contains(n.position):
-            fail(shown, n.key, f"expected a node inside the workspace [0, {workspace.width:g}] x "
-                               f"[0, {workspace.height:g}] m (node {n.id})", list(n.position))
+            x0, y0, x1, y1 = workspace.bounds
+            fail(shown, n.key, f"expected a node inside the workspace [{x0:g}, {x1:g}] x [{y0:g}, {y1:g}] m "
+                               f"(node {n.id})", list(n.position))
         pos[n.id], props[n.id] = n.position, dict(n.properties)
     groups: dict[frozenset, list[GraphEdge]] = {}
     seen: set[str] = set()

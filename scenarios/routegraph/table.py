@@ -24,8 +24,7 @@ FreePoint = Callable[[Table, str, tuple, str], None]
 
 
 def read_routes(t: Table, *, workspace: Workspace, obstacles: Sequence[Obstacle], radius: float,
-                docks: Sequence[Dock], free_point: FreePoint, base_dir: Path | None,
-                origin: tuple[float, float] = (0.0, 0.0)) -> RouteNetwork:
+                docks: Sequence[Dock], free_point: FreePoint, base_dir: Path | None) -> RouteNetwork:
     """Read a ``[routes]`` table into a :class:`RouteNetwork`.
 
     Parameters
@@ -41,11 +40,9 @@ def read_routes(t: Table, *, workspace: Workspace, obstacles: Sequence[Obstacle]
         ``free_point(table, key, value, what)`` fails unless the point is free.
     base_dir : Path or None
         Directory a relative ``file`` is taken from (the scenario file's; None: the current one).
-    origin : (float, float)
-        The workspace's lower-left corner in the graph file's frame [m].
     """
     if t.has("file"):
-        net = _from_file(t, workspace, obstacles, radius, base_dir, origin)
+        net = _from_file(t, workspace, obstacles, radius, base_dir)
     else:
         net = _hand_written(t, workspace, obstacles, radius, docks, free_point)
     traffic_t = t.table("traffic", {})
@@ -61,7 +58,7 @@ def read_routes(t: Table, *, workspace: Workspace, obstacles: Sequence[Obstacle]
     return replace(net, traffic=traffic)
 
 
-def _from_file(t: Table, workspace, obstacles, radius, base_dir, origin) -> RouteNetwork:
+def _from_file(t: Table, workspace, obstacles, radius, base_dir) -> RouteNetwork:
     for other in ("nodes", "segments"):
         if t.has(other):
             t.fail(t.key(other), "expected either routes.file or routes.nodes/segments, not both", t.data[other])
@@ -71,7 +68,7 @@ def _from_file(t: Table, workspace, obstacles, radius, base_dir, origin) -> Rout
         t.fail(t.key("file"), f"no such file {path}", name)
     layout = t.string("layout") if t.has("layout") else None
     nodes, edges, elsewhere = read_graph_file(path, str(path), layout=layout, scenario_file=t.file,
-                                              layout_key=t.key("layout"), origin=origin)
+                                              layout_key=t.key("layout"))
     net = build_network(nodes, edges, str(path), workspace=workspace, obstacles=obstacles, radius=radius,
                         known_elsewhere=elsewhere.__contains__)
     return replace(net, layout=layout or "")

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     if write_dxf is not None:
         from sim.export.region import region_contours, route_lines
 
-        contours = region_contours(pef.grid(), sc.planning.eps_max, sc.workspace.size)
+        contours = region_contours(pef.grid(), sc.planning.eps_max, sc.workspace.bounds)
         write_dxf(sc, args.dxf, region_contours=contours, route_lines=route_lines(sc))
         written.append(("dxf", str(args.dxf)))
     if args.json:

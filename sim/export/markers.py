@@ -1,4 +1,4 @@
-"""Markers as CSV: ``id,x,y,x_mm,y_mm``, positions in the user's frame (workspace origin added)."""
+"""Markers as CSV: ``id,x,y,x_mm,y_mm``, positions in the scenario's (the user's) frame."""
 
 from __future__ import annotations
 
@@ -14,12 +14,11 @@ HEADER = ("id", "x", "y", "x_mm", "y_mm")
 
 def markers_csv(scenario: Scenario) -> str:
     """Return the CSV text: a header and one row per marker, x, y in metres (6 decimals) and mm (3)."""
-    ox, oy = getattr(scenario.workspace, "origin", (0.0, 0.0))
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(HEADER)
     for m in scenario.markers:
-        x, y = m.position[0] + ox, m.position[1] + oy
+        x, y = m.position
         w.writerow([m.id, f"{x:.6f}", f"{y:.6f}", f"{x * 1000:.3f}", f"{y * 1000:.3f}"])
     return buf.getvalue()
 

@@ -14,7 +14,7 @@ import numpy as np
 from scenarios.schema import Scenario
 
 
-def region_contours(pef_map, eps_max: float, size: tuple[float, float]) -> list[np.ndarray]:
+def region_contours(pef_map, eps_max: float, bounds: tuple[float, float, float, float]) -> list[np.ndarray]:
     """Trace the closed contours of τ = ε_max.
 
     Parameters
@@ -23,8 +23,8 @@ def region_contours(pef_map, eps_max: float, size: tuple[float, float]) -> list[
         The PEF on cell centres ``x`` (nx,), ``y`` (ny,) with ``tau`` (ny, nx) [m].
     eps_max : float
         Allowed error [m], the contour level.
-    size : (float, float)
-        Workspace width and height [m]: where the frame of no-fix cells goes.
+    bounds : (float, float, float, float)
+        Workspace (x0, y0, x1, y1) [m] (``Workspace.bounds``): where the frame of no-fix cells goes.
 
     Returns
     -------
@@ -36,8 +36,8 @@ def region_contours(pef_map, eps_max: float, size: tuple[float, float]) -> list[
     # Far above the level but finite (contourpy needs finite values): where there is no fix.
     high = 10.0 * eps_max
     z = np.where(np.isfinite(tau) & pef_map.free, np.minimum(tau, high), high)
-    x = np.concatenate([[0.0], np.asarray(pef_map.x, float), [size[0]]])
-    y = np.concatenate([[0.0], np.asarray(pef_map.y, float), [size[1]]])
+    x = np.concatenate([[bounds[0]], np.asarray(pef_map.x, float), [bounds[2]]])
+    y = np.concatenate([[bounds[1]], np.asarray(pef_map.y, float), [bounds[3]]])
     z = np.pad(z, 1, constant_values=high)
     lines = contourpy.contour_generator(x, y, z, line_type=contourpy.LineType.Separate).lines(eps_max)
     return [np.asarray(seg, float) for seg in lines if len(seg) >= 3]

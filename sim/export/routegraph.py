@@ -4,7 +4,7 @@ The file is what Nav2's route server reads (``geojson_graph_file_loader``) and w
 ``[routes] file`` reads back: a ``FeatureCollection`` of ``Point`` nodes (``properties.id``
 and the node's other properties) and ``LineString`` edges, one per *directed* edge
 (``id``, ``startid``, ``endid``, the edge's other properties), coordinates in metres in the
-user's frame (the workspace origin added back).
+scenario's frame, which is the user's (``workspace.origin`` is where the workspace starts in it).
 
 Nav2 needs integer ids, unique across nodes and edges. A network whose ids are all such
 integers keeps them; otherwise (a LIF layout's string ids) nodes are renumbered 0, 1, ... and
@@ -73,7 +73,6 @@ def route_graph(scenario: Scenario, reports: Sequence[Any]) -> dict:
         A GeoJSON ``FeatureCollection``.
     """
     net = scenario.routes
-    ox, oy = getattr(scenario.workspace, "origin", (0.0, 0.0))
     node_ids, edge_ids, renumbered = export_ids(net)
     features = []
     for name, (x, y) in net.nodes.items():
@@ -85,7 +84,7 @@ def route_graph(scenario: Scenario, reports: Sequence[Any]) -> dict:
             props["source_id"] = own
         if name != own:
             props["name"] = name  # a hand-written node's name (docks and traffic use it)
-        features.append(_feature("Point", [x + ox, y + oy], props))
+        features.append(_feature("Point", [x, y], props))
     for i, (edge, rep) in enumerate(zip(net.edges, reports, strict=True)):
         computed = {"max_tau": json_number(rep.max_tau), "mean_tau": json_number(rep.mean_tau),
                     "min_visible": rep.min_visible, "admissible": rep.admissible, "why_not": rep.why_not or None}
@@ -97,7 +96,7 @@ def route_graph(scenario: Scenario, reports: Sequence[Any]) -> dict:
                 props["source_id"] = own
             props.update(computed)
             (xa, ya), (xb, yb) = net.nodes[a], net.nodes[b]
-            features.append(_feature("LineString", [[xa + ox, ya + oy], [xb + ox, yb + oy]], props))
+            features.append(_feature("LineString", [[xa, ya], [xb, yb]], props))
     return {"type": "FeatureCollection", "name": scenario.name, "features": features}
 
 

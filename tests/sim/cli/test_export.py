@@ -119,7 +119,7 @@ def test_region_contours_enclose_the_navigation_region():
     sc = scenarios.load("paper-two-markers")
     pm = PEF(sc).grid(0.05)
     eps = sc.planning.eps_max
-    rings = region_contours(pm, eps, sc.workspace.size)
+    rings = region_contours(pm, eps, sc.workspace.bounds)
     assert rings and all(np.allclose(r[0], r[-1]) for r in rings)
     region = shapely.GeometryCollection()
     for r in rings:  # rings nest (holes): even-odd
@@ -181,3 +181,37 @@ def test_no_markers_place(capsys, tmp_path, bare):
     assert placed.dock("A").node == "0"
     code, stdout, _ = run_cli(capsys, "plan", out, "--json")
     assert code == 0 and json.loads(stdout)["chosen"] is not None
+
+
+def test_workspace_origin_frame(capsys, tmp_path):
+    # a hall whose lower-left corner is (100, 50) in the user's frame: graph, markers and outputs all in it
+    g = nav2_graph()
+    for f in g["features"]:
+        if f["geometry"]["type"] == "Point":
+            x, y = f["geometry"]["coordinates"]
+            f["geometry"]["coordinates"] = [x + 100.0, y + 50.0]
+    write(tmp_path / "graph.geojson", g)
+    text = (scenario_text('file = "graph.geojson"', NODE_DOCKS, extra=TASK)
+            .replace("size = [20.0, 10.0]", "size = [20.0, 10.0]\norigin = [100.0, 50.0]")
+            .replace("center = [10.0, 5.0]", "center = [110.0, 55.0]"))
+    for x, y in [(0.0, 0.0), (20.0, 0.0), (20.0, 10.0), (0.0, 10.0)]:
+        text = text.replace(f"position = [{x}, {y}]", f"position = [{x + 100.0}, {y + 50.0}]")
+    path = tmp_path / "o.toml"
+    path.write_text(text, encoding="utf-8")
+    try:
+        sc = scenarios.load(path)
+    except scenarios.ScenarioError as exc:
+        if "workspace.origin: unknown key" in str(exc):
+            pytest.skip("the loader does not read workspace.origin yet (branch floorplan)")
+        raise
+    assert sc.routes.nodes["0"] == (102.0, 52.0) and sc.dock("B").position == (118.0, 52.0)
+    assert sc.routes.why_not(6) == "crosses obstacles[0]"
+    out, mk = tmp_path / "o.geojson", tmp_path / "o.csv"
+    assert run_cli(capsys, "export", path, "--routes", out, "--markers", mk)[0] == 0
+    nodes, edges = features(json.loads(out.read_text()))
+    assert nodes[2]["geometry"]["coordinates"] == [118.0, 52.0]
+    assert edges[12]["properties"]["admissible"] is True
+    assert next(csv.DictReader(mk.open()))["x_mm"] == "100000.000"
+    rings = region_contours(PEF(sc).grid(), sc.planning.eps_max, sc.workspace.bounds)
+    pts = np.vstack(rings)
+    assert pts[:, 0].min() >= 100.0 and pts[:, 0].max() <= 120.0 and pts[:, 1].min() >= 50.0
