@@ -15,7 +15,7 @@ from typing import Any
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table
 from scenarios.obstacle_table import read_obstacle
-from scenarios.routegraph import place_node_docks, read_node_dock, read_routes
+from scenarios.routegraph import place_node_docks, portable_routes_text, read_node_dock, read_routes
 from scenarios.schema import (
     Dock,
     Marker,
@@ -64,20 +64,21 @@ def load(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
     # Errors name the file as the user gave it; a built-in one by its file name alone.
     shown = path.name if path.parent == LIBRARY else str(name_or_path)
-    return loads(text, source=shown, base_dir=path.parent)
+    return loads(text, source=shown, base=path.parent)
 
 
-def loads(text: str, source: str = "<string>", base_dir: str | Path | None = None) -> Scenario:
-    """Parse and validate scenario TOML ``text``; ``source`` names it in errors.
+def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scenario:
+    """Parse and validate scenario TOML ``text``; ``source`` names it in errors, ``base`` is its folder.
 
-    ``base_dir`` is the directory relative file names in the scenario (``routes.file``) are
-    taken from: the scenario file's; None means the current directory.
+    Relative file names in the scenario (``routes.file``) are taken from ``base`` (None: the
+    current directory); ``Scenario.text`` names them absolutely, since it is stored beside
+    results and loaded again from there.
     """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
-    return replace(from_dict(data, source, base_dir=base_dir), text=text)
+    return replace(from_dict(data, source, base), text=portable_routes_text(text, data, base))
 
 
 def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
@@ -139,8 +140,8 @@ def _planning(t: Table) -> PlanningSpec:
     )
 
 
-def from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: str | Path | None = None) -> Scenario:
-    """Validate a parsed TOML document and build the :class:`Scenario` (``base_dir``: see :func:`loads`)."""
+def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = None) -> Scenario:
+    """Validate a parsed TOML document and build the :class:`Scenario` (``base``: see :func:`loads`)."""
     root = Table(data, source)
     name = root.string("name")
     seed = root.integer("seed", 0, low=0)
@@ -219,7 +220,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: str | Path
     if root.has("routes"):
         routes = read_routes(root.table("routes"), workspace=workspace, obstacles=obstacles,
                              radius=robot.radius, docks=docks, free_point=free_point,
-                             base_dir=None if base_dir is None else Path(base_dir))
+                             base_dir=None if base is None else Path(base))
     docks = place_node_docks(docks, dock_tables, routes, free_point)
 
     tasks = []

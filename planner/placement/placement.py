@@ -321,7 +321,7 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
         data["routes"]["file"] = str(Path(scenario.routes.source).resolve())
     text = tomli_w.dumps(data)
     out = Path(path)
-    scn.loads(text, source=str(out), base_dir=out.parent)  # a bug here must not leave a broken file behind
+    scn.loads(text, source=str(out), base=out.parent)  # a bug here must not leave a broken file behind
     with output_errors(out, "write the placed scenario"):
         out.write_text(text, encoding="utf-8")
     return out

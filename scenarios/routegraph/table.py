@@ -14,6 +14,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from scenarios.fields import Table, show
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
@@ -155,3 +156,23 @@ def place_node_docks(docks: list[Dock], tables: Sequence[Table], routes: RouteNe
             d = replace(d, pose=(x, y, d.pose[2]))
         out.append(d)
     return out
+
+
+def portable_routes_text(text: str, data: dict[str, Any], base: Path | None) -> str:
+    """Return the scenario text with a relative ``routes.file`` made absolute.
+
+    ``Scenario.text`` is stored beside results (``pefsim mc``) and loaded again from there,
+    where a path relative to the original scenario file would not resolve. A text without a
+    relative graph file is returned unchanged (comments kept); otherwise it is re-serialised
+    (comments lost).
+    """
+    routes = data.get("routes")
+    if base is None or not isinstance(routes, dict) or not isinstance(routes.get("file"), str):
+        return text
+    if Path(routes["file"]).is_absolute():
+        return text
+    import tomli_w
+
+    out = dict(data)
+    out["routes"] = {**routes, "file": str((Path(base) / routes["file"]).resolve())}
+    return tomli_w.dumps(out)

@@ -189,3 +189,15 @@ def test_markers_are_optional(tmp_path):
     one_marker = scenario_text(HAND.format(dy=8.0), markers=False).replace(
         "[sensor]", '[[markers]]\nid = "M1"\nposition = [0.0, 0.0]\n[sensor]')
     one_line_error(tmp_path, one_marker, r"sensor\.markers_per_fix: expected at most the number of markers \(1\)")
+
+
+def test_text_names_the_graph_file_absolutely(nav2, tmp_path, monkeypatch):
+    # Scenario.text is stored beside results and loaded again from elsewhere
+    assert 'file = "graph.geojson"' not in nav2.text and str(tmp_path / "graph.geojson") in nav2.text
+    monkeypatch.chdir("/")
+    again = scenarios.loads(nav2.text, source="stored.toml")
+    assert again.routes.nodes == nav2.routes.nodes and again.routes.edges == nav2.routes.edges
+    # without a graph file the text is kept as written (comments too)
+    from scenarios.load import LIBRARY
+
+    assert scenarios.load("warehouse").text == (LIBRARY / "warehouse.toml").read_text(encoding="utf-8")
