@@ -14,12 +14,12 @@ from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table, show
+from scenarios.obstacle_table import read_obstacle
 from scenarios.schema import (
     Dock,
     Marker,
     MonteCarloSpec,
     NoiseModel,
-    Obstacle,
     PefModel,
     PlacementSpec,
     PlanningSpec,
@@ -146,14 +146,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True))
     ws_t.done()
 
-    obstacles = []
-    for t in root.array_of_tables("obstacles"):
-        obstacles.append(Obstacle(
-            center=t.vector("center", 2, what="[x, y]"),
-            size=t.vector("size", 2, what="[length, width] in metres", positive=True),
-            yaw=math.radians(t.number("yaw_deg", 0.0)),
-        ))
-        t.done()
+    obstacles = [read_obstacle(t) for t in root.array_of_tables("obstacles")]
 
     def free_point(t: Table, key: str, value: tuple[float, ...], what: str) -> None:
         p = value[:2]  # a dock's value is (x, y, yaw): only the position must be free

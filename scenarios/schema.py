@@ -14,6 +14,8 @@ from enum import Enum
 
 import numpy as np
 
+from scenarios.obstacles import ConvexPieces, Obstacle, pack_pieces
+
 
 class NoiseModel(str, Enum):
     """How range (and bearing) errors are realised in simulation.
@@ -58,30 +60,6 @@ class Workspace:
     def contains(self, p: tuple[float, float] | np.ndarray) -> bool:
         """Tell whether point ``p`` (x, y) [m] lies in the closed workspace rectangle."""
         return 0.0 <= p[0] <= self.size[0] and 0.0 <= p[1] <= self.size[1]
-
-
-@dataclass(frozen=True)
-class Obstacle:
-    """A box obstacle: ``center`` (x, y) [m], ``size`` (length along its x, width) [m], ``yaw`` [rad]."""
-
-    center: tuple[float, float]
-    size: tuple[float, float]
-    yaw: float = 0.0
-
-    def corners(self) -> np.ndarray:
-        """Corners, shape (4, 2) [m], counter-clockwise."""
-        hx, hy = self.size[0] / 2.0, self.size[1] / 2.0
-        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        rot = np.array([[c, -s], [s, c]])
-        return local @ rot.T + np.asarray(self.center)
-
-    def contains(self, p: tuple[float, float] | np.ndarray, margin: float = 0.0) -> bool:
-        """Tell whether point ``p`` lies inside the box grown by ``margin`` [m] on every side."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        dx, dy = p[0] - self.center[0], p[1] - self.center[1]
-        lx, ly = c * dx + s * dy, -s * dx + c * dy
-        return abs(lx) <= self.size[0] / 2 + margin and abs(ly) <= self.size[1] / 2 + margin
 
 
 @dataclass(frozen=True)
@@ -316,7 +294,15 @@ class Scenario:
         raise KeyError(name)
 
     def obstacle_corners(self) -> np.ndarray:
-        """Corners of all obstacles, shape (n_obstacles, 4, 2) [m]."""
+        """Corners of all obstacles, shape (n_obstacles, 4, 2) [m]; boxes only.
+
+        Raises ``ValueError`` when an obstacle is not a box: use :meth:`obstacle_pieces`,
+        which serves every shape.
+        """
         if not self.obstacles:
             return np.zeros((0, 4, 2))
         return np.stack([o.corners() for o in self.obstacles])
+
+    def obstacle_pieces(self) -> ConvexPieces:
+        """Convex pieces of all obstacles, padded for kernels (:class:`~scenarios.obstacles.ConvexPieces`)."""
+        return pack_pieces(self.obstacles)

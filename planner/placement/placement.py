@@ -256,8 +256,7 @@ def _scenario_dict(sc: Scenario) -> dict:
 
     d: dict = {"name": sc.name, "seed": sc.seed, "description": sc.description,
                "workspace": {"size": list(sc.workspace.size)},
-               "obstacles": [{"center": list(o.center), "size": list(o.size), "yaw_deg": math.degrees(o.yaw)}
-                             for o in sc.obstacles],
+               "obstacles": [o.to_dict() for o in sc.obstacles],
                "markers": [{"id": m.id, "position": list(m.position)} for m in sc.markers],
                "sensor": spec(sc.sensor), "robot": spec(sc.robot)}
     if sc.sensor_actual != sc.sensor:
