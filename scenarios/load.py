@@ -12,6 +12,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
+from scenarios import floorplan
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table, show
 from scenarios.obstacle_table import read_obstacle
@@ -64,16 +65,16 @@ def load(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
     # Errors name the file as the user gave it; a built-in one by its file name alone.
     shown = path.name if path.parent == LIBRARY else str(name_or_path)
-    return loads(text, source=shown)
+    return loads(text, source=shown, base=path.parent)
 
 
-def loads(text: str, source: str = "<string>") -> Scenario:
-    """Parse and validate scenario TOML ``text``; ``source`` names it in errors."""
+def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scenario:
+    """Parse and validate scenario TOML ``text``; ``source`` names it in errors, ``base`` is its folder."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
-    return replace(from_dict(data, source), text=text)
+    return replace(from_dict(data, source, base), text=floorplan.portable_text(text, data, base))
 
 
 def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
@@ -135,8 +136,9 @@ def _planning(t: Table) -> PlanningSpec:
     )
 
 
-def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
-    """Validate a parsed TOML document and build the :class:`Scenario`."""
+def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = None) -> Scenario:
+    """Validate a parsed TOML document and build the :class:`Scenario` (``base``: its folder)."""
+    data, plan = floorplan.apply(data, source, base)  # [floorplan] -> obstacles, markers, workspace
     root = Table(data, source)
     name = root.string("name")
     seed = root.integer("seed", 0, low=0)
@@ -163,7 +165,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         free_point(t, "position", pos, "[x, y]")
         if any(m.id == mid for m in markers):
             t.fail(t.key("id"), "expected a unique marker id", mid)
-        markers.append(Marker(mid, pos))
+        facing = t.number("facing_deg", None) if t.has("facing_deg") else None
+        markers.append(Marker(mid, pos, None if facing is None else math.radians(facing)))
         t.done()
 
     s_t = root.table("sensor")
@@ -249,7 +252,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         obstacles=tuple(obstacles), markers=tuple(markers), sensor=sensor,
         sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
         docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
-        placement=placement, source=source,
+        placement=placement, source=source, floorplan=plan,
     )
 
 

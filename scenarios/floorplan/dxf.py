@@ -218,7 +218,8 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
     wall_thickness : float
         Thickness of walls drawn as open lines [m], > 0.
     simplify : float
-        Polygon simplification (and arc flattening) tolerance [m], >= 0.
+        Tolerance [m], >= 0: the obstacles stay within it of the drawing (half of it
+        flattens arcs and bulges, half simplifies the polygons).
     where : str, optional
         Prefix of error messages' key paths, e.g. ``"hall.toml: floorplan"``.
     shown : str, optional
@@ -251,7 +252,9 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
 
     obst = {check_layer("obstacle_layers", n) for n in obstacle_layers}
     mark = check_layer("marker_layer", marker_layer) if marker_layer is not None else None
-    flat = max(simplify, 1e-3) / factor  # flatten arcs within the tolerance, at least 1 mm
+    # Half the tolerance flattens arcs (at least to 1 mm), half simplifies the polygons, so
+    # the result stays within ``simplify`` of the drawing.
+    flat = max(0.5 * simplify, 1e-3) / factor
     reader = _Reader(obst, mark, flat)
     reader.walk(doc.modelspace(), None, 0)
     found = reader.found
@@ -261,7 +264,7 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
     walls = geometry.walls([ln * factor for ln in found.lines], wall_thickness)
     filled = [geometry.even_odd([r * factor for r in group]) for group in found.filled]
     area = shapely.union_all([closed, walls, *filled])
-    obstacles = geometry.obstacle_dicts(area, simplify)
+    obstacles = geometry.obstacle_dicts(area, 0.5 * simplify)
     circles = [(x * factor, y * factor, r * factor) for x, y, r in found.circles if r > 0.0]
     obstacles += [geometry.circle_dict((x, y), r) for x, y, r in circles]
     if not obstacles:
