@@ -161,7 +161,7 @@ class Obstacle:
         return {"center": list(self.center), "size": list(self.size), "yaw_deg": math.degrees(self.yaw)}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ConvexPieces:
     """The convex pieces of a set of obstacles, padded into arrays for kernels.
 
@@ -174,6 +174,8 @@ class ConvexPieces:
         Vertex count of each piece (>= 3).
     owner : ndarray of int64, shape (P,)
         Index of the obstacle each piece belongs to.
+
+    Compared and hashed by identity, so that kernels' preparations can be cached per object.
     """
 
     vertices: np.ndarray

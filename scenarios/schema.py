@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import cached_property
 
 import numpy as np
 
@@ -46,9 +47,14 @@ class PefModel(str, Enum):
 
 @dataclass(frozen=True)
 class Workspace:
-    """Rectangular workspace, origin lower-left, x right, y up; ``size`` = (width, height) [m]."""
+    """Rectangular workspace, x right, y up, in the user's frame.
+
+    ``size`` = (width, height) [m]; ``origin`` = (x0, y0), its lower-left corner [m] (every
+    position of a scenario, and every output, is in that frame).
+    """
 
     size: tuple[float, float]
+    origin: tuple[float, float] = (0.0, 0.0)
 
     @property
     def width(self) -> float:
@@ -58,9 +64,16 @@ class Workspace:
     def height(self) -> float:
         return self.size[1]
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(x0, y0, x1, y1): lower-left and upper-right corners [m]."""
+        x0, y0 = self.origin
+        return (x0, y0, x0 + self.size[0], y0 + self.size[1])
+
     def contains(self, p: tuple[float, float] | np.ndarray) -> bool:
         """Tell whether point ``p`` (x, y) [m] lies in the closed workspace rectangle."""
-        return 0.0 <= p[0] <= self.size[0] and 0.0 <= p[1] <= self.size[1]
+        x0, y0, x1, y1 = self.bounds
+        return x0 <= p[0] <= x1 and y0 <= p[1] <= y1
 
 
 @dataclass(frozen=True)
@@ -311,6 +324,13 @@ class Scenario:
             return np.zeros((0, 4, 2))
         return np.stack([o.corners() for o in self.obstacles])
 
-    def obstacle_pieces(self) -> ConvexPieces:
-        """Convex pieces of all obstacles, padded for kernels (:class:`~scenarios.obstacles.ConvexPieces`)."""
+    @cached_property
+    def _obstacle_pieces(self) -> ConvexPieces:
         return pack_pieces(self.obstacles)
+
+    def obstacle_pieces(self) -> ConvexPieces:
+        """Convex pieces of all obstacles, padded for kernels (:class:`~scenarios.obstacles.ConvexPieces`).
+
+        Computed once per scenario object (the same object every call; do not modify it).
+        """
+        return self._obstacle_pieces
