@@ -63,7 +63,9 @@ def open_dxf(path: Path, where: str, shown: str):
         try:
             return ezdxf.readfile(path)
         except OSError as exc:
-            raise ScenarioError(f"{where}.file: cannot read {shown}: {exc.strerror or exc}") from None
+            if exc.errno is not None:  # the file system's error; else ezdxf's "not a DXF file"
+                raise ScenarioError(f"{where}.file: cannot read {shown}: {exc.strerror or exc}") from None
+            raise ScenarioError(f"{where}.file: expected a DXF drawing, cannot read {shown}: it is not one") from None
         except (ezdxf.DXFError, UnicodeDecodeError, ValueError):
             pass
         try:

@@ -36,7 +36,7 @@ MARKERS = {"W1": ((10.0, 0.1), 90.0), "W2": ((29.9, 10.0), 180.0), "R1": ((18.0,
 
 
 def hall_doc(insunits: int = 4, scale: float = 1.0):
-    """The test hall as an ezdxf document; ``scale`` = drawing units per mm."""
+    """Build the test hall as an ezdxf document; ``scale`` = drawing units per mm."""
     doc = ezdxf.new("R2018", setup=True)
     doc.header["$INSUNITS"] = insunits
     for name in ("A-WALL", "A-RACK", "S-COLS", "FURN", "AGV-REFL", "EMPTY"):
@@ -101,8 +101,11 @@ FREE, OCCUPIED, UNKNOWN = 254, 0, 205  # the shades map_saver writes
 
 
 def map_image(h: int = 80, w: int = 100) -> np.ndarray:
-    """A map image (H, W) uint8, row 0 at the top: free floor, 2-cell border walls, a 10 x 10
-    cell occupied block with a 4 x 4 free hole, a 6 x 5 unknown patch."""
+    """Make a map image (H, W) uint8, row 0 at the top.
+
+    Free floor, 2-cell border walls, a 10 x 10 cell occupied block with a 4 x 4 free hole,
+    a 6 x 5 unknown patch.
+    """
     img = np.full((h, w), FREE, dtype=np.uint8)
     img[:2, :] = img[-2:, :] = OCCUPIED
     img[:, :2] = img[:, -2:] = OCCUPIED
