@@ -123,7 +123,7 @@ def apply(data: dict[str, Any], source: str, base: Path | None) -> tuple[dict[st
         o = ws["origin"]
         if "size" not in ws and isinstance(o, list) and len(o) == 2 and all(isinstance(v, (int, float)) for v in o):
             # The far corner of the plan stays the far corner when only the origin is given.
-            ws["size"] = [xmax - o[0], ymax - o[1]]
+            ws["size"] = [round(xmax - o[0], 9), round(ymax - o[1], 9)]  # no float noise in the file
         out["workspace"] = ws
     return out, plan
 
