@@ -103,18 +103,21 @@ def test_ros_map_scenario_workspace_is_the_map(folder):
 
 
 @pytest.mark.parametrize("floorplan, pattern", [
-    ('file = "gone.dxf"\nobstacle_layers = ["A"]', r'fp.toml: floorplan.file: cannot read .*gone.dxf: no such file, got "gone.dxf"$'),
-    ('file = "hall.svg"\nobstacle_layers = ["A"]', r'fp.toml: floorplan.file: expected a DXF drawing \(.dxf\) or a ROS'),
+    ('file = "gone.dxf"\nobstacle_layers = ["A"]',
+     r'fp.toml: floorplan.file: cannot read .*gone.dxf: no such file, got "gone.dxf"$'),
+    ('file = "hall.svg"\nobstacle_layers = ["A"]',
+     r'fp.toml: floorplan.file: expected a DXF drawing \(.dxf\) or a ROS'),
     ('file = "hall.dxf"', r"fp.toml: floorplan.obstacle_layers: missing required key$"),
     ('file = "hall.dxf"\nobstacle_layers = "A-WALL"', r'fp.toml: floorplan.obstacle_layers: expected a non-empty list'),
-    ('file = "hall.dxf"\nobstacle_layers = ["WALLS"]', r'fp.toml: floorplan.obstacle_layers: expected a layer of hall.dxf '
-                                                       r'\(0, A-RACK, A-WALL, AGV-REFL, .*\), got "WALLS"$'),
+    ('file = "hall.dxf"\nobstacle_layers = ["WALLS"]',
+     r'fp.toml: floorplan.obstacle_layers: expected a layer of hall.dxf \(0, A-RACK, A-WALL, AGV-REFL, .*got "WALLS"$'),
     (DXF + '\nunits = "furlong"', r'fp.toml: floorplan.units: expected one of "m", "mm", .*got "furlong"$'),
     (DXF + "\nwall_thickness = 0", r"fp.toml: floorplan.wall_thickness: expected a number > 0, got 0.0$"),
     (DXF + "\nlayers = 1", r"fp.toml: floorplan.layers: unknown key, got 1$"),
     ('file = "map.yaml"\nmarker_layer = "R"', r'fp.toml: floorplan.marker_layer: expected no such key for a ROS map'),
     ('file = "bad.yaml"', r"fp.toml: floorplan.file: bad.yaml: resolution: missing required key$"),
-    ('file = "empty.dxf"\nobstacle_layers = ["0"]', r"fp.toml: floorplan.obstacle_layers: expected lines, .*found none"),
+    ('file = "empty.dxf"\nobstacle_layers = ["0"]',
+     r"fp.toml: floorplan.obstacle_layers: expected lines, .*found none"),
     ('file = "inside.dxf"\nobstacle_layers = ["A-RACK"]\nmarker_layer = "AGV-REFL"',
      r'fp.toml: floorplan.marker_layer: expected reflectors outside obstacles .*inside.dxf: "X" at \[15.0, 5.0\]'),
 ])
