@@ -29,7 +29,8 @@ facing_deg = 45.0
 eps_max = 0.05
 """
 
-CIRCLE = np.column_stack([15 + 2 * np.cos(np.linspace(0, 2 * np.pi, 33)), 11 + 2 * np.sin(np.linspace(0, 2 * np.pi, 33))])
+_T = np.linspace(0, 2 * np.pi, 33)
+CIRCLE = np.column_stack([15 + 2 * np.cos(_T), 11 + 2 * np.sin(_T)])  # closed: last point = first
 OPEN = np.array([[0.1, 1.0], [5.0, 1.0], [5.0, 3.0]])
 ROUTE = np.array([[3.0, 2.0], [5.0, 7.0], [25.0, 7.0]])
 
