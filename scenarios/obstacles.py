@@ -133,16 +133,21 @@ class Obstacle:
         (round corners). A negative margin shrinks the obstacle: the point must be inside and
         at least ``-margin`` from its boundary.
         """
+        return bool(self.contains_points(np.asarray(p, float)[None, :2], margin)[0])
+
+    def contains_points(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """:meth:`contains` for many points: ``points`` (N, 2) [m], result (N,) bool."""
+        q = np.asarray(points, float).reshape(-1, 2)
         if self.kind == "box":
             c, s = math.cos(self.yaw), math.sin(self.yaw)
-            dx, dy = p[0] - self.center[0], p[1] - self.center[1]
+            dx, dy = q[:, 0] - self.center[0], q[:, 1] - self.center[1]
             lx, ly = c * dx + s * dy, -s * dx + c * dy
-            return abs(lx) <= self.size[0] / 2 + margin and abs(ly) <= self.size[1] / 2 + margin
-        pt = shapely.Point(float(p[0]), float(p[1]))
+            return (np.abs(lx) <= self.size[0] / 2 + margin) & (np.abs(ly) <= self.size[1] / 2 + margin)
         g = self._geometry
+        pts = shapely.points(q)
         if margin >= 0.0:
-            return bool(g.distance(pt) <= margin)
-        return bool(g.contains(pt) and g.boundary.distance(pt) >= -margin)
+            return shapely.distance(g, pts) <= margin
+        return shapely.contains(g, pts) & (shapely.distance(g.boundary, pts) >= -margin)
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Distance from each point to the obstacle, 0 inside; ``points`` (N, 2), result (N,) [m]."""
@@ -174,6 +179,9 @@ class ConvexPieces:
         Vertex count of each piece (>= 3).
     owner : ndarray of int64, shape (P,)
         Index of the obstacle each piece belongs to.
+    inner : ndarray of bool, shape (P, V)
+        ``inner[p, k]``: edge k (from vertex k to k + 1) lies inside its obstacle, a cut
+        between two of its pieces, not on the obstacle's boundary.
 
     Compared and hashed by identity, so that kernels' preparations can be cached per object.
     """
@@ -181,6 +189,7 @@ class ConvexPieces:
     vertices: np.ndarray
     count: np.ndarray
     owner: np.ndarray
+    inner: np.ndarray
 
     def __len__(self) -> int:
         return int(self.count.size)
@@ -193,8 +202,14 @@ def pack_pieces(obstacles) -> ConvexPieces:
     verts = np.zeros((len(pieces), nv, 2))
     count = np.zeros(len(pieces), dtype=np.int64)
     owner = np.zeros(len(pieces), dtype=np.int64)
+    inner = np.zeros((len(pieces), nv), dtype=np.bool_)
     for i, (k, p) in enumerate(pieces):
         verts[i, :len(p)] = p
         verts[i, len(p):] = p[-1]
         count[i], owner[i] = len(p), k
-    return ConvexPieces(verts, count, owner)
+        if len(obstacles[k].pieces()) > 1:
+            # A cut's midpoint lies well inside the obstacle, a face's on its boundary.
+            mid = 0.5 * (p + np.roll(p, -1, axis=0))
+            scale = float(np.ptp(p, axis=0).max())
+            inner[i, :len(p)] = shapely.distance(obstacles[k].geometry().boundary, shapely.points(mid)) > 1e-9 * scale
+    return ConvexPieces(verts, count, owner, inner)

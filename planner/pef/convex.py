@@ -4,9 +4,14 @@ Every obstacle reaches the kernels as convex pieces (:meth:`scenarios.Scenario.o
 A piece with vertices ``v_0 .. v_{n-1}`` counter-clockwise is the set where
 ``nx_k x + ny_k y <= c_k`` for every edge k (unit outward normals), which is all these kernels
 need: a point is solid when it meets every edge's inequality (boundary included); a segment
-enters the interior shrunk by ``s`` when some part of it meets every ``< c_k - s``
-(Cyrus-Beck clipping, the convex generalisation of the box's Liang-Barsky); and the shadow of a
-piece seen from a marker is the cone over its silhouette beyond the edges turned to the marker.
+blocks the line of sight when some part of it meets every ``< e_k`` (Cyrus-Beck clipping, the
+convex generalisation of the box's Liang-Barsky); and the shadow of a piece seen from a marker
+is the cone over its silhouette beyond the edges turned to the marker.
+
+For line of sight each edge is moved by ``s``: a face of the obstacle inwards
+(``e_k = c_k - s``), so that a segment ending on a face or grazing it is not blocked; a cut
+between two pieces of one obstacle *outwards* (``e_k = c_k + s``), so that neighbouring pieces
+overlap and a segment running exactly along a cut, inside the obstacle, is still blocked.
 """
 
 from __future__ import annotations
@@ -25,12 +30,17 @@ class PieceArrays:
 
     Attributes
     ----------
+    vertices : ndarray, shape (P, V, 2)
+        Corners of each piece, counter-clockwise [m] (padded as in ``ConvexPieces``).
     planes : ndarray, shape (P, V, 3)
         ``(nx, ny, c)`` of each edge: unit outward normal and offset [m]; rows past
         ``count[p]`` are unused.
+    sight : ndarray, shape (P, V)
+        Offsets ``e`` of the edges for line of sight [m]: ``c - shrink`` on faces,
+        ``c + shrink`` on cuts.
     shrunk : ndarray, shape (P, V, 2)
-        Vertices of each piece with every edge moved inwards by ``shrink`` [m] (the corners
-        of the shrunk piece, for the shadow's silhouette).
+        Corners of the line-of-sight piece (where consecutive ``sight`` lines meet) [m], for
+        the shadow's silhouette.
     count : ndarray of int64, shape (P,)
         Edges (= vertices) of each piece.
     bbox : ndarray, shape (P, 4)
@@ -42,7 +52,9 @@ class PieceArrays:
         The inward shift of ``shrunk`` [m].
     """
 
+    vertices: np.ndarray
     planes: np.ndarray
+    sight: np.ndarray
     shrunk: np.ndarray
     count: np.ndarray
     bbox: np.ndarray
@@ -58,7 +70,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
     pieces : scenarios.ConvexPieces
         Counter-clockwise convex polygons, ``vertices`` shape (P, V, 2) [m].
     shrink : float
-        Inward shift of the edges for line-of-sight tests [m].
+        Shift of the edges for line-of-sight tests [m] (faces in, cuts out).
 
     Returns
     -------
@@ -68,6 +80,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
     count = np.ascontiguousarray(pieces.count, dtype=np.int64)
     p_n, v_n = v.shape[:2]
     planes = np.zeros((p_n, v_n, 3))
+    sight = np.zeros((p_n, v_n))
     shrunk = np.zeros((p_n, v_n, 2))
     bbox = np.zeros((p_n, 4))
     blocks = np.zeros(p_n, dtype=np.bool_)
@@ -79,16 +92,22 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         normal = np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]   # outward for CCW
         planes[p, :n, :2] = normal
         planes[p, :n, 2] = np.einsum("ij,ij->i", normal, q)
-        # Corner k joins edges k-1 and k: moving both lines in by s moves the corner along
-        # the bisector by s / cos(half the turn), i.e. by s (n_{k-1} + n_k) / (1 + n_{k-1}.n_k).
-        prev = np.roll(normal, 1, axis=0)
-        shrunk[p, :n] = q - shrink * (prev + normal) / (1.0 + np.einsum("ij,ij->i", prev, normal))[:, None]
+        shift = np.where(pieces.inner[p, :n], shrink, -shrink)
+        sight[p, :n] = planes[p, :n, 2] + shift
+        # Corner k joins edges k-1 and k; with their lines moved by d_{k-1} and d_k along the
+        # normals it moves by the delta solving n_{k-1}.delta = d_{k-1}, n_k.delta = d_k.
+        prev_n, prev_d = np.roll(normal, 1, axis=0), np.roll(shift, 1)
+        det = prev_n[:, 0] * normal[:, 1] - prev_n[:, 1] * normal[:, 0]   # sin of the turn, > 0
+        dx = (prev_d * normal[:, 1] - shift * prev_n[:, 1]) / det
+        dy = (shift * prev_n[:, 0] - prev_d * normal[:, 0]) / det
+        shrunk[p, :n] = q + np.column_stack([dx, dy])
         shrunk[p, n:] = shrunk[p, n - 1]
+        sight[p, n:] = sight[p, n - 1]
         bbox[p] = (*q.min(axis=0), *q.max(axis=0))
-        # Shrinking keeps the piece when every shrunk edge still runs the way its edge does.
+        # The moved piece is a piece when every moved edge still runs the way its edge does.
         se = np.roll(shrunk[p, :n], -1, axis=0) - shrunk[p, :n]
         blocks[p] = bool(np.all(np.einsum("ij,ij->i", se, e) > 0.0))
-    return PieceArrays(planes, shrunk, count, bbox, blocks, float(shrink))
+    return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, blocks, float(shrink))
 
 
 @numba.njit(cache=True)
@@ -101,13 +120,13 @@ def inside_closed(px, py, planes, count, p):
 
 
 @numba.njit(cache=True)
-def segment_enters(ax, ay, bx, by, planes, count, p, shrink):
-    """Tell whether segment a-b meets the open interior of piece ``p`` shrunk by ``shrink`` (Cyrus-Beck)."""
+def segment_enters(ax, ay, bx, by, planes, sight, count, p):
+    """Tell whether segment a-b meets the open line-of-sight piece ``p`` (offsets ``sight``; Cyrus-Beck)."""
     dx, dy = bx - ax, by - ay
     t0, t1 = 0.0, 1.0
     for k in range(count[p]):
         nx, ny = planes[p, k, 0], planes[p, k, 1]
-        num = planes[p, k, 2] - shrink - (nx * ax + ny * ay)   # inside: t * den < num
+        num = sight[p, k] - (nx * ax + ny * ay)   # inside: t * den < num
         den = nx * dx + ny * dy
         if den == 0.0:
             if num <= 0.0:
@@ -126,30 +145,31 @@ def segment_enters(ax, ay, bx, by, planes, count, p, shrink):
 
 
 @numba.njit(cache=True)
-def shadow_halfplanes(mx, my, planes, shrunk, count, p, shrink, out):
+def shadow_halfplanes(mx, my, planes, sight, shrunk, count, p, out):
     """Half-planes ``a x + b y + c < 0`` whose intersection is the shadow of piece ``p`` from a marker.
 
-    The shadow is the set of points whose segment to the marker (mx, my) enters the piece's
-    interior shrunk by ``shrink``: the open cone from the marker over the silhouette, on the
-    inner side of every edge turned to the marker. ``out`` has shape (>= count[p] + 2, 3).
+    The shadow is the set of points whose segment to the marker (mx, my) enters the open
+    line-of-sight piece (offsets ``sight``, corners ``shrunk``): the open cone from the marker
+    over the silhouette, on the inner side of every edge turned to the marker. ``out`` has
+    shape (>= count[p] + 2, 3).
 
-    Returns the number of rows written; -1 when the marker is inside the shrunk piece or on
-    its boundary (it is hidden from everywhere). Callers skip pieces that do not ``block``.
+    Returns the number of rows written; -1 when the marker is inside the line-of-sight piece
+    or on its boundary (it is hidden from everywhere). Callers skip pieces that do not block.
     """
     n = count[p]
     nrow = 0
     first = -1
     last = -1
     for k in range(n):
-        nx, ny, c = planes[p, k, 0], planes[p, k, 1], planes[p, k, 2] - shrink
+        nx, ny, c = planes[p, k, 0], planes[p, k, 1], sight[p, k]
         if nx * mx + ny * my - c > 0.0:       # the marker sees edge k from outside
             out[nrow, 0], out[nrow, 1], out[nrow, 2] = nx, ny, -c
             nrow += 1
             k0 = (k + n - 1) % n
-            if not (planes[p, k0, 0] * mx + planes[p, k0, 1] * my - (planes[p, k0, 2] - shrink) > 0.0):
+            if not (planes[p, k0, 0] * mx + planes[p, k0, 1] * my - sight[p, k0] > 0.0):
                 first = k                      # the facing chain starts at corner k ...
             k1 = (k + 1) % n
-            if not (planes[p, k1, 0] * mx + planes[p, k1, 1] * my - (planes[p, k1, 2] - shrink) > 0.0):
+            if not (planes[p, k1, 0] * mx + planes[p, k1, 1] * my - sight[p, k1] > 0.0):
                 last = k1                      # ... and ends at corner k + 1
     if nrow == 0 or first < 0 or last < 0:
         return -1
@@ -160,3 +180,42 @@ def shadow_halfplanes(mx, my, planes, shrunk, count, p, shrink, out):
     out[nrow, 0], out[nrow, 1], out[nrow, 2] = by, -bx, -(by * mx - bx * my)
     nrow += 1
     return nrow
+
+
+@numba.njit(cache=True, nogil=True)
+def signed_distance_min(px, py, vertices, count, bbox, out):
+    """Lower ``out[n]`` to the signed distance from point n to the nearest piece [m].
+
+    Outside a piece the distance to it; inside, minus the distance to its nearest edge (the
+    box's signed distance for a box; inside an obstacle cut into pieces it is negative but
+    may be shallower than the depth in the whole obstacle). Pieces whose bounding box is
+    farther than ``out[n]`` already is are skipped.
+    """
+    for n in range(px.size):
+        x, y = px[n], py[n]
+        best = out[n]
+        for p in range(count.size):
+            gx = max(bbox[p, 0] - x, 0.0, x - bbox[p, 2])
+            gy = max(bbox[p, 1] - y, 0.0, y - bbox[p, 3])
+            if gx * gx + gy * gy >= best * best and best > 0.0:
+                continue
+            inside = True
+            d2 = np.inf
+            m = count[p]
+            for k in range(m):
+                ax, ay = vertices[p, k, 0], vertices[p, k, 1]
+                k1 = k + 1 if k + 1 < m else 0
+                ex, ey = vertices[p, k1, 0] - ax, vertices[p, k1, 1] - ay
+                wx, wy = x - ax, y - ay
+                if ex * wy - ey * wx < 0.0:
+                    inside = False
+                t = (wx * ex + wy * ey) / (ex * ex + ey * ey)
+                t = min(max(t, 0.0), 1.0)
+                qx, qy = wx - t * ex, wy - t * ey
+                q2 = qx * qx + qy * qy
+                if q2 < d2:
+                    d2 = q2
+            d = -np.sqrt(d2) if inside else np.sqrt(d2)
+            if d < best:
+                best = d
+        out[n] = best

@@ -7,11 +7,11 @@ workspace rectangle and not inside any obstacle, boundary included), the range i
 Obstacles of every shape arrive as convex pieces (:meth:`scenarios.Scenario.obstacle_pieces`,
 kernels in :mod:`planner.pef.convex`). Markers sit on the walls or on obstacle faces. To let a
 marker on a face be seen from the open side but not through its own obstacle, line of sight
-is tested against every piece *shrunk* by :data:`BOX_SHRINK` (1 micrometre) on each side: a
+is tested against every piece *shrunk* by :data:`BOX_SHRINK` (1 micrometre) on each face: a
 segment that ends on a face (or grazes an edge) does not enter the shrunk piece, one that
-passes through it does. Where two pieces of one obstacle meet, a segment crossing their
-common edge enters at least one of them, so the split is invisible. Free space uses the
-pieces at full size.
+passes through it does. Where two pieces of one obstacle meet, their cut is moved *out* by as
+much, so the pieces overlap and even a segment running along the cut is blocked: the split is
+invisible. Free space uses the pieces at full size.
 
 Two paths give the same answer (a test checks it):
 
@@ -91,21 +91,21 @@ def _is_free(px, py, x0, y0, x1, y1, planes, count, bbox):
 
 
 @numba.njit(cache=True)
-def _blocked(ax, ay, bx, by, planes, count, bbox, blocks, shrink):
+def _blocked(ax, ay, bx, by, planes, sight, count, bbox, blocks):
     """Tell whether segment a-b enters the shrunk interior of any blocking piece."""
     lox, hix = min(ax, bx), max(ax, bx)
     loy, hiy = min(ay, by), max(ay, by)
     for p in range(count.size):
         if not blocks[p] or bbox[p, 0] >= hix or bbox[p, 2] <= lox or bbox[p, 1] >= hiy or bbox[p, 3] <= loy:
             continue
-        if segment_enters(ax, ay, bx, by, planes, count, p, shrink):
+        if segment_enters(ax, ay, bx, by, planes, sight, count, p):
             return True
     return False
 
 
 @numba.njit(cache=True, nogil=True)
-def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, planes, count, bbox, blocks,
-                          shrink, vis, free):
+def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, planes, sight, count, bbox, blocks,
+                          vis, free):
     r2max = max_range * max_range
     for n in range(lo, hi):
         f = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
@@ -116,7 +116,7 @@ def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, pla
                 dx, dy = px[n] - mx[m], py[n] - my[m]
                 ok = dx * dx + dy * dy <= r2max
             if ok:
-                ok = not _blocked(px[n], py[n], mx[m], my[m], planes, count, bbox, blocks, shrink)
+                ok = not _blocked(px[n], py[n], mx[m], my[m], planes, sight, count, bbox, blocks)
             vis[m, n] = ok
 
 
@@ -154,7 +154,7 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     run_ranges(_visible_points_range, p.shape[0],
                (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
                 np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), float(max_range),
-                x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, pa.blocks, pa.shrink, vis, free),
+                x0, y0, x1, y1, pa.planes, pa.sight, pa.count, pa.bbox, pa.blocks, vis, free),
                min_chunk=2048)
     return vis, free
 
@@ -162,8 +162,8 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
 def segment_blocked(a, b, obstacles) -> bool:
     """Tell whether segment a-b (each (x, y) [m]) crosses an obstacle's interior (line of sight)."""
     pa = prepare(obstacles)
-    return bool(_blocked(float(a[0]), float(a[1]), float(b[0]), float(b[1]), pa.planes, pa.count, pa.bbox,
-                         pa.blocks, pa.shrink))
+    return bool(_blocked(float(a[0]), float(a[1]), float(b[0]), float(b[1]), pa.planes, pa.sight, pa.count,
+                         pa.bbox, pa.blocks))
 
 
 # --- grid path ------------------------------------------------------------------------------
@@ -222,7 +222,7 @@ def _free_grid_kernel(x, y, x0, y0, x1, y1, planes, count, bbox, free):
 
 
 @numba.njit(cache=True)
-def _visible_grid_marker(m, x, y, mx, my, max_range, planes, shrunk, count, blocks, shrink, free, vis):
+def _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, count, blocks, free, vis):
     """Fill ``vis[m]``: in range and free, then clear each piece's shadow row by row."""
     r2max = max_range * max_range
     npc = count.size
@@ -231,7 +231,7 @@ def _visible_grid_marker(m, x, y, mx, my, max_range, planes, shrunk, count, bloc
     hidden = False
     for p in range(npc):
         if blocks[p]:
-            nhp[p] = shadow_halfplanes(mx[m], my[m], planes, shrunk, count, p, shrink, hp[p])
+            nhp[p] = shadow_halfplanes(mx[m], my[m], planes, sight, shrunk, count, p, hp[p])
             if nhp[p] < 0:
                 hidden = True
     for iy in range(y.size):
@@ -272,9 +272,9 @@ def _visible_grid_marker(m, x, y, mx, my, max_range, planes, shrunk, count, bloc
 
 
 @numba.njit(cache=True, nogil=True)
-def _visible_grid_markers(m0, m1, x, y, mx, my, max_range, planes, shrunk, count, blocks, shrink, free, vis):
+def _visible_grid_markers(m0, m1, x, y, mx, my, max_range, planes, sight, shrunk, count, blocks, free, vis):
     for m in range(m0, m1):
-        _visible_grid_marker(m, x, y, mx, my, max_range, planes, shrunk, count, blocks, shrink, free, vis)
+        _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, count, blocks, free, vis)
 
 
 def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
@@ -307,7 +307,7 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
     vis = np.empty((mk.shape[0], y.size, x.size), dtype=np.bool_)
     run_ranges(_visible_grid_markers, mk.shape[0],
                (x, y, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), float(max_range),
-                pa.planes, pa.shrunk, pa.count, pa.blocks, pa.shrink, free, vis))
+                pa.planes, pa.sight, pa.shrunk, pa.count, pa.blocks, free, vis))
     return vis, free
 
 
