@@ -110,29 +110,37 @@ def obstacle_dicts(geom: BaseGeometry, simplify: float) -> list[dict]:
     polys = np.asarray(polygons_of(geom), dtype=object)
     if simplify > 0.0 and len(polys):
         polys = shapely.simplify(polys, simplify, preserve_topology=True)
+    polys = np.asarray([p for g in polys for p in polygons_of(g)], dtype=object)
+    if len(polys) == 0:
+        return []
+    polys = polys[shapely.area(polys) > 0.0]
+    # Vectorised for traced maps with thousands of polygons: exteriors counter-clockwise,
+    # holes clockwise, coordinates split per ring without a Python call per vertex.
+    polys = np.asarray([orient(p, 1.0) for p in polys], dtype=object)
+    shells = _split_rings(shapely.get_exterior_ring(polys))
+    n_holes = shapely.get_num_interior_rings(polys)
     out = []
-    for poly in polys:
-        for p in polygons_of(poly):
-            if p.area <= 0.0:
-                continue
-            p = orient(p, 1.0)
-            d: dict = {"polygon": _ring_list(p.exterior)}
-            holes = [_ring_list(h) for h in p.interiors]
-            if holes:
-                d["holes"] = holes
-            out.append(d)
+    for p, shell, nh in zip(polys, shells, n_holes.tolist(), strict=True):
+        d: dict = {"polygon": shell}
+        if nh:
+            d["holes"] = _split_rings(np.asarray(p.interiors, dtype=object))
+        out.append(d)
     return out
+
+
+def _split_rings(rings: np.ndarray) -> list[list[list[float]]]:
+    """Vertex lists of closed rings, without the closing vertex, rounded to :data:`DECIMALS`."""
+    xy, idx = shapely.get_coordinates(rings, return_index=True)
+    xy = np.round(xy, DECIMALS)
+    counts = np.bincount(idx, minlength=len(rings))
+    parts = np.split(xy, np.cumsum(counts)[:-1])
+    return [part[:-1].tolist() for part in parts]
 
 
 def circle_dict(center: Sequence[float], radius: float) -> dict:
     """Return a circle obstacle in the scenario's TOML form; ``center`` (x, y) [m], ``radius`` [m]."""
     return {"center": [round(float(center[0]), DECIMALS), round(float(center[1]), DECIMALS)],
             "radius": round(float(radius), DECIMALS)}
-
-
-def _ring_list(ring) -> list[list[float]]:
-    xy = np.round(np.asarray(ring.coords)[:-1, :2], DECIMALS)
-    return xy.tolist()
 
 
 def bounds(geoms: Iterable[BaseGeometry], points: np.ndarray) -> tuple[float, float, float, float] | None:
