@@ -12,6 +12,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
+from scenarios import floorplan
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table
 from scenarios.obstacle_table import read_obstacle
@@ -70,7 +71,7 @@ def load(name_or_path: str | Path) -> Scenario:
 def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scenario:
     """Parse and validate scenario TOML ``text``; ``source`` names it in errors, ``base`` is its folder.
 
-    Relative file names in the scenario (``routes.file``) are taken from ``base`` (None: the
+    Relative file names in the scenario (``floorplan.file``, ``routes.file``) are taken from ``base`` (None: the
     current directory); ``Scenario.text`` names them absolutely, since it is stored beside
     results and loaded again from there.
     """
@@ -78,7 +79,11 @@ def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scen
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
-    return replace(from_dict(data, source, base), text=portable_routes_text(text, data, base))
+    # Scenario.text names relative files (floor plan, route graph) absolutely: it is stored beside
+    # results and loaded again from there.
+    portable = floorplan.portable_text(text, data, base)
+    portable = portable_routes_text(portable, data if portable is text else tomllib.loads(portable), base)
+    return replace(from_dict(data, source, base), text=portable)
 
 
 def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
@@ -141,14 +146,16 @@ def _planning(t: Table) -> PlanningSpec:
 
 
 def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = None) -> Scenario:
-    """Validate a parsed TOML document and build the :class:`Scenario` (``base``: see :func:`loads`)."""
+    """Validate a parsed TOML document and build the :class:`Scenario` (``base``: its folder)."""
+    data, plan = floorplan.apply(data, source, base)  # [floorplan] -> obstacles, markers, workspace
     root = Table(data, source)
     name = root.string("name")
     seed = root.integer("seed", 0, low=0)
     description = root.string("description", "")
 
     ws_t = root.table("workspace")
-    workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True))
+    workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True),
+                          ws_t.vector("origin", 2, (0.0, 0.0), what="[x, y]"))
     ws_t.done()
 
     obstacles = [read_obstacle(t) for t in root.array_of_tables("obstacles")]
@@ -168,7 +175,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         free_point(t, "position", pos, "[x, y]")
         if any(m.id == mid for m in markers):
             t.fail(t.key("id"), "expected a unique marker id", mid)
-        markers.append(Marker(mid, pos))
+        facing = t.number("facing_deg", None) if t.has("facing_deg") else None
+        markers.append(Marker(mid, pos, None if facing is None else math.radians(facing)))
         t.done()
 
     s_t = root.table("sensor")
@@ -262,7 +270,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         obstacles=tuple(obstacles), markers=tuple(markers), sensor=sensor,
         sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
         docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
-        placement=placement, source=source,
+        placement=placement, source=source, floorplan=plan,
     )
 
 

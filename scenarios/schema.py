@@ -15,6 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
+from scenarios.floorplan.spec import FloorPlan
 from scenarios.obstacles import ConvexPieces, Obstacle, pack_pieces
 
 
@@ -77,10 +78,15 @@ class Workspace:
 
 @dataclass(frozen=True)
 class Marker:
-    """A landmark (laser reflector, anchor) at a known ``position`` (x, y) [m]."""
+    """A landmark (laser reflector, anchor) at a known ``position`` (x, y) [m].
+
+    ``facing`` [rad] is the direction the reflector faces (file key ``facing_deg``; a DXF
+    block's rotation), None when not given.
+    """
 
     id: str
     position: tuple[float, float]
+    facing: float | None = None
 
 
 @dataclass(frozen=True)
@@ -366,6 +372,8 @@ class Scenario:
     """Where the scenario came from (the path as given, or ``NAME.toml`` for a built-in), for messages."""
     text: str = ""
     """The TOML text it was loaded from (Monte-Carlo keeps it beside the results)."""
+    floorplan: FloorPlan | None = None
+    """The drawing or map its obstacles and markers were read from (``[floorplan]``), if any."""
 
     def marker_positions(self) -> np.ndarray:
         """Marker positions, shape (M, 2) [m], in file order."""

@@ -128,6 +128,7 @@ class _FlatPEF:
 
         res = self.scenario.planning.resolution if resolution is None else resolution
         x, y = grid_centres(self.scenario.workspace.size, res)
+        x, y = x + self.scenario.workspace.origin[0], y + self.scenario.workspace.origin[1]
         size = self.scenario.workspace.size
         return SimpleNamespace(x=x, y=y, tau=np.zeros((y.size, x.size)), free=np.ones((y.size, x.size), bool),
                                cell_size=(size[0] / x.size, size[1] / y.size))

@@ -112,7 +112,15 @@ def test_dxf(capsys, tmp_path, graph_scenario):
         assert code == 2 and err.count("\n") == 1 and "sim.export.dxf) is not available" in err
         assert not dxf.exists()
     else:
-        assert code == 0 and dxf.exists()
+        import ezdxf
+
+        assert code == 0 and err == ""
+        msp = ezdxf.readfile(dxf).modelspace()
+        sc = scenarios.load(graph_scenario)
+        region = msp.query('LWPOLYLINE[layer=="PEFSIM-REGION"]')
+        rings = region_contours(PEF(sc).grid(), sc.planning.eps_max, sc.workspace.bounds)
+        assert len(region) == len(rings) > 0
+        assert len(msp.query('LWPOLYLINE[layer=="PEFSIM-ROUTES"]')) == len(sc.routes.segments)
 
 
 def test_region_contours_enclose_the_navigation_region():
