@@ -223,3 +223,31 @@ def test_workspace_origin_frame(capsys, tmp_path):
     rings = region_contours(PEF(sc).grid(), sc.planning.eps_max, sc.workspace.bounds)
     pts = np.vstack(rings)
     assert pts[:, 0].min() >= 100.0 and pts[:, 0].max() <= 120.0 and pts[:, 1].min() >= 50.0
+
+
+def test_lif_ids_are_renumbered_for_nav2(capsys, tmp_path):
+    from tests.scenarios.graphfiles import lif_file
+
+    write(tmp_path / "plant.lif.json", lif_file())
+    path = tmp_path / "l.toml"
+    path.write_text(scenario_text('file = "plant.lif.json"\nlayout = "L2"\ntraffic = { "q-p" = 0.5 }'),
+                    encoding="utf-8")
+    sc = scenarios.load(path)
+    assert sc.routes.traffic_of("p", "q") == 0.5
+    out = tmp_path / "l.geojson"
+    assert run_cli(capsys, "export", path, "--routes", out)[0] == 0
+    nodes, edges = features(json.loads(out.read_text()))
+    # Nav2 needs integer ids unique across nodes and edges: LIF's string ids are kept as source_id
+    assert {i: f["properties"]["source_id"] for i, f in nodes.items()} == {0: "p", 1: "q", 2: "r"}
+    assert {i: (f["properties"]["source_id"], f["properties"]["startid"], f["properties"]["endid"])
+            for i, f in edges.items()} == {3: ("pq", 0, 1), 4: ("qr", 1, 2)}
+    assert edges[3]["properties"]["vehicleTypeEdgeProperties"][0]["rotationAllowed"] is True
+
+
+def test_traffic_keys_of_an_imported_graph(tmp_path):
+    write(tmp_path / "graph.geojson", nav2_graph())
+    path = tmp_path / "t.toml"
+    path.write_text(scenario_text('file = "graph.geojson"\ntraffic = { "0-5" = 0.5 }'), encoding="utf-8")
+    with pytest.raises(scenarios.ScenarioError, match=r'routes\.traffic\."0-5": expected a segment "a-b" of the '
+                                                      r"route network, got 0\.5$"):
+        scenarios.load(path)
