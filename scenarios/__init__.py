@@ -22,6 +22,7 @@ from scenarios.schema import (
     PlacementSpec,
     PlanningSpec,
     RobotSpec,
+    RouteEdge,
     RouteNetwork,
     Scenario,
     SensorSpec,
@@ -32,7 +33,7 @@ from scenarios.schema import (
 
 __all__ = [
     "ConvexPieces", "Dock", "Marker", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError", "PefModel",
-    "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteNetwork",
+    "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteEdge", "RouteNetwork",
     "Scenario", "ScenarioError", "SensorSpec", "SimulationError", "Task", "Weights", "Workspace",
     "builtin_names", "from_dict", "load", "loads", "resolve",
 ]
