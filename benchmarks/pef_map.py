@@ -82,6 +82,11 @@ def _segment_enters_box(ax, ay, bx, by, box, shrink=1e-6):
     return t0 < t1
 
 
+def _box_params(ob) -> tuple[float, ...]:
+    """(cx, cy, ex, ey, hx, hy): centre, unit axis and half-sizes of a box obstacle."""
+    return (*ob.center, math.cos(ob.yaw), math.sin(ob.yaw), ob.size[0] / 2, ob.size[1] / 2)
+
+
 def naive_tau(x, y, sc, boxes, model, chi2_ppf):
     """Compute tau at one point by the textbook loops (visibility, then every pair)."""
     for cx, cy, ex, ey, hx, hy in boxes:
@@ -165,7 +170,6 @@ def main() -> None:
 
     from estimators.fault.linearized import chi2_2dof_ppf
     from planner.pef.map import PEF
-    from planner.pef.visibility import box_params
 
     load_before = os.getloadavg()[0]
     warm = first_call_overhead(None)
@@ -185,7 +189,7 @@ def main() -> None:
             # Naive baseline on a subgrid of the same cell centres, extrapolated per cell.
             iy = np.linspace(0, 999, SUB).astype(int)
             ix = np.linspace(0, 999, SUB).astype(int)
-            boxes = [tuple(b) for b in box_params(sc.obstacle_corners())]
+            boxes = [_box_params(o) for o in sc.obstacles]
             chi2 = chi2_2dof_ppf(sc.planning.gdop_level)
             t0 = time.perf_counter()
             ref = np.array([[naive_tau(pm.x[i], pm.y[j], sc, boxes, model, chi2) for i in ix] for j in iy])

@@ -151,6 +151,11 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
             raise PlanningError(f"unknown dock {name!r} (docks: {', '.join(names) or 'none'})")
     if start == goal:
         raise PlanningError(f"start and goal are the same dock {start!r}")
+    k = scenario.sensor.markers_per_fix
+    if len(scenario.markers) < k:
+        raise PlanningError(f"no admissible route from {start!r} to {goal!r}: the scenario has "
+                            f"{len(scenario.markers)} markers and a fix needs {k}, so tau is inf everywhere "
+                            "(pefsim place finds where to put reflectors)")
     if pef is None:
         from planner.pef.map import PEF
         pef = PEF(scenario)

@@ -11,6 +11,7 @@ from scenarios.errors import (
     SimulationError,
 )
 from scenarios.load import builtin_names, from_dict, load, loads, resolve
+from scenarios.obstacles import ConvexPieces
 from scenarios.schema import (
     Dock,
     Marker,
@@ -21,6 +22,7 @@ from scenarios.schema import (
     PlacementSpec,
     PlanningSpec,
     RobotSpec,
+    RouteEdge,
     RouteNetwork,
     Scenario,
     SensorSpec,
@@ -30,8 +32,8 @@ from scenarios.schema import (
 )
 
 __all__ = [
-    "Dock", "Marker", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError", "PefModel",
-    "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteNetwork",
+    "ConvexPieces", "Dock", "Marker", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError", "PefModel",
+    "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteEdge", "RouteNetwork",
     "Scenario", "ScenarioError", "SensorSpec", "SimulationError", "Task", "Weights", "Workspace",
     "builtin_names", "from_dict", "load", "loads", "resolve",
 ]

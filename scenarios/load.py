@@ -12,19 +12,20 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
+from scenarios import floorplan
 from scenarios.errors import ScenarioError
-from scenarios.fields import Table, show
+from scenarios.fields import Table
+from scenarios.obstacle_table import read_obstacle
+from scenarios.routegraph import place_node_docks, portable_routes_text, read_node_dock, read_routes
 from scenarios.schema import (
     Dock,
     Marker,
     MonteCarloSpec,
     NoiseModel,
-    Obstacle,
     PefModel,
     PlacementSpec,
     PlanningSpec,
     RobotSpec,
-    RouteNetwork,
     Scenario,
     SensorSpec,
     Task,
@@ -64,16 +65,25 @@ def load(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
     # Errors name the file as the user gave it; a built-in one by its file name alone.
     shown = path.name if path.parent == LIBRARY else str(name_or_path)
-    return loads(text, source=shown)
+    return loads(text, source=shown, base=path.parent)
 
 
-def loads(text: str, source: str = "<string>") -> Scenario:
-    """Parse and validate scenario TOML ``text``; ``source`` names it in errors."""
+def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scenario:
+    """Parse and validate scenario TOML ``text``; ``source`` names it in errors, ``base`` is its folder.
+
+    Relative file names in the scenario (``floorplan.file``, ``routes.file``) are taken from ``base`` (None: the
+    current directory); ``Scenario.text`` names them absolutely, since it is stored beside
+    results and loaded again from there.
+    """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
-    return replace(from_dict(data, source), text=text)
+    # Scenario.text names relative files (floor plan, route graph) absolutely: it is stored beside
+    # results and loaded again from there.
+    portable = floorplan.portable_text(text, data, base)
+    portable = portable_routes_text(portable, data if portable is text else tomllib.loads(portable), base)
+    return replace(from_dict(data, source, base), text=portable)
 
 
 def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
@@ -135,25 +145,20 @@ def _planning(t: Table) -> PlanningSpec:
     )
 
 
-def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
-    """Validate a parsed TOML document and build the :class:`Scenario`."""
+def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = None) -> Scenario:
+    """Validate a parsed TOML document and build the :class:`Scenario` (``base``: its folder)."""
+    data, plan = floorplan.apply(data, source, base)  # [floorplan] -> obstacles, markers, workspace
     root = Table(data, source)
     name = root.string("name")
     seed = root.integer("seed", 0, low=0)
     description = root.string("description", "")
 
     ws_t = root.table("workspace")
-    workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True))
+    workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True),
+                          ws_t.vector("origin", 2, (0.0, 0.0), what="[x, y]"))
     ws_t.done()
 
-    obstacles = []
-    for t in root.array_of_tables("obstacles"):
-        obstacles.append(Obstacle(
-            center=t.vector("center", 2, what="[x, y]"),
-            size=t.vector("size", 2, what="[length, width] in metres", positive=True),
-            yaw=math.radians(t.number("yaw_deg", 0.0)),
-        ))
-        t.done()
+    obstacles = [read_obstacle(t) for t in root.array_of_tables("obstacles")]
 
     def free_point(t: Table, key: str, value: tuple[float, ...], what: str) -> None:
         p = value[:2]  # a dock's value is (x, y, yaw): only the position must be free
@@ -170,7 +175,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         free_point(t, "position", pos, "[x, y]")
         if any(m.id == mid for m in markers):
             t.fail(t.key("id"), "expected a unique marker id", mid)
-        markers.append(Marker(mid, pos))
+        facing = t.number("facing_deg", None) if t.has("facing_deg") else None
+        markers.append(Marker(mid, pos, None if facing is None else math.radians(facing)))
         t.done()
 
     s_t = root.table("sensor")
@@ -181,7 +187,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         sensor_actual = _sensor(a_t, sensor, required=False)
         a_t.done()
     s_t.done()
-    if sensor.markers_per_fix > len(markers):
+    # No markers at all is a world still to be equipped (pefsim place); a few is a typo.
+    if 0 < len(markers) < sensor.markers_per_fix:
         s_t.fail(s_t.key("markers_per_fix"),
                  f"expected at most the number of markers ({len(markers)})", sensor.markers_per_fix)
 
@@ -202,20 +209,27 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
                  f"parallelogram needs sensor.markers_per_fix = 2 (use \"strips\" for k = {sensor.markers_per_fix})",
                  planning.pef_model.value)
 
-    docks = []
-    for t in root.array_of_tables("docks"):
+    docks, dock_tables = [], root.array_of_tables("docks")
+    for t in dock_tables:
         dname = t.string("name")
-        pose = t.vector("pose", 3, what="[x, y, yaw_deg]")
-        free_point(t, "pose", pose, "[x, y, yaw_deg]")
         if any(d.name == dname for d in docks):
             t.fail(t.key("name"), "expected a unique dock name", dname)
+        if t.has("node"):  # placed on its node once the routes are read
+            docks.append(read_node_dock(t, dname))
+            t.done()
+            continue
+        pose = t.vector("pose", 3, what="[x, y, yaw_deg]")
+        free_point(t, "pose", pose, "[x, y, yaw_deg]")
         docks.append(Dock(dname, (pose[0], pose[1], math.radians(pose[2]))))
         t.done()
     dock_names = {d.name for d in docks}
 
     routes = None
     if root.has("routes"):
-        routes = _routes(root.table("routes"), workspace, docks, free_point)
+        routes = read_routes(root.table("routes"), workspace=workspace, obstacles=obstacles,
+                             radius=robot.radius, docks=docks, free_point=free_point,
+                             base_dir=None if base is None else Path(base))
+    docks = place_node_docks(docks, dock_tables, routes, free_point)
 
     tasks = []
     for t in root.array_of_tables("tasks"):
@@ -256,48 +270,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         obstacles=tuple(obstacles), markers=tuple(markers), sensor=sensor,
         sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
         docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
-        placement=placement, source=source,
+        placement=placement, source=source, floorplan=plan,
     )
-
-
-def _routes(t: Table, workspace: Workspace, docks: list[Dock], free_point) -> RouteNetwork:
-    nodes_t = t.table("nodes")
-    nodes: dict[str, tuple[float, float]] = {}
-    for name in list(nodes_t.data):
-        p = nodes_t.vector(name, 2, what="[x, y]")
-        free_point(nodes_t, name, p, "[x, y]")
-        nodes[name] = (p[0], p[1])
-    nodes_t.done()
-    for d in docks:
-        # A dock that is also a node must sit where the dock is: routes start at docks.
-        if d.name in nodes and math.dist(nodes[d.name], d.position) > 1e-9:
-            nodes_t.fail(nodes_t.key(d.name), f"expected the position of dock {d.name} {list(d.position)}",
-                         list(nodes[d.name]))
-    segs_raw = t.raw("segments")
-    if not isinstance(segs_raw, list):
-        t.fail(t.key("segments"), "expected a list of [node, node] pairs", segs_raw)
-    segments = []
-    for i, s in enumerate(segs_raw):
-        key = f"{t.key('segments')}[{i}]"
-        if not (isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)):
-            t.fail(key, "expected [node, node]", s)
-        for x in s:
-            if x not in nodes:
-                t.fail(key, f"expected node names (unknown node {show(x)})", s)
-        if s[0] == s[1]:
-            t.fail(key, "expected two different nodes", s)
-        segments.append((s[0], s[1]))
-    traffic_t = t.table("traffic", {})
-    seg_keys = {f"{a}-{b}" for a, b in segments} | {f"{b}-{a}" for a, b in segments}
-    traffic = {}
-    for k in list(traffic_t.data):
-        if k not in seg_keys:
-            traffic_t.fail(traffic_t.key(f'"{k}"'), "expected a segment \"a-b\" of routes.segments",
-                           traffic_t.data[k])
-        traffic[k] = traffic_t.number(k, low=0.0, high=1.0)
-    traffic_t.done()
-    t.done()
-    return RouteNetwork(nodes=nodes, segments=tuple(segments), traffic=traffic)
 
 
 def with_overrides(scenario: Scenario, **changes: Any) -> Scenario:

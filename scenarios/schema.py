@@ -11,8 +11,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
+from functools import cached_property
 
 import numpy as np
+
+from scenarios.floorplan.spec import FloorPlan
+from scenarios.obstacles import ConvexPieces, Obstacle, pack_pieces
+from scenarios.route_network import RouteEdge, RouteNetwork  # noqa: F401 (RouteEdge: re-exported)
 
 
 class NoiseModel(str, Enum):
@@ -43,9 +48,14 @@ class PefModel(str, Enum):
 
 @dataclass(frozen=True)
 class Workspace:
-    """Rectangular workspace, origin lower-left, x right, y up; ``size`` = (width, height) [m]."""
+    """Rectangular workspace, x right, y up, in the user's frame.
+
+    ``size`` = (width, height) [m]; ``origin`` = (x0, y0), its lower-left corner [m] (every
+    position of a scenario, and every output, is in that frame).
+    """
 
     size: tuple[float, float]
+    origin: tuple[float, float] = (0.0, 0.0)
 
     @property
     def width(self) -> float:
@@ -55,41 +65,29 @@ class Workspace:
     def height(self) -> float:
         return self.size[1]
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(x0, y0, x1, y1): lower-left and upper-right corners [m]."""
+        x0, y0 = self.origin
+        return (x0, y0, x0 + self.size[0], y0 + self.size[1])
+
     def contains(self, p: tuple[float, float] | np.ndarray) -> bool:
         """Tell whether point ``p`` (x, y) [m] lies in the closed workspace rectangle."""
-        return 0.0 <= p[0] <= self.size[0] and 0.0 <= p[1] <= self.size[1]
-
-
-@dataclass(frozen=True)
-class Obstacle:
-    """A box obstacle: ``center`` (x, y) [m], ``size`` (length along its x, width) [m], ``yaw`` [rad]."""
-
-    center: tuple[float, float]
-    size: tuple[float, float]
-    yaw: float = 0.0
-
-    def corners(self) -> np.ndarray:
-        """Corners, shape (4, 2) [m], counter-clockwise."""
-        hx, hy = self.size[0] / 2.0, self.size[1] / 2.0
-        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        rot = np.array([[c, -s], [s, c]])
-        return local @ rot.T + np.asarray(self.center)
-
-    def contains(self, p: tuple[float, float] | np.ndarray, margin: float = 0.0) -> bool:
-        """Tell whether point ``p`` lies inside the box grown by ``margin`` [m] on every side."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        dx, dy = p[0] - self.center[0], p[1] - self.center[1]
-        lx, ly = c * dx + s * dy, -s * dx + c * dy
-        return abs(lx) <= self.size[0] / 2 + margin and abs(ly) <= self.size[1] / 2 + margin
+        x0, y0, x1, y1 = self.bounds
+        return x0 <= p[0] <= x1 and y0 <= p[1] <= y1
 
 
 @dataclass(frozen=True)
 class Marker:
-    """A landmark (laser reflector, anchor) at a known ``position`` (x, y) [m]."""
+    """A landmark (laser reflector, anchor) at a known ``position`` (x, y) [m].
+
+    ``facing`` [rad] is the direction the reflector faces (file key ``facing_deg``; a DXF
+    block's rotation), None when not given.
+    """
 
     id: str
     position: tuple[float, float]
+    facing: float | None = None
 
 
 @dataclass(frozen=True)
@@ -219,30 +217,19 @@ class PlanningSpec:
 
 @dataclass(frozen=True)
 class Dock:
-    """A named pose: ``pose`` = (x [m], y [m], yaw [rad])."""
+    """A named pose: ``pose`` = (x [m], y [m], yaw [rad]).
+
+    ``node`` names the route-network node the dock sits on (``[[docks]] node = "12"``), None
+    for a dock given by its pose; routes to and from the dock start at that node.
+    """
 
     name: str
     pose: tuple[float, float, float]
+    node: str | None = None
 
     @property
     def position(self) -> tuple[float, float]:
         return (self.pose[0], self.pose[1])
-
-
-@dataclass(frozen=True)
-class RouteNetwork:
-    """A route network (paper fig. 7): named nodes, undirected segments, traffic per segment.
-
-    ``traffic`` maps a segment key ``"a-b"`` (either order) to a density in [0, 1].
-    """
-
-    nodes: dict[str, tuple[float, float]]
-    segments: tuple[tuple[str, str], ...]
-    traffic: dict[str, float] = field(default_factory=dict)
-
-    def traffic_of(self, a: str, b: str) -> float:
-        """Traffic density of segment a–b (0 when not listed)."""
-        return self.traffic.get(f"{a}-{b}", self.traffic.get(f"{b}-{a}", 0.0))
 
 
 @dataclass(frozen=True)
@@ -300,6 +287,8 @@ class Scenario:
     """Where the scenario came from (the path as given, or ``NAME.toml`` for a built-in), for messages."""
     text: str = ""
     """The TOML text it was loaded from (Monte-Carlo keeps it beside the results)."""
+    floorplan: FloorPlan | None = None
+    """The drawing or map its obstacles and markers were read from (``[floorplan]``), if any."""
 
     def marker_positions(self) -> np.ndarray:
         """Marker positions, shape (M, 2) [m], in file order."""
@@ -316,7 +305,22 @@ class Scenario:
         raise KeyError(name)
 
     def obstacle_corners(self) -> np.ndarray:
-        """Corners of all obstacles, shape (n_obstacles, 4, 2) [m]."""
+        """Corners of all obstacles, shape (n_obstacles, 4, 2) [m]; boxes only.
+
+        Raises ``ValueError`` when an obstacle is not a box: use :meth:`obstacle_pieces`,
+        which serves every shape.
+        """
         if not self.obstacles:
             return np.zeros((0, 4, 2))
         return np.stack([o.corners() for o in self.obstacles])
+
+    @cached_property
+    def _obstacle_pieces(self) -> ConvexPieces:
+        return pack_pieces(self.obstacles)
+
+    def obstacle_pieces(self) -> ConvexPieces:
+        """Convex pieces of all obstacles, padded for kernels (:class:`~scenarios.obstacles.ConvexPieces`).
+
+        Computed once per scenario object (the same object every call; do not modify it).
+        """
+        return self._obstacle_pieces

@@ -217,6 +217,8 @@ class PEF:
         """
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res)
+        x0, y0 = self.scenario.workspace.origin  # the grid covers the workspace where it lies
+        x, y = x + x0, y + y0
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)

@@ -256,8 +256,7 @@ def _scenario_dict(sc: Scenario) -> dict:
 
     d: dict = {"name": sc.name, "seed": sc.seed, "description": sc.description,
                "workspace": {"size": list(sc.workspace.size)},
-               "obstacles": [{"center": list(o.center), "size": list(o.size), "yaw_deg": math.degrees(o.yaw)}
-                             for o in sc.obstacles],
+               "obstacles": [o.to_dict() for o in sc.obstacles],
                "markers": [{"id": m.id, "position": list(m.position)} for m in sc.markers],
                "sensor": spec(sc.sensor), "robot": spec(sc.robot)}
     if sc.sensor_actual != sc.sensor:
@@ -270,8 +269,14 @@ def _scenario_dict(sc: Scenario) -> dict:
                      "heading_std_deg": pl.heading_std_deg, "min_fix_speed": pl.min_fix_speed}
     if pl.order:
         d["planning"]["order"] = list(pl.order)
-    d["docks"] = [{"name": k.name, "pose": [k.pose[0], k.pose[1], math.degrees(k.pose[2])]} for k in sc.docks]
-    if sc.routes is not None:
+    d["docks"] = [{"name": k.name, "node": k.node, "yaw_deg": math.degrees(k.pose[2])} if k.node is not None
+                  else {"name": k.name, "pose": [k.pose[0], k.pose[1], math.degrees(k.pose[2])]} for k in sc.docks]
+    if sc.routes is not None and sc.routes.source:
+        # the graph stays in its file, named absolutely since the new scenario may live elsewhere
+        d["routes"] = {"file": str(Path(sc.routes.source).resolve()), "traffic": dict(sc.routes.traffic)}
+        if sc.routes.layout:
+            d["routes"]["layout"] = sc.routes.layout
+    elif sc.routes is not None:
         d["routes"] = {"nodes": {k: list(v) for k, v in sc.routes.nodes.items()},
                        "segments": [list(s) for s in sc.routes.segments], "traffic": dict(sc.routes.traffic)}
     d["tasks"] = [{"from": t.start, "to": t.goal} for t in sc.tasks]
@@ -311,9 +316,12 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     if data is None:
         data = _scenario_dict(scenario)
     data["markers"] = [{"id": i, "position": [float(x), float(y)]} for i, (x, y) in result.markers]
+    if scenario.routes is not None and scenario.routes.source:
+        # a relative graph file would be looked up beside the new scenario: name it absolutely
+        data["routes"]["file"] = str(Path(scenario.routes.source).resolve())
     text = tomli_w.dumps(data)
     out = Path(path)
-    scn.loads(text, source=str(out))  # a bug here must not leave a broken file behind
+    scn.loads(text, source=str(out), base=out.parent)  # a bug here must not leave a broken file behind
     with output_errors(out, "write the placed scenario"):
         out.write_text(text, encoding="utf-8")
     return out

@@ -1,10 +1,12 @@
 """Where markers may go and which points they must serve: candidate sites and cover points.
 
 Candidate sites are the scenario's ``placement.candidates`` when given; otherwise points along
-the workspace walls and the obstacle faces, ``placement.spacing`` apart (each edge split into
-``ceil(length / spacing)`` equal parts, one site at the middle of each part, so corners, where
-line of sight grazes, are avoided). Sites sit exactly on the faces, as the built-in markers do;
-line of sight treats a face point as visible from its open side (:mod:`planner.pef.visibility`).
+the workspace walls and the obstacle faces (outer rings and holes' rings), ``placement.spacing``
+apart (each edge split into ``ceil(length / spacing)`` equal parts, one site at the middle of
+each part, so corners, where line of sight grazes, are avoided; round pillars get
+``ceil(perimeter / spacing)`` sites spread over their faces). Sites sit exactly on the faces,
+as the built-in markers do; line of sight treats a face point as visible from its open side
+(:mod:`planner.pef.visibility`).
 
 Cover points are what placement must keep under ``eps_max`` (``placement.cover``):
 
@@ -56,18 +58,31 @@ def candidate_sites(scenario: Scenario, spacing: float | None = None) -> np.ndar
     spacing = scenario.placement.spacing if spacing is None else float(spacing)
     if not spacing > 0.0:
         raise PlanningError(f"placement.spacing: expected a positive number of metres, got {spacing}")
-    w, h = scenario.workspace.size
-    rings = [np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])]
-    rings += [ob.corners() for ob in scenario.obstacles]
-    parts = [_edge_sites(r[i], r[(i + 1) % 4], spacing) for r in rings for i in range(4)]
+    x0, y0, x1, y1 = scenario.workspace.bounds
+    rings = [np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])]
+    rings += [ring for ob in scenario.obstacles if ob.kind != "circle" for ring in ob.rings()]  # holes too
+    parts = [_edge_sites(r[i], r[(i + 1) % len(r)], spacing) for r in rings for i in range(len(r))]
+    parts += [_circle_sites(ob.pieces()[0], spacing) for ob in scenario.obstacles if ob.kind == "circle"]
     sites = np.vstack(parts)
     tol = 1e-9
-    ok = (sites[:, 0] >= -tol) & (sites[:, 0] <= w + tol) & (sites[:, 1] >= -tol) & (sites[:, 1] <= h + tol)
+    ok = (sites[:, 0] >= x0 - tol) & (sites[:, 0] <= x1 + tol) & (sites[:, 1] >= y0 - tol) & (sites[:, 1] <= y1 + tol)
     for ob in scenario.obstacles:
-        ok &= ~np.array([ob.contains(p, margin=-1e-6) for p in sites])
-    sites = np.clip(sites[ok], 0.0, [w, h])
+        ok &= ~ob.contains_points(sites, margin=-1e-6)
+    sites = np.clip(sites[ok], [x0, y0], [x1, y1])
     _, first = np.unique(np.round(sites, 9), axis=0, return_index=True)
     return sites[np.sort(first)]
+
+
+def _circle_sites(polygon: np.ndarray, spacing: float) -> np.ndarray:
+    """Sites around a circle's polygon: ``ceil(perimeter / spacing)`` face midpoints, evenly spread.
+
+    One site per face (as for straight faces) would crowd a pillar with dozens of sites a few
+    centimetres apart; face midpoints are where the polygon touches the circle.
+    """
+    mids = 0.5 * (polygon + np.roll(polygon, -1, axis=0))
+    perimeter = float(np.hypot(*np.diff(np.vstack([polygon, polygon[:1]]), axis=0).T).sum())
+    n = min(len(mids), max(1, math.ceil(perimeter / spacing)))
+    return mids[np.unique(np.floor(np.arange(n) * len(mids) / n).astype(int))]
 
 
 def _sample_segment(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
@@ -113,6 +128,7 @@ class _FlatPEF:
 
         res = self.scenario.planning.resolution if resolution is None else resolution
         x, y = grid_centres(self.scenario.workspace.size, res)
+        x, y = x + self.scenario.workspace.origin[0], y + self.scenario.workspace.origin[1]
         size = self.scenario.workspace.size
         return SimpleNamespace(x=x, y=y, tau=np.zeros((y.size, x.size)), free=np.ones((y.size, x.size), bool),
                                cell_size=(size[0] / x.size, size[1] / y.size))
@@ -131,9 +147,11 @@ def route_points(scenario: Scenario, step: float | None = None) -> np.ndarray:
     parts = []
     if scenario.routes is not None:
         nodes = {k: np.asarray(v, dtype=float) for k, v in scenario.routes.nodes.items()}
-        parts += [_sample_segment(nodes[a], nodes[b], step) for a, b in scenario.routes.segments]
+        # segments that may not be driven (imported edges too close to obstacles) need no cover
+        parts += [_sample_segment(nodes[a], nodes[b], step) for i, (a, b) in enumerate(scenario.routes.segments)
+                  if not scenario.routes.why_not(i)]
         used = {name for t in scenario.tasks for name in (t.start, t.goal)}
-        for name in sorted(used - set(nodes)):
+        for name in sorted(n for n in used - set(nodes) if scenario.dock(n).node is None):
             p = np.asarray(scenario.dock(name).position, dtype=float)
             nearest = min(nodes.values(), key=lambda q: float(np.hypot(*(q - p))))
             parts.append(_sample_segment(p, nearest, step))

@@ -222,10 +222,21 @@ def network_candidates(scenario: Scenario, start: str, goal: str, tau_fn: TauFn)
     g = network.build_graph(scenario.routes)
     radius, res = scenario.robot.radius, scenario.planning.resolution
     clear = lambda pts: criteria.clearance(pts, scenario) >= radius
+    ends = []
     for name in (start, goal):
-        network.attach(g, name, scenario.dock(name).position,
-                       lambda a, b: smoothing.segment_ok(a, b, clear, res / 2))
-    routes, method = network.candidate_routes(g, start, goal)
+        dock = scenario.dock(name)
+        if dock.node is not None:  # the dock sits on a node: routes start there
+            ends.append(dock.node)
+            continue
+        on = [n for n, p in g.pos.items() if math.dist(p, dock.position) < 1e-9]
+        if name not in g.pos and on:  # a pose dock placed exactly on a node (an imported graph's)
+            ends.append(on[0])
+            continue
+        network.attach(g, name, dock.position, lambda a, b: smoothing.segment_ok(a, b, clear, res / 2))
+        ends.append(name)
+    if ends[0] == ends[1]:
+        raise PlanningError(f"docks {start!r} and {goal!r} sit on the same node {ends[0]!r}")
+    routes, method = network.candidate_routes(g, ends[0], ends[1], names=(start, goal))
     specs = [RouteSpec(f"R{i + 1}", [g.polyline(r)], tuple(r), g.segment_traffic(r), method)
              for i, r in enumerate(routes)]
     return make_candidates(scenario, specs, tau_fn)

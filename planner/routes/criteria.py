@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.pef.convex import signed_distance_min
+from planner.pef.visibility import prepare
 from scenarios.schema import Scenario
 
 CRITERIA: tuple[str, ...] = ("accuracy", "length", "traffic", "clearance", "smoothness")
@@ -97,31 +99,26 @@ class RouteScore:
 
 
 def clearance(points: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """Distance from each point to the nearest obstacle box or workspace wall.
+    """Distance from each point to the nearest obstacle or workspace wall.
 
     Parameters
     ----------
     points : ndarray, shape (N, 2)
         Positions [m].
     scenario : Scenario
-        Supplies the obstacles and the workspace.
+        Supplies the obstacles (any shape, through their convex pieces) and the workspace.
 
     Returns
     -------
     ndarray, shape (N,)
         Clearance [m]; negative inside an obstacle or outside the workspace.
     """
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    w, h = scenario.workspace.size
-    d = np.minimum.reduce([p[:, 0], w - p[:, 0], p[:, 1], h - p[:, 1]])
-    for ob in scenario.obstacles:
-        c, s = math.cos(ob.yaw), math.sin(ob.yaw)
-        dx, dy = p[:, 0] - ob.center[0], p[:, 1] - ob.center[1]
-        qx = np.abs(c * dx + s * dy) - ob.size[0] / 2.0
-        qy = np.abs(-s * dx + c * dy) - ob.size[1] / 2.0
-        outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
-        inside = np.minimum(np.maximum(qx, qy), 0.0)
-        d = np.minimum(d, outside + inside)
+    p = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
+    x0, y0, x1, y1 = scenario.workspace.bounds
+    d = np.minimum.reduce([p[:, 0] - x0, x1 - p[:, 0], p[:, 1] - y0, y1 - p[:, 1]])
+    pa = prepare(scenario.obstacle_pieces())
+    signed_distance_min(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]), pa.vertices, pa.count,
+                        pa.bbox, d)
     return d
 
 

@@ -25,8 +25,9 @@ MAX_ALL_PATHS = 200
 class RouteGraph:
     """An undirected route graph: a :class:`networkx.Graph` with node positions.
 
-    Edges carry ``weight`` (the segment's length [m]) and ``traffic`` (its density, 0 if
-    missing).
+    Edges carry ``weight`` (the segment's length [m]), ``traffic`` (its density, 0 if
+    missing) and ``why_not`` (why it may not be driven, "" if it may; see
+    :class:`scenarios.schema.RouteEdge`). Searches use only drivable edges (:attr:`usable`).
 
     Parameters
     ----------
@@ -44,9 +45,19 @@ class RouteGraph:
         """Neighbours of each node with the segment length [m] (a fresh dict)."""
         return {u: {v: d["weight"] for v, d in nbrs.items()} for u, nbrs in self.g.adj.items()}
 
-    def add_segment(self, a: str, b: str, traffic: float = 0.0) -> None:
-        """Join nodes ``a`` and ``b`` by a straight segment with the given traffic density."""
-        self.g.add_edge(a, b, weight=math.dist(self.pos[a], self.pos[b]), traffic=traffic)
+    def add_segment(self, a: str, b: str, traffic: float = 0.0, why_not: str = "", label: str = "") -> None:
+        """Join nodes ``a`` and ``b`` by a straight segment with the given traffic density.
+
+        ``why_not`` marks a segment that may not be driven (kept to explain a failed search);
+        ``label`` names it in messages (default ``"a-b"``).
+        """
+        self.g.add_edge(a, b, weight=math.dist(self.pos[a], self.pos[b]), traffic=traffic,
+                        why_not=why_not, label=label or f"{a}-{b}")
+
+    @property
+    def usable(self) -> nx.Graph:
+        """A view of the graph without the segments that may not be driven."""
+        return nx.subgraph_view(self.g, filter_edge=lambda a, b: not self.g.edges[a, b]["why_not"])
 
     def polyline(self, nodes: list[str]) -> np.ndarray:
         """Positions of a node sequence, shape (n, 2) [m]."""
@@ -64,8 +75,8 @@ class RouteGraph:
 def build_graph(network: RouteNetwork) -> RouteGraph:
     """Build the :class:`RouteGraph` of the scenario's route network."""
     g = RouteGraph(pos=dict(network.nodes))
-    for a, b in network.segments:
-        g.add_segment(a, b, network.traffic_of(a, b))
+    for i, (a, b) in enumerate(network.segments):
+        g.add_segment(a, b, network.traffic_of(a, b), network.why_not(i), network.edge_label(i))
     return g
 
 
@@ -110,7 +121,7 @@ def all_simple_paths(graph: RouteGraph, start: str, goal: str,
     networkx's depth-first enumeration, stopped after ``limit + 1`` paths so a huge network
     never stalls here.
     """
-    paths = list(itertools.islice(nx.all_simple_paths(graph.g, start, goal), limit + 1))
+    paths = list(itertools.islice(nx.all_simple_paths(graph.usable, start, goal), limit + 1))
     return None if len(paths) > limit else paths
 
 
@@ -120,13 +131,13 @@ def k_shortest_paths(graph: RouteGraph, start: str, goal: str, k: int) -> list[l
     Returns fewer when the graph has fewer simple paths.
     """
     try:
-        return list(itertools.islice(nx.shortest_simple_paths(graph.g, start, goal, weight="weight"), k))
+        return list(itertools.islice(nx.shortest_simple_paths(graph.usable, start, goal, weight="weight"), k))
     except nx.NetworkXNoPath:
         return []
 
 
 def candidate_routes(graph: RouteGraph, start: str, goal: str, k: int = 20,
-                     limit: int = MAX_ALL_PATHS) -> tuple[list[list[str]], str]:
+                     limit: int = MAX_ALL_PATHS, names: tuple[str, str] | None = None) -> tuple[list[list[str]], str]:
     """Candidate node sequences from ``start`` to ``goal``.
 
     Parameters
@@ -138,6 +149,8 @@ def candidate_routes(graph: RouteGraph, start: str, goal: str, k: int = 20,
         How many shortest paths to keep when the network is too large to enumerate.
     limit : int
         Enumerate all simple paths when there are at most this many.
+    names : (str, str), optional
+        Dock names of ``start`` and ``goal`` for messages, when they sit on nodes of other names.
 
     Returns
     -------
@@ -149,13 +162,31 @@ def candidate_routes(graph: RouteGraph, start: str, goal: str, k: int = 20,
     Raises
     ------
     PlanningError
-        If the goal cannot be reached from the start.
+        If the goal cannot be reached from the start over drivable segments; when only
+        inadmissible segments connect them, the message names those of the shortest such
+        route and why each may not be driven.
     """
     paths = all_simple_paths(graph, start, goal, limit)
     method = "all simple paths"
     if paths is None:
         paths, method = k_shortest_paths(graph, start, goal, k), f"{k} shortest (Yen)"
     if not paths:
-        raise PlanningError(f"no route from {start!r} to {goal!r}: the route network does not connect them")
+        raise _unconnected(graph, start, goal, names)
     paths.sort(key=lambda p: (round(graph.path_length(p), 9), p))
     return paths, method
+
+
+def _unconnected(graph: RouteGraph, start: str, goal: str, names: tuple[str, str] | None) -> PlanningError:
+    """Build the error for docks no drivable route joins, naming the inadmissible segments in the way."""
+    if names is not None and names != (start, goal):
+        what = f"from {names[0]!r} to {names[1]!r} (nodes {start} and {goal})"
+    else:
+        what = f"from {start!r} to {goal!r}"
+    try:
+        through = nx.shortest_path(graph.g, start, goal, weight="weight")
+    except nx.NetworkXNoPath:
+        return PlanningError(f"no route {what}: the route network does not connect them")
+    blocked = [graph.g.edges[a, b] for a, b in zip(through[:-1], through[1:], strict=True)]
+    blocked = [f"edge {e['label']}: {e['why_not']}" for e in blocked if e["why_not"]]
+    return PlanningError(f"no admissible route {what}: the route network joins them only over inadmissible "
+                         "segments; the shortest such route uses " + "; ".join(blocked))

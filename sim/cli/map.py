@@ -125,7 +125,9 @@ def run(args: argparse.Namespace) -> int:
     kind = "static" if args.speed is None else f"moving at {args.speed:g} m/s"
     print(f"{sc.name}: PEF {summary['model']} model ({kind}), k = {pef.k}, {nx} x {ny} cells of "
           f"{pef_map.cell_size[0]:.3g} x {pef_map.cell_size[1]:.3g} m")
-    if summary["tau_min"] is None:
+    if not sc.markers:
+        print("no markers: tau = inf everywhere (pefsim place finds where to put reflectors)")
+    elif summary["tau_min"] is None:
         print("no free cell sees enough markers for a fix")
     else:
         print(f"tau over free cells with a fix: min {summary['tau_min'] * 1e3:.3g} mm, "

@@ -37,6 +37,9 @@ def run(args: argparse.Namespace) -> int:
     if args.address and args.executor != "ray":
         raise ScenarioError(f"--address: needs --executor ray, got --executor {args.executor}")
     scenario = scenarios.load(args.scenario)
+    from sim.episode.drive import check_markers
+
+    check_markers(scenario)  # before the output directory is made
     rrd_every = args.rrd_every
     if rrd_every > 0 and not _recording_available():
         print("pefsim: warning: sim.recording is not available; --rrd-every ignored", file=sys.stderr)

@@ -51,12 +51,21 @@ def check_task(scenario: Scenario, task_index: int) -> None:
                               f"({n} tasks)" if n else f"{scenario.source}: tasks: the scenario has no task")
 
 
+def check_markers(scenario: Scenario) -> None:
+    """Raise :class:`SimulationError` when the scenario has too few markers for any fix (so no plan)."""
+    k = scenario.sensor.markers_per_fix
+    if len(scenario.markers) < k:
+        raise SimulationError(f"{scenario.source}: markers: the scenario has {len(scenario.markers)} markers, a fix "
+                              f"needs {k}: no plan is possible (pefsim place finds where to put reflectors)")
+
+
 def prepare(scenario: Scenario, task_index: int = 0, pef=None) -> Prepared:
     """Plan task ``task_index`` of ``scenario`` once (raises PlanningError if it cannot)."""
     from planner.pef.map import PEF
     from planner.plan import plan_task
 
     check_task(scenario, task_index)
+    check_markers(scenario)
     pef = pef if pef is not None else PEF(scenario)
     task = scenario.tasks[task_index]
     where = f"{scenario.source}: tasks[{task_index}] ({task.start} -> {task.goal})"

@@ -49,9 +49,12 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
     fig.colorbar(im, ax=ax, label="predicted error τ [mm] (log scale; black line: τ = ε_max)", shrink=0.8)
     draw_scene(ax, scenario)
     if scenario.routes is not None:
-        for a, b in scenario.routes.segments:
+        for i, (a, b) in enumerate(scenario.routes.segments):
             pa, pb = scenario.routes.nodes[a], scenario.routes.nodes[b]
-            ax.plot([pa[0], pb[0]], [pa[1], pb[1]], color="black", lw=0.6, alpha=0.4, zorder=2)
+            # an imported edge too close to an obstacle: kept in the graph, never driven
+            blocked = bool(scenario.routes.why_not(i))
+            ax.plot([pa[0], pb[0]], [pa[1], pb[1]], ":" if blocked else "-", color="tab:red" if blocked else "black",
+                    lw=0.6, alpha=0.4, zorder=2)
     for i, c in enumerate(plan.candidates):
         if i == plan.chosen:
             continue

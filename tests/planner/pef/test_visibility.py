@@ -9,16 +9,17 @@ import numpy as np
 import pytest
 
 import scenarios
+from planner.pef.convex import piece_arrays
 from planner.pef.visibility import (
-    box_params,
     scenario_visible_grid,
     scenario_visible_points,
     visible_grid,
     visible_points,
 )
+from scenarios.obstacles import pack_pieces
 from scenarios.schema import Obstacle
 
-WS = (20.0, 10.0)
+WS = (0.0, 0.0, 20.0, 10.0)  # workspace bounds (x0, y0, x1, y1)
 
 
 def _corners(*boxes: Obstacle) -> np.ndarray:
@@ -31,12 +32,18 @@ def _vis(points, markers, boxes=(), max_range=100.0):
     return vis.T, free
 
 
-def test_box_params_recovers_centre_axis_and_half_sizes():
+def test_piece_arrays_hold_unit_outward_normals_and_shrunk_corners():
     ob = Obstacle(center=(3.0, 4.0), size=(2.0, 1.0), yaw=0.3)
-    cx, cy, ex, ey, hx, hy = box_params(ob.corners()[None])[0]
-    assert (cx, cy) == pytest.approx((3.0, 4.0))
-    assert (ex, ey) == pytest.approx((np.cos(0.3), np.sin(0.3)))
-    assert (hx, hy) == pytest.approx((1.0, 0.5))
+    pa = piece_arrays(pack_pieces([ob]), 0.01)
+    n, c = pa.planes[0, :4, :2], pa.planes[0, :4, 2]
+    assert np.hypot(n[:, 0], n[:, 1]) == pytest.approx(np.ones(4))
+    corners = ob.corners()
+    # Edges bottom, right, top, left: the centre lies half a width or half a length inside each.
+    assert n @ corners.mean(axis=0) - c == pytest.approx([-0.5, -1.0, -0.5, -1.0])
+    # The shrunk corners are the box of half-sizes (1 - 0.01, 0.5 - 0.01) around the centre.
+    shrunk = Obstacle(center=(3.0, 4.0), size=(2.0 - 0.02, 1.0 - 0.02), yaw=0.3).corners()
+    assert pa.shrunk[0, :4] == pytest.approx(shrunk)
+    assert pa.blocks[0] and not piece_arrays(pack_pieces([ob]), 0.6).blocks[0]
 
 
 def test_box_between_point_and_marker_blocks_and_beside_does_not():
@@ -118,9 +125,9 @@ def _random_layout(rng, n_boxes, n_markers):
             t = rng.uniform(0.1, 0.9)
             markers.append(c[e] + t * (c[(e + 1) % 4] - c[e]))
         elif i % 3 == 1:  # on a wall
-            markers.append([rng.uniform(0, WS[0]), rng.choice([0.0, WS[1]])])
+            markers.append([rng.uniform(0, WS[2]), rng.choice([0.0, WS[3]])])
         else:
-            markers.append(rng.uniform([0, 0], WS))
+            markers.append(rng.uniform([0, 0], WS[2:]))
     return boxes, np.array(markers, float)
 
 
@@ -129,8 +136,8 @@ def test_grid_path_agrees_with_points_path_on_random_layouts(seed):
     rng = np.random.default_rng(seed)
     boxes, markers = _random_layout(rng, n_boxes=6, n_markers=9)
     corners = _corners(*boxes)
-    x = (np.arange(157) + 0.5) * WS[0] / 157
-    y = (np.arange(83) + 0.5) * WS[1] / 83
+    x = (np.arange(157) + 0.5) * WS[2] / 157
+    y = (np.arange(83) + 0.5) * WS[3] / 83
     vg, fg = visible_grid(x, y, markers, corners, 12.0, WS)
     xx, yy = np.meshgrid(x, y)
     vp, fp = visible_points(np.column_stack([xx.ravel(), yy.ravel()]), markers, corners, 12.0, WS)

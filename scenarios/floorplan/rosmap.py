@@ -1,0 +1,173 @@
+"""Obstacles from a ROS map_server occupancy map (a YAML file and the PGM/PNG image it names).
+
+Thresholding follows map_server (ROS 1 ``image_loader.cpp``, ROS 2 ``nav2_map_server``
+``map_io.cpp``): the shade of a pixel is the mean of its colour channels (in ``trinary``
+mode an alpha channel is averaged in too), p = (255 − shade)/255, or shade/255 with
+``negate``; a cell is occupied if p > occupied_thresh, free if p < free_thresh, else
+unknown; in ``scale`` mode a pixel that is not opaque is unknown; in ``raw`` mode the
+shade is the occupancy in percent (0..100, anything else unknown, ``negate`` ignored) and
+the same thresholds apply to it / 100. Occupied **and unknown** cells are obstacles (so
+are the probabilities between the thresholds in ``scale`` mode): the robot plans only
+through cells the map knows are free.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import shapely
+
+from scenarios.errors import ScenarioError
+from scenarios.fields import Table, show
+from scenarios.floorplan import geometry
+from scenarios.floorplan.spec import FloorPlanData
+from scenarios.floorplan.trace import trace
+
+MODES = ("trinary", "scale", "raw")
+
+
+def read_yaml(path: Path, where: str, shown: str) -> dict:
+    """Parse the map YAML at ``path`` into a dict; unreadable or malformed is one error line."""
+    import yaml
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
+        raise ScenarioError(f"{where}.file: cannot read {shown}: {reason or exc}") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else "malformed"
+        raise ScenarioError(f"{where}.file: {shown}: malformed YAML: {first}") from None
+    if not isinstance(doc, dict):
+        raise ScenarioError(f"{where}.file: {shown}: expected a map_server YAML mapping, got {show(doc)}")
+    return doc
+
+
+def shade(img) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel channel means and opacity of a Pillow image.
+
+    Returns
+    -------
+    rgb_mean, trinary_mean : ndarray, shape (H, W), float in [0, 255]
+        Mean of the colour channels; mean of all channels including alpha (map_server's
+        trinary mode averages alpha in).
+    opaque : ndarray of bool, shape (H, W)
+    """
+    mode = img.mode
+    if mode in ("I;16", "I;16B", "I;16L", "I"):
+        # 16-bit greyscale PGM: map_server's image loaders reduce it to 8 bits
+        a = np.asarray(img, dtype=np.float64)
+        g = a / 257.0 if a.max(initial=0) > 255 else a
+        return g, g, np.ones(g.shape, dtype=bool)
+    if mode in ("1", "P", "PA", "CMYK", "YCbCr", "LAB", "HSV", "F"):
+        img = img.convert("RGBA" if ("A" in mode or "transparency" in img.info) else "RGB")
+        mode = img.mode
+    a = np.asarray(img, dtype=np.float64)
+    if a.ndim == 2:
+        return a, a, np.ones(a.shape, dtype=bool)
+    has_alpha = mode in ("LA", "RGBA")
+    colour = a[..., :-1] if has_alpha else a
+    rgb = colour.mean(axis=2)
+    if not has_alpha:
+        return rgb, rgb, np.ones(rgb.shape, dtype=bool)
+    return rgb, a.mean(axis=2), a[..., -1] >= 255.0
+
+
+def classify(img, mode: str, negate: bool, occupied_thresh: float, free_thresh: float) -> np.ndarray:
+    """Obstacle cells (occupied or unknown) of a map image, shape (H, W), row 0 at the top."""
+    rgb, tri, opaque = shade(img)
+    if mode == "raw":
+        percent = np.round(rgb)
+        known = percent <= 100.0
+        p = percent / 100.0
+        return ~(known & (p < free_thresh))
+    value = tri if mode == "trinary" else rgb
+    p = value / 255.0 if negate else (255.0 - value) / 255.0
+    free = p < free_thresh
+    if mode == "scale":
+        free &= opaque
+    return ~free
+
+
+def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str | None = None,
+                shown: str | None = None) -> FloorPlanData:
+    """Read obstacle polygons from a ROS map_server map.
+
+    Parameters
+    ----------
+    path : path
+        The map YAML (``image``, ``resolution``, ``origin``, ``negate``, ``occupied_thresh``,
+        ``free_thresh``, optional ``mode``); the image path is relative to the YAML file.
+    simplify : float, optional
+        Polygon simplification tolerance [m]; default: the map resolution (it removes the
+        cell staircase of walls not aligned with the grid).
+    where, shown : str, optional
+        Key-path prefix and file name for error messages.
+
+    Returns
+    -------
+    FloorPlanData
+        Obstacles in metres in the map frame; extent = the whole map
+        (origin .. origin + size · resolution).
+
+    Raises
+    ------
+    ScenarioError
+        Missing or unreadable YAML or image, bad keys, origin yaw ≠ 0.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    shown = shown or str(path)
+    where = where or f"{shown}: floorplan"
+    t = Table(read_yaml(path, where, shown), f"{where}.file: {shown}")
+    image_name = t.string("image")
+    resolution = t.number("resolution", low=0.0, low_open=True)
+    origin = t.vector("origin", 3, what="[x, y, yaw]")
+    negate = t.raw("negate", 0)
+    if negate not in (0, 1) or isinstance(negate, float):
+        t.fail(t.key("negate"), "expected 0 or 1", negate)
+    occupied_thresh = t.number("occupied_thresh", 0.65, low=0.0, high=1.0)
+    free_thresh = t.number("free_thresh", 0.196, low=0.0, high=1.0)
+    if free_thresh > occupied_thresh:
+        t.fail(t.key("free_thresh"), f"expected free_thresh <= occupied_thresh ({occupied_thresh:g})", free_thresh)
+    mode = t.string("mode", "trinary", choices=MODES)
+    t.done()
+    if abs(origin[2]) > 1e-9:
+        t.fail(t.key("origin"), "expected yaw 0 (rotated maps are not supported: rotate the map image)",
+               list(origin))
+
+    image_path = Path(image_name)
+    if not image_path.is_absolute():
+        image_path = path.parent / image_path  # map_server: relative to the YAML file
+    try:
+        with Image.open(image_path) as img:
+            img.load()  # decode now: a truncated file fails here, not later
+            occ_img = classify(img, mode, bool(negate), occupied_thresh, free_thresh)
+    except FileNotFoundError:
+        t.fail(t.key("image"), f"cannot read the map image {image_path}: no such file", image_name)
+    except UnidentifiedImageError:
+        t.fail(t.key("image"), f"expected a PGM or PNG image, cannot read {image_path}", image_name)
+    except (OSError, ValueError, SyntaxError) as exc:
+        # Pillow: "image file is truncated", a header whose size does not match the data, ...
+        t.fail(t.key("image"), f"cannot read the map image {image_path} ({exc})", image_name)
+    h, w = occ_img.shape
+    if h == 0 or w == 0:
+        t.fail(t.key("image"), f"expected a non-empty image, {image_path} is {w} x {h}", image_name)
+
+    occ = occ_img[::-1]  # image row 0 is the top of the map; the grid's row 0 its bottom
+    polys = trace(occ)
+    ox, oy = origin[0], origin[1]
+    # Cell units -> metres: x = ox + column · resolution, y = oy + row · resolution.
+    polys = shapely.transform(np.asarray(polys, dtype=object), lambda c: c * resolution + (ox, oy))
+    tol = resolution if simplify is None else simplify
+    obstacles = geometry.obstacle_dicts(shapely.GeometryCollection(list(polys)), tol)
+    extent = (ox, oy, ox + w * resolution, oy + h * resolution)
+    if not all(math.isfinite(v) for v in extent):
+        t.fail(t.key("origin"), "expected a finite map extent", list(origin))
+    return FloorPlanData(obstacles=obstacles, markers=[], extent=extent, unit_factor=1.0, units="m",
+                        simplify=tol)
