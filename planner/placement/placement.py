@@ -310,6 +310,8 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     if data is None:
         data = _scenario_dict(scenario)
     data["markers"] = [{"id": i, "position": [float(x), float(y)]} for i, (x, y) in result.markers]
+    if isinstance(data.get("floorplan"), dict):
+        data["floorplan"].pop("marker_layer", None)  # the placed markers replace the drawing's too
     text = tomli_w.dumps(data)
     out = Path(path)
     scn.loads(text, source=str(out))  # a bug here must not leave a broken file behind
