@@ -41,7 +41,7 @@ HOLE = [(9, 4), (12, 4), (12, 7), (9, 7)]
 
 
 def shapes(x0: float = 0.0, y0: float = 0.0):
-    """The scenario, everything shifted by the workspace origin (x0, y0) [m]."""
+    """Build the scenario with everything shifted by the workspace origin (x0, y0) [m]."""
     def ring(r):
         return "[" + ", ".join(f"[{x + x0}, {y + y0}]" for x, y in r) + "]"
     obstacles = (f"[[obstacles]]\npolygon = {ring(U_SHAPE)}\n[[obstacles]]\npolygon = {ring(RING)}\n"
