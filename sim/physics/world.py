@@ -1,8 +1,9 @@
 """The PyBullet world of one scenario: floor, border walls, obstacles, marker posts, robot.
 
 The world is built in *local* coordinates: the user's frame minus ``workspace.origin``, so
-that a floor whose corner sits at (250000, 80000) keeps Bullet's single-precision arithmetic
-at millimetre-free precision. Poses cross that boundary only in :class:`DiffDriveRobot`
+that a floor whose corner sits at (250000, 80000) runs with small numbers (this pybullet
+build computes in double precision, where it hardly matters; a single-precision Bullet would
+round positions there to about a centimetre). Poses cross that boundary only in :class:`DiffDriveRobot`
 (``reset`` and ``true_pose``) and in the laser's ray ends; everything outside ``sim.physics``
 sees the user's frame.
 
