@@ -12,6 +12,9 @@ For line of sight each edge is moved by ``s``: a face of the obstacle inwards
 (``e_k = c_k - s``), so that a segment ending on a face or grazing it is not blocked; a cut
 between two pieces of one obstacle *outwards* (``e_k = c_k + s``), so that neighbouring pieces
 overlap and a segment running exactly along a cut, inside the obstacle, is still blocked.
+A circle's faces move in by its polygon's ``inset`` as well: line of sight then sees the
+inscribed polygon (vertices on the circle), free space and clearance the circumscribed one,
+each within 1 mm of the circle and each on the safe side for markers on the pillar.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ class PieceArrays:
         ``(nx, ny, c)`` of each edge: unit outward normal and offset [m]; rows past
         ``count[p]`` are unused.
     sight : ndarray, shape (P, V)
-        Offsets ``e`` of the edges for line of sight [m]: ``c - shrink`` on faces,
+        Offsets ``e`` of the edges for line of sight [m]: ``c - shrink - inset`` on faces,
         ``c + shrink`` on cuts.
     shrunk : ndarray, shape (P, V, 2)
         Corners of the line-of-sight piece (where consecutive ``sight`` lines meet) [m], for
@@ -92,7 +95,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         normal = np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]   # outward for CCW
         planes[p, :n, :2] = normal
         planes[p, :n, 2] = np.einsum("ij,ij->i", normal, q)
-        shift = np.where(pieces.inner[p, :n], shrink, -shrink)
+        shift = np.where(pieces.inner[p, :n], shrink, -shrink - pieces.inset[p, :n])
         sight[p, :n] = planes[p, :n, 2] + shift
         # Corner k joins edges k-1 and k; with their lines moved by d_{k-1} and d_k along the
         # normals it moves by the delta solving n_{k-1}.delta = d_{k-1}, n_k.delta = d_k.

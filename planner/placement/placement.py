@@ -255,7 +255,7 @@ def _scenario_dict(sc: Scenario) -> dict:
         return out
 
     d: dict = {"name": sc.name, "seed": sc.seed, "description": sc.description,
-               "workspace": {"size": list(sc.workspace.size)},
+               "workspace": {"size": list(sc.workspace.size), "origin": list(sc.workspace.origin)},
                "obstacles": [o.to_dict() for o in sc.obstacles],
                "markers": [{"id": m.id, "position": list(m.position)} for m in sc.markers],
                "sensor": spec(sc.sensor), "robot": spec(sc.robot)}
