@@ -175,3 +175,14 @@ def test_minsert_grid_and_ezdxf_r12_polylines(tmp_path):
     polys, _ = shapes(read_dxf(tmp_path / "g.dxf", obstacle_layers=["RACK"], wall_thickness=0.1))
     # the wall: 7 m of centre line, 0.1 m thick, plus two square caps of 0.05 x 0.1 m
     assert sorted(p.area for p in polys) == pytest.approx([0.1 * 7.0 + 0.01, 2.0, 2.0, 2.0])
+
+
+def test_a_wide_open_polyline_is_a_wall_of_its_width(tmp_path):
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 4
+    doc.modelspace().add_lwpolyline([(0, 0), (4000, 0)], dxfattribs={"const_width": 300})
+    doc.modelspace().add_line((0, 2000), (4000, 2000))
+    doc.saveas(tmp_path / "w.dxf")
+    polys, _ = shapes(read_dxf(tmp_path / "w.dxf", obstacle_layers=["0"], wall_thickness=0.1))
+    assert at(polys, 2.0, 0.0).area == pytest.approx((4.0 + 0.3) * 0.3)   # square caps of half the width
+    assert at(polys, 2.0, 2.0).area == pytest.approx((4.0 + 0.1) * 0.1)
