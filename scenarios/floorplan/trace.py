@@ -64,7 +64,7 @@ def trace(occ: np.ndarray) -> list[Polygon]:
         return []
     b, r_, t, l_ = br[ys, xs], bl[ys, xs], tr[ys, xs], tl[ys, xs]
     one = n[ys, xs] == 1
-    # Outgoing direction with the obstacle on the left (see the module docstring):
+    # Outgoing direction with the obstacle on the left (exteriors run counter-clockwise),
     # 0 = +x, 1 = +y, 2 = -x, 3 = -y.
     dirs = np.empty(len(xs), dtype=np.int8)
     # one obstacle cell: lower-left -> -x, lower-right -> -y, upper-right -> +x, upper-left -> +y
