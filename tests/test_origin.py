@@ -63,3 +63,28 @@ def test_an_episode_far_from_zero_drives_like_the_one_at_zero():
     err = np.abs(b.steps.true_pose[:n, :2] - [dx, dy] - a.steps.true_pose[:n, :2]).max()
     assert err < 1e-6, err
     assert abs(a.summary["max_error"] - b.summary["max_error"]) < 1e-6
+
+
+def test_a_marker_on_the_far_wall_of_a_far_workspace_is_inside():
+    # 250000.3 + 30.3 and 5300000.1 + 20.1 round below the literals 250030.6 and 5300020.2:
+    # markers written on those walls are still on them.
+    assert 250000.3 + 30.3 < 250030.6 and 5300000.1 + 20.1 < 5300020.2
+    text = """
+name = "far"
+[workspace]
+size = [30.3, 20.1]
+origin = [250000.3, 5300000.1]
+[[markers]]
+id = "A"
+position = [250030.6, 5300020.2]
+[[markers]]
+id = "B"
+position = [250000.3, 5300000.1]
+[sensor]
+[planning]
+eps_max = 0.05
+"""
+    sc = scenarios.loads(text)
+    assert sc.workspace.contains(sc.markers[0].position)
+    with pytest.raises(scenarios.ScenarioError, match=r"markers\[0\]\.position: expected \[x, y\] inside"):
+        scenarios.loads(text.replace("250030.6", "250030.601"))

@@ -72,6 +72,8 @@ def prepare(obstacles) -> PieceArrays:
 class _Corners:
     """Box corners standing in for an obstacle in :func:`pack_pieces`."""
 
+    kind = "box"
+
     def __init__(self, corners: np.ndarray) -> None:
         self._c = corners
 
