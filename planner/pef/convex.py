@@ -48,6 +48,9 @@ class PieceArrays:
         Edges (= vertices) of each piece.
     bbox : ndarray, shape (P, 4)
         ``(xmin, ymin, xmax, ymax)`` of each piece [m].
+    sight_bbox : ndarray, shape (P, 4)
+        The same of each line-of-sight piece (corners ``shrunk``) [m]: a cut moved out pokes
+        past ``bbox``, so line-of-sight tests must not reject segments by ``bbox``.
     blocks : ndarray of bool, shape (P,)
         The piece keeps an interior when shrunk (a sliver thinner than ``2 shrink`` does not,
         and blocks no line of sight, as a box that thin never did).
@@ -61,6 +64,7 @@ class PieceArrays:
     shrunk: np.ndarray
     count: np.ndarray
     bbox: np.ndarray
+    sight_bbox: np.ndarray
     blocks: np.ndarray
     shrink: float
 
@@ -86,6 +90,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
     sight = np.zeros((p_n, v_n))
     shrunk = np.zeros((p_n, v_n, 2))
     bbox = np.zeros((p_n, 4))
+    sight_bbox = np.zeros((p_n, 4))
     blocks = np.zeros(p_n, dtype=np.bool_)
     for p in range(p_n):
         n = int(count[p])
@@ -107,10 +112,12 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         shrunk[p, n:] = shrunk[p, n - 1]
         sight[p, n:] = sight[p, n - 1]
         bbox[p] = (*q.min(axis=0), *q.max(axis=0))
+        sight_bbox[p] = (*shrunk[p, :n].min(axis=0), *shrunk[p, :n].max(axis=0))
         # The moved piece is a piece when every moved edge still runs the way its edge does.
         se = np.roll(shrunk[p, :n], -1, axis=0) - shrunk[p, :n]
         blocks[p] = bool(np.all(np.einsum("ij,ij->i", se, e) > 0.0))
-    return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, blocks, float(shrink))
+    return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, sight_bbox, blocks,
+                       float(shrink))
 
 
 @numba.njit(cache=True)

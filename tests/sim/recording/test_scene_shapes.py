@@ -43,3 +43,22 @@ def test_the_workspace_is_drawn_at_its_origin():
     lo, hi = ax.get_xlim()
     assert lo < x0 < x1 < hi and (x0, y0) == (250.0, -80.0)
     assert rectangle_ring(*sc.workspace.size, sc.workspace.origin)[2].tolist() == [x1, y1]
+
+
+def test_the_recording_holds_every_ring_of_every_obstacle_in_the_users_frame(tmp_path):
+    from sim import recording
+    from sim.recording import entities as E
+    from tests.sim.recording.test_episode_recording import Readback
+
+    sc = hall()
+    back = Readback(recording.write_static_rrd(tmp_path / "static.rrd", sc))
+    _, strips = back.column(E.OBSTACLES, "LineStrips2D:strips", timeline=None)
+    rings = [np.asarray(r) for r in strips[0]]
+    # The U, the pillar, the ring's outer face and its hole: closed strips on the faces.
+    assert len(rings) == 4 and all(np.array_equal(r[0], r[-1]) for r in rings)
+    hole = min(rings, key=lambda r: np.ptp(r, axis=0).prod())
+    assert np.allclose(hole.min(axis=0), [16.5, 11.8]) and np.allclose(hole.max(axis=0), [18.0, 12.7])
+    far = shifted("paper-docks", 250.0, -80.0)
+    back = Readback(recording.write_static_rrd(tmp_path / "far.rrd", far))
+    _, ws = back.column(E.WORKSPACE, "LineStrips2D:strips", timeline=None)
+    assert np.allclose(np.asarray(ws[0][0]).min(axis=0), [250.0, -80.0])
