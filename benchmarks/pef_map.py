@@ -2,7 +2,9 @@
 
 Parallelogram and GDOP models, without occlusion and with 50 box obstacles, against a naive
 pure-Python evaluation measured in the same run (on a 20 x 20 subgrid, extrapolated per cell),
-plus the numba compile / cache-load time.
+plus the numba compile / cache-load time. A third floor has polygon obstacles
+(:data:`N_SHAPES`: concave U and L shapes, square rings with a hole, round pillars); its map is
+checked against the points path (:meth:`PEF.at`, Cyrus-Beck clipping per point) on the subgrid.
 
 Targets (2 cores): parallelogram map <= 0.1 s without occlusion, <= 0.5 s with 50 boxes.
 Wall times are the best of ``--repeat`` calls (the median is printed too, as the machine may be
@@ -39,6 +41,7 @@ RESOLUTION = 0.1    # -> 1000 x 1000 cells
 N_MARKERS = 20
 N_BOXES = 50
 SUB = 20            # naive baseline on SUB x SUB cells spread over the map
+N_SHAPES = {"u": 15, "l": 10, "ring": 5, "pillar": 20}
 
 
 def bench_scenario(n_boxes: int, model: str, seed: int = 1) -> scenarios.Scenario:
@@ -57,6 +60,36 @@ def bench_scenario(n_boxes: int, model: str, seed: int = 1) -> scenarios.Scenari
         "markers": [{"id": f"M{i}", "position": [float(x), float(y)]} for i, (x, y) in enumerate(pos)],
         "sensor": {"relative_error": 6.7e-5, "absolute_error": 0.002, "max_range": 2 * SIZE,
                    "markers_per_fix": 2},
+        "planning": {"eps_max": 0.03, "pef_model": model, "resolution": RESOLUTION, "gdop_level": 0.95},
+    }, "benchmark")
+
+
+def shapes_scenario(model: str, seed: int = 2) -> scenarios.Scenario:
+    """Build the 100 x 100 m floor of :func:`bench_scenario` with :data:`N_SHAPES` polygon obstacles."""
+    rng = np.random.default_rng(seed)
+    base = bench_scenario(0, model)
+    templates = {"u": [(0, 0), (4, 0), (4, 3), (3, 3), (3, 1), (1, 1), (1, 3), (0, 3)],
+                 "l": [(0, 0), (5, 0), (5, 1), (1, 1), (1, 4), (0, 4)]}
+    obstacles = []
+    for kind, n in N_SHAPES.items():
+        for _ in range(n):
+            c = rng.uniform(10, SIZE - 10, 2)
+            a = rng.uniform(0, 2 * math.pi)
+            rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+            if kind == "pillar":
+                obstacles.append({"center": c.tolist(), "radius": float(rng.uniform(0.3, 1.0))})
+                continue
+            if kind == "ring":
+                outer = np.array([(-3, -3), (3, -3), (3, 3), (-3, 3)], float)
+                obstacles.append({"polygon": (outer @ rot.T + c).tolist(),
+                                  "holes": [((0.65 * outer) @ rot.T + c).tolist()]})
+                continue
+            ring = np.array(templates[kind], float) * rng.uniform(0.8, 1.5)
+            obstacles.append({"polygon": ((ring - ring.mean(axis=0)) @ rot.T + c).tolist()})
+    return scenarios.from_dict({
+        "name": "bench-shapes", "workspace": {"size": [SIZE, SIZE]}, "obstacles": obstacles,
+        "markers": [{"id": m.id, "position": list(m.position)} for m in base.markers],
+        "sensor": {"relative_error": 6.7e-5, "absolute_error": 0.002, "max_range": 2 * SIZE, "markers_per_fix": 2},
         "planning": {"eps_max": 0.03, "pef_model": model, "resolution": RESOLUTION, "gdop_level": 0.95},
     }, "benchmark")
 
@@ -178,7 +211,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as d:
             cold = first_call_overhead(d)
 
-    rows, figures = [], {}
+    rows, figures, shape_rows = [], {}, []
     for n_boxes in (0, N_BOXES):
         for model in ("parallelogram", "gdop"):
             sc = bench_scenario(n_boxes, model)
@@ -205,12 +238,37 @@ def main() -> None:
                             "max_rel_diff_vs_naive": err, "same_inf_cells": agree}
             rows.append((model, n_boxes, wall, median, cpu / 2, naive, naive / wall, err))
 
+    for model in ("parallelogram", "gdop"):
+        sc = shapes_scenario(model)
+        pef = PEF(sc)
+        pef.grid(1.0)
+        (wall, cpu, median), pm = best_of(args.repeat, lambda pef=pef: pef.grid())
+        iy = np.linspace(0, 999, SUB).astype(int)
+        ix = np.linspace(0, 999, SUB).astype(int)
+        gx, gy = np.meshgrid(pm.x[ix], pm.y[iy])
+        ref = pef.at(np.column_stack([gx.ravel(), gy.ravel()])).tau.reshape(SUB, SUB)
+        fast = pm.tau[np.ix_(iy, ix)]
+        fin = np.isfinite(ref)
+        agree = bool(np.array_equal(fin, np.isfinite(fast)))
+        err = float(np.max(np.abs(fast[fin] / ref[fin] - 1))) if fin.any() else 0.0
+        figures[f"{model}_shapes"] = {"wall_s": round(wall, 4), "wall_median_s": round(median, 4),
+                                      "cpu_over_2_s": round(cpu / 2, 4), "obstacles": len(sc.obstacles),
+                                      "convex_pieces": len(sc.obstacle_pieces()),
+                                      "max_rel_diff_vs_points_path": err, "same_inf_cells": agree}
+        shape_rows.append((model, len(sc.obstacles), len(sc.obstacle_pieces()), wall, median, cpu / 2, err, agree))
+
     print(f"PEF map, {1000}x{1000} cells, {N_MARKERS} markers, k = 2, best of {args.repeat} "
           f"(load average {load_before:.1f} before, {os.getloadavg()[0]:.1f} after, on {os.cpu_count()} cores)")
     print(f"{'model':<14} {'boxes':>5} {'wall [s]':>9} {'median':>7} {'cpu/2 [s]':>9} {'naive [s]':>10} "
           f"{'speedup':>9} {'max rel diff':>12}")
     for model, nb, wall, median, cpu2, naive, sp, err in rows:
         print(f"{model:<14} {nb:>5} {wall:9.3f} {median:7.3f} {cpu2:9.3f} {naive:10.0f} {sp:9.0f} {err:12.1e}")
+    print(f"polygon floor ({', '.join(f'{n} {k}' for k, n in N_SHAPES.items())}): "
+          f"{'model':<14} {'obst.':>5} {'pieces':>6} {'wall [s]':>9} {'median':>7} {'cpu/2 [s]':>9} "
+          f"{'vs points':>10} {'inf same':>8}")
+    for model, n_ob, n_pc, wall, median, cpu2, err, agree in shape_rows:
+        print(f"{'':>{len('polygon floor ()') + len(', '.join(f'{n} {k}' for k, n in N_SHAPES.items())) + 2}}"
+              f"{model:<14} {n_ob:>5} {n_pc:>6} {wall:9.3f} {median:7.3f} {cpu2:9.3f} {err:10.1e} {str(agree):>8}")
     print(f"numba first-call overhead: {warm:.2f} s from the cache, "
           f"{cold:.2f} s compiling into an empty cache")
     print(json.dumps({"cells": 1_000_000, "markers": N_MARKERS, "k": 2, "boxes": N_BOXES, **figures,

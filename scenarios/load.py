@@ -155,7 +155,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
 
     ws_t = root.table("workspace")
     workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True),
-                          ws_t.vector("origin", 2, (0.0, 0.0), what="[x, y]"))
+                          origin=ws_t.vector("origin", 2, (0.0, 0.0), what="[x0, y0] in metres"))
     ws_t.done()
 
     obstacles = [read_obstacle(t) for t in root.array_of_tables("obstacles")]

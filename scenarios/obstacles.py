@@ -131,7 +131,8 @@ class Obstacle:
 
         A box grows on every side (square corners, as always); other shapes grow by distance
         (round corners). A negative margin shrinks the obstacle: the point must be inside and
-        at least ``-margin`` from its boundary.
+        at least ``-margin`` from its boundary. A circle is tested as the true circle (not its
+        polygon), so that markers on a pillar's surface count as outside it.
         """
         return bool(self.contains_points(np.asarray(p, float)[None, :2], margin)[0])
 
@@ -143,6 +144,9 @@ class Obstacle:
             dx, dy = q[:, 0] - self.center[0], q[:, 1] - self.center[1]
             lx, ly = c * dx + s * dy, -s * dx + c * dy
             return (np.abs(lx) <= self.size[0] / 2 + margin) & (np.abs(ly) <= self.size[1] / 2 + margin)
+        if self.kind == "circle":
+            # The true circle: a reflector on a pillar's surface is outside it.
+            return np.hypot(q[:, 0] - self.center[0], q[:, 1] - self.center[1]) <= self.radius + margin
         g = self._geometry
         pts = shapely.points(q)
         if margin >= 0.0:
@@ -182,6 +186,11 @@ class ConvexPieces:
     inner : ndarray of bool, shape (P, V)
         ``inner[p, k]``: edge k (from vertex k to k + 1) lies inside its obstacle, a cut
         between two of its pieces, not on the obstacle's boundary.
+    inset : ndarray, shape (P, V)
+        How far face k lies outside the true obstacle [m]: for a circle's circumscribed
+        polygon ``r (1 - cos(pi / n))`` on every face (moved in by that much its polygon is
+        the inscribed one, whose vertices lie on the circle), 0 elsewhere. Line of sight uses
+        it, so that a marker on a pillar's surface is seen from its side.
 
     Compared and hashed by identity, so that kernels' preparations can be cached per object.
     """
@@ -190,6 +199,7 @@ class ConvexPieces:
     count: np.ndarray
     owner: np.ndarray
     inner: np.ndarray
+    inset: np.ndarray
 
     def __len__(self) -> int:
         return int(self.count.size)
@@ -203,13 +213,16 @@ def pack_pieces(obstacles) -> ConvexPieces:
     count = np.zeros(len(pieces), dtype=np.int64)
     owner = np.zeros(len(pieces), dtype=np.int64)
     inner = np.zeros((len(pieces), nv), dtype=np.bool_)
+    inset = np.zeros((len(pieces), nv))
     for i, (k, p) in enumerate(pieces):
         verts[i, :len(p)] = p
         verts[i, len(p):] = p[-1]
         count[i], owner[i] = len(p), k
+        if obstacles[k].kind == "circle":
+            inset[i, :len(p)] = obstacles[k].radius * (1.0 - math.cos(math.pi / len(p)))
         if len(obstacles[k].pieces()) > 1:
             # A cut's midpoint lies well inside the obstacle, a face's on its boundary.
             mid = 0.5 * (p + np.roll(p, -1, axis=0))
             scale = float(np.ptp(p, axis=0).max())
             inner[i, :len(p)] = shapely.distance(obstacles[k].geometry().boundary, shapely.points(mid)) > 1e-9 * scale
-    return ConvexPieces(verts, count, owner, inner)
+    return ConvexPieces(verts, count, owner, inner, inset)

@@ -72,9 +72,15 @@ class Workspace:
         return (x0, y0, x0 + self.size[0], y0 + self.size[1])
 
     def contains(self, p: tuple[float, float] | np.ndarray) -> bool:
-        """Tell whether point ``p`` (x, y) [m] lies in the closed workspace rectangle."""
+        """Tell whether point ``p`` (x, y) [m] lies in the closed workspace rectangle.
+
+        A point on the far walls may miss ``origin + size`` by a rounding (a marker at
+        x = 250030.1 with the origin at 250000 and a width of 30.1): a few units in the last
+        place of the coordinates, plus a nanometre, count as on the wall.
+        """
         x0, y0, x1, y1 = self.bounds
-        return x0 <= p[0] <= x1 and y0 <= p[1] <= y1
+        tol = 1e-9 + 4.0 * float(np.spacing(max(abs(x0), abs(y0), abs(x1), abs(y1))))
+        return x0 - tol <= p[0] <= x1 + tol and y0 - tol <= p[1] <= y1 + tol
 
 
 @dataclass(frozen=True)

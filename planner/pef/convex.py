@@ -12,6 +12,9 @@ For line of sight each edge is moved by ``s``: a face of the obstacle inwards
 (``e_k = c_k - s``), so that a segment ending on a face or grazing it is not blocked; a cut
 between two pieces of one obstacle *outwards* (``e_k = c_k + s``), so that neighbouring pieces
 overlap and a segment running exactly along a cut, inside the obstacle, is still blocked.
+A circle's faces move in by its polygon's ``inset`` as well: line of sight then sees the
+inscribed polygon (vertices on the circle), free space and clearance the circumscribed one,
+each within 1 mm of the circle and each on the safe side for markers on the pillar.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ class PieceArrays:
         ``(nx, ny, c)`` of each edge: unit outward normal and offset [m]; rows past
         ``count[p]`` are unused.
     sight : ndarray, shape (P, V)
-        Offsets ``e`` of the edges for line of sight [m]: ``c - shrink`` on faces,
+        Offsets ``e`` of the edges for line of sight [m]: ``c - shrink - inset`` on faces,
         ``c + shrink`` on cuts.
     shrunk : ndarray, shape (P, V, 2)
         Corners of the line-of-sight piece (where consecutive ``sight`` lines meet) [m], for
@@ -45,6 +48,9 @@ class PieceArrays:
         Edges (= vertices) of each piece.
     bbox : ndarray, shape (P, 4)
         ``(xmin, ymin, xmax, ymax)`` of each piece [m].
+    sight_bbox : ndarray, shape (P, 4)
+        The same of each line-of-sight piece (corners ``shrunk``) [m]: a cut moved out pokes
+        past ``bbox``, so line-of-sight tests must not reject segments by ``bbox``.
     blocks : ndarray of bool, shape (P,)
         The piece keeps an interior when shrunk (a sliver thinner than ``2 shrink`` does not,
         and blocks no line of sight, as a box that thin never did).
@@ -58,6 +64,7 @@ class PieceArrays:
     shrunk: np.ndarray
     count: np.ndarray
     bbox: np.ndarray
+    sight_bbox: np.ndarray
     blocks: np.ndarray
     shrink: float
 
@@ -83,6 +90,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
     sight = np.zeros((p_n, v_n))
     shrunk = np.zeros((p_n, v_n, 2))
     bbox = np.zeros((p_n, 4))
+    sight_bbox = np.zeros((p_n, 4))
     blocks = np.zeros(p_n, dtype=np.bool_)
     for p in range(p_n):
         n = int(count[p])
@@ -92,7 +100,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         normal = np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]   # outward for CCW
         planes[p, :n, :2] = normal
         planes[p, :n, 2] = np.einsum("ij,ij->i", normal, q)
-        shift = np.where(pieces.inner[p, :n], shrink, -shrink)
+        shift = np.where(pieces.inner[p, :n], shrink, -shrink - pieces.inset[p, :n])
         sight[p, :n] = planes[p, :n, 2] + shift
         # Corner k joins edges k-1 and k; with their lines moved by d_{k-1} and d_k along the
         # normals it moves by the delta solving n_{k-1}.delta = d_{k-1}, n_k.delta = d_k.
@@ -104,10 +112,12 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         shrunk[p, n:] = shrunk[p, n - 1]
         sight[p, n:] = sight[p, n - 1]
         bbox[p] = (*q.min(axis=0), *q.max(axis=0))
+        sight_bbox[p] = (*shrunk[p, :n].min(axis=0), *shrunk[p, :n].max(axis=0))
         # The moved piece is a piece when every moved edge still runs the way its edge does.
         se = np.roll(shrunk[p, :n], -1, axis=0) - shrunk[p, :n]
         blocks[p] = bool(np.all(np.einsum("ij,ij->i", se, e) > 0.0))
-    return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, blocks, float(shrink))
+    return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, sight_bbox, blocks,
+                       float(shrink))
 
 
 @numba.njit(cache=True)

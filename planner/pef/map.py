@@ -103,7 +103,8 @@ class PefMap:
         return self.free & (self.tau < eps_max)
 
 
-def grid_centres(size: tuple[float, float], resolution: float) -> tuple[np.ndarray, np.ndarray]:
+def grid_centres(size: tuple[float, float], resolution: float,
+                 origin: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """Cell centres of the grid that divides the workspace evenly into cells of about ``resolution``.
 
     Parameters
@@ -112,20 +113,22 @@ def grid_centres(size: tuple[float, float], resolution: float) -> tuple[np.ndarr
         Workspace width and height [m].
     resolution : float
         Wanted cell size [m] > 0.
+    origin : (float, float)
+        Lower-left corner of the workspace (``Workspace.origin``) [m].
 
     Returns
     -------
     x : ndarray, shape (nx,)
-        ``(i + 1/2) * width / nx`` with ``nx = max(1, round(width / resolution))`` [m].
+        ``x0 + (i + 1/2) * width / nx`` with ``nx = max(1, round(width / resolution))`` [m].
     y : ndarray, shape (ny,)
         Likewise for the height [m].
     """
     if not (resolution > 0.0 and math.isfinite(resolution)):
         raise PlanningError(f"resolution: expected a positive number of metres, got {resolution}")
     out = []
-    for extent in size:
+    for extent, start in zip(size, origin, strict=True):
         n = max(1, int(round(extent / resolution)))
-        out.append((np.arange(n) + 0.5) * (extent / n))
+        out.append(float(start) + (np.arange(n) + 0.5) * (extent / n))
     cells = out[0].size * out[1].size
     if cells > MAX_CELLS:
         raise PlanningError(f"resolution: {resolution} m gives {cells} cells (at most {MAX_CELLS})")
@@ -216,9 +219,7 @@ class PEF:
         PefMap
         """
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
-        x, y = grid_centres(self.scenario.workspace.size, res)
-        x0, y0 = self.scenario.workspace.origin  # the grid covers the workspace where it lies
-        x, y = x + x0, y + y0
+        x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)

@@ -72,6 +72,8 @@ def prepare(obstacles) -> PieceArrays:
 class _Corners:
     """Box corners standing in for an obstacle in :func:`pack_pieces`."""
 
+    kind = "box"
+
     def __init__(self, corners: np.ndarray) -> None:
         self._c = corners
 
@@ -91,12 +93,13 @@ def _is_free(px, py, x0, y0, x1, y1, planes, count, bbox):
 
 
 @numba.njit(cache=True)
-def _blocked(ax, ay, bx, by, planes, sight, count, bbox, blocks):
-    """Tell whether segment a-b enters the shrunk interior of any blocking piece."""
+def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
+    """Tell whether segment a-b enters the open line-of-sight piece of any blocking piece."""
     lox, hix = min(ax, bx), max(ax, bx)
     loy, hiy = min(ay, by), max(ay, by)
     for p in range(count.size):
-        if not blocks[p] or bbox[p, 0] >= hix or bbox[p, 2] <= lox or bbox[p, 1] >= hiy or bbox[p, 3] <= loy:
+        if (not blocks[p] or sight_bbox[p, 0] >= hix or sight_bbox[p, 2] <= lox or sight_bbox[p, 1] >= hiy
+                or sight_bbox[p, 3] <= loy):
             continue
         if segment_enters(ax, ay, bx, by, planes, sight, count, p):
             return True
@@ -104,8 +107,8 @@ def _blocked(ax, ay, bx, by, planes, sight, count, bbox, blocks):
 
 
 @numba.njit(cache=True, nogil=True)
-def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, planes, sight, count, bbox, blocks,
-                          vis, free):
+def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, planes, sight, count, bbox,
+                          sight_bbox, blocks, vis, free):
     r2max = max_range * max_range
     for n in range(lo, hi):
         f = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
@@ -116,7 +119,7 @@ def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, pla
                 dx, dy = px[n] - mx[m], py[n] - my[m]
                 ok = dx * dx + dy * dy <= r2max
             if ok:
-                ok = not _blocked(px[n], py[n], mx[m], my[m], planes, sight, count, bbox, blocks)
+                ok = not _blocked(px[n], py[n], mx[m], my[m], planes, sight, count, sight_bbox, blocks)
             vis[m, n] = ok
 
 
@@ -154,7 +157,7 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     run_ranges(_visible_points_range, p.shape[0],
                (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
                 np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), float(max_range),
-                x0, y0, x1, y1, pa.planes, pa.sight, pa.count, pa.bbox, pa.blocks, vis, free),
+                x0, y0, x1, y1, pa.planes, pa.sight, pa.count, pa.bbox, pa.sight_bbox, pa.blocks, vis, free),
                min_chunk=2048)
     return vis, free
 
@@ -163,7 +166,7 @@ def segment_blocked(a, b, obstacles) -> bool:
     """Tell whether segment a-b (each (x, y) [m]) crosses an obstacle's interior (line of sight)."""
     pa = prepare(obstacles)
     return bool(_blocked(float(a[0]), float(a[1]), float(b[0]), float(b[1]), pa.planes, pa.sight, pa.count,
-                         pa.bbox, pa.blocks))
+                         pa.sight_bbox, pa.blocks))
 
 
 # --- grid path ------------------------------------------------------------------------------

@@ -255,7 +255,7 @@ def _scenario_dict(sc: Scenario) -> dict:
         return out
 
     d: dict = {"name": sc.name, "seed": sc.seed, "description": sc.description,
-               "workspace": {"size": list(sc.workspace.size)},
+               "workspace": {"size": list(sc.workspace.size), "origin": list(sc.workspace.origin)},
                "obstacles": [o.to_dict() for o in sc.obstacles],
                "markers": [{"id": m.id, "position": list(m.position)} for m in sc.markers],
                "sensor": spec(sc.sensor), "robot": spec(sc.robot)}
@@ -319,6 +319,8 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     if scenario.routes is not None and scenario.routes.source:
         # a relative graph file would be looked up beside the new scenario: name it absolutely
         data["routes"]["file"] = str(Path(scenario.routes.source).resolve())
+    if isinstance(data.get("floorplan"), dict):
+        data["floorplan"].pop("marker_layer", None)  # the placed markers replace the drawing's too
     text = tomli_w.dumps(data)
     out = Path(path)
     scn.loads(text, source=str(out), base=out.parent)  # a bug here must not leave a broken file behind

@@ -102,10 +102,11 @@ def free_points(scenario: Scenario, spacing: float | None = None) -> np.ndarray:
     from planner.routes.criteria import clearance
 
     w, h = scenario.workspace.size
+    x0, y0 = scenario.workspace.origin
     step = scenario.planning.resolution if spacing is None else float(spacing)
     while True:
         nx, ny = max(1, round(w / step)), max(1, round(h / step))
-        x, y = (np.arange(nx) + 0.5) * w / nx, (np.arange(ny) + 0.5) * h / ny
+        x, y = x0 + (np.arange(nx) + 0.5) * w / nx, y0 + (np.arange(ny) + 0.5) * h / ny
         pts = np.column_stack([np.tile(x, ny), np.repeat(y, nx)])
         pts = pts[clearance(pts, scenario) >= scenario.robot.radius]
         if len(pts) <= MAX_FREE_POINTS or spacing is not None:
@@ -127,8 +128,7 @@ class _FlatPEF:
         from planner.pef.map import grid_centres
 
         res = self.scenario.planning.resolution if resolution is None else resolution
-        x, y = grid_centres(self.scenario.workspace.size, res)
-        x, y = x + self.scenario.workspace.origin[0], y + self.scenario.workspace.origin[1]
+        x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
         return SimpleNamespace(x=x, y=y, tau=np.zeros((y.size, x.size)), free=np.ones((y.size, x.size), bool),
                                cell_size=(size[0] / x.size, size[1] / y.size))

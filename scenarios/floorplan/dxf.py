@@ -1,9 +1,10 @@
 """Obstacles and reflectors from a DXF drawing (ezdxf).
 
 Read from the obstacle layers: LINE, ARC and open LWPOLYLINE/POLYLINE/SPLINE/ELLIPSE become
-walls of ``wall_thickness``; closed polylines are filled, nested ones by the even-odd rule
-(an outer and an inner outline make a ring wall); HATCH (and MPOLYGON) boundaries, SOLID and
-TRACE, closed splines and ellipses are filled; CIRCLE is a circle obstacle. INSERT (block
+walls of ``wall_thickness`` (an open LWPOLYLINE with a constant width: a wall that wide);
+closed polylines are filled, nested ones by the even-odd rule (an outer and an inner outline
+make a ring wall); HATCH (and MPOLYGON) boundaries, SOLID and TRACE, closed splines and
+ellipses are filled; CIRCLE is a circle obstacle. INSERT (block
 references, MINSERT grids, nested, rotated, scaled) is expanded; an entity on layer "0"
 inside a block takes the layer of its INSERT, as in CAD. Everything else (text, dimensions,
 other layers) is ignored. Arcs and bulges are flattened within the simplification tolerance.
@@ -95,6 +96,7 @@ class _Found:
 
     rings: list[np.ndarray] = field(default_factory=list)      # closed outlines, even-odd
     lines: list[np.ndarray] = field(default_factory=list)      # open centre lines -> walls
+    wide: list[tuple[np.ndarray, float]] = field(default_factory=list)  # polylines with a width
     filled: list[list[np.ndarray]] = field(default_factory=list)  # each: rings filled even-odd
     circles: list[tuple[float, float, float]] = field(default_factory=list)  # x, y, r
     markers: list[tuple[float, float, float | None, str | None]] = field(default_factory=list)
@@ -184,7 +186,10 @@ class _Reader:
                 closed = False
             # An outline whose last vertex is its first is closed, whatever its flag says.
             closed = closed or (len(pts) > 3 and np.allclose(pts[0], pts[-1]))
-            if not closed:
+            width = float(e.dxf.get("const_width", 0.0)) if kind == "LWPOLYLINE" else 0.0
+            if not closed and width > 0.0:
+                f.wide.append((pts, width))  # a wall drawn as a wide polyline keeps its width
+            elif not closed:
                 f.lines.append(pts)
             elif kind in ("LWPOLYLINE", "POLYLINE"):
                 f.rings.append(pts)
@@ -263,7 +268,8 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
 
     rings = [r * factor for r in found.rings]
     closed = geometry.even_odd(rings)
-    walls = geometry.walls([ln * factor for ln in found.lines], wall_thickness)
+    walls = shapely.union_all([geometry.walls([ln * factor for ln in found.lines], wall_thickness),
+                               *(geometry.walls([ln * factor], w * factor) for ln, w in found.wide)])
     filled = [geometry.even_odd([r * factor for r in group]) for group in found.filled]
     area = shapely.union_all([closed, walls, *filled])
     obstacles = geometry.obstacle_dicts(area, 0.5 * simplify)

@@ -114,6 +114,7 @@ def obstacle_dicts(geom: BaseGeometry, simplify: float) -> list[dict]:
     if len(polys) == 0:
         return []
     polys = polys[shapely.area(polys) > 0.0]
+    polys = np.asarray([_apart(p) for p in polys], dtype=object)
     # Vectorised for traced maps with thousands of polygons: exteriors counter-clockwise,
     # holes clockwise, coordinates split per ring without a Python call per vertex.
     polys = np.asarray([orient(p, 1.0) for p in polys], dtype=object)
@@ -126,6 +127,25 @@ def obstacle_dicts(geom: BaseGeometry, simplify: float) -> list[dict]:
             d["holes"] = _split_rings(np.asarray(p.interiors, dtype=object))
         out.append(d)
     return out
+
+
+def _apart(poly: Polygon) -> Polygon:
+    """Shrink holes that touch the exterior or each other (at a point) by 1 µm.
+
+    A valid shapely polygon may have such holes; a scenario's holes must lie strictly inside
+    and apart (the obstacle loader's rule), and a 1 µm gap changes nothing for a robot.
+    """
+    if not poly.interiors:
+        return poly
+    holes = [Polygon(h) for h in poly.interiors]
+    shell = Polygon(poly.exterior)
+    merged = shapely.union_all(holes)
+    touching = not all(shell.contains_properly(h) for h in holes) or len(polygons_of(merged)) != len(holes) \
+        or any(a.intersects(b) for i, a in enumerate(holes) for b in holes[i + 1:])
+    if not touching:
+        return poly
+    shrunk = [q for h in holes for q in polygons_of(h.buffer(-1e-6, join_style="mitre")) if q.area > 0.0]
+    return Polygon(poly.exterior, [q.exterior for q in shrunk])
 
 
 def _split_rings(rings: np.ndarray) -> list[list[list[float]]]:

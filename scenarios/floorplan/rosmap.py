@@ -14,6 +14,7 @@ through cells the map knows are free.
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -145,9 +146,12 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     if not image_path.is_absolute():
         image_path = path.parent / image_path  # map_server: relative to the YAML file
     try:
-        with Image.open(image_path) as img:
-            img.load()  # decode now: a truncated file fails here, not later
-            occ_img = classify(img, mode, bool(negate), occupied_thresh, free_thresh)
+        with warnings.catch_warnings():
+            # A big site map is not a decompression bomb; Pillow's warning would be stray output.
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(image_path) as img:
+                img.load()  # decode now: a truncated file fails here, not later
+                occ_img = classify(img, mode, bool(negate), occupied_thresh, free_thresh)
     except FileNotFoundError:
         t.fail(t.key("image"), f"cannot read the map image {image_path}: no such file", image_name)
     except UnidentifiedImageError:

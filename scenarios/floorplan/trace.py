@@ -62,23 +62,22 @@ def trace(occ: np.ndarray) -> list[Polygon]:
     ys, xs = np.nonzero(corner)
     if len(xs) == 0:
         return []
-    b, r_, t, l_ = br[ys, xs], bl[ys, xs], tr[ys, xs], tl[ys, xs]
+    c_bl, c_br, c_tl, c_tr = bl[ys, xs], br[ys, xs], tl[ys, xs], tr[ys, xs]
     one = n[ys, xs] == 1
-    # Outgoing direction with the obstacle on the left (see the module docstring):
-    # 0 = +x, 1 = +y, 2 = -x, 3 = -y.
-    dirs = np.empty(len(xs), dtype=np.int8)
-    # one obstacle cell: lower-left -> -x, lower-right -> -y, upper-right -> +x, upper-left -> +y
-    dirs[one & r_] = 2
-    dirs[one & b] = 3
-    dirs[one & t] = 0
-    dirs[one & l_] = 1
-    # three obstacle cells, the free one: lower-left -> -y, lower-right -> +x, upper-right -> +y,
-    # upper-left -> -x
     three = ~one
-    dirs[three & ~r_] = 3
-    dirs[three & ~b] = 0
-    dirs[three & ~t] = 1
-    dirs[three & ~l_] = 2
+    # Outgoing direction with the obstacle on the left (exteriors run counter-clockwise),
+    # 0 = +x, 1 = +y, 2 = -x, 3 = -y. One obstacle cell at the corner: lower-left -> -x,
+    # lower-right -> -y, upper-right -> +x, upper-left -> +y. Three: by the free one,
+    # lower-left -> -y, lower-right -> +x, upper-right -> +y, upper-left -> -x.
+    dirs = np.empty(len(xs), dtype=np.int8)
+    dirs[one & c_bl] = 2
+    dirs[one & c_br] = 3
+    dirs[one & c_tr] = 0
+    dirs[one & c_tl] = 1
+    dirs[three & ~c_bl] = 3
+    dirs[three & ~c_br] = 0
+    dirs[three & ~c_tr] = 1
+    dirs[three & ~c_tl] = 2
     k = len(xs)
     succ = np.empty(k, dtype=np.int64)
     by_row = np.lexsort((xs, ys))      # corners along each horizontal grid line, left to right

@@ -80,8 +80,10 @@ def random_layout(base: Scenario, rng: np.random.Generator, n_markers: int = 6, 
     for v in s:
         pts.append((v, 0.0) if v < w else (w, v - w) if v < w + h else
                    (2 * w + h - v, h) if v < 2 * w + h else (0.0, 2 * (w + h) - v))
-    boxes = tuple(Obstacle(center=(float(rng.uniform(0.25 * w, 0.75 * w)),
-                                   float(rng.uniform(0.25 * h, 0.75 * h))),
+    x0, y0 = base.workspace.origin
+    pts = [(x0 + x, y0 + y) for x, y in pts]
+    boxes = tuple(Obstacle(center=(x0 + float(rng.uniform(0.25 * w, 0.75 * w)),
+                                   y0 + float(rng.uniform(0.25 * h, 0.75 * h))),
                            size=(float(rng.uniform(1.0, 4.0)), float(rng.uniform(0.5, 2.0))),
                            yaw=float(rng.uniform(0.0, math.pi))) for _ in range(n_boxes))
     sensor = dataclasses.replace(base.sensor, relative_error=PAPER_RE, absolute_error=RHO0)

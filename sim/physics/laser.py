@@ -103,10 +103,12 @@ class LaserSensor:
                 if math.hypot(*(posts[j] - m)) < 1e-9:
                     self._own_post[i] = world.post_ids[j]
         h = world.config.laser_height
-        self._targets = [[float(x), float(y), h] for x, y in self.markers]
+        # Ray ends in the physics world's local coordinates (user's frame - workspace origin).
+        self._x0, self._y0 = (float(v) for v in world.origin)
+        self._targets = [[float(x) - self._x0, float(y) - self._y0, h] for x, y in self.markers]
 
     def origin(self) -> np.ndarray:
-        """Laser position (x, y, z) [m], shape (3,): the robot centre at the laser height."""
+        """Laser position (x, y, z) [m], shape (3,): the robot centre at the laser height (user's frame)."""
         x, y, _ = self.world.true_pose()
         return np.array([x, y, self.world.config.laser_height])
 
@@ -120,7 +122,7 @@ class LaserSensor:
         return self._visible_from(i, self.world.true_pose())
 
     def _visible_from(self, i: int, pose: np.ndarray) -> bool:
-        x, y = float(pose[0]), float(pose[1])
+        x, y = float(pose[0]) - self._x0, float(pose[1]) - self._y0
         tx, ty, h = self._targets[i]
         if math.hypot(tx - x, ty - y) > self.spec.max_range:
             return False
@@ -141,7 +143,8 @@ class LaserSensor:
             return np.array([self._visible_from(int(i), pose) for i in idx])
         origin = self.origin()
         in_range = np.hypot(*(self.markers[idx] - origin[:2]).T) <= self.spec.max_range
-        hits = pb.rayTestBatch([origin.tolist()] * idx.size, [self._targets[i] for i in idx],
+        local = [float(origin[0]) - self._x0, float(origin[1]) - self._y0, float(origin[2])]
+        hits = pb.rayTestBatch([local] * idx.size, [self._targets[i] for i in idx],
                                physicsClientId=self.world.client)
         body = np.array([h[0] for h in hits], dtype=int)
         return in_range & ((body == -1) | (body == self._own_post[idx]))
@@ -163,7 +166,7 @@ class LaserSensor:
         if not self._visible_from(i, pose):
             raise SimulationError(f"laser: marker {i} at {self.markers[i].tolist()} is not visible "
                                   f"from {pose[:2].round(3).tolist()}")
-        dx, dy = self._targets[i][0] - float(pose[0]), self._targets[i][1] - float(pose[1])
+        dx, dy = self.markers[i, 0] - float(pose[0]), self.markers[i, 1] - float(pose[1])
         r = math.hypot(dx, dy)
         rho = float(self.spec.range_bound(r))
         measured = r + _draw(rng, self.spec.noise, rho)

@@ -152,10 +152,16 @@ class DiffDriveRobot:
         The actual robot (``scenario.robot_actual``).
     config : PhysicsConfig
         Physics settings.
+    origin : (2,) array_like
+        The workspace origin [m]: poses given and returned are in the user's frame, the body
+        sits at ``pose - origin`` in the physics world.
     """
 
-    def __init__(self, client: int, spec: RobotSpec, config: PhysicsConfig) -> None:
+    def __init__(self, client: int, spec: RobotSpec, config: PhysicsConfig,
+                 origin: tuple[float, float] | np.ndarray = (0.0, 0.0)) -> None:
         self.client = client
+        # Poses come and go in the user's frame; the body lives at pose - origin (see world.py).
+        self._x0, self._y0 = float(origin[0]), float(origin[1])
         self.spec = spec
         self.geometry = robot_geometry(spec, config)
         text = urdf_text(spec, config)
@@ -184,6 +190,7 @@ class DiffDriveRobot:
     def reset(self, pose: tuple[float, float, float] | np.ndarray) -> None:
         """Put the robot level at ``pose`` (x [m], y [m], theta [rad]), at rest, motors at zero."""
         x, y, theta = (float(v) for v in pose)
+        x, y = x - self._x0, y - self._y0
         c, s = math.cos(theta), math.sin(theta)
         lx, ly, lz = self._com_local
         com = [x + c * lx - s * ly, y + s * lx + c * ly, self.geometry.axle_height + lz]
@@ -235,8 +242,8 @@ class DiffDriveRobot:
         r10 = 2 * (qx * qy + qz * qw)
         r11 = 1 - 2 * (qx * qx + qz * qz)
         r12 = 2 * (qy * qz - qx * qw)
-        x = px - (r00 * lx + r01 * ly + r02 * lz)
-        y = py - (r10 * lx + r11 * ly + r12 * lz)
+        x = px - (r00 * lx + r01 * ly + r02 * lz) + self._x0
+        y = py - (r10 * lx + r11 * ly + r12 * lz) + self._y0
         return x, y, math.atan2(r10, r00)
 
     def tilt(self) -> float:

@@ -1,5 +1,16 @@
 """The PyBullet world of one scenario: floor, border walls, obstacles, marker posts, robot.
 
+The world is built in *local* coordinates: the user's frame minus ``workspace.origin``, so
+that a floor whose corner sits at (250000, 80000) runs with small numbers (this pybullet
+build computes in double precision, where it hardly matters; a single-precision Bullet would
+round positions there to about a centimetre). Poses cross that boundary only in :class:`DiffDriveRobot`
+(``reset`` and ``true_pose``) and in the laser's ray ends; everything outside ``sim.physics``
+sees the user's frame.
+
+Obstacles: a box is a Bullet box, a circle a cylinder, a polygon one extruded convex mesh per
+convex piece (Bullet takes the convex hull of the given vertices), so that ray tests see the
+shapes the planner plans with.
+
 One :class:`PhysicsWorld` owns one pybullet DIRECT client and passes its id on every call,
 so several worlds coexist in a process. Worlds are reset, not rebuilt, between runs: the
 state saved right after building is restored, which also drops Bullet's contact caches, so a
@@ -13,7 +24,7 @@ import math
 import numpy as np
 
 from scenarios.errors import SimulationError
-from scenarios.schema import Scenario
+from scenarios.schema import Obstacle, Scenario
 from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced
 from sim.physics.robot import DiffDriveRobot
@@ -41,13 +52,16 @@ class PhysicsWorld:
     post_ids : ndarray of int, shape (M,)
         pybullet body id of each marker's post, in marker order.
     blocker_ids : ndarray of int
-        Body ids of the border walls and obstacles.
+        Body ids of the border walls and obstacles (several per polygon obstacle: its pieces).
+    origin : ndarray, shape (2,)
+        The workspace origin [m]: local (physics) coordinates = user's frame - origin.
     """
 
     def __init__(self, scenario: Scenario, config: PhysicsConfig | None = None,
                  pose: tuple[float, float, float] | np.ndarray | None = None) -> None:
         self.scenario = scenario
         self.config = config if config is not None else PhysicsConfig()
+        self.origin = np.asarray(scenario.workspace.origin, dtype=float)
         self.client = -1
         with silenced():
             self.client = pb.connect(pb.DIRECT)
@@ -59,8 +73,8 @@ class PhysicsWorld:
             self.close()
             raise
         if pose is None:
-            pose = scenario.docks[0].pose if scenario.docks else (
-                0.5 * scenario.workspace.width, 0.5 * scenario.workspace.height, 0.0)
+            x0, y0, x1, y1 = scenario.workspace.bounds
+            pose = scenario.docks[0].pose if scenario.docks else (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0)
         self.reset(pose)
 
     # -- building -------------------------------------------------------------------------
@@ -81,7 +95,8 @@ class PhysicsWorld:
         walls = [((w / 2, -t / 2), (w + 2 * t, t)), ((w / 2, h + t / 2), (w + 2 * t, t)),
                  ((-t / 2, h / 2), (t, h)), ((w + t / 2, h / 2), (t, h))]
         blockers = [self._box(c, s, 0.0, cfg.wall_height) for c, s in walls]
-        blockers += [self._box(o.center, o.size, o.yaw, cfg.wall_height) for o in sc.obstacles]
+        for ob in sc.obstacles:
+            blockers += self._obstacle(ob, cfg.wall_height)
         self.blocker_ids = np.array(blockers, dtype=int)
 
         # Posts are capsules (a cylinder with round ends, floor to post_height): Bullet ray-casts
@@ -90,15 +105,36 @@ class PhysicsWorld:
                                        height=cfg.post_height - 2.0 * cfg.post_radius, physicsClientId=cid)
         self.post_ids = np.array([
             pb.createMultiBody(0.0, post, basePosition=[mx, my, 0.5 * cfg.post_height], physicsClientId=cid)
-            for mx, my in sc.marker_positions()], dtype=int)
+            for mx, my in sc.marker_positions() - self.origin], dtype=int)
 
-        self.robot = DiffDriveRobot(cid, sc.robot_actual, cfg)
+        self.robot = DiffDriveRobot(cid, sc.robot_actual, cfg, origin=self.origin)
         if self.robot.geometry.top_height >= cfg.laser_height:
             raise SimulationError(
                 f"PhysicsConfig.laser_height: expected above the robot's top "
                 f"({self.robot.geometry.top_height:.3f} m), got {cfg.laser_height}")
         self._built_state = pb.saveState(physicsClientId=cid)
         self._steps = 0
+
+    def _obstacle(self, ob: Obstacle, height: float) -> list[int]:
+        """Build one obstacle in local coordinates; return its body ids."""
+        cid = self.client
+        if ob.kind == "box":
+            return [self._box(np.asarray(ob.center) - self.origin, ob.size, ob.yaw, height)]
+        if ob.kind == "circle":
+            cx, cy = np.asarray(ob.center) - self.origin
+            shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=ob.radius, height=height,
+                                            physicsClientId=cid)
+            return [pb.createMultiBody(0.0, shape, basePosition=[cx, cy, 0.5 * height], physicsClientId=cid)]
+        ids = []
+        for piece in ob.pieces():
+            local = piece - self.origin
+            centre = local.mean(axis=0)
+            q = local - centre   # mesh vertices about the body's position, small numbers
+            verts = [[x, y, z] for z in (-0.5 * height, 0.5 * height) for x, y in q]
+            shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=verts, physicsClientId=cid)
+            ids.append(pb.createMultiBody(0.0, shape, basePosition=[centre[0], centre[1], 0.5 * height],
+                                          physicsClientId=cid))
+        return ids
 
     def _box(self, center, size, yaw: float, height: float) -> int:
         cid = self.client

@@ -92,9 +92,10 @@ def closed_ring(points: np.ndarray) -> np.ndarray:
     return np.vstack([pts, pts[:1]])
 
 
-def rectangle_ring(width: float, height: float) -> np.ndarray:
-    """Return the closed ring (5, 2) of the workspace rectangle [0, width] x [0, height] [m]."""
-    return np.array([[0.0, 0.0], [width, 0.0], [width, height], [0.0, height], [0.0, 0.0]])
+def rectangle_ring(width: float, height: float, origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """Return the closed ring (5, 2) of the rectangle ``origin + [0, width] x [0, height]`` [m]."""
+    x0, y0 = origin
+    return np.array([[x0, y0], [x0 + width, y0], [x0 + width, y0 + height], [x0, y0 + height], [x0, y0]])
 
 
 def strip_polygons(positions: np.ndarray, marker_xy: np.ndarray, rho: np.ndarray) -> list[np.ndarray]:

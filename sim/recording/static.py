@@ -41,9 +41,9 @@ def log_scene(rec: rr.RecordingStream, scenario: Scenario) -> None:
     """
     rec.log(E.WORLD, VIEW_FLIP, static=True)
     ws = scenario.workspace
-    rec.log(E.WORKSPACE, rr.LineStrips2D([rectangle_ring(ws.width, ws.height)], colors=[E.GREY],
+    rec.log(E.WORKSPACE, rr.LineStrips2D([rectangle_ring(ws.width, ws.height, ws.origin)], colors=[E.GREY],
                                          radii=_ui(E.THICK_LINE_PT)), static=True)
-    rings = [closed_ring(o.corners()) for o in scenario.obstacles]
+    rings = [closed_ring(r) for o in scenario.obstacles for r in o.rings()]  # outer faces and holes
     rec.log(E.OBSTACLES, rr.LineStrips2D(rings, colors=[E.OBSTACLE] * len(rings),
                                          radii=_ui(E.THICK_LINE_PT)), static=True)
     rec.log(E.MARKERS, rr.Points2D(scenario.marker_positions(), labels=scenario.marker_ids(),

@@ -133,7 +133,8 @@ def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_dia
 
 
 def worst_error_grid(x: np.ndarray, y: np.ndarray, error: np.ndarray, size: tuple[float, float],
-                     cells_long_side: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     cells_long_side: int = 40,
+                     origin: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Find the largest error observed in each cell of a grid over the workspace.
 
     Parameters
@@ -144,6 +145,8 @@ def worst_error_grid(x: np.ndarray, y: np.ndarray, error: np.ndarray, size: tupl
         Workspace width and height [m].
     cells_long_side : int
         Cells along the longer side (square cells).
+    origin : (float, float)
+        Lower-left corner of the workspace [m].
 
     Returns
     -------
@@ -154,13 +157,13 @@ def worst_error_grid(x: np.ndarray, y: np.ndarray, error: np.ndarray, size: tupl
     """
     cell = max(size) / cells_long_side
     nx, ny = max(1, int(np.ceil(size[0] / cell))), max(1, int(np.ceil(size[1] / cell)))
-    ix = np.clip((np.asarray(x) / cell).astype(int), 0, nx - 1)
-    iy = np.clip((np.asarray(y) / cell).astype(int), 0, ny - 1)
+    ix = np.clip(((np.asarray(x) - origin[0]) / cell).astype(int), 0, nx - 1)
+    iy = np.clip(((np.asarray(y) - origin[1]) / cell).astype(int), 0, ny - 1)
     worst = np.full(ny * nx, -np.inf)
     finite = np.isfinite(error)
     np.maximum.at(worst, iy[finite] * nx + ix[finite], np.asarray(error)[finite])
     worst[np.isneginf(worst)] = np.nan
-    return np.arange(nx + 1) * cell, np.arange(ny + 1) * cell, worst.reshape(ny, nx)
+    return origin[0] + np.arange(nx + 1) * cell, origin[1] + np.arange(ny + 1) * cell, worst.reshape(ny, nx)
 
 
 def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarray, error: np.ndarray,
@@ -195,7 +198,7 @@ def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarr
         draw_scene(ax, scenario, labels=False, docks=False)
         ax.set_title(f"Predicted τ ({pef_map.model.value} model)\nwhite line: τ = ε_max", fontsize=10)
     ax = axes[-1]
-    ex, ey, worst = worst_error_grid(x, y, error, scenario.workspace.size)
+    ex, ey, worst = worst_error_grid(x, y, error, scenario.workspace.size, origin=scenario.workspace.origin)
     if pef_map is not None:
         ax.imshow(np.isfinite(pef_map.tau), origin="lower", extent=pef_extent(pef_map), cmap="Greys", vmin=0, vmax=4,
                   interpolation="nearest")

@@ -111,12 +111,17 @@ def draw_scene(ax, scenario: Scenario, labels: bool = True, docks: bool = True) 
     docks : bool
         Draw the docks with their heading and name.
     """
-    from matplotlib.patches import Polygon
+    from matplotlib.patches import PathPatch, Polygon
+    from matplotlib.path import Path as MplPath
 
+    x0, y0, x1, y1 = scenario.workspace.bounds
     width, height = scenario.workspace.size
-    for corners in scenario.obstacle_corners():
-        ax.add_patch(Polygon(corners, closed=True, zorder=3, **OBSTACLE_STYLE))
-    ax.add_patch(Polygon([(0, 0), (width, 0), (width, height), (0, height)], closed=True, fill=False,
+    for ob in scenario.obstacles:
+        # One compound path per obstacle: its outer ring and its holes run opposite ways
+        # (shapely's normalised orientation), so the holes stay unfilled.
+        path = MplPath.make_compound_path(*[MplPath(np.vstack([r, r[:1]]), closed=True) for r in ob.rings()])
+        ax.add_patch(PathPatch(path, zorder=3, **OBSTACLE_STYLE))
+    ax.add_patch(Polygon([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], closed=True, fill=False,
                          edgecolor="black", linewidth=1.5, zorder=3))
     mk = scenario.marker_positions()
     if len(mk):
@@ -137,8 +142,8 @@ def draw_scene(ax, scenario: Scenario, labels: bool = True, docks: bool = True) 
             ax.annotate(d.name, (x, y), xytext=(x - 2.2 * off, y - 2.8 * off), fontsize=9,
                         fontweight="bold", color="black", zorder=6,
                         bbox=dict(boxstyle="round,pad=0.15", fc="#fff6c2", ec="black", lw=0.5))
-    ax.set_xlim(-0.02 * width, 1.02 * width)
-    ax.set_ylim(-0.02 * height, 1.02 * height)
+    ax.set_xlim(x0 - 0.02 * width, x1 + 0.02 * width)
+    ax.set_ylim(y0 - 0.02 * height, y1 + 0.02 * height)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -175,3 +175,38 @@ def test_minsert_grid_and_ezdxf_r12_polylines(tmp_path):
     polys, _ = shapes(read_dxf(tmp_path / "g.dxf", obstacle_layers=["RACK"], wall_thickness=0.1))
     # the wall: 7 m of centre line, 0.1 m thick, plus two square caps of 0.05 x 0.1 m
     assert sorted(p.area for p in polys) == pytest.approx([0.1 * 7.0 + 0.01, 2.0, 2.0, 2.0])
+
+
+def test_a_wide_open_polyline_is_a_wall_of_its_width(tmp_path):
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 4
+    doc.modelspace().add_lwpolyline([(0, 0), (4000, 0)], dxfattribs={"const_width": 300})
+    doc.modelspace().add_line((0, 2000), (4000, 2000))
+    doc.saveas(tmp_path / "w.dxf")
+    polys, _ = shapes(read_dxf(tmp_path / "w.dxf", obstacle_layers=["0"], wall_thickness=0.1))
+    assert at(polys, 2.0, 0.0).area == pytest.approx((4.0 + 0.3) * 0.3)   # square caps of half the width
+    assert at(polys, 2.0, 2.0).area == pytest.approx((4.0 + 0.1) * 0.1)
+
+
+def test_circle_reflectors_and_reflectors_nested_in_blocks(tmp_path):
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 4
+    doc.layers.add("REFL")
+    msp = doc.modelspace()
+    msp.add_line((0, 0), (10000, 0))
+    msp.add_circle((3000, 100), 40, dxfattribs={"layer": "REFL"})
+    tag = doc.blocks.new("TAG")
+    tag.add_circle((0, 0), 30)
+    # A dock block carrying a reflector 1 m ahead of it, turned 10° within the block.
+    dock = doc.blocks.new("DOCK")
+    dock.add_lwpolyline([(-200, -200), (200, -200), (200, 200), (-200, 200)], close=True)
+    dock.add_blockref("TAG", (1000, 0), dxfattribs={"layer": "REFL", "rotation": 10.0})
+    msp.add_blockref("DOCK", (5000, 3000), dxfattribs={"rotation": 90.0})
+    doc.saveas(tmp_path / "n.dxf")
+    data = read_dxf(tmp_path / "n.dxf", obstacle_layers=["0"], marker_layer="REFL")
+    assert [m["id"] for m in data.markers] == ["R1", "R2"]
+    assert data.markers[0]["position"] == pytest.approx([3.0, 0.1]) and "facing_deg" not in data.markers[0]
+    assert data.markers[1]["position"] == pytest.approx([5.0, 4.0])  # (1, 0) turned 90° about (5, 3)
+    assert data.markers[1]["facing_deg"] == pytest.approx(100.0)
+    polys, _ = shapes(data)
+    assert at(polys, 5.0, 3.0).area == pytest.approx(0.16)  # the dock outline, on layer 0

@@ -157,3 +157,29 @@ def test_builtin_hall_is_the_drawing_its_generator_writes(tmp_path):
     text = (ROOT / "scenarios/library/hall.toml").read_text()
     fresh = scenarios.loads(text.replace('file = "hall.dxf"', f'file = "{out}"'), source="hall.toml")
     assert fresh.obstacles == s.obstacles and fresh.markers == s.markers
+
+
+def test_outlines_whose_holes_touch_at_a_point_still_load(tmp_path):
+    import ezdxf
+
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 6
+    msp = doc.modelspace()
+    # A slab with two cut-outs that meet at a corner, and one touching the slab's edge.
+    for ring in ([(0, 0), (10, 0), (10, 10), (0, 10)], [(2, 2), (5, 2), (5, 5), (2, 5)],
+                 [(5, 5), (8, 5), (8, 8), (5, 8)], [(0, 5), (1, 4), (1, 6)]):
+        msp.add_lwpolyline(ring, close=True)
+    doc.saveas(tmp_path / "slab.dxf")
+    text = scenario_text('file = "slab.dxf"\nobstacle_layers = ["0"]', "[workspace]\norigin = [-1.0, -1.0]\n"
+                         "size = [12.0, 12.0]").replace(
+        "[3.0, 2.0, 0.0]", "[6.5, 6.5, 0.0]").replace("[3.5, 3.0]", "[4.0, 4.0]")
+    s = load(tmp_path, text)
+    (slab,) = s.obstacles
+    assert len(slab.holes) == 3
+    assert slab.geometry().area == pytest.approx(100.0 - 9.0 - 9.0 - 1.0, abs=1e-4)
+
+
+def test_facing_deg_key_of_hand_written_markers(folder):
+    s = load(folder, scenario_text(DXF).replace('position = [3.0, 3.0]', 'position = [3.0, 3.0]\nfacing_deg = 30.0'))
+    assert s.markers[0].facing == pytest.approx(math.radians(30.0)) and s.markers[1].facing is None
+

@@ -11,7 +11,7 @@ from shapely.geometry import LineString
 from shapely.ops import unary_union
 
 from planner.pef.visibility import visible_grid, visible_points
-from scenarios.obstacles import Obstacle, pack_pieces
+from scenarios.obstacles import ConvexPieces, Obstacle, pack_pieces
 
 BOUNDS = (0.0, 0.0, 20.0, 12.0)
 TOL = 1e-3  # cells whose answer changes when the obstacles grow or shrink by this much are not judged
@@ -94,6 +94,18 @@ def test_a_segment_along_a_cut_between_two_pieces_is_blocked():
     assert vis[0, 2]                            # beside the U: seen
     vg, _ = visible_grid(np.array([4.5, 5.5]), np.array([3.5]), markers, pieces, 100.0, BOUNDS)
     assert not vg[0, 0, 0] and not vg[1, 0, 1]
+
+
+def test_a_segment_along_an_axis_aligned_cut_is_blocked_on_both_paths():
+    # A bar [5, 9] x [2, 3] cut at x = 6: the cut lies on both pieces' bounding boxes, so a
+    # bounding-box shortcut must not let the vertical sight line x = 6 through.
+    v = np.array([[[5, 2], [6, 2], [6, 3], [5, 3]], [[6, 2], [9, 2], [9, 3], [6, 3]]], float)
+    inner = np.array([[False, True, False, False], [False, False, False, True]])
+    bar = ConvexPieces(v, np.array([4, 4]), np.array([0, 0]), inner, np.zeros((2, 4)))
+    vis, _ = visible_points([[6.0, 8.0], [4.0, 8.0]], [[6.0, 0.0], [4.0, 0.0]], bar, 100.0, BOUNDS)
+    assert not vis[0, 0] and vis[1, 1]
+    vg, _ = visible_grid(np.array([6.0]), np.array([8.0]), [[6.0, 0.0]], bar, 100.0, BOUNDS)
+    assert not vg.any()
 
 
 def test_inside_the_ring_sees_the_hole_faces_only():
