@@ -290,3 +290,20 @@ def test_bad_steps_value_is_one_line(tmp_path, scenario):
     with pytest.raises(ScenarioError, match=r"--steps: expected one of all, fixes, none, got 'some'"):
         sweep(scenario, tmp_path / "x", runs=1, workers=1, api=fe.API, progress=False, steps="some")
     assert not (tmp_path / "x").exists()
+
+
+def test_the_report_of_a_lean_sweep_says_what_it_draws(tmp_path, scenario):
+    from types import SimpleNamespace
+
+    from scenarios.schema import PefModel
+    from sim.report.page import write_report
+
+    fake_map = SimpleNamespace(x=(np.arange(40) + 0.5) * 0.5, y=(np.arange(24) + 0.5) * 0.5,
+                               tau=np.full((24, 40), 0.01), cell_size=(0.5, 0.5), model=PefModel.PARALLELOGRAM)
+    for mode, figures in (("fixes", 4), ("none", 2)):
+        out = tmp_path / mode
+        sweep(scenario, out, runs=2, workers=1, api=fe.API, progress=False, steps=mode)
+        html = write_report(out, scenario, pef_map=fake_map).read_text()
+        assert len(list((out / "figures").iterdir())) == figures
+        assert ("Only the steps at fix times are drawn" in html) == (mode == "fixes")
+        assert ("kept no per-step rows" in html) == (mode == "none")
