@@ -82,7 +82,9 @@ def read_part(path: Path, schema: pa.Schema, columns: list[str] | None = None) -
     try:
         if path.stat().st_size == 0:
             raise DamagedPartError(path, "empty file")
-        table = pq.read_table(path, columns=names)
+        # ParquetFile.read, not pq.read_table: the latter builds a dataset per file, ~3x slower here.
+        with pq.ParquetFile(path) as part:
+            table = part.read(columns=names)
     except DamagedPartError:
         raise
     except FileNotFoundError:
@@ -91,7 +93,8 @@ def read_part(path: Path, schema: pa.Schema, columns: list[str] | None = None) -
         raise DamagedPartError(path, _reason(exc)) from None
     target = pa.schema([schema.field(n) for n in names])
     try:
-        return table.select(names).cast(target)
+        table = table.select(names)
+        return table if table.schema.equals(target) else table.cast(target)
     except (pa.ArrowException, ValueError, KeyError) as exc:
         raise DamagedPartError(path, f"not a part of this schema: {_reason(exc)}") from None
 
