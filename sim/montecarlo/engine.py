@@ -4,7 +4,9 @@ Run ``i`` draws from ``SeedSequence(scenario.seed, spawn_key=(i,))`` and drives 
 ``i % n_tasks`` (or one fixed task), so its result depends on nothing but ``i``: not on the
 number of workers, the executor or the order in which runs finish. Results go to a sweep
 directory (layout in :mod:`sim.montecarlo.results`) one run at a time, so an interrupted sweep loses no
-finished run and ``resume=True`` completes only the missing ones.
+finished run and ``resume=True`` completes only the missing ones. One process at a time writes a
+directory (:mod:`sim.montecarlo.lock`); a resume first reads every finished part back and redoes
+the runs whose parts do not (:func:`sim.montecarlo.directory.repair`).
 """
 
 from __future__ import annotations

@@ -74,14 +74,22 @@ def _cli(tmp_path, *argv, sleep="0.0"):
 
 
 def _damage(layout: SweepLayout) -> dict[int, Path]:
-    """Truncate run 1's steps part, empty run 3's fixes part, garble run 4's runs part."""
-    steps, fixes, runs = (layout.part(layout.steps_dir, 1), layout.part(layout.fixes_dir, 3),
-                          layout.part(layout.runs_dir, 4))
+    """Damage four parts of a sweep of at least 6 runs; returns the damaged part of each run.
+
+    Truncates run 1's steps part, empties run 3's fixes part, garbles run 4's runs part, and
+    flips one byte in the middle of run 5's steps part (its footer intact: only the page
+    checksum tells).
+    """
+    steps, fixes, runs, flipped = (layout.part(layout.steps_dir, 1), layout.part(layout.fixes_dir, 3),
+                                   layout.part(layout.runs_dir, 4), layout.part(layout.steps_dir, 5))
     data = steps.read_bytes()
     steps.write_bytes(data[: len(data) // 2])
     fixes.write_bytes(b"")
     runs.write_bytes(bytes(np.random.default_rng(0).integers(0, 256, runs.stat().st_size, dtype=np.uint8)))
-    return {1: steps, 3: fixes, 4: runs}
+    data = bytearray(flipped.read_bytes())
+    data[len(data) // 4] ^= 0xFF  # inside the first columns' pages, far from the footer
+    flipped.write_bytes(bytes(data))
+    return {1: steps, 3: fixes, 4: runs, 5: flipped}
 
 
 def test_damaged_parts_are_moved_aside_and_exactly_their_runs_redone(tmp_path, scenario, clean):
@@ -121,6 +129,8 @@ def test_cli_resume_of_a_damaged_sweep_warns_in_one_line_per_file(tmp_path, clea
     out = tmp_path / "mc"
     first = _cli(tmp_path, "mc", "paper-docks", "--runs", RUNS, "--workers", 1, "--out", out, "--no-report")
     assert first.returncode == 0, first.stderr
+    sizes = json.loads(SweepLayout(out).sweep_json.read_text())["bytes_per_run"]
+    assert f"bytes per run: {sizes['total'] / 1e3:.1f} kB (steps {sizes['steps'] / 1e3:.1f} kB" in first.stdout
     damaged = _damage(SweepLayout(out))
 
     bad = _cli(tmp_path, "validate", "--from", out)
@@ -134,7 +144,9 @@ def test_cli_resume_of_a_damaged_sweep_warns_in_one_line_per_file(tmp_path, clea
     assert len(lines) == len(damaged)
     assert all(line.startswith("pefsim: warning: ") for line in lines)
     assert sorted(int(Path(line.split(": ")[2]).name[4:10]) for line in lines) == sorted(damaged)
-    assert json.loads(again.stdout)["executed"] == len(damaged)
+    summary = json.loads(again.stdout)
+    assert summary["executed"] == len(damaged) and summary["steps"] == "all"
+    assert summary["bytes_per_run"]["total"] == sum(summary["bytes_per_run"][k] for k in ("runs", "steps", "fixes"))
     _assert_same(clean, out)
 
 
