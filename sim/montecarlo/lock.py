@@ -107,8 +107,8 @@ def read_holder(root: Path) -> Holder | None:
 
 def check_free(root: Path) -> None:
     """Raise OutputError when another live process holds ``root``'s lock (reads only; writes nothing)."""
-    root = Path(root).resolve()
-    if root in _held or not lock_path(root).exists():
+    root = Path(root)
+    if root.resolve() in _held or not lock_path(root).exists():
         return
     holder = read_holder(root)
     if holder is not None and not _stale(holder):
@@ -159,15 +159,15 @@ def _take_over(path: Path, seen: str) -> bool:
 
 def acquire(root: Path, warn: Callable[[str], None]) -> None:
     """Take ``root``'s lock (``root`` must exist); raises OutputError naming the holder if it is held."""
-    root = Path(root).resolve()
-    if root in _held:
-        _held[root] += 1
+    root, key = Path(root), Path(root).resolve()  # messages name the directory as given
+    if key in _held:
+        _held[key] += 1
         return
     path = lock_path(root)
     mine = me()
     for _ in range(3):  # a take-over lost to another process retries once or twice, then refuses
         if _create(path, mine):
-            _held[root] = 1
+            _held[key] = 1
             return
         try:
             seen = path.read_text(encoding="utf-8", errors="replace")
@@ -189,12 +189,12 @@ def acquire(root: Path, warn: Callable[[str], None]) -> None:
 
 def release(root: Path) -> None:
     """Give up ``root``'s lock (the file goes when the outermost holder in this process leaves)."""
-    root = Path(root).resolve()
-    count = _held.get(root, 0)
+    root, key = Path(root), Path(root).resolve()
+    count = _held.get(key, 0)
     if count > 1:
-        _held[root] = count - 1
+        _held[key] = count - 1
         return
-    _held.pop(root, None)
+    _held.pop(key, None)
     holder = read_holder(root)
     if holder is not None and holder.pid == os.getpid() and holder.host == socket.gethostname():
         lock_path(root).unlink(missing_ok=True)
