@@ -319,3 +319,33 @@ def test_the_report_of_a_lean_sweep_says_what_it_draws(tmp_path, scenario):
         assert len(list((out / "figures").iterdir())) == figures
         assert ("Only the steps at fix times are drawn" in html) == (mode == "fixes")
         assert ("kept no per-step rows" in html) == (mode == "none")
+
+
+def test_a_directory_of_format_1_reads_exactly_and_resumes(tmp_path, scenario):
+    """Parts written before the lean format (float64, pyarrow defaults) read back bit-exact, also mixed."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "old"
+    layout = SweepLayout(out)
+    layout.make_dirs()
+    layout.scenario_toml.write_text(scenario.text, encoding="utf-8")
+    layout.sweep_json.write_text(json.dumps({"format": 1, "scenario": scenario.name, "task": None, "runs": 3}))
+    episodes = {}
+    for run in range(3):
+        seed = np.random.SeedSequence(scenario.seed, spawn_key=(run,))
+        episodes[run] = result = fe.run_episode(scenario, 0, seed)
+        row = results.run_row(run, f"SeedSequence({scenario.seed}, spawn_key=({run},))", 0, result.summary, 0.1)
+        for folder, table in ((layout.steps_dir, results._table(results.step_columns(run, result.steps),
+                                                                  results.STEP_SCHEMA)),
+                              (layout.fixes_dir, results._table(results.fix_columns(run, result.fixes),
+                                                                  results.FIX_SCHEMA)),
+                              (layout.runs_dir, pa.Table.from_pylist([row], schema=results.RUN_SCHEMA))):
+            pq.write_table(table, layout.part(folder, run), compression="zstd")  # the format-1 writer
+    summary = sweep(scenario, out, runs=5, workers=1, api=fe.API, resume=True, progress=False)
+    assert summary.executed == 2 and summary.steps == "all"
+    steps = results.read_steps(out)
+    assert steps.schema == results.STEP_SCHEMA and set(steps["run"].to_pylist()) == set(range(5))
+    for run, result in episodes.items():
+        got = steps.filter(steps["run"].to_numpy() == run)["error"].to_numpy()
+        np.testing.assert_array_equal(got, result.steps.error)  # float64 as written, not rounded
