@@ -16,6 +16,9 @@ Measures, in one process and against baselines taken in the same run:
 average before and after are printed too: wall-clock ratios mean little on a machine that
 other jobs keep busy, while equal CPU per run shows the workers pay no per-run penalty.
 
+The size of a sweep directory per ``--steps`` mode and the read time of validation's
+columns are measured by ``benchmarks/sweep_storage.py`` (on ``warehouse``).
+
 Usage: ``python benchmarks/montecarlo.py [--runs N] [--no-ray]``.
 """
 

@@ -190,7 +190,8 @@ def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0
 
 
 def sweep(scenario: Scenario | str | Path, out: str | Path, *, runs: int | None = None, workers: int | None = None,
-          task: int | None = None, resume: bool = False, progress: bool = False, report: bool = True) -> Path:
+          task: int | None = None, resume: bool = False, progress: bool = False, report: bool = True,
+          steps: str | None = None) -> Path:
     """Run a Monte-Carlo sweep into ``out`` (written run by run; ``resume`` completes it).
 
     Parameters
@@ -210,6 +211,9 @@ def sweep(scenario: Scenario | str | Path, out: str | Path, *, runs: int | None 
         Show a progress bar.
     report : bool
         Write ``report.html`` and its figures into ``out`` (as ``pefsim mc`` does).
+    steps : {"all", "fixes", "none"}, optional
+        Per-step rows to keep: every control step, the steps at fix times (the N-run NEES
+        check then does not apply), or none; default ``all`` (on resume: the sweep's own).
 
     Returns
     -------
@@ -219,11 +223,14 @@ def sweep(scenario: Scenario | str | Path, out: str | Path, *, runs: int | None 
     from sim.montecarlo.engine import sweep as _sweep
 
     sc = _scenario(scenario)
-    summary = _sweep(sc, out, runs=runs, task=task, workers=workers, resume=resume, progress=progress)
-    if report:
+
+    def write(summary) -> None:  # while the sweep still holds the directory's lock
         from sim.report.page import write_report
 
         write_report(summary.out, sc)
+
+    summary = _sweep(sc, out, runs=runs, task=task, workers=workers, resume=resume, progress=progress,
+                     steps=steps, then=write if report else None)
     return Path(summary.out)
 
 

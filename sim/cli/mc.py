@@ -23,6 +23,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", action="store_true", help="complete the missing runs of --out")
     p.add_argument("--rrd-every", type=int, default=0, metavar="M",
                    help="write a rerun recording of every M-th run to OUT/recordings/")
+    p.add_argument("--steps", choices=("all", "fixes", "none"), default=None,
+                   help="per-step rows to keep: every control step (all, the default), the steps at fix "
+                        "times (fixes: the N-run NEES test then does not apply), or none; --resume keeps "
+                        "the sweep's choice")
     p.add_argument("--no-report", action="store_true", help="skip report.html")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
@@ -44,14 +48,17 @@ def run(args: argparse.Namespace) -> int:
     if rrd_every > 0 and not _recording_available():
         print("pefsim: warning: sim.recording is not available; --rrd-every ignored", file=sys.stderr)
         rrd_every = 0
-    summary = montecarlo.sweep(scenario, args.out, runs=args.runs, task=args.task, workers=args.workers,
-                               executor=args.executor, address=args.address, resume=args.resume,
-                               rrd_every=rrd_every)
-    report = None
-    if not args.no_report:
+    written: list = []
+
+    def write(summary) -> None:  # runs while the sweep still holds the directory's lock
         from sim.report.page import write_report
 
-        report = write_report(summary.out, scenario)
+        written.append(write_report(summary.out, scenario))
+
+    summary = montecarlo.sweep(scenario, args.out, runs=args.runs, task=args.task, workers=args.workers,
+                               executor=args.executor, address=args.address, resume=args.resume,
+                               rrd_every=rrd_every, steps=args.steps, then=None if args.no_report else write)
+    report = written[0] if written else None
     if args.json:
         out = summary.to_dict()
         out["report"] = str(report) if report else None
@@ -80,6 +87,10 @@ def format_summary(s, report: os.PathLike | None) -> str:
         lines.append(f"this invocation ran {s.executed} runs in {s.wall_time:.1f} s{rate}")
     else:
         lines.append("nothing to run: every run was already finished")
+    if s.bytes_per_run:
+        b = s.bytes_per_run
+        lines.append(f"bytes per run: {b['total'] / 1e3:.1f} kB (steps {b['steps'] / 1e3:.1f} kB, --steps "
+                     f"{s.steps}; fixes {b['fixes'] / 1e3:.1f} kB; runs {b['runs'] / 1e3:.1f} kB)")
     if report:
         lines.append(f"report: {report}")
     return "\n".join(lines)

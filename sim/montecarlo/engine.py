@@ -4,33 +4,37 @@ Run ``i`` draws from ``SeedSequence(scenario.seed, spawn_key=(i,))`` and drives 
 ``i % n_tasks`` (or one fixed task), so its result depends on nothing but ``i``: not on the
 number of workers, the executor or the order in which runs finish. Results go to a sweep
 directory (layout in :mod:`sim.montecarlo.results`) one run at a time, so an interrupted sweep loses no
-finished run and ``resume=True`` completes only the missing ones.
+finished run and ``resume=True`` completes only the missing ones. One process at a time writes a
+directory (:mod:`sim.montecarlo.lock`); a resume first reads every finished part back and redoes
+the runs whose parts do not (:func:`sim.montecarlo.directory.repair`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
 import os
+import sys
 import tempfile
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
 
-from scenarios.errors import OutputError, PefsimError, ScenarioError
+from scenarios.errors import PefsimError, ScenarioError
 from scenarios.schema import Scenario
-from sim.montecarlo import executors, results
+from sim.montecarlo import directory, executors, lock, results
+from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
 from sim.montecarlo.executors import ExecutorKind
 from sim.montecarlo.progress import progress_bar
-from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.results import RunRecord, StepsMode, SweepLayout
+from sim.montecarlo.summary import SweepSummary, succeeded, summarize
 
-SWEEP_FORMAT = 1
+__all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
+           "default_api", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
 
 
 @dataclass(frozen=True)
@@ -91,11 +95,12 @@ def plan_runs(scenario: Scenario, runs: int, task: int | None = None, rrd_every:
 
 @dataclass
 class WorkerPayload:
-    """What every worker receives once: the scenario, the prepared tasks and the episode API."""
+    """What every worker receives once: the scenario, the prepared tasks, the episode API, the steps mode."""
 
     scenario: Scenario
     prepared: dict[int, Any]
     api: EpisodeApi
+    steps: StepsMode = StepsMode.ALL
 
     @property
     def preload(self) -> tuple[str, ...]:
@@ -136,8 +141,8 @@ class RunContext:
             return RunContext.died(spec, _one_line(exc), time.perf_counter() - start)
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
         row = results.run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
-        record = RunRecord(spec.run, row, results.step_columns(spec.run, result.steps),
-                           results.fix_columns(spec.run, result.fixes))
+        steps = results.step_columns(spec.run, result.steps, p.steps, result.fixes.t)
+        record = RunRecord(spec.run, row, steps, results.fix_columns(spec.run, result.fixes))
         if spec.record:
             record.recording, record.warning = self._recording(result)
         return record
@@ -192,64 +197,6 @@ def _one_line(exc: BaseException) -> str:
 
 # -- the sweep ----------------------------------------------------------------------------
 
-@dataclass
-class SweepSummary:
-    """What a sweep directory holds, as ``pefsim mc --json`` prints it.
-
-    A run succeeds when it ran (status ok), reached its goal and never exceeded ε_max;
-    crashed runs count as failures. ``success_ci`` is the 95 % Clopper-Pearson interval.
-    """
-
-    out: str
-    runs: int
-    ok: int
-    crashed: int
-    reached: int
-    violation_runs: int
-    successes: int
-    success_fraction: float | None
-    success_ci: list[float] | None
-    success_target: float
-    executed: int
-    wall_time: float
-    runs_per_minute: float | None
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-def succeeded(runs: pa.Table) -> np.ndarray:
-    """Per row of a runs table: ran (status ok), reached its goal and never exceeded ε_max."""
-    status = np.asarray(runs.column("status").to_pylist(), dtype=object)
-    reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
-    violations = np.asarray(runs.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
-    return (status == "ok") & reached & (violations == 0)
-
-
-def summarize(out: str | Path, success_target: float, executed: int = 0,
-              wall_time: float = 0.0) -> SweepSummary:
-    """Count the finished runs of sweep directory ``out``."""
-    from scipy.stats import binomtest
-
-    table = results.read_runs(out)
-    status = np.asarray(table.column("status").to_pylist(), dtype=object)
-    ok = status == "ok"
-    reached = np.asarray(table.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
-    violations = np.asarray(table.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
-    n = len(status)
-    k = int(succeeded(table).sum())
-    fraction = ci = None
-    if n:
-        fraction = k / n
-        interval = binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
-        ci = [float(interval.low), float(interval.high)]
-    rate = 60.0 * executed / wall_time if executed and wall_time > 0 else None
-    return SweepSummary(out=str(out), runs=n, ok=int(ok.sum()), crashed=int(np.sum(~ok)),
-                        reached=int((reached & ok).sum()), violation_runs=int(np.sum(ok & (violations > 0))),
-                        successes=k, success_fraction=fraction, success_ci=ci, success_target=success_target,
-                        executed=executed, wall_time=wall_time, runs_per_minute=rate)
-
-
 def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
     """Raise a one-line PefsimError for a bad run count, task, worker count or recording period."""
     if runs <= 0:
@@ -265,48 +212,17 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
         raise ScenarioError(f"--rrd-every: expected 0 (none) or a positive period, got {rrd_every}")
 
 
-def open_sweep_dir(scenario: Scenario, out: Path, resume: bool, task: int | None) -> dict[str, Any]:
-    """Check that ``out`` may take this sweep; returns the settings of an earlier sweep there ({} if new).
-
-    Writes nothing. Raises OutputError for a file in the way, a non-empty directory without
-    ``resume``, or a directory of another scenario or task.
-    """
-    layout = SweepLayout(out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"{out}: exists and is not a directory")
-    if not out.exists() or not any(out.iterdir()):
-        return {}
-    if not resume:
-        raise OutputError(f"{out}: output directory is not empty; use --resume to complete it or --out "
-                          "for a new one")
-    try:
-        previous_text = layout.scenario_toml.read_text(encoding="utf-8")
-        settings = json.loads(layout.sweep_json.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
-        raise OutputError(f"{out}: not a pefsim mc directory (no readable scenario.toml and sweep.json); "
-                          "use another --out") from None
-    if previous_text != scenario.text:
-        raise OutputError(f"{out}: was made from another scenario (its scenario.toml differs from "
-                          f"{scenario.source}); use another --out")
-    if settings.get("task") != task:
-        raise OutputError(f"{out}: was made with --task {settings.get('task')}, not {task}; "
-                          "resume with the same --task or use another --out")
-    return settings
-
-
-def _init_sweep_dir(layout: SweepLayout, scenario: Scenario, task: int | None, runs: int) -> None:
-    layout.make_dirs()
-    results.write_atomic(layout.scenario_toml, scenario.text.encode("utf-8"))
-    settings = {"format": SWEEP_FORMAT, "scenario": scenario.name, "task": task, "runs": runs}
-    results.write_atomic(layout.sweep_json, (json.dumps(settings, indent=2) + "\n").encode("utf-8"))
-
-
 def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None = None,
           task: int | None = None, workers: int | None = None, executor: ExecutorKind | str = "local",
           address: str | None = None, resume: bool = False, rrd_every: int = 0,
-          api: EpisodeApi | None = None, progress: bool | None = None,
-          on_warning: Callable[[str], None] | None = None) -> SweepSummary:
+          steps: StepsMode | str | None = None, api: EpisodeApi | None = None, progress: bool | None = None,
+          on_warning: Callable[[str], None] | None = None,
+          then: Callable[[SweepSummary], Any] | None = None) -> SweepSummary:
     """Run (or complete) a Monte-Carlo sweep and return what the directory then holds.
+
+    The directory is locked (:mod:`sim.montecarlo.lock`) from the first write to the last, so
+    a second process writing it is refused; on resume, parts that do not read back are moved
+    aside and their runs redone (:func:`sim.montecarlo.directory.repair`).
 
     Parameters
     ----------
@@ -328,12 +244,19 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
         Complete the runs missing in a non-empty ``out`` made from the same scenario.
     rrd_every : int
         Write a rerun recording of every ``rrd_every``-th run (0: none).
+    steps : StepsMode or str, optional
+        Per-step rows to keep: ``all``, ``fixes`` (the steps at fix times) or ``none``; default
+        the earlier sweep's on resume, else ``all``. Recorded in ``sweep.json``.
     api : EpisodeApi, optional
         The episode functions; default :func:`default_api`.
     progress : bool, optional
         Show a progress bar; default when stderr is a terminal.
     on_warning : callable, optional
-        Receives one-line warnings (failed recordings); default prints them above the bar.
+        Receives one-line warnings (damaged parts, a stale lock, failed recordings); default
+        prints them on stderr (above the bar).
+    then : callable, optional
+        Called with the summary while the directory is still locked (``pefsim mc`` writes its
+        report there).
 
     Returns
     -------
@@ -343,7 +266,8 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     if kind is ExecutorKind.RAY:
         executors.import_ray()
     out = Path(out if out is not None else f"mc-{scenario.name}")
-    settings = open_sweep_dir(scenario, out, resume, task)
+    wanted = None if steps is None else results.steps_mode(steps)
+    settings = open_sweep_dir(scenario, out, resume, task, wanted)
     if runs is None:
         runs = int(settings.get("runs", scenario.montecarlo.runs))
     if workers is None:
@@ -354,22 +278,44 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
         raise ScenarioError(f"{scenario.source}: the scenario has no source text to keep beside the results")
     layout = SweepLayout(out)
     layout.check_writable()  # fails before the planning work; leaves at most an empty directory
-    done = results.finished_runs(layout) if settings else set()
-    todo = [s for s in plan_runs(scenario, runs, task, rrd_every) if s.run not in done]
-
-    executed, wall = 0, 0.0
-    if todo:
-        api = api if api is not None else default_api()
-        # Planning once here catches bad input (no route) before any worker starts.
-        prepared = {t: api.prepare(scenario, t) for t in sorted({s.task for s in todo})}
+    warnings: list[Callable[[str], None]] = [on_warning or _stderr]
+    with lock.held(out, lambda line: warnings[-1](line)):
+        # Read again under the lock: another process may have written between the check and the lock.
+        settings = open_sweep_dir(scenario, out, resume, task, wanted)
+        mode = directory.stored_steps_mode(settings) if settings else (wanted or StepsMode.ALL)
         if settings:
-            results.clean_unfinished(layout)
-        _init_sweep_dir(layout, scenario, task, max(runs, int(settings.get("runs", 0))))
-        payload = WorkerPayload(scenario, prepared, api)
-        warn = on_warning
-        start = time.perf_counter()
-        with progress_bar(total=runs, initial=runs - len(todo), enabled=progress) as bar:
-            warn = warn or bar.write
+            directory.repair(layout, mode, warnings[-1])
+        done = results.finished_runs(layout) if settings else set()
+        todo = [s for s in plan_runs(scenario, runs, task, rrd_every) if s.run not in done]
+        executed, wall = 0, 0.0
+        if todo:
+            executed, wall = _execute(scenario, layout, settings, todo, runs, task, mode, workers, kind,
+                                      address, api, progress, on_warning, warnings)
+        results.compact_runs(layout)
+        sizes = directory.record_sizes(layout)
+        summary = summarize(out, scenario.montecarlo.success_target, executed, wall, mode.value, sizes)
+        if then is not None:
+            then(summary)
+    return summary
+
+
+def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], todo: list[RunSpec], runs: int,
+             task: int | None, mode: StepsMode, workers: int, kind: ExecutorKind, address: str | None,
+             api: EpisodeApi | None, progress: bool | None, on_warning: Callable[[str], None] | None,
+             warnings: list[Callable[[str], None]]) -> tuple[int, float]:
+    """Plan the tasks, run ``todo`` and write each record as it comes; returns (runs executed, wall seconds)."""
+    api = api if api is not None else default_api()
+    # Planning once here catches bad input (no route) before any worker starts.
+    prepared = {t: api.prepare(scenario, t) for t in sorted({s.task for s in todo})}
+    if settings:
+        results.clean_unfinished(layout)
+    directory.init_sweep_dir(layout, scenario, task, max(runs, int(settings.get("runs", 0))), mode)
+    payload = WorkerPayload(scenario, prepared, api, mode)
+    executed = 0
+    start = time.perf_counter()
+    with progress_bar(total=runs, initial=runs - len(todo), enabled=progress) as bar:
+        warnings.append(on_warning or bar.write)
+        try:
             stream = executors.execute(kind, RunContext, payload, todo, min(workers, len(todo)), address)
             with contextlib.closing(stream):
                 for record in stream:
@@ -378,11 +324,15 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
                     results.write_record(layout, record)
                     executed += 1
                     if record.warning:
-                        warn(f"pefsim: warning: run {record.run}: {record.warning}")
+                        warnings[-1](f"pefsim: warning: run {record.run}: {record.warning}")
                     bar.update(1)
-        wall = time.perf_counter() - start
-    results.compact_runs(layout)
-    return summarize(out, scenario.montecarlo.success_target, executed, wall)
+        finally:
+            warnings.pop()
+    return executed, time.perf_counter() - start
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr)
 
 
 def _executor_kind(executor: ExecutorKind | str) -> ExecutorKind:

@@ -3,7 +3,10 @@
 Layout of a sweep directory ``DIR``::
 
     DIR/scenario.toml        the exact scenario text the sweep ran (``--resume`` checks it)
-    DIR/sweep.json           sweep settings that must not change on resume (task, runs)
+    DIR/sweep.json           sweep settings that must not change on resume (task, runs, steps),
+                             and the bytes per run of the parts
+    DIR/.lock                while a process writes the directory (:mod:`sim.montecarlo.lock`)
+    DIR/damaged/             parts that did not read back, moved aside on --resume
     DIR/runs/run-NNNNNN.parquet    one row per finished run: the commit log of the sweep
     DIR/steps/run-NNNNNN.parquet   per-step rows of that run
     DIR/fixes/run-NNNNNN.parquet   per-fix rows of that run
@@ -16,6 +19,11 @@ steps, fixes and recording), each file through a temporary name and ``os.replace
 killed at any instant leaves only whole files, never a half-written run counted as done, and
 never a run twice (parts are named by run index). Step and fix parts of unfinished runs are
 ignored by the readers here and deleted by :func:`clean_unfinished` before a resume.
+
+How much of the per-step log a sweep keeps is its :class:`StepsMode` (``--steps``), recorded
+in ``sweep.json``: every control step (``all``, the default), the step at or after each fix
+(``fixes``: what the report and most checks need, ~8 % of the rows), or none. The on-disk
+encoding (float32 steps, zstd) and what it gives up are in :mod:`sim.montecarlo.parts`.
 """
 
 from __future__ import annotations
@@ -23,16 +31,16 @@ from __future__ import annotations
 import os
 import re
 from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.dataset as pads
-import pyarrow.parquet as pq
 
-from scenarios.errors import OutputError, output_errors
+from scenarios.errors import OutputError, ScenarioError, output_errors
 from sim.episode.types import FixLog, StepLog
+from sim.montecarlo import parts
 
 RUN_SCHEMA = pa.schema([
     ("run", pa.int64()),
@@ -67,7 +75,26 @@ STEP_SCHEMA = pa.schema([
     ("x_var", pa.float64()), ("y_var", pa.float64()), ("theta_var", pa.float64()),
     ("xy_cov", pa.float64()), ("xtheta_cov", pa.float64()), ("ytheta_cov", pa.float64()),
 ])
-"""One row per control step: poses [m, rad], errors and bounds [m], EKF covariance terms."""
+"""One row per control step: poses [m, rad], errors and bounds [m], EKF covariance terms (as read)."""
+STEP_STORAGE = parts.lean(STEP_SCHEMA)
+"""How step parts are stored: the floats of :data:`STEP_SCHEMA` as float32 (:mod:`sim.montecarlo.parts`)."""
+
+
+class StepsMode(str, Enum):
+    """Which per-step rows a sweep keeps (``pefsim mc --steps``)."""
+
+    ALL = "all"
+    FIXES = "fixes"
+    NONE = "none"
+
+
+def steps_mode(value: StepsMode | str) -> StepsMode:
+    """Parse a ``--steps`` value; raises a one-line ScenarioError for anything else."""
+    try:
+        return StepsMode(value)
+    except ValueError:
+        choices = ", ".join(m.value for m in StepsMode)
+        raise ScenarioError(f"--steps: expected one of {choices}, got {value!r}") from None
 
 FIX_SCHEMA = pa.schema([
     ("run", pa.int64()), ("fix", pa.int32()), ("t", pa.float64()),
@@ -84,7 +111,6 @@ FIX_SCHEMA = pa.schema([
 """One row per fix: true and snapshot positions [m], realised and predicted bounds [m], NIS."""
 
 _PART = re.compile(r"^run-(\d+)\.parquet$")
-_COMPRESSION = "zstd"
 
 
 @dataclass(frozen=True)
@@ -116,6 +142,10 @@ class SweepLayout:
     @property
     def recordings_dir(self) -> Path:
         return self.root / "recordings"
+
+    @property
+    def damaged_dir(self) -> Path:
+        return self.root / "damaged"
 
     @property
     def runs_parquet(self) -> Path:
@@ -183,10 +213,31 @@ def _scalar(v: Any) -> Any:
     return v.item() if isinstance(v, np.generic) else v
 
 
-def step_columns(run: int, steps: StepLog) -> dict[str, np.ndarray]:
-    """Per-step columns of :data:`STEP_SCHEMA` from an episode's :class:`StepLog`."""
+def fix_steps(step_t: np.ndarray, fix_t: np.ndarray) -> np.ndarray:
+    """Return the indices of the steps at or after each fix time (the first step whose filter holds the fix), unique."""
+    step_t = np.asarray(step_t, dtype=float)
+    idx = np.searchsorted(step_t, np.asarray(fix_t, dtype=float), side="left")
+    return np.unique(idx[idx < step_t.size])
+
+
+def step_columns(run: int, steps: StepLog, mode: StepsMode = StepsMode.ALL,
+                 fix_t: np.ndarray | None = None) -> dict[str, np.ndarray] | None:
+    """Per-step columns of :data:`STEP_SCHEMA` from an episode's :class:`StepLog`, as ``mode`` keeps them.
+
+    ``fix_t`` (the fix times [s]) selects the rows of :attr:`StepsMode.FIXES`; None for :attr:`StepsMode.NONE`.
+    """
+    mode = StepsMode(mode)
+    if mode is StepsMode.NONE:
+        return None
     n = len(steps.t)
+    keep = np.arange(n) if mode is StepsMode.ALL else fix_steps(steps.t, np.zeros(0) if fix_t is None else fix_t)
+    cols = _all_step_columns(run, steps, n)
+    return {k: v[keep] for k, v in cols.items()}
+
+
+def _all_step_columns(run: int, steps: StepLog, n: int) -> dict[str, np.ndarray]:
     tp, ep, cov = np.asarray(steps.true_pose), np.asarray(steps.est_pose), np.asarray(steps.est_cov)
+    tp, ep, cov = tp.reshape(n, 3), ep.reshape(n, 3), cov.reshape(n, 3, 3)
     return {
         "run": np.full(n, run, dtype=np.int64), "step": np.arange(n, dtype=np.int32),
         "t": np.asarray(steps.t, dtype=float),
@@ -249,11 +300,14 @@ def _matrix(a: Any, n: int, dtype: type) -> np.ndarray:
 # -- writing ----------------------------------------------------------------------------
 
 def write_atomic(path: Path, data: bytes | pa.Table) -> None:
-    """Write ``data`` (bytes, or a table as Parquet) to ``path`` via a temporary file and rename."""
+    """Write ``data`` (bytes, or a table as Parquet, :func:`sim.montecarlo.parts.write_parquet`) to ``path``.
+
+    Through a temporary file and a rename, so ``path`` is whole or absent.
+    """
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
         if isinstance(data, pa.Table):
-            pq.write_table(data, tmp, compression=_COMPRESSION)
+            parts.write_parquet(data, tmp)
         else:
             tmp.write_bytes(data)
         os.replace(tmp, path)
@@ -265,7 +319,7 @@ def write_atomic(path: Path, data: bytes | pa.Table) -> None:
 def write_record(layout: SweepLayout, record: RunRecord) -> None:
     """Write one finished run: steps, fixes and recording first, its ``runs`` row last (the commit)."""
     if record.steps is not None:
-        write_atomic(layout.part(layout.steps_dir, record.run), _table(record.steps, STEP_SCHEMA))
+        write_atomic(layout.part(layout.steps_dir, record.run), _table(record.steps, STEP_STORAGE))
     if record.fixes is not None:
         write_atomic(layout.part(layout.fixes_dir, record.run), _table(record.fixes, FIX_SCHEMA))
     if record.recording is not None:
@@ -277,10 +331,11 @@ def write_record(layout: SweepLayout, record: RunRecord) -> None:
 
 def finished_runs(layout: SweepLayout) -> set[int]:
     """Return the indices of the runs whose ``runs`` part exists (read from file names, no Parquet opened)."""
-    return set(_parts(layout.runs_dir))
+    return set(part_files(layout.runs_dir))
 
 
-def _parts(folder: Path) -> dict[int, Path]:
+def part_files(folder: Path) -> dict[int, Path]:
+    """Return the parts in ``folder`` by run index (file names only; none if the folder is missing)."""
     if not folder.is_dir():
         return {}
     out = {}
@@ -320,8 +375,7 @@ def compact_runs(layout: SweepLayout) -> pa.Table:
 def read_runs(root: str | Path) -> pa.Table:
     """All finished runs of sweep directory ``root`` (from its parts), sorted by ``run``."""
     layout = SweepLayout(Path(root))
-    parts = _parts(layout.runs_dir)
-    return _read(sorted(parts.items()), RUN_SCHEMA, None)
+    return _read(layout, [p for _, p in sorted(part_files(layout.runs_dir).items())], RUN_SCHEMA, None)
 
 
 def read_steps(root: str | Path, columns: list[str] | None = None) -> pa.Table:
@@ -337,14 +391,14 @@ def read_fixes(root: str | Path, columns: list[str] | None = None) -> pa.Table:
 def _read_per_run(root: Path, folder: str, schema: pa.Schema, columns: list[str] | None) -> pa.Table:
     layout = SweepLayout(root)
     done = finished_runs(layout)
-    parts = [(r, p) for r, p in sorted(_parts(getattr(layout, folder)).items()) if r in done]
-    return _read(parts, schema, columns)
+    found = [p for r, p in sorted(part_files(getattr(layout, folder)).items()) if r in done]
+    return _read(layout, found, schema, columns)
 
 
-def _read(parts: list[tuple[int, Path]], schema: pa.Schema, columns: list[str] | None) -> pa.Table:
-    if not parts:
-        table = schema.empty_table()
-        return table.select(columns) if columns else table
-    # Parts are listed in run order and a dataset keeps file order, so no sort is needed.
-    ds = pads.dataset([str(p) for _, p in parts], schema=schema, format="parquet")
-    return ds.to_table(columns=columns)
+def _read(layout: SweepLayout, found: list[Path], schema: pa.Schema, columns: list[str] | None) -> pa.Table:
+    try:
+        return parts.read_parts(found, schema, columns)
+    except parts.DamagedPartError as exc:
+        # Skipping the run instead would change every count and N-run statistic without a trace.
+        raise OutputError(f"{exc}; pefsim mc SCENARIO --out {layout.root} --resume moves it aside and redoes "
+                          "its run") from None

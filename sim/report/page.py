@@ -20,11 +20,21 @@ from estimators.consistency import clopper_pearson
 from scenarios.errors import PefsimError, output_errors
 from scenarios.schema import Scenario
 from sim.montecarlo import results
-from sim.montecarlo.engine import succeeded, summarize
-from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.directory import read_settings, stored_steps_mode
+from sim.montecarlo.results import StepsMode, SweepLayout
+from sim.montecarlo.summary import succeeded, summarize
 from sim.report import figures as figs
 
 CONFIDENCE = 0.95
+STEP_COLUMNS = ["true_x", "true_y", "error", "predicted_tau"]
+"""The step columns the figures read (only these are read: steps are the bulk of a sweep)."""
+FIX_COLUMNS = ["predicted_tau", "snapshot_error", "fault_diameter"]
+
+
+def steps_mode(root: Path) -> StepsMode:
+    """Return the steps mode of sweep directory ``root`` (``all`` when it has no sweep.json)."""
+    layout = SweepLayout(Path(root))
+    return stored_steps_mode(read_settings(root) if layout.sweep_json.exists() else {})
 
 
 @dataclass
@@ -51,21 +61,26 @@ def _pef_map(scenario: Scenario) -> Any:
 def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[Figure]:
     """Render the report's figures from the sweep directory ``root``."""
     runs = results.read_runs(root)
-    steps = results.read_steps(root, columns=["true_x", "true_y", "error", "predicted_tau"])
-    fixes = results.read_fixes(root, columns=["predicted_tau", "snapshot_error", "fault_diameter"])
+    mode = steps_mode(root)
+    steps = None if mode is StepsMode.NONE else results.read_steps(root, columns=STEP_COLUMNS)
+    fixes = results.read_fixes(root, columns=FIX_COLUMNS)
     eps = scenario.planning.eps_max
+    # A sweep of --steps fixes kept the steps at fix times only, where the error is smallest.
+    at = (" Only the steps at fix times are drawn (the sweep was written with --steps fixes): errors "
+          "between fixes, where they grow, are not in this figure." if mode is StepsMode.FIXES else "")
 
     def col(table: pa.Table, name: str) -> np.ndarray:
         return table.column(name).to_numpy(zero_copy_only=False).astype(float)
 
     out = []
     run_max = col(runs, "max_error")
-    fig = figs.error_cdf(col(steps, "error"), col(steps, "predicted_tau"), run_max[np.isfinite(run_max)], eps)
-    out.append(Figure("error_cdf", "Error against the predicted bound and ε_max",
-                      "Left: how often the position error (EKF estimate against the truth), the planner's "
-                      "predicted bound τ and each run's largest error stay below a value. Right: error "
-                      "divided by the bound at the same step; above 1 the prediction was broken.",
-                      figs.png_bytes(fig)))
+    if steps is not None:
+        fig = figs.error_cdf(col(steps, "error"), col(steps, "predicted_tau"), run_max[np.isfinite(run_max)], eps)
+        out.append(Figure("error_cdf", "Error against the predicted bound and ε_max",
+                          "Left: how often the position error (EKF estimate against the truth), the planner's "
+                          "predicted bound τ and each run's largest error stay below a value. Right: error "
+                          "divided by the bound at the same step; above 1 the prediction was broken." + at,
+                          figs.png_bytes(fig)))
     fig = figs.fix_scatter(col(fixes, "predicted_tau"), col(fixes, "snapshot_error"),
                            col(fixes, "fault_diameter"))
     out.append(Figure("fix_scatter", "Each fix against its prediction",
@@ -74,13 +89,14 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                       "the diameter of the realised fault area (right). Points above y = x exceed the "
                       "prediction.",
                       figs.png_bytes(fig)))
-    fig = figs.worst_error_map(scenario, pef_map, col(steps, "true_x"), col(steps, "true_y"),
-                               col(steps, "error"), eps)
-    out.append(Figure("worst_error_map", "Where the error was largest",
-                      "Left: the position error function over the floor (white line: the navigation "
-                      "region's border τ = ε_max; red: τ above ε_max). Right: the largest error observed "
-                      "in each cell any run passed through, same colours; red (outlined) cells exceeded "
-                      "ε_max.", figs.png_bytes(fig)))
+    if steps is not None:
+        fig = figs.worst_error_map(scenario, pef_map, col(steps, "true_x"), col(steps, "true_y"),
+                                   col(steps, "error"), eps)
+        out.append(Figure("worst_error_map", "Where the error was largest",
+                          "Left: the position error function over the floor (white line: the navigation "
+                          "region's border τ = ε_max; red: τ above ε_max). Right: the largest error observed "
+                          "in each cell any run passed through, same colours; red (outlined) cells exceeded "
+                          "ε_max." + at, figs.png_bytes(fig)))
     failed = ~succeeded(runs)
     n = np.arange(1, failed.size + 1)
     lower, upper = clopper_pearson(np.cumsum(failed), n, 1.0 - CONFIDENCE)
@@ -150,6 +166,9 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
              f"<h1>Monte-Carlo report: {name}</h1>",
              f"<p>{html.escape(scenario.description)}</p>",
              f"<p class='verdict'>{html.escape(verdict)}</p>", _table(["", ""], key)]
+    if steps_mode(root) is StepsMode.NONE:
+        parts.append("<p>This sweep kept no per-step rows (<code>--steps none</code>): the figures of the "
+                     "error along the routes are not available.</p>")
     for f in figures:
         data = base64.b64encode(f.png).decode("ascii")
         parts.append(f"<figure><h2>{html.escape(f.title)}</h2><img alt='{html.escape(f.name)}' "

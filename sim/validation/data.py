@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from pathlib import Path
 from typing import Any
@@ -21,7 +21,8 @@ from scenarios.errors import OutputError
 from scenarios.schema import Scenario
 from sim.jsonable import json_number
 from sim.montecarlo import results
-from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.directory import read_settings, stored_steps_mode
+from sim.montecarlo.results import StepsMode, SweepLayout
 
 EPISODE_GATE_PROBABILITY = 0.999
 """The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
@@ -191,7 +192,8 @@ class SweepData:
 
     ``q_scale`` is the filter's process-noise factor the sweep ran with (1 = the declared
     model; anything else is a negative control). ``steps`` is None when the sweep has no
-    per-step table (the N-run NEES test then does not apply).
+    per-step table (the N-run NEES test then does not apply); ``steps_mode`` is how many
+    step rows the sweep kept (``pefsim mc --steps``: all, fixes or none).
     """
 
     scenario: Scenario
@@ -200,6 +202,7 @@ class SweepData:
     source: str = "<memory>"
     q_scale: float = 1.0
     steps: StepTable | None = None
+    steps_mode: str = "all"
 
 
 def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
@@ -293,5 +296,11 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
             q_scale = float(json.loads(control.read_text(encoding="utf-8"))["q_scale"])
         except (OSError, ValueError, KeyError, TypeError):
             raise OutputError(f"{control}: unreadable; expected {{\"q_scale\": <number>}}") from None
-    return from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS), source=str(directory),
-                       q_scale=q_scale, steps=results.read_steps(layout.root, columns=STEP_COLUMNS))
+    # A directory assembled by hand may lack sweep.json: it then holds whatever steps it has.
+    mode = stored_steps_mode(read_settings(layout.root) if layout.sweep_json.exists() else {})
+    # Only a sweep of every step feeds the N-run NEES test (the only reader of steps here), so
+    # the others' step rows are not read at all.
+    steps = results.read_steps(layout.root, columns=STEP_COLUMNS) if mode is StepsMode.ALL else None
+    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS), source=str(directory),
+                       q_scale=q_scale, steps=steps)
+    return replace(data, steps_mode=mode.value)

@@ -91,6 +91,9 @@ def _nees_matrix(data: SweepData) -> np.ndarray:
 
 
 def nees_nrun_why_not(data: SweepData) -> str | None:
+    if data.steps is None and data.steps_mode != "all":
+        return (f"not available on a sweep written with --steps {data.steps_mode}: the test thins every "
+                "step's NEES by its autocorrelation between steps, so it needs all of them (--steps all)")
     if data.steps is None or not len(data.steps):
         return "the sweep has no per-step table"
     m = _nees_matrix(data)

@@ -1,0 +1,75 @@
+"""What a sweep directory holds, counted: :class:`SweepSummary` (``pefsim mc`` prints it)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from sim.montecarlo import results
+
+
+@dataclass
+class SweepSummary:
+    """What a sweep directory holds, as ``pefsim mc --json`` prints it.
+
+    A run succeeds when it ran (status ok), reached its goal and never exceeded ε_max;
+    crashed runs count as failures. ``success_ci`` is the 95 % Clopper-Pearson interval.
+    """
+
+    out: str
+    runs: int
+    ok: int
+    crashed: int
+    reached: int
+    violation_runs: int
+    successes: int
+    success_fraction: float | None
+    success_ci: list[float] | None
+    success_target: float
+    executed: int
+    wall_time: float
+    runs_per_minute: float | None
+    steps: str = "all"
+    """The sweep's steps mode (:class:`~sim.montecarlo.results.StepsMode`)."""
+    bytes_per_run: dict[str, int] = field(default_factory=dict)
+    """Mean bytes per finished run of its ``runs``, ``steps`` and ``fixes`` parts, and ``total``."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def succeeded(runs: pa.Table) -> np.ndarray:
+    """Per row of a runs table: ran (status ok), reached its goal and never exceeded ε_max."""
+    status = np.asarray(runs.column("status").to_pylist(), dtype=object)
+    reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
+    violations = np.asarray(runs.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
+    return (status == "ok") & reached & (violations == 0)
+
+
+def summarize(out: str | Path, success_target: float, executed: int = 0,
+              wall_time: float = 0.0, steps: str = "all", bytes_per_run: dict[str, int] | None = None) -> SweepSummary:
+    """Count the finished runs of sweep directory ``out``."""
+    from scipy.stats import binomtest
+
+    table = results.read_runs(out)
+    status = np.asarray(table.column("status").to_pylist(), dtype=object)
+    ok = status == "ok"
+    reached = np.asarray(table.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
+    violations = np.asarray(table.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
+    n = len(status)
+    k = int(succeeded(table).sum())
+    fraction = ci = None
+    if n:
+        fraction = k / n
+        interval = binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
+        ci = [float(interval.low), float(interval.high)]
+    rate = 60.0 * executed / wall_time if executed and wall_time > 0 else None
+    return SweepSummary(out=str(out), runs=n, ok=int(ok.sum()), crashed=int(np.sum(~ok)),
+                        reached=int((reached & ok).sum()), violation_runs=int(np.sum(ok & (violations > 0))),
+                        successes=k, success_fraction=fraction, success_ci=ci, success_target=success_target,
+                        executed=executed, wall_time=wall_time, runs_per_minute=rate, steps=steps,
+                        bytes_per_run=dict(bytes_per_run or {}))
