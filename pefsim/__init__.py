@@ -120,8 +120,13 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
     return plan_task(sc, task, free=free)
 
 
-def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None) -> Placement:
+def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,
+          plannable: bool = True) -> Placement:
     """Find the fewest markers, among sites on walls and obstacle faces, that keep the routes under eps_max.
+
+    With ``plannable`` (the default, as ``pefsim place``) the layout is planned for every task
+    and the cover target tightened until each has an admissible route
+    (:mod:`planner.placement.plannable`); ``plannable=False`` is the plain cover.
 
     Parameters
     ----------
@@ -130,6 +135,8 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
         Exact MILP (small instances), greedy with the LP lower bound, or chosen by size.
     out : str or path, optional
         Also write the scenario with the placed markers as TOML here.
+    plannable : bool
+        Check the layout with the planner and tighten the cover until every task plans.
 
     Returns
     -------
@@ -140,7 +147,12 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     from planner.placement.placement import write_scenario_with_markers
 
     sc = _scenario(scenario)
-    result = _place(sc, method=method)
+    if plannable:
+        from planner.placement.plannable import place_plannable
+
+        result = place_plannable(sc, method=method).result
+    else:
+        result = _place(sc, method=method)
     if out is not None:
         write_scenario_with_markers(sc, result, out)
     return result

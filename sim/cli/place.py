@@ -4,6 +4,10 @@ Prints the marker count, whether it is proven optimal (else the lower bound), an
 ``-o`` writes the scenario with these markers (loadable, covering every coverable point);
 ``--png`` draws the sites, chosen markers and points to cover; ``--json`` prints the result.
 
+The layout is then checked with the planner: while a task has no admissible route (the drift
+between fixes needs room under eps_max), the cover is solved again for a tighter target
+(:mod:`planner.placement.plannable`); the target used is printed. ``--cover-only`` skips that.
+
 Points that no subset of candidate sites can cover are always reported: without ``--json``
 the summary is printed and the command fails with one line naming how many and the first
 few (exit 2); with ``--json`` they are listed under ``uncovered`` and the exit code is 2 as
@@ -17,9 +21,10 @@ from pathlib import Path
 
 from scenarios.errors import output_errors
 
-EPILOG = ("exit codes: 0 every point covered; 2 bad input, or some points cannot be covered by any "
-          "candidate sites (listed under 'uncovered' with --json, else named in one error line; "
-          "-o and --png are still written)")
+EPILOG = ("exit codes: 0 every point covered and every task plans; 2 bad input, some points cannot be "
+          "covered by any candidate sites (listed under 'uncovered' with --json, else named in one error "
+          "line), or a task has no admissible route even with the tightest cover target ('unplanned'); "
+          "-o and --png are still written")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,14 +40,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", choices=("auto", "milp", "greedy"), default="auto",
                    help="auto: exact (cutting planes + HiGHS MILP) for small instances, else greedy "
                         "with the LP lower bound")
+    p.add_argument("--cover-only", action="store_true",
+                   help="cover the routes under eps_max and stop: do not plan the tasks on the layout "
+                        "(nor tighten the cover target until they plan)")
     p.add_argument("--time-limit", type=float, default=None, metavar="S",
                    help="time limit of the exact solver in seconds (default 30)")
     p.set_defaults(func=run)
 
 
-def summary(result) -> dict:
+def summary(result, target: float | None = None, unplanned: tuple[str, ...] = ()) -> dict:
     """Build the ``--json`` document of a placement (positions in metres)."""
     return {
+        "target": target,
+        "unplanned": list(unplanned),
         "count": int(result.count),
         "lower_bound": int(result.lower_bound),
         "optimal": bool(result.optimal),
@@ -92,6 +102,7 @@ def _plot(path: Path, scenario, result) -> None:
 def run(args: argparse.Namespace) -> int:
     import scenarios
     from planner.placement.placement import MILP_TIME_LIMIT, place, write_scenario_with_markers
+    from planner.placement.plannable import place_plannable
     from scenarios.errors import PlanningError
     from sim.cli import print_json
 
@@ -99,7 +110,11 @@ def run(args: argparse.Namespace) -> int:
     limit = MILP_TIME_LIMIT if args.time_limit is None else args.time_limit
     if not limit > 0:
         raise PlanningError(f"--time-limit: expected a positive number of seconds, got {limit}")
-    result = place(sc, method=args.method, time_limit=limit)
+    if args.cover_only:
+        result, target, unplanned = place(sc, method=args.method, time_limit=limit), sc.planning.eps_max, ()
+    else:
+        pp = place_plannable(sc, method=args.method, time_limit=limit)
+        result, target, unplanned = pp.result, pp.target, pp.unplanned
     written = []
     written_toml = args.output is not None and result.count >= sc.sensor.markers_per_fix
     if written_toml:
@@ -109,12 +124,15 @@ def run(args: argparse.Namespace) -> int:
         written.append(args.png)
     n_bad = len(result.uncovered)
     if args.json:
-        print_json(summary(result))
-        return 2 if n_bad else 0
+        print_json(summary(result, target, unplanned))
+        return 2 if n_bad or unplanned else 0
     state = "optimal" if result.optimal else f"not proven optimal, lower bound {result.lower_bound}"
     n_pts = len(result.points)
     print(f"{sc.name}: {result.count} markers ({state}; {result.method}) cover {n_pts - n_bad} of {n_pts} "
           f"points under eps_max = {sc.planning.eps_max:g} m, from {len(result.sites)} candidate sites")
+    if target < sc.planning.eps_max:
+        print(f"cover target tightened to {target:g} m so that every task plans (the drift between "
+              f"fixes needs room under eps_max)")
     for mid, (x, y) in result.markers:
         print(f"  {mid:<5} {x:8.3f} {y:8.3f}")
     for path in written:
@@ -124,4 +142,7 @@ def run(args: argparse.Namespace) -> int:
         note = "; -o not written: no markers" if args.output and not written_toml else ""
         raise PlanningError(f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
                             f"(first: {first}){note}")
+    if unplanned:
+        raise PlanningError(f"{len(unplanned)} of {len(sc.tasks)} tasks have no admissible route on the "
+                            f"placed markers, even with the cover target at {target:g} m: {unplanned[0]}")
     return 0
