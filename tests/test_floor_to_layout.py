@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+import scenarios
+
 REPO = Path(__file__).resolve().parents[1]
 RES = 0.05                  # map resolution [m/cell]
 ORIGIN = (-1.0, -1.0)       # map origin [m]
@@ -119,6 +121,10 @@ def test_map_and_graph_to_placed_planned_validated_exported_layout(tmp_path):
     doc = json.loads(cli(tmp_path, "place", scen, "-o", placed, "--json").stdout)
     assert doc["count"] >= 2 and doc["uncovered"] == []
     ids = [m["id"] for m in doc["markers"]]
+    # the placed scenario still reads the map (not a copy of its traced polygons), wherever it is run from
+    kept = scenarios.load(placed)
+    assert kept.floorplan is not None and kept.floorplan.file == (tmp_path / "hall.yaml").resolve()
+    assert "[floorplan]" in placed.read_text() and "[[obstacles]]" not in placed.read_text()
 
     plan = json.loads(cli(tmp_path, "plan", placed, "--json").stdout)
     chosen = next(c for c in plan["candidates"] if c["id"] == plan["chosen"])
