@@ -52,7 +52,7 @@ QUAD_SEGS = 64      # our own circles: 256-gons, at most r (1 - cos(pi/256)) < 3
 # - 3e-5: our 256-gon lies that much inside the true circle;
 # - 1e-6: line of sight is tested against pieces shrunk by visibility.BOX_SHRINK.
 DXF_BAND = SIMPLIFY + CIRCLE_SAGITTA + 3e-5 + 1e-6
-NEAR_MARKER = 0.3   # [m] markers keep this far from vertices and other obstacles (see _dxf_sure)
+NEAR_MARKER = 0.3   # [m] markers keep this far from vertices and other obstacles (see dxf_sure)
 GAP = 0.6           # [m] free space kept around each placed obstacle (aisles)
 RANGE_EPS = 1e-9    # [m] a distance this close to max_range is undecided (rounding)
 
