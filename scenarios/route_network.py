@@ -77,7 +77,9 @@ class RouteNetwork:
     edges: tuple[RouteEdge, ...] = ()
     node_ids: dict[str, str] = field(default_factory=dict)
     node_properties: dict[str, dict] = field(default_factory=dict)
-    source: str = ""
+    # how the file is named, not what it holds: the same graph read as "g.geojson" and as
+    # "/abs/g.geojson" (a scenario's portable text) is the same network
+    source: str = field(default="", compare=False)
     layout: str = ""
 
     def traffic_of(self, a: str, b: str) -> float:

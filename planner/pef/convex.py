@@ -109,15 +109,59 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         dx = (prev_d * normal[:, 1] - shift * prev_n[:, 1]) / det
         dy = (shift * prev_n[:, 0] - prev_d * normal[:, 0]) / det
         shrunk[p, :n] = q + np.column_stack([dx, dy])
+        # The moved piece is a piece when every moved edge still runs the way its edge does.
+        se = np.roll(shrunk[p, :n], -1, axis=0) - shrunk[p, :n]
+        blocks[p] = bool(np.all(np.einsum("ij,ij->i", se, e) > 0.0))
+        if not blocks[p] or np.min(np.abs(det)) < _STRAIGHT:
+            # A straight corner (a cut continuing a face, a redundant vertex) has no corner of
+            # its two moved lines, or one far off; when they move apart an edge vanishes. Take
+            # the corners of the half-planes' intersection instead.
+            shrunk[p, :n], blocks[p] = _clipped_corners(normal, sight[p, :n], q)
         shrunk[p, n:] = shrunk[p, n - 1]
         sight[p, n:] = sight[p, n - 1]
         bbox[p] = (*q.min(axis=0), *q.max(axis=0))
         sight_bbox[p] = (*shrunk[p, :n].min(axis=0), *shrunk[p, :n].max(axis=0))
-        # The moved piece is a piece when every moved edge still runs the way its edge does.
-        se = np.roll(shrunk[p, :n], -1, axis=0) - shrunk[p, :n]
-        blocks[p] = bool(np.all(np.einsum("ij,ij->i", se, e) > 0.0))
     return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, sight_bbox, blocks,
                        float(shrink))
+
+
+#: A corner whose edges turn by less than this (sine) is straight for :func:`piece_arrays`.
+_STRAIGHT = 1e-3
+
+
+def _clipped_corners(normal: np.ndarray, offset: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Corners of the convex polygon ``normal[k] . x <= offset[k]``, one per edge, and whether it has an interior.
+
+    Corner k is where edge k starts on the polygon; an edge that another makes redundant
+    (zero length) starts where the next edge that remains does, so that corner k is also
+    the end of edge k - 1, as :func:`shadow_halfplanes` reads them. ``q`` (n, 2): the
+    piece's vertices, returned when nothing remains.
+    """
+    n = len(offset)
+    direction = np.column_stack([-normal[:, 1], normal[:, 0]])       # along each edge, counter-clockwise
+    origin = normal * offset[:, None]                                # a point on each moved line
+    start = np.empty((n, 2))
+    alive = np.zeros(n, dtype=bool)
+    for k in range(n):
+        den = normal @ direction[k]
+        num = offset - normal @ origin[k]
+        others = np.arange(n) != k
+        if np.any(others & (den == 0.0) & (num <= 0.0)):
+            continue  # a parallel edge lies inside this one: it is redundant
+        lo = np.max(num[others & (den < 0.0)] / den[others & (den < 0.0)], initial=-np.inf)
+        hi = np.min(num[others & (den > 0.0)] / den[others & (den > 0.0)], initial=np.inf)
+        if lo < hi and np.isfinite(lo):
+            alive[k] = True
+            start[k] = origin[k] + lo * direction[k]
+    if alive.sum() < 3:
+        return q.copy(), False
+    for k in range(n - 1, -1, -1):  # a vanished edge starts where the next remaining one does
+        if not alive[k]:
+            j = k + 1
+            while not alive[j % n]:
+                j += 1
+            start[k] = start[j % n]
+    return start, True
 
 
 @numba.njit(cache=True)

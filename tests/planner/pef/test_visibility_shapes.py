@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import shapely
+import shapely.affinity
 from shapely.geometry import LineString
 from shapely.ops import unary_union
 
@@ -127,3 +128,41 @@ def test_a_circle_shadows_like_the_circle():
     outside = [4.0 + far, 6.0 + far * math.tan(half) + 0.01]
     vis, _ = visible_points([inside, outside], [[4.0, 6.0]], pieces, 100.0, BOUNDS)
     assert not vis[0, 0] and vis[0, 1]
+
+
+@pytest.mark.parametrize("yaw_deg", [0.0, 141.53])
+def test_a_piece_whose_cut_continues_a_face_still_blocks(yaw_deg):
+    # A T: cutting its stem off the bar along the stem's faces gives pieces with a straight
+    # corner, where a face (the stem's side) runs on into a cut. Moving the face in and the cut
+    # out leaves no corner of the two moved lines (or one metres away when rotated): the piece
+    # was then taken for a sliver and blocked nothing (found by tests/scenarios/test_floorplan_sight).
+    t = shapely.affinity.rotate(shapely.Polygon([(-1.0, -0.3), (1.0, -0.3), (1.0, 0.3), (0.3, 0.3), (0.3, 1.2),
+                                                 (-0.3, 1.2), (-0.3, 0.3), (-1.0, 0.3)]), yaw_deg, origin=(0, 0))
+    # rounded to 1 nm as the floor-plan readers write coordinates
+    tee = Obstacle.from_polygon(np.round(np.asarray(shapely.affinity.translate(t, 10.0, 6.0).exterior.coords[:-1]), 9))
+    pieces = pack_pieces([tee])
+    from planner.pef.visibility import prepare
+
+    assert prepare(pieces).blocks.all()
+    pa = prepare(pieces)
+    for p in range(len(pieces)):  # each line-of-sight piece is its piece, moved by micrometres
+        n = pieces.count[p]
+        sight = shapely.Polygon(pa.shrunk[p, :n])
+        assert sight.is_valid and sight.hausdorff_distance(shapely.Polygon(pieces.vertices[p, :n])) < 1e-5
+    # sight lines through every piece, from far away on both sides: all blocked, on both paths
+    solid = tee.geometry()
+    rng = np.random.default_rng(5)
+    inside = [q for q in rng.uniform([9.0, 5.0], [11.0, 7.0], size=(400, 2))
+              if solid.buffer(-0.05).contains(shapely.Point(q))]
+    markers = np.array([[1.0, 1.0], [19.0, 11.0], [1.0, 11.0], [19.0, 1.0]])
+    far = [2 * q - m for q in inside[:40] for m in markers]  # q mirrored through m: q lies between
+    vis, free = visible_points(np.array(far), markers, pieces, 100.0, (-40.0, -40.0, 60.0, 60.0))
+    for i, _ in enumerate(far):
+        assert not vis[i % 4, i], (far[i], markers[i % 4])
+    # the grid path (shadows cast from the line-of-sight corners) agrees with the points path
+    x, y = np.arange(0.05, 20.0, 0.1), np.arange(0.05, 12.0, 0.1)
+    vg, _ = visible_grid(x, y, markers, pieces, 100.0, BOUNDS)
+    xx, yy = np.meshgrid(x, y)
+    vp, _ = visible_points(np.column_stack([xx.ravel(), yy.ravel()]), markers, pieces, 100.0, BOUNDS)
+    assert np.array_equal(vg.reshape(len(markers), -1), vp)
+    assert (~vp).sum() > 4 * 200  # each marker's shadow covers cells
