@@ -62,7 +62,7 @@ def hall_toml(markers: bool = True, resolution: float = 0.1) -> str:
     docks = []
     for j in range(12):
         i = 2 * j if j < 11 else N_ROWS  # under every other aisle, the last at the far wall
-        for end, cy, dy, yaw in (("b", CROSS_Y[0], DOCK_Y[0], -90.0), ("t", CROSS_Y[1], DOCK_Y[1], 90.0)):
+        for end, dy, yaw in (("b", DOCK_Y[0], -90.0), ("t", DOCK_Y[1], 90.0)):
             name = f"D{len(docks) + 1}"
             docks.append((name, aisle_x(i), dy, yaw))
             nodes[name] = (aisle_x(i), dy)

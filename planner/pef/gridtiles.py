@@ -223,7 +223,7 @@ def bands_parallelogram(b0, b1, x, y, mx, my, max_range, hp, nhp, hidden, free, 
 def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
                        bounds: tuple[float, float, float, float], rel: float,
                        ab: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The parallelogram PEF (k = 2) on the cell centres of a grid, band by band.
+    """Compute the parallelogram PEF (k = 2) on the cell centres of a grid, band by band.
 
     Parameters
     ----------
