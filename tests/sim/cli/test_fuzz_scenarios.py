@@ -30,7 +30,7 @@ EXTREMES = [0, -1, 1, 2, 10**9, 2**63 - 1, -(2**63), 0.0, -0.0, 1e-9, -1e-9, 1e1
             [math.nan, 0.0], [-5.0, -5.0], [1e6, 1e6], [0.0, 0.0, 0.0], [[0.0, 0.0]], {"x": 1}]
 
 def profile(max_examples: int) -> settings:
-    """The fixed, derandomised profile (no example database: CI reruns exactly these)."""
+    """Return the fixed, derandomised profile (no example database: CI reruns exactly these)."""
     return settings(max_examples=max_examples, derandomize=True, database=None, deadline=None, print_blob=True,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
@@ -53,7 +53,7 @@ def _parent(doc, path):
 
 @st.composite
 def mutated(draw, name: str):
-    """A built-in scenario's document with 1 to 3 mutations."""
+    """Draw a built-in scenario's document with 1 to 3 mutations."""
     doc = tomllib.loads((LIBRARY / f"{name}.toml").read_text())
     for _ in range(draw(st.integers(1, 3))):
         paths = _paths(doc)
