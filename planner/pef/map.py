@@ -48,6 +48,8 @@ from scenarios.schema import PefModel, Scenario
 EXACT_MARGIN = 1.5
 #: Largest grid :meth:`PEF.grid` builds (cells), to turn a typo in the resolution into an error.
 MAX_CELLS = 25_000_000
+#: Most marker subsets a PEF scores per point (C(M, k)); the list alone takes 8 k bytes each.
+MAX_SUBSETS = 2_000_000
 
 _KERNEL_MODEL = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                  PefModel.GDOP: pef_kernels.GDOP}
@@ -170,6 +172,9 @@ class PEF:
         self.exact_margin = float(exact_margin)
         self.markers = scenario.marker_positions()
         n = len(self.markers)
+        if n >= self.k and math.comb(n, self.k) > MAX_SUBSETS:
+            raise PlanningError(f"sensor.markers_per_fix: {self.k} of {n} markers gives {math.comb(n, self.k):.3g} "
+                                f"subsets to score at every point (at most {MAX_SUBSETS:.0e}); use fewer per fix")
         combos = list(itertools.combinations(range(n), self.k)) if n >= self.k else []
         self.subsets = np.array(combos, dtype=np.int64).reshape(len(combos), self.k)
         self.chi2_ppf = chi2_2dof_ppf(scenario.planning.gdop_level)
