@@ -14,7 +14,7 @@ REL, AB = 6.7e-5, 0.002
 
 
 def _floor(seed: int, n_markers: int):
-    """A 40 x 30 m floor with random boxes and markers on their faces and in the open."""
+    """Build a 40 x 30 m floor with random boxes and markers on their faces and in the open."""
     rng = np.random.default_rng(seed)
     boxes = []
     for _ in range(12):
