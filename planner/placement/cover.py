@@ -245,9 +245,9 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     """Cutting planes on the site-only formulation, then integer rounds (see module doc).
 
     LP phase: solve the LP over the current covering rows, add the independent-set cuts it
-    violates, until none is found; its value is a lower bound. Upper bound: the greedy cover
-    and the greedy completion of the LP solution's sites with ``z >= 1/2``. Integer rounds
-    (``integral``): look for an integer point with fewer sites than the best cover; if it
+    violates, until none is found; its value is a lower bound. Upper bound: the best of the
+    greedy cover and the greedy completions of the LP solution's sites with
+    ``z >= 0.3, 0.5, 0.7``. Integer rounds (``integral``): look for an integer point with fewer sites than the best cover; if it
     covers, it is the new best; if not, add the cuts it violates (and complete it greedily);
     if there is none, the best cover is optimal.
 
@@ -283,7 +283,9 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
         bound, x = max(bound, float(res.fun)), res.x
         if not cuts.add(separate(res.x), 1.0):
             break
-    best = min(greedy(cov, k), greedy(cov, k, x >= 0.5), key=lambda z: z.sum())
+    # LP rounding with repair at three thresholds (the hall's LP is fractional everywhere, and
+    # which threshold completes best varies by a marker or two), against plain greedy
+    best = min([greedy(cov, k)] + [greedy(cov, k, x >= t) for t in (0.3, 0.5, 0.7)], key=lambda z: z.sum())
     while integral and math.ceil(bound - 1e-6) < best.sum() and left() > 0:
         res = cuts.solve(left(), at_most=int(best.sum()) - 1)
         if res.status == 2:  # infeasible: nothing smaller than the best cover exists
