@@ -248,8 +248,8 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     violates, until none is found; its value is a lower bound. Upper bound: the best of the
     greedy cover and the greedy completions of the LP solution's sites with
     ``z >= 0.3, 0.5, 0.7``. Integer rounds (``integral``): look for an integer point with fewer
-    sites than the best cover; if it covers, it is the new best; if not, add the cuts it violates (and complete it greedily);
-    if there is none, the best cover is optimal.
+    sites than the best cover; if it covers, it is the new best; if not, add the cuts it
+    violates (and complete it greedily); if there is none, the best cover is optimal.
 
     Returns
     -------
