@@ -175,8 +175,11 @@ class PEF:
         if n >= self.k and math.comb(n, self.k) > MAX_SUBSETS:
             raise PlanningError(f"sensor.markers_per_fix: {self.k} of {n} markers gives {math.comb(n, self.k):.3g} "
                                 f"subsets to score at every point (at most {MAX_SUBSETS:.0e}); use fewer per fix")
-        combos = list(itertools.combinations(range(n), self.k)) if n >= self.k else []
-        self.subsets = np.array(combos, dtype=np.int64).reshape(len(combos), self.k)
+        if self.k == 2:  # the same lexicographic order as combinations, without 40k Python tuples
+            self.subsets = np.column_stack(np.triu_indices(n, 1)).astype(np.int64).reshape(-1, 2)
+        else:
+            combos = list(itertools.combinations(range(n), self.k)) if n >= self.k else []
+            self.subsets = np.array(combos, dtype=np.int64).reshape(len(combos), self.k)
         self.chi2_ppf = chi2_2dof_ppf(scenario.planning.gdop_level)
 
     # --- visibility ---------------------------------------------------------------------------
