@@ -17,8 +17,9 @@ _MISSING = object()
 #: Largest magnitude of any number in a scenario unless its key says less: beyond it a value is
 #: a typo or a fuzzer's, and downstream arithmetic (squares, grids, polygons) would overflow.
 MAX_NUMBER = 1e9
-#: Largest magnitude of a coordinate or size [m]: 1000 km, far beyond any floor.
-MAX_COORD = 1e6
+#: Largest magnitude of a coordinate or size [m]: 1e8 m, room for UTM northings (up to 1e7 m)
+#: in a workspace.origin, far below where squares of coordinates lose all precision.
+MAX_COORD = 1e8
 
 
 def show(value: Any) -> str:
