@@ -14,6 +14,13 @@ from scenarios.errors import ScenarioError
 
 _MISSING = object()
 
+#: Largest magnitude of any number in a scenario unless its key says less: beyond it a value is
+#: a typo or a fuzzer's, and downstream arithmetic (squares, grids, polygons) would overflow.
+MAX_NUMBER = 1e9
+#: Largest magnitude of a coordinate or size [m]: 1e8 m, room for UTM northings (up to 1e7 m)
+#: in a workspace.origin, far below where squares of coordinates lose all precision.
+MAX_COORD = 1e8
+
 
 def show(value: Any) -> str:
     """Render a value the way the user wrote it in TOML (roughly)."""
@@ -74,14 +81,19 @@ class Table:
             self.fail(key, f"expected {what} {'>' if low_open else '>='} {low:g}", v)
         if high is not None and v > high:
             self.fail(key, f"expected {what} <= {high:g}", v)
+        if abs(v) > MAX_NUMBER:
+            self.fail(key, f"expected {what} of magnitude at most {MAX_NUMBER:g}", v)
         return v
 
-    def integer(self, name: str, default: Any = _MISSING, *, low: int | None = None) -> int:
+    def integer(self, name: str, default: Any = _MISSING, *, low: int | None = None,
+                high: int | None = None) -> int:
         v = self.raw(name, default)
         if isinstance(v, bool) or not isinstance(v, int):
             self.fail(self.key(name), "expected an integer", v)
         if low is not None and v < low:
             self.fail(self.key(name), f"expected an integer >= {low}", v)
+        if high is not None and v > high:
+            self.fail(self.key(name), f"expected an integer <= {high}", v)
         return int(v)
 
     def string(self, name: str, default: Any = _MISSING, *, choices: tuple[str, ...] | None = None) -> str:
@@ -107,6 +119,8 @@ class Table:
             self.fail(key, f"expected {what}", v)
         if positive and any(x <= 0 for x in v):
             self.fail(key, f"expected {what} with positive entries", v)
+        if any(abs(x) > MAX_COORD for x in v):
+            self.fail(key, f"expected {what} of magnitude at most {MAX_COORD:g}", v)
         return tuple(float(x) for x in v)
 
     def table(self, name: str, default: Any = _MISSING) -> Table:

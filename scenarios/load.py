@@ -34,6 +34,20 @@ from scenarios.schema import (
 )
 
 LIBRARY = Path(__file__).resolve().parent / "library"
+
+#: Limits of the loader, each with its reason (values beyond them are typos or unit mistakes,
+#: and would otherwise surface as overflows, memory errors or hour-long runs downstream).
+MAX_GRID_CELLS = 200_000_000
+"""Largest PEF grid (workspace / planning.resolution) a scenario may ask for: 2e8 cells is
+already 1.6 GB per float64 layer."""
+MAX_EPS = 100.0
+"""Largest eps_max [m]: an allowed error beyond 100 m is not a positioning question."""
+MAX_RANGE = 10_000.0
+"""Largest sensor.max_range [m]: no laser ranges reflectors 10 km away."""
+MAX_MARKERS_PER_FIX = 8
+"""Largest k: the PEF scores every k-subset of the markers, C(M, k) of them."""
+MIN_SPACING = 0.01
+"""Smallest placement.spacing [m]: finer sampling only multiplies the candidate sites."""
 CRITERIA = tuple(f.name for f in fields(Weights))
 
 
@@ -92,14 +106,14 @@ def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
     noise = t.string("noise", d.noise.value, choices=tuple(m.value for m in NoiseModel))
     spec = SensorSpec(
         relative_error=t.number("relative_error", d.relative_error, low=0.0, high=0.5),
-        absolute_error=t.number("absolute_error", d.absolute_error, low=0.0),
+        absolute_error=t.number("absolute_error", d.absolute_error, low=0.0, high=10.0),
         noise=NoiseModel(noise),
         bearing_error=math.radians(t.number("bearing_error_deg", math.degrees(d.bearing_error),
                                             low=0.0, high=45.0)),
-        max_range=t.number("max_range", d.max_range, low=0.0, low_open=True),
-        measurement_time=t.number("measurement_time", d.measurement_time, low=0.0),
-        markers_per_fix=t.integer("markers_per_fix", d.markers_per_fix, low=2),
-        fix_rate_hz=t.number("fix_rate_hz", d.fix_rate_hz, low=0.0, low_open=True),
+        max_range=t.number("max_range", d.max_range, low=0.0, low_open=True, high=MAX_RANGE),
+        measurement_time=t.number("measurement_time", d.measurement_time, low=0.0, high=60.0),
+        markers_per_fix=t.integer("markers_per_fix", d.markers_per_fix, low=2, high=MAX_MARKERS_PER_FIX),
+        fix_rate_hz=t.number("fix_rate_hz", d.fix_rate_hz, low=0.0, low_open=True, high=1000.0),
     )
     if spec.relative_error == 0.0 and spec.absolute_error == 0.0:
         t.fail(t.key("absolute_error"), "expected relative_error or absolute_error > 0", 0.0)
@@ -108,18 +122,19 @@ def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
 
 def _robot(t: Table, base: RobotSpec) -> RobotSpec:
     pos = {"low": 0.0, "low_open": True}
+    # upper limits far beyond any wheeled robot: larger values are typos (or unit mistakes)
     spec = RobotSpec(
-        wheel_radius=t.number("wheel_radius", base.wheel_radius, **pos),
-        wheel_base=t.number("wheel_base", base.wheel_base, **pos),
-        radius=t.number("radius", base.radius, **pos),
-        max_speed=t.number("max_speed", base.max_speed, **pos),
-        max_yaw_rate=t.number("max_yaw_rate", base.max_yaw_rate, **pos),
-        encoder_ticks=t.integer("encoder_ticks", base.encoder_ticks, low=1),
+        wheel_radius=t.number("wheel_radius", base.wheel_radius, high=10.0, **pos),
+        wheel_base=t.number("wheel_base", base.wheel_base, high=100.0, **pos),
+        radius=t.number("radius", base.radius, high=100.0, **pos),
+        max_speed=t.number("max_speed", base.max_speed, high=100.0, **pos),
+        max_yaw_rate=t.number("max_yaw_rate", base.max_yaw_rate, high=100.0, **pos),
+        encoder_ticks=t.integer("encoder_ticks", base.encoder_ticks, low=1, high=10**9),
         wheel_radius_error=t.number("wheel_radius_error", base.wheel_radius_error, low=-0.2, high=0.2),
         odometry_noise=t.number("odometry_noise", base.odometry_noise, low=0.0, high=0.5),
         turn_slip=t.number("turn_slip", base.turn_slip, low=-0.5, high=0.5),
-        mass=t.number("mass", base.mass, **pos),
-        max_wheel_torque=t.number("max_wheel_torque", base.max_wheel_torque, **pos),
+        mass=t.number("mass", base.mass, high=1e6, **pos),
+        max_wheel_torque=t.number("max_wheel_torque", base.max_wheel_torque, high=1e6, **pos),
     )
     return spec
 
@@ -128,20 +143,20 @@ def _planning(t: Table) -> PlanningSpec:
     d = PlanningSpec()
     model = t.string("pef_model", d.pef_model.value, choices=tuple(m.value for m in PefModel))
     w = t.table("weights", {})
-    weights = Weights(**{c: w.number(c, getattr(Weights(), c), low=0.0) for c in CRITERIA})
+    weights = Weights(**{c: w.number(c, getattr(Weights(), c), low=0.0, high=1e6) for c in CRITERIA})
     w.done()
     order = t.raw("order", [])
     if not isinstance(order, list) or any(o not in CRITERIA for o in order):
         t.fail(t.key("order"), "expected a list of criteria among " + ", ".join(CRITERIA), order)
     return PlanningSpec(
-        eps_max=t.number("eps_max", low=0.0, low_open=True),
+        eps_max=t.number("eps_max", low=0.0, low_open=True, high=MAX_EPS),
         pef_model=PefModel(model),
         gdop_level=t.number("gdop_level", d.gdop_level, low=0.0, low_open=True, high=0.999999),
         resolution=t.number("resolution", d.resolution, low=0.0, low_open=True),
         weights=weights,
         order=tuple(order),
         heading_std_deg=t.number("heading_std_deg", d.heading_std_deg, low=0.0, high=90.0),
-        min_fix_speed=t.number("min_fix_speed", d.min_fix_speed, low=0.0, low_open=True),
+        min_fix_speed=t.number("min_fix_speed", d.min_fix_speed, low=0.0, low_open=True, high=100.0),
     )
 
 
@@ -204,6 +219,11 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
     p_t = root.table("planning")
     planning = _planning(p_t)
     p_t.done()
+    cells = math.prod(max(1, round(extent / planning.resolution)) for extent in workspace.size)
+    if cells > MAX_GRID_CELLS:
+        p_t.fail(p_t.key("resolution"), f"expected a cell size giving at most {MAX_GRID_CELLS:.0e} grid cells "
+                 f"over the {workspace.size[0]:g} x {workspace.size[1]:g} m workspace ({cells:.3g} cells)",
+                 planning.resolution)
     if planning.pef_model is PefModel.PARALLELOGRAM and sensor.markers_per_fix != 2:
         p_t.fail(p_t.key("pef_model"),
                  f"parallelogram needs sensor.markers_per_fix = 2 (use \"strips\" for k = {sensor.markers_per_fix})",
@@ -244,7 +264,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
 
     mc_t = root.table("montecarlo", {})
     montecarlo = MonteCarloSpec(
-        runs=mc_t.integer("runs", MonteCarloSpec().runs, low=1),
+        runs=mc_t.integer("runs", MonteCarloSpec().runs, low=1, high=10**7),
         success_target=mc_t.number("success_target", MonteCarloSpec().success_target, low=0.0, high=1.0),
     )
     mc_t.done()
@@ -259,7 +279,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         cands.append(p)
     placement = PlacementSpec(
         candidates=tuple(cands),
-        spacing=pl_t.number("spacing", PlacementSpec().spacing, low=0.0, low_open=True),
+        spacing=pl_t.number("spacing", PlacementSpec().spacing, low=MIN_SPACING),
         cover=pl_t.string("cover", PlacementSpec().cover, choices=("routes", "free")),
     )
     pl_t.done()

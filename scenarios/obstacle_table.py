@@ -59,7 +59,8 @@ def read_obstacle(t: Table) -> Obstacle:
             if t.has(k):
                 t.fail(t.key(k), f"not a key of a circle obstacle (expected {_KINDS})", t.data[k])
         ob = Obstacle.circle(t.vector("center", 2, what="[x, y]"),
-                             t.number("radius", low=0.0, low_open=True, what="a radius in metres"))
+                             t.number("radius", low=0.0, low_open=True, high=1000.0,  # a pillar, not a planet:
+                                      what="a radius in metres"))  # its polygon has ~pi sqrt(r / 2 mm) sides
         t.done()
         return ob
     if not t.has("center") or not t.has("size"):

@@ -134,6 +134,11 @@ class Obstacle:
         at least ``-margin`` from its boundary. A circle is tested as the true circle (not its
         polygon), so that markers on a pillar's surface count as outside it.
         """
+        if self.kind == "box":  # scalar arithmetic: a scenario checks every marker against every box
+            c, s = math.cos(self.yaw), math.sin(self.yaw)
+            dx, dy = float(p[0]) - self.center[0], float(p[1]) - self.center[1]
+            return (abs(c * dx + s * dy) <= self.size[0] / 2 + margin
+                    and abs(-s * dx + c * dy) <= self.size[1] / 2 + margin)
         return bool(self.contains_points(np.asarray(p, float)[None, :2], margin)[0])
 
     def contains_points(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:

@@ -41,6 +41,7 @@ import numpy as np
 from estimators import compiled
 from estimators.fault.linearized import strip_max_vertex_sq_k
 from planner.pef import pairs as pef_pairs
+from planner.pef.gridtiles import blocks_points_local
 from planner.pef.scalar import (
     GDOP,
     PARALLELOGRAM,
@@ -298,7 +299,7 @@ def best_subset(px, py, mx, my, vis, rel, ab, tan_xi, model, subsets, chi2_ppf, 
     nblk = (px.size + BLOCK - 1) // BLOCK
     if model == PARALLELOGRAM:
         nblk = (px.size + pef_pairs.BLOCK - 1) // pef_pairs.BLOCK
-        kernel = pef_pairs.blocks_points
+        kernel = blocks_points_local  # pef_pairs.blocks_points on the markers each block sees
         args = (px, py, mx, my, vis.reshape(-1), rel, ab, subsets, pef_pairs.MARGIN, tau, best.reshape(-1))
     elif model == GDOP:
         kernel, args = _blocks_gdop, (px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best)

@@ -39,7 +39,8 @@ import numpy as np
 
 from estimators.fault.linearized import chi2_2dof_ppf
 from planner.pef import kernels as pef_kernels
-from planner.pef.visibility import scenario_visible_grid, scenario_visible_points
+from planner.pef.gridtiles import parallelogram_grid
+from planner.pef.visibility import scenario_visible_grid, scenario_visible_points, visible_points
 from scenarios.errors import PlanningError
 from scenarios.schema import PefModel, Scenario
 
@@ -47,6 +48,8 @@ from scenarios.schema import PefModel, Scenario
 EXACT_MARGIN = 1.5
 #: Largest grid :meth:`PEF.grid` builds (cells), to turn a typo in the resolution into an error.
 MAX_CELLS = 25_000_000
+#: Most marker subsets a PEF scores per point (C(M, k)); the list alone takes 8 k bytes each.
+MAX_SUBSETS = 2_000_000
 
 _KERNEL_MODEL = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                  PefModel.GDOP: pef_kernels.GDOP}
@@ -169,8 +172,14 @@ class PEF:
         self.exact_margin = float(exact_margin)
         self.markers = scenario.marker_positions()
         n = len(self.markers)
-        combos = list(itertools.combinations(range(n), self.k)) if n >= self.k else []
-        self.subsets = np.array(combos, dtype=np.int64).reshape(len(combos), self.k)
+        if n >= self.k and math.comb(n, self.k) > MAX_SUBSETS:
+            raise PlanningError(f"sensor.markers_per_fix: {self.k} of {n} markers gives {math.comb(n, self.k):.3g} "
+                                f"subsets to score at every point (at most {MAX_SUBSETS:.0e}); use fewer per fix")
+        if self.k == 2:  # the same lexicographic order as combinations, without 40k Python tuples
+            self.subsets = np.column_stack(np.triu_indices(n, 1)).astype(np.int64).reshape(-1, 2)
+        else:
+            combos = list(itertools.combinations(range(n), self.k)) if n >= self.k else []
+            self.subsets = np.array(combos, dtype=np.int64).reshape(len(combos), self.k)
         self.chi2_ppf = chi2_2dof_ppf(scenario.planning.gdop_level)
 
     # --- visibility ---------------------------------------------------------------------------
@@ -220,6 +229,15 @@ class PEF:
         """
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
+        size = self.scenario.workspace.size
+        if self.model is PefModel.PARALLELOGRAM:
+            # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles)
+            sc = self.scenario
+            tau, best, free = parallelogram_grid(x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range,
+                                                 sc.workspace.bounds, float(self.sensor.relative_error),
+                                                 float(self.sensor.absolute_error))
+            return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
+                          cell_size=(size[0] / x.size, size[1] / y.size))
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
@@ -227,7 +245,6 @@ class PEF:
             tau, best = r.tau.reshape(y.size, x.size), r.best.reshape(y.size, x.size, self.k)
         else:
             tau, best = self._kernel_grid(x, y, vis)
-        size = self.scenario.workspace.size
         return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
                       cell_size=(size[0] / x.size, size[1] / y.size))
 
@@ -253,16 +270,26 @@ class PEF:
         if np.any(sub < 0) or np.any(sub >= len(self.markers)) or len(set(sub[0].tolist())) != self.k:
             raise PlanningError(f"subset: expected {self.k} distinct marker indices "
                                 f"in [0, {len(self.markers)}), got {sub[0].tolist()}")
-        vis, _ = scenario_visible_points(self.scenario, pts)
+        # only the subset's markers matter: their visibility alone (rows in subset order), and
+        # the kernel on those k markers (the winner's tau is recomputed from them alone)
+        sc = self.scenario
+        vis, _ = visible_points(pts, self.markers[sub[0]], sc.obstacle_pieces(), self.sensor.max_range,
+                                sc.workspace.bounds)
+        local = np.arange(self.k, dtype=np.int64)
         if self.model is PefModel.EXACT:
-            return self._exact_subset(pts, vis, sub[0])
-        return self._kernel(pts[:, 0].copy(), pts[:, 1].copy(), vis, sub, _KERNEL_MODEL[self.model])[0]
+            return self._exact_subset(pts, vis, local, self.markers[sub[0]])
+        return self._kernel(pts[:, 0].copy(), pts[:, 1].copy(), vis, local.reshape(1, -1),
+                            _KERNEL_MODEL[self.model], self.markers[sub[0]])[0]
 
     # --- internals ----------------------------------------------------------------------------
 
     def _kernel(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray, subsets: np.ndarray,
-                model: int) -> tuple[np.ndarray, np.ndarray]:
-        """Return tau (N,) and the chosen subset's markers (N, k) for points (px, py), vis (M, N)."""
+                model: int, markers: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Return tau (N,) and the chosen subset's markers (N, k) for points (px, py), vis (M, N).
+
+        ``markers`` (M, 2): the markers ``vis`` and ``subsets`` refer to; default all of them.
+        """
+        mk = self.markers if markers is None else markers
         n = px.size
         tau = np.empty(n)
         best = np.empty((n, subsets.shape[1]), dtype=np.int64)
@@ -274,7 +301,7 @@ class PEF:
             return tau, best
         tan_xi = math.tan(self.sensor.bearing_error) if self.sensor.uses_bearing else 0.0
         pef_kernels.best_subset(
-            px, py, np.ascontiguousarray(self.markers[:, 0]), np.ascontiguousarray(self.markers[:, 1]),
+            px, py, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
             np.ascontiguousarray(vis), float(self.sensor.relative_error),
             float(self.sensor.absolute_error), tan_xi, model, subsets, self.chi2_ppf, tau, best)
         return tau, best
@@ -321,12 +348,16 @@ class PEF:
         best = np.where(idx[:, None] >= 0, self.subsets[np.maximum(idx, 0)], -1)
         return exact.min(axis=1), best
 
-    def _exact_subset(self, pts: np.ndarray, vis: np.ndarray, subset: np.ndarray) -> np.ndarray:
-        """Exact fault-area diameters of one ``subset`` (k,) at ``pts`` (N, 2); inf where hidden."""
+    def _exact_subset(self, pts: np.ndarray, vis: np.ndarray, subset: np.ndarray,
+                      markers: np.ndarray | None = None) -> np.ndarray:
+        """Exact fault-area diameters of one ``subset`` (k,) at ``pts`` (N, 2); inf where hidden.
+
+        ``subset`` indexes ``markers`` (default all markers) and the rows of ``vis``.
+        """
         from estimators.fault.exact import fault_area_of_point
 
         out = np.full(len(pts), np.inf)
-        mk = self.markers[subset]
+        mk = (self.markers if markers is None else markers)[subset]
         for i in np.flatnonzero(vis[subset].all(axis=0)):
             rho = self.sensor.range_bound(np.hypot(*(pts[i] - mk).T))
             out[i] = fault_area_of_point(mk, pts[i], rho, bearing_error=self.sensor.bearing_error).diameter

@@ -175,8 +175,11 @@ def segment_blocked(a, b, obstacles) -> bool:
 def _first_above(x, v):
     """Smallest index i with x[i] > v (x ascending, uniform); x.size if none."""
     n = x.size
-    if n == 1:
-        return 0 if x[0] > v else 1
+    # outside the grid (and infinite v, whose int() is undefined) without walking the row
+    if not x[0] <= v:  # NaN too, as before
+        return 0
+    if x[n - 1] <= v:
+        return n
     i = int(math.floor((v - x[0]) / (x[1] - x[0]))) + 1
     if i < 0:
         i = 0
@@ -193,8 +196,10 @@ def _first_above(x, v):
 def _first_at_or_above(x, v):
     """Smallest index i with x[i] >= v (x ascending, uniform); x.size if none."""
     n = x.size
-    if n == 1:
-        return 0 if x[0] >= v else 1
+    if not x[0] < v:  # NaN too, as before
+        return 0
+    if x[n - 1] < v:
+        return n
     i = int(math.ceil((v - x[0]) / (x[1] - x[0])))
     if i < 0:
         i = 0
@@ -225,6 +230,35 @@ def _free_grid_kernel(x, y, x0, y0, x1, y1, planes, count, bbox, free):
 
 
 @numba.njit(cache=True)
+def shadow_row(hp, n, yy, x):
+    """Columns ``i0 <= ix < i1`` of grid row ``yy`` inside a shadow (``n`` half-planes ``hp``).
+
+    ``hp`` (>= n, 3) as written by :func:`~planner.pef.convex.shadow_halfplanes`; ``x`` the
+    cell-centre columns (ascending, uniform). An empty range (i0 >= i1) when the row misses it
+    or ``n <= 0``.
+    """
+    if n <= 0:
+        return 0, 0
+    lo, hi = -np.inf, np.inf
+    for h in range(n):
+        a, bb, c = hp[h, 0], hp[h, 1], hp[h, 2]
+        rhs = -(bb * yy + c)  # a x < rhs
+        if a > 0.0:
+            v = rhs / a
+            if v < hi:
+                hi = v
+        elif a < 0.0:
+            v = rhs / a
+            if v > lo:
+                lo = v
+        elif rhs <= 0.0:
+            return 0, 0
+        if not lo < hi:
+            return 0, 0
+    return _first_above(x, lo), _first_at_or_above(x, hi)
+
+
+@numba.njit(cache=True)
 def _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, count, blocks, free, vis):
     """Fill ``vis[m]``: in range and free, then clear each piece's shadow row by row."""
     r2max = max_range * max_range
@@ -246,30 +280,7 @@ def _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, coun
         if hidden:
             continue
         for p in range(npc):
-            if nhp[p] <= 0:
-                continue
-            lo, hi = -np.inf, np.inf
-            empty = False
-            for h in range(nhp[p]):
-                a, bb, c = hp[p, h, 0], hp[p, h, 1], hp[p, h, 2]
-                rhs = -(bb * yy + c)  # a x < rhs
-                if a > 0.0:
-                    v = rhs / a
-                    if v < hi:
-                        hi = v
-                elif a < 0.0:
-                    v = rhs / a
-                    if v > lo:
-                        lo = v
-                elif rhs <= 0.0:
-                    empty = True
-                if empty or not lo < hi:
-                    empty = True
-                    break
-            if empty:
-                continue
-            i0 = _first_above(x, lo)
-            i1 = _first_at_or_above(x, hi)
+            i0, i1 = shadow_row(hp[p], nhp[p], yy, x)
             for ix in range(i0, i1):
                 vis[m, iy, ix] = False
 

@@ -77,7 +77,6 @@ def run(args: argparse.Namespace) -> int:
     from planner.plan import plan_route
     from scenarios.errors import PlanningError
     from sim.cli import print_json
-    from sim.report.plan_figure import plot_plan
 
     sc = scenarios.load(args.scenario)
     start, goal = args.start, args.goal
@@ -94,7 +93,11 @@ def run(args: argparse.Namespace) -> int:
     pef = PEF(sc)
     plan = plan_route(sc, start, goal, free=True if args.free else None, pef=pef)
     pef_map = pef.grid() if (args.output or args.rrd) else None
-    out = plot_plan(sc, plan, pef_map, args.output) if args.output else None
+    out = None
+    if args.output:
+        from sim.report.plan_figure import plot_plan  # matplotlib: only when a figure is asked for
+
+        out = plot_plan(sc, plan, pef_map, args.output)
     if args.rrd:
         from sim.recording import write_static_rrd
 

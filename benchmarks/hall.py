@@ -1,0 +1,190 @@
+"""Big floors: the 120 x 80 m hall (``benchmarks/hall_scenario.py``) through ``pefsim map/plan/place``.
+
+Run: ``python benchmarks/hall.py [--skip-place]``. The hall is written into a temporary folder
+(nothing is written elsewhere). Each command runs as a subprocess, measured by ``os.wait4``:
+wall time, CPU (user + sys) and peak RSS. Targets: ``map --resolution 0.05 --json`` (3.84 M
+cells) <= 1.5 s and <= 1 GB; ``plan`` <= 2 s; ``place`` from the empty floor <= 60 s and
+<= 1.5 GB with at most 1.2 x its lower bound. The machine may be shared: compare CPU times,
+and the baselines measured in this same run:
+
+- map: a vectorised numpy PEF (Liang-Barsky line of sight against the racks, every visible pair
+  scored) on a random subsample of free cells, as cells per second against the map's cells per
+  second (the subprocess's wall time, all of it: imports, loading, the grid, the summary), and
+  the largest relative difference of tau on the subsample;
+- place: the greedy cover against the improved solver on the same cover problem, in process.
+
+The last line is one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# Run as a script, this folder comes first on sys.path, and benchmarks/planner.py would shadow
+# the planner package.
+HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
+
+import numpy as np  # noqa: E402
+
+ROOT = HERE.parent
+
+
+def _load_hall_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("hall_scenario", HERE / "hall_scenario.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def measured(args: list[str], cwd: Path) -> dict:
+    """Run ``python -m sim.cli ARGS``: wall [s], CPU (user + sys, ``os.wait4``) [s], peak RSS [MB], exit, output."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    with tempfile.TemporaryFile("w+") as fo, tempfile.TemporaryFile("w+") as fe:
+        t0 = time.perf_counter()
+        p = subprocess.Popen([sys.executable, "-m", "sim.cli", *args], cwd=cwd, env=env, stdout=fo, stderr=fe)
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t0
+        p.returncode = os.waitstatus_to_exitcode(status)
+        fo.seek(0)
+        fe.seek(0)
+        return {"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "rss_mb": ru.ru_maxrss / 1024.0,
+                "code": p.returncode, "stdout": fo.read(), "stderr": fe.read()}
+
+
+def numpy_reference(sc, points: np.ndarray) -> np.ndarray:
+    """Parallelogram tau at ``points`` (N, 2) [m], vectorised numpy (axis-aligned box obstacles only)."""
+    from planner.pef.visibility import BOX_SHRINK
+
+    mk = sc.marker_positions()
+    boxes = np.array([[o.center[0] - o.size[0] / 2, o.center[1] - o.size[1] / 2,
+                       o.center[0] + o.size[0] / 2, o.center[1] + o.size[1] / 2] for o in sc.obstacles])
+    s = sc.sensor
+    out = np.full(len(points), np.inf)
+    for lo in range(0, len(points), 100):
+        p = points[lo:lo + 100]
+        d = p[:, None, :] - mk[None, :, :]                     # (n, M, 2) marker -> point
+        r = np.hypot(d[..., 0], d[..., 1])
+        vis = (r <= s.max_range) & (r > 0)
+        # Liang-Barsky: the segment marker + t d, t in [0, 1], against each shrunk box (open)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for b in boxes - np.array([-BOX_SHRINK, -BOX_SHRINK, BOX_SHRINK, BOX_SHRINK]):
+                t0, t1 = np.zeros(r.shape), np.ones(r.shape)
+                for axis, (bmin, bmax) in enumerate(((b[0], b[2]), (b[1], b[3]))):
+                    o, v = mk[None, :, axis], d[..., axis]
+                    ta, tb = (bmin - o) / v, (bmax - o) / v
+                    lo_t, hi_t = np.minimum(ta, tb), np.maximum(ta, tb)
+                    inside = (o > bmin) & (o < bmax)
+                    lo_t = np.where(v == 0, np.where(inside, -np.inf, np.inf), lo_t)
+                    hi_t = np.where(v == 0, np.where(inside, np.inf, -np.inf), hi_t)
+                    t0, t1 = np.maximum(t0, lo_t), np.minimum(t1, hi_t)
+                vis &= ~(t0 < t1)
+        u = d / np.where(r > 0, r, 1.0)[..., None]
+        rho = s.relative_error * r + s.absolute_error
+        i, j = np.triu_indices(len(mk), 1)
+        for c in range(len(p)):
+            ok = vis[c, i] & vis[c, j]
+            if not ok.any():
+                continue
+            a, b = i[ok], j[ok]
+            cos = np.clip((u[c, a] * u[c, b]).sum(-1), -1.0, 1.0)
+            sin = np.abs(u[c, a, 0] * u[c, b, 1] - u[c, a, 1] * u[c, b, 0])
+            r1, r2 = rho[c, a], rho[c, b]
+            with np.errstate(divide="ignore"):
+                diag = 2.0 / sin * np.sqrt(r1 ** 2 + r2 ** 2 + 2 * r1 * r2 * np.abs(cos))
+            out[lo + c] = diag.min()
+    return out
+
+
+def bench_map(folder: Path, hall: Path, n_ref: int) -> dict:
+    import scenarios
+    from planner.pef.map import PEF
+
+    measured(["map", str(hall), "--resolution", "2.0", "--json"], folder)  # numba cache warm-up
+    m = measured(["map", str(hall), "--resolution", "0.05", "--json"], folder)
+    summary = json.loads(m["stdout"])
+    sc = scenarios.load(hall)
+    pm = PEF(sc).grid(0.05)
+    rng = np.random.default_rng(1)
+    iy, ix = np.nonzero(pm.free)
+    pick = rng.choice(len(iy), n_ref, replace=False)
+    pts = np.column_stack([pm.x[ix[pick]], pm.y[iy[pick]]])
+    t0 = time.perf_counter()
+    ref = numpy_reference(sc, pts)
+    t_ref = time.perf_counter() - t0
+    ours = pm.tau[iy[pick], ix[pick]]
+    both = np.isfinite(ref) & np.isfinite(ours)
+    rel = float(np.max(np.abs(ours[both] - ref[both]) / ref[both])) if both.any() else 0.0
+    cells = summary["cells"]
+    return {"map_wall_s": m["wall_s"], "map_cpu_s": m["cpu_s"], "map_rss_mb": m["rss_mb"], "map_code": m["code"],
+            "map_cells": cells, "map_cells_per_s": cells / m["wall_s"], "numpy_ref_points": n_ref,
+            "numpy_ref_cells_per_s": n_ref / t_ref, "map_vs_numpy": cells / m["wall_s"] / (n_ref / t_ref),
+            "ref_max_rel_diff": rel, "ref_inf_agree": bool(np.array_equal(np.isinf(ref), np.isinf(ours)))}
+
+
+def bench_plan(folder: Path, hall: Path) -> dict:
+    measured(["plan", str(hall), "--json"], folder)  # numba cache warm-up
+    m = measured(["plan", str(hall), "--json"], folder)
+    chosen = json.loads(m["stdout"])["chosen"] if m["code"] == 0 else None
+    return {"plan_wall_s": m["wall_s"], "plan_cpu_s": m["cpu_s"], "plan_rss_mb": m["rss_mb"],
+            "plan_code": m["code"], "plan_chosen": chosen}
+
+
+def bench_place(folder: Path, empty: Path) -> dict:
+    import scenarios
+    from planner.placement import cover, placement
+    from planner.placement.sites import candidate_sites, cover_points
+
+    m = measured(["place", str(empty), "--json"], folder)
+    res = json.loads(m["stdout"]) if m["stdout"] else {}
+    sc = scenarios.load(empty)
+    k = sc.sensor.markers_per_fix
+    cov, _ = placement.build_cover(sc, cover_points(sc), candidate_sites(sc), sc.planning.eps_max)
+    t0 = time.perf_counter()
+    g = cover.greedy(cov, k)
+    t_greedy = time.perf_counter() - t0
+    return {"place_wall_s": m["wall_s"], "place_cpu_s": m["cpu_s"], "place_rss_mb": m["rss_mb"],
+            "place_code": m["code"], "place_count": res.get("count"), "place_lower_bound": res.get("lower_bound"),
+            "place_ratio": res["count"] / res["lower_bound"] if res.get("lower_bound") else None,
+            "place_method": res.get("method"), "place_sites": res.get("sites"), "place_points": res.get("points"),
+            "greedy_count": int(g.sum()), "greedy_s": t_greedy}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--skip-place", action="store_true", help="leave out pefsim place (the slow part)")
+    ap.add_argument("--ref-points", type=int, default=400, help="cells of the numpy reference subsample")
+    args = ap.parse_args()
+    hs = _load_hall_module()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        hall, empty = hs.write_hall(folder), hs.write_hall(folder, markers=False)
+        r = bench_map(folder, hall, args.ref_points)
+        print(f"map 0.05 m ({r['map_cells']} cells): {r['map_wall_s']:.2f} s wall, {r['map_cpu_s']:.2f} s CPU, "
+              f"{r['map_rss_mb']:.0f} MB peak (target 1.5 s, 1 GB); {r['map_cells_per_s']:.3g} cells/s end to end "
+              f"vs numpy reference {r['numpy_ref_cells_per_s']:.3g} cells/s (x{r['map_vs_numpy']:.0f}), "
+              f"max rel diff {r['ref_max_rel_diff']:.1e}, inf cells agree {r['ref_inf_agree']}")
+        r |= bench_plan(folder, hall)
+        print(f"plan D1 -> D24: {r['plan_wall_s']:.2f} s wall, {r['plan_cpu_s']:.2f} s CPU, {r['plan_rss_mb']:.0f} MB "
+              f"(target 2 s), exit {r['plan_code']}, chosen {r['plan_chosen']}")
+        if not args.skip_place:
+            r |= bench_place(folder, empty)
+            print(f"place (empty floor, {r['place_sites']} sites, {r['place_points']} points): "
+                  f"{r['place_wall_s']:.1f} s wall, {r['place_cpu_s']:.1f} s CPU, {r['place_rss_mb']:.0f} MB "
+                  f"(target 60 s, 1.5 GB); {r['place_count']} reflectors, lower bound {r['place_lower_bound']} "
+                  f"(x{r['place_ratio']:.2f}, target 1.2; {r['place_method']}); greedy alone {r['greedy_count']}")
+    print(json.dumps(r))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,348 @@
+"""The parallelogram PEF on a grid, streamed band by band, and on points, block by block.
+
+(:func:`blocks_points_local`: the points path's blocks on the markers each block sees, the same
+idea without the visibility part.)
+
+:func:`planner.pef.kernels.best_subset_grid` needs the whole visibility array (M, ny, nx) and
+scores every marker at every cell: on a 120 x 80 m hall at 5 cm with 286 reflectors that is
+1.1 GB of booleans and 286 normals per cell, although a cell sees about ten markers. This
+module computes the same map without it. The grid is cut into bands of
+:data:`~planner.pef.pairs.TILE_ROWS` rows; for each band (one thread per range of bands):
+
+1. the markers within ``max_range`` of the band get their visibility on the band's rows, by
+   the grid path's own rules (:mod:`planner.pef.visibility`: free, in range, each piece's
+   shadow cleared row by row with the same half-planes and the same column search), into a
+   band array (markers in range, TILE_ROWS, nx);
+2. each tile of the band keeps the markers visible from one of its cells, in ascending index
+   order, and its pairs in lexicographic order: the order of the global pair list restricted
+   to them, so the pruned sweep (:func:`planner.pef.pairs._block`) picks the same pair as on
+   the full list (a pair holding an unseen marker has NaN normals and never wins);
+3. the previous tile's winners, as marker pairs, seed the next tile's pruning.
+
+Values are identical to the full-array path (a test compares them); memory is one band per
+thread, and the cost follows the markers a tile sees rather than all markers.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from estimators import compiled
+from planner.pef.convex import shadow_halfplanes
+from planner.pef.pairs import BLOCK, MARGIN, TILE_COLS, TILE_ROWS, _block, _scratch
+from planner.pef.threads import run_ranges
+from planner.pef.visibility import _first_above, _first_at_or_above, _free_grid_kernel, prepare, shadow_row
+
+
+@numba.njit(cache=True)
+def _shadows(mx, my, planes, sight, shrunk, count, blocks, bbox, max_range):
+    """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
+
+    A piece farther than ``max_range`` from a marker gets no half-planes: its shadow, beyond
+    the piece, is out of range.
+    """
+    nm, npc = mx.size, count.size
+    hp = np.zeros((nm, npc, planes.shape[1] + 2, 3))
+    nhp = np.zeros((nm, npc), dtype=np.int64)
+    hidden = np.zeros(nm, dtype=np.bool_)
+    for m in range(nm):
+        for p in range(npc):
+            if blocks[p]:
+                dx = max(bbox[p, 0] - mx[m], mx[m] - bbox[p, 2], 0.0)
+                dy = max(bbox[p, 1] - my[m], my[m] - bbox[p, 3], 0.0)
+                n = shadow_halfplanes(mx[m], my[m], planes, sight, shrunk, count, p, hp[m, p])
+                if n < 0:
+                    hidden[m] = True
+                nhp[m, p] = n if dx * dx + dy * dy <= max_range * max_range * 1.0000001 else 0
+    return hp, nhp, hidden
+
+
+@numba.njit(cache=True)
+def _band_intervals(iy0, th, x, y, mx, my, r2max, hp, nhp, bm, nb, ivs, nint, lo_col, hi_col, sh):
+    """Columns of band row r that band marker q (= ``bm[q]``) may see: ``ivs[q, r, :nint[q, r]]``.
+
+    Each interval ``[i0, i1)`` of columns brackets the range disc minus the union of the pieces'
+    shadows (the grid path's half-planes and column search); ascending, disjoint. The cells
+    themselves are decided later with the exact range and free tests. ``lo_col[q]``,
+    ``hi_col[q]`` is their hull over the band. ``sh`` (P, 2) scratch.
+    """
+    nx = x.size
+    for q in range(nb):
+        m = bm[q]
+        lo_col[q], hi_col[q] = nx, 0
+        for r in range(th):
+            nint[q, r] = 0
+            yy = y[iy0 + r]
+            dy = yy - my[m]
+            if dy * dy > r2max:
+                continue
+            half = math.sqrt(r2max - dy * dy)
+            i0 = max(_first_at_or_above(x, mx[m] - half) - 1, 0)
+            i1 = min(_first_above(x, mx[m] + half) + 1, nx)
+            ns = 0
+            for p in range(nhp.shape[1]):
+                j0, j1 = shadow_row(hp[m, p], nhp[m, p], yy, x)
+                j0, j1 = max(j0, i0), min(j1, i1)
+                if j0 < j1:  # insertion by start column
+                    k = ns
+                    while k > 0 and sh[k - 1, 0] > j0:
+                        sh[k, 0], sh[k, 1] = sh[k - 1, 0], sh[k - 1, 1]
+                        k -= 1
+                    sh[k, 0], sh[k, 1] = j0, j1
+                    ns += 1
+            c, n = i0, 0
+            for k in range(ns):
+                if sh[k, 0] > c:
+                    ivs[q, r, n, 0], ivs[q, r, n, 1] = c, sh[k, 0]
+                    n += 1
+                c = max(c, sh[k, 1])
+            if c < i1:
+                ivs[q, r, n, 0], ivs[q, r, n, 1] = c, i1
+                n += 1
+            nint[q, r] = n
+            if n:
+                lo_col[q] = min(lo_col[q], ivs[q, r, 0, 0])
+                hi_col[q] = max(hi_col[q], ivs[q, r, n - 1, 1])
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def bands_parallelogram(b0, b1, x, y, mx, my, max_range, hp, nhp, hidden, free, rel, ab, margin, tau, best):
+    """Bands ``b0 <= b < b1`` of the grid (``run_ranges`` kernel); see the module docstring.
+
+    ``x`` (nx,), ``y`` (ny,) cell centres [m]; ``free`` (ny, nx); writes ``tau`` (ny * nx,) [m]
+    and ``best`` (2 * ny * nx,): the (ny, nx) and (ny, nx, 2) arrays flattened.
+    """
+    nm, nx, ny = mx.size, x.size, y.size
+    npc = nhp.shape[1]
+    ntx = -(-nx // TILE_COLS)
+    r2max = max_range * max_range
+    npair_max = max(nm * (nm - 1) // 2, 1)
+    sc, pxb, pyb, visb, taub, bestb = _scratch(nm, npair_max)
+    cand = sc[12]
+    bm = np.empty(nm, dtype=np.int64)
+    lo_col, hi_col = np.empty(nm, dtype=np.int64), np.empty(nm, dtype=np.int64)
+    loc = np.empty(nm, dtype=np.int64)           # band index q of each tile marker
+    gm = np.empty(nm, dtype=np.int64)            # global index of each tile marker
+    local_of = np.full(nm, -1, dtype=np.int64)   # tile index of a global marker, -1 if absent
+    mxl, myl = np.empty(nm), np.empty(nm)
+    lsub = np.empty((npair_max, 2), dtype=np.int64)
+    prev = np.empty((cand.size, 2), dtype=np.int64)
+    ivs = np.empty((nm, TILE_ROWS, npc + 1, 2), dtype=np.int64)
+    nint = np.zeros((nm, TILE_ROWS), dtype=np.int64)
+    sh = np.empty((npc + 1, 2), dtype=np.int64)
+    for band in range(b0, b1):
+        iy0 = band * TILE_ROWS
+        th = min(TILE_ROWS, ny - iy0)
+        ylo, yhi = y[iy0], y[iy0 + th - 1]
+        nb = 0
+        for m in range(nm):
+            d = max(ylo - my[m], my[m] - yhi, 0.0)
+            if not hidden[m] and d * d <= r2max:
+                bm[nb] = m
+                nb += 1
+        _band_intervals(iy0, th, x, y, mx, my, r2max, hp, nhp, bm, nb, ivs, nint, lo_col, hi_col, sh)
+        nprev = 0
+        for k in range(ntx):
+            tx = k if band % 2 == 0 else ntx - 1 - k  # serpentine: neighbours share winners
+            ix0 = tx * TILE_COLS
+            tw = min(TILE_COLS, nx - ix0)
+            ix1 = ix0 + tw
+            w = th * tw
+            # the tile's markers: an interval meets it (a marker whose cells there are all
+            # out of range or not free only adds pairs that never win)
+            nl = 0
+            for q in range(nb):
+                if hi_col[q] <= ix0 or lo_col[q] >= ix1:
+                    continue
+                seen = False
+                for r in range(th):
+                    for v in range(nint[q, r]):
+                        if ivs[q, r, v, 0] < ix1 and ivs[q, r, v, 1] > ix0:
+                            seen = True
+                            break
+                    if seen:
+                        break
+                if seen:
+                    loc[nl], gm[nl] = q, bm[q]
+                    nl += 1
+            for r in range(th):
+                o = r * tw
+                for i in range(tw):
+                    pxb[o + i], pyb[o + i] = x[ix0 + i], y[iy0 + r]
+            if nl < 2:
+                for r in range(th):
+                    cell = (iy0 + r) * nx + ix0
+                    for i in range(tw):
+                        tau[cell + i] = np.inf
+                        best[2 * (cell + i)] = -1
+                        best[2 * (cell + i) + 1] = -1
+                nprev = 0
+                continue
+            for j in range(nl):
+                q, m = loc[j], gm[j]
+                mxl[j], myl[j] = mx[m], my[m]
+                local_of[m] = j
+                for r in range(th):
+                    o = j * BLOCK + r * tw - ix0
+                    iy = iy0 + r
+                    dy = y[iy] - my[m]
+                    frow = free[iy]
+                    for i in range(ix0, ix1):
+                        visb[o + i] = False
+                    for v in range(nint[q, r]):
+                        for i in range(max(ivs[q, r, v, 0], ix0), min(ivs[q, r, v, 1], ix1)):
+                            dx = x[i] - mx[m]
+                            visb[o + i] = frow[i] & (dx * dx + dy * dy <= r2max)
+            npair = 0
+            for a in range(nl):
+                for b in range(a + 1, nl):
+                    lsub[npair, 0], lsub[npair, 1] = a, b
+                    npair += 1
+            ncand = np.int64(0)  # the previous tile's winners, in this tile's pair rows
+            for c in range(nprev):
+                a, b = local_of[prev[c, 0]], local_of[prev[c, 1]]
+                if a >= 0 and b >= 0:
+                    cand[ncand] = a * (2 * nl - a - 1) // 2 + (b - a - 1)
+                    ncand += 1
+            ncand = _block(pxb, pyb, visb, w, mxl[:nl], myl[:nl], rel, ab, lsub[:npair], margin, ncand, sc,
+                           taub, bestb)
+            for c in range(ncand):
+                prev[c, 0], prev[c, 1] = gm[lsub[cand[c], 0]], gm[lsub[cand[c], 1]]
+            nprev = ncand
+            for j in range(nl):
+                local_of[gm[j]] = -1
+            for r in range(th):
+                o, cell = r * tw, (iy0 + r) * nx + ix0
+                for i in range(tw):
+                    tau[cell + i] = taub[o + i]
+                    for t in range(2):
+                        s = bestb[2 * (o + i) + t]
+                        best[2 * (cell + i) + t] = gm[s] if s >= 0 else -1
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def blocks_points_local(b0, b1, px, py, mx, my, vis, rel, ab, subsets, margin, tau, best):
+    """:func:`planner.pef.pairs.blocks_points` on each block's visible markers only.
+
+    Same arguments and results: blocks of :data:`BLOCK` consecutive points; ``vis`` (M * N,),
+    ``best`` (2 N,) flattened. Each block keeps the markers visible from one of its points
+    and the rows of ``subsets`` among them, in their order (so the pruned sweep picks what it
+    picks on all rows: a pair holding an unseen marker never wins), and the previous block's
+    winners seed its pruning as rows of ``subsets``.
+    """
+    nm, npt, nsub = mx.size, px.size, subsets.shape[0]
+    sc, _, _, visb, _, _ = _scratch(nm, nsub)
+    cand = sc[12]
+    gm = np.empty(nm, dtype=np.int64)
+    local_of = np.full(nm, -1, dtype=np.int64)
+    mxl, myl = np.empty(nm), np.empty(nm)
+    lsub = np.empty((nsub, 2), dtype=np.int64)
+    grow = np.empty(nsub, dtype=np.int64)            # subsets row of each local row
+    lrow = np.full(nsub, -1, dtype=np.int64)         # local row of a subsets row, -1 if absent
+    prev = np.empty(cand.size, dtype=np.int64)
+    nprev = 0
+    for blk in range(b0, b1):
+        lo = blk * BLOCK
+        w = min(BLOCK, npt - lo)
+        nl = 0
+        for m in range(nm):
+            seen = False
+            row = vis[m * npt + lo:m * npt + lo + w]
+            for c in range(w):
+                seen |= row[c]
+            if seen:
+                gm[nl], local_of[m] = m, nl
+                mxl[nl], myl[nl] = mx[m], my[m]
+                nl += 1
+        npair = 0
+        for s in range(nsub):
+            a, b = local_of[subsets[s, 0]], local_of[subsets[s, 1]]
+            if a >= 0 and b >= 0:
+                lsub[npair, 0], lsub[npair, 1] = a, b
+                grow[npair], lrow[s] = s, npair
+                npair += 1
+        if npair == 0:
+            for c in range(w):
+                tau[lo + c] = np.inf
+                best[2 * (lo + c)] = -1
+                best[2 * (lo + c) + 1] = -1
+            nprev = 0
+        else:
+            for j in range(nl):
+                src, dst = gm[j] * npt + lo, j * BLOCK
+                for c in range(w):
+                    visb[dst + c] = vis[src + c]
+            ncand = np.int64(0)
+            for c in range(nprev):
+                if lrow[prev[c]] >= 0:
+                    cand[ncand] = lrow[prev[c]]
+                    ncand += 1
+            bestb = best[2 * lo:2 * (lo + w)]
+            ncand = _block(px[lo:lo + w], py[lo:lo + w], visb, w, mxl[:nl], myl[:nl], rel, ab, lsub[:npair],
+                           margin, ncand, sc, tau[lo:lo + w], bestb)
+            for c in range(ncand):
+                prev[c] = grow[cand[c]]
+            nprev = ncand
+            for i in range(2 * w):
+                bestb[i] = gm[bestb[i]] if bestb[i] >= 0 else -1
+        for t in range(npair):
+            lrow[grow[t]] = -1
+        for j in range(nl):
+            local_of[gm[j]] = -1
+
+
+def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
+                       bounds: tuple[float, float, float, float], rel: float,
+                       ab: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Compute the parallelogram PEF (k = 2) on the cell centres of a grid, band by band.
+
+    Parameters
+    ----------
+    x : ndarray, shape (nx,)
+        Cell-centre x coordinates, ascending and uniformly spaced [m].
+    y : ndarray, shape (ny,)
+        Cell-centre y coordinates, ascending and uniformly spaced [m].
+    markers : ndarray, shape (M, 2)
+        Marker positions [m].
+    obstacles, max_range, bounds
+        As in :func:`planner.pef.visibility.visible_grid`.
+    rel, ab : float
+        Range bound ``rho = rel * r + ab`` [m/m, m].
+
+    Returns
+    -------
+    tau : ndarray, shape (ny, nx)
+        Long diagonal of the best pair's parallelogram [m]; inf where no pair is visible.
+    best : ndarray of int64, shape (ny, nx, 2)
+        Marker indices of the best pair (ascending), -1 where none.
+    free : ndarray of bool, shape (ny, nx)
+        Cell centre in free space.
+    """
+    x = np.ascontiguousarray(x, dtype=float)
+    y = np.ascontiguousarray(y, dtype=float)
+    mk = np.asarray(markers, float).reshape(-1, 2)
+    mx, my = np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1])
+    pa = prepare(obstacles)
+    x0, y0, x1, y1 = (float(v) for v in bounds)
+    free = np.empty((y.size, x.size), dtype=np.bool_)
+    _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
+    tau = np.empty((y.size, x.size))
+    best = np.empty((y.size, x.size, 2), dtype=np.int64)
+    if mk.shape[0] < 2:
+        tau.fill(np.inf)
+        best.fill(-1)
+        return tau, best, free
+    hp, nhp, hidden = _shadows(mx, my, pa.planes, pa.sight, pa.shrunk, pa.count, pa.blocks, pa.sight_bbox,
+                               float(max_range))
+    nbands = -(-y.size // TILE_ROWS)
+    run_ranges(bands_parallelogram, nbands,
+               (x, y, mx, my, float(max_range), hp, nhp, hidden, free, float(rel), float(ab), MARGIN,
+                tau.reshape(-1), best.reshape(-1)), min_chunk=2)
+    return tau, best, free
+
+
+# numba keys a cache on its own file only: flush the kernels above when a file they inline changed
+compiled.keep_fresh(__name__)
