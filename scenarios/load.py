@@ -183,7 +183,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         facing = t.number("facing_deg", None) if t.has("facing_deg") else None
         kind = MarkerKind(t.string("kind", MarkerKind.POST.value, choices=tuple(k.value for k in MarkerKind)))
         if kind is MarkerKind.FLAT and facing is None:
-            t.fail(t.key("facing_deg"), "expected the normal's direction in degrees for a flat marker", "missing")
+            t.fail(t.key("facing_deg"), "expected the normal's direction in degrees for a flat marker (missing)")
         markers.append(Marker(mid, pos, None if facing is None else math.radians(facing), kind))
         t.done()
 
