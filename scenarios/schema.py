@@ -159,7 +159,7 @@ class SensorSpec:
 
     @property
     def cos_incidence(self) -> float:
-        """cos of :attr:`max_incidence`, the flat-marker test's threshold [-]."""
+        """Cos of :attr:`max_incidence`, the flat-marker test's threshold [-]."""
         return math.cos(self.max_incidence)
 
     def range_bound(self, r: np.ndarray | float) -> np.ndarray | float:
@@ -336,7 +336,7 @@ class Scenario:
         return np.array([m.position for m in self.markers], dtype=float).reshape(-1, 2)
 
     def marker_normals(self) -> np.ndarray:
-        """Unit normals of flat markers, (0, 0) for posts, shape (M, 2), in file order."""
+        """Return the unit normals of flat markers, (0, 0) for posts, shape (M, 2), in file order."""
         return np.array([m.normal for m in self.markers], dtype=float).reshape(-1, 2)
 
     def marker_ids(self) -> list[str]:

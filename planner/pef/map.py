@@ -27,8 +27,9 @@ visible markers removed, of the best-subset tau. Removing a marker outside the b
 leaves tau unchanged and removing markers never lowers it, so only the best subset's members
 matter: ``tau_r(vis) = max over members j of best(vis) of tau_{r-1}(vis without j)``, exact,
 at k^r evaluations of the plain PEF (3 for k = 2, r = 1, on the same visibility) instead of
-C(M, r). The best subset without member j is that member's *fallback* (:attr:`PefResult.fallback`). Points and grids go through the same kernels (:mod:`planner.pef.kernels`); a grid
-is its cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
+C(M, r). The best subset without member j is that member's *fallback* (:attr:`PefResult.fallback`).
+
+Points and grids go through the same kernels (:mod:`planner.pef.kernels`); a grid is its cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
 with the same values as on the points). The kernels rank candidate subsets in float32 and
 recompute the winner's tau in float64: tau is exact for the chosen subset and within ~1e-6
 relative of the minimum. Speed and the one-off numba compilation (kernels are compiled per model on first use
@@ -359,7 +360,7 @@ class PEF:
         return tau, best
 
     def _evaluate(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> PefResult:
-        """The plain best-subset PEF at points (px, py) (N,) [m] with visibility ``vis`` (M, N)."""
+        """Evaluate the plain best-subset PEF at points (px, py) (N,) [m] with visibility ``vis`` (M, N)."""
         if self.model is PefModel.EXACT:
             tau, best = self._exact(px, py, vis)
         else:

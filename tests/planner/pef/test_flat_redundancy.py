@@ -122,7 +122,7 @@ def _best(sc, p, seen) -> float:
 
 
 def _slow_map(sc, redundancy: int, flat: bool = True):
-    """tau (or tau_1 by brute force) on the cell centres; and the ambiguous cells."""
+    """Tau (or tau_1 by brute force) on the cell centres; and the ambiguous cells."""
     nx, ny = round(12.0 / RES), round(8.0 / RES)
     xs, ys = (np.arange(nx) + 0.5) * RES, (np.arange(ny) + 0.5) * RES
     tau = np.full((ny, nx), np.inf)
