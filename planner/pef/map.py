@@ -29,7 +29,8 @@ matter: ``tau_r(vis) = max over members j of best(vis) of tau_{r-1}(vis without 
 at k^r evaluations of the plain PEF (3 for k = 2, r = 1, on the same visibility) instead of
 C(M, r). The best subset without member j is that member's *fallback* (:attr:`PefResult.fallback`).
 
-Points and grids go through the same kernels (:mod:`planner.pef.kernels`); a grid is its cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
+Points and grids go through the same kernels (:mod:`planner.pef.kernels`); a grid is its
+cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
 with the same values as on the points). The kernels rank candidate subsets in float32 and
 recompute the winner's tau in float64: tau is exact for the chosen subset and within ~1e-6
 relative of the minimum. Speed and the one-off numba compilation (kernels are compiled per model on first use
