@@ -269,6 +269,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         candidates=tuple(cands),
         spacing=pl_t.number("spacing", PlacementSpec().spacing, low=0.0, low_open=True),
         cover=pl_t.string("cover", PlacementSpec().cover, choices=("routes", "free")),
+        marker_kind=MarkerKind(pl_t.string("marker_kind", PlacementSpec().marker_kind.value,
+                                           choices=tuple(k.value for k in MarkerKind))),
     )
     pl_t.done()
     root.done()

@@ -289,6 +289,8 @@ class PlacementSpec:
     spacing: float = 2.0
     cover: str = "routes"
     """``routes`` (the route network, or free-space routes between the tasks' docks) or ``free``."""
+    marker_kind: MarkerKind = MarkerKind.FLAT
+    """Kind of the placed markers: ``flat`` sites on faces face out of them; ``post`` everywhere."""
 
 
 @dataclass(frozen=True)
