@@ -87,6 +87,8 @@ class FixLog:
         Sum over the fix's accepted updates of the normalised innovation squared.
     n_accepted : (F,) int
         Updates that passed the gate.
+    fallback : (F,) bool
+        The fix measured the schedule's fallback subset (a scheduled marker was blocked).
     """
 
     t: np.ndarray
@@ -103,6 +105,7 @@ class FixLog:
     static_tau: np.ndarray
     nis: np.ndarray
     n_accepted: np.ndarray
+    fallback: np.ndarray | None = None
 
 
 @dataclass
@@ -120,5 +123,6 @@ class EpisodeResult:
 
 
 SUMMARY_KEYS = ("reached", "duration", "steps", "fixes", "rmse", "max_error", "max_predicted_tau",
-                "eps_max", "violations", "seed", "mean_nees", "mean_nis")
+                "eps_max", "violations", "seed", "mean_nees", "mean_nis", "blocked_markers", "fallback_fixes",
+                "failed_fixes")
 """Keys of :attr:`EpisodeResult.summary` (``pefsim run --json`` prints them)."""

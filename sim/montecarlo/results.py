@@ -50,6 +50,9 @@ RUN_SCHEMA = pa.schema([
     ("violations", pa.int64()),
     ("mean_nees", pa.float64()),
     ("mean_nis", pa.float64()),
+    ("blocked_markers", pa.int64()),   # scheduled markers whose line of sight was blocked
+    ("fallback_fixes", pa.int64()),    # fixes that measured the schedule's fallback subset
+    ("failed_fixes", pa.int64()),      # scheduled fixes that could not be taken
     ("wall_time", pa.float64()),    # [s] of the episode call
     ("cpu_time", pa.float64()),     # [s] CPU time of the worker process during the episode call
 ])
@@ -80,6 +83,7 @@ FIX_SCHEMA = pa.schema([
     ("nis", pa.float64()), ("n_accepted", pa.int32()), ("contained", pa.bool_()),
     ("markers", pa.list_(pa.int32())),   # marker indices in scenario file order
     ("ranges", pa.list_(pa.float64())), ("rho", pa.list_(pa.float64())),
+    ("fallback", pa.bool_()),            # measured the schedule's fallback subset
 ])
 """One row per fix: true and snapshot positions [m], realised and predicted bounds [m], NIS."""
 
@@ -223,6 +227,8 @@ def fix_columns(run: int, fixes: FixLog) -> dict[str, np.ndarray]:
         "markers": _matrix(fixes.markers, n, np.int32),
         "ranges": _matrix(fixes.ranges, n, np.float64),
         "rho": _matrix(fixes.rho, n, np.float64),
+        "fallback": (np.zeros(n, dtype=bool) if fixes.fallback is None
+                     else np.asarray(fixes.fallback, dtype=bool).reshape(n)),
     }
 
 
