@@ -20,6 +20,7 @@ import numpy as np
 from planner.pef.map import PEF
 from planner.plan import Plan
 from scenarios import PlanningError, Scenario, SimulationError
+from sim.episode.certify import certified_bound
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.follower import PurePursuit, wheel_speeds
 from sim.episode.types import EpisodeResult, StepLog
@@ -312,6 +313,9 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     steps = _step_log(log[:, LOG_T], log[:, LOG_TRUE], log[:, LOG_EST], log[:, LOG_COV].reshape(n, 3, 3),
                       log[:, LOG_S], schedule, pef)
     fix_log = fixes.log()
+    certified = certified_bound(robot, steps.t, log[:, LOG_S], steps.est_pose[:, 2], fix_log.t,
+                                fix_log.predicted_tau, k * scenario.sensor.measurement_time)
+    steps.certified = certified
     goal = np.array(scenario.dock(task.goal).position)
     reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=
                    follower.goal_tolerance + scenario.planning.eps_max)
@@ -321,7 +325,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         summary={**_summary(steps, fix_log, reached, scenario.planning.eps_max, ss, fixes.skipped,
                             counts["merged"]), "scheduled_fixes": len(fix_s),
                  "blocked_markers": fixes.blocked_markers, "fallback_fixes": int(np.sum(fix_log.fallback)),
-                 "failed_fixes": fixes.skipped})
+                 "failed_fixes": fixes.skipped,
+                 "certified_max": float(np.max(certified, initial=0.0))})
 
 
 def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:

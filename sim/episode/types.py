@@ -38,6 +38,8 @@ class StepLog:
         PEF τ (best visible subset) at the true position [m]; inf where not enough markers.
     nees : (T,) float
         Normalised estimation error squared of the full pose (3 dof).
+    certified : (T,) float or None
+        The bound the fixes actually taken certify (:mod:`sim.episode.certify`) [m].
     """
 
     t: np.ndarray
@@ -48,6 +50,7 @@ class StepLog:
     predicted_tau: np.ndarray
     pef_tau: np.ndarray
     nees: np.ndarray
+    certified: np.ndarray | None = None
 
 
 @dataclass
@@ -124,5 +127,5 @@ class EpisodeResult:
 
 SUMMARY_KEYS = ("reached", "duration", "steps", "fixes", "rmse", "max_error", "max_predicted_tau",
                 "eps_max", "violations", "seed", "mean_nees", "mean_nis", "blocked_markers", "fallback_fixes",
-                "failed_fixes")
+                "failed_fixes", "certified_max")
 """Keys of :attr:`EpisodeResult.summary` (``pefsim run --json`` prints them)."""

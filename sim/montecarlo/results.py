@@ -53,6 +53,7 @@ RUN_SCHEMA = pa.schema([
     ("blocked_markers", pa.int64()),   # scheduled markers whose line of sight was blocked
     ("fallback_fixes", pa.int64()),    # fixes that measured the schedule's fallback subset
     ("failed_fixes", pa.int64()),      # scheduled fixes that could not be taken
+    ("certified_max", pa.float64()),   # [m] largest certified bound (sim.episode.certify)
     ("wall_time", pa.float64()),    # [s] of the episode call
     ("cpu_time", pa.float64()),     # [s] CPU time of the worker process during the episode call
 ])
@@ -69,6 +70,7 @@ STEP_SCHEMA = pa.schema([
     ("nees", pa.float64()),
     ("x_var", pa.float64()), ("y_var", pa.float64()), ("theta_var", pa.float64()),
     ("xy_cov", pa.float64()), ("xtheta_cov", pa.float64()), ("ytheta_cov", pa.float64()),
+    ("certified", pa.float64()),   # the bound the fixes taken certify [m] (sim.episode.certify)
 ])
 """One row per control step: poses [m, rad], errors and bounds [m], EKF covariance terms."""
 
@@ -202,6 +204,8 @@ def step_columns(run: int, steps: StepLog) -> dict[str, np.ndarray]:
         "nees": np.asarray(steps.nees, dtype=float),
         "x_var": cov[:, 0, 0], "y_var": cov[:, 1, 1], "theta_var": cov[:, 2, 2],
         "xy_cov": cov[:, 0, 1], "xtheta_cov": cov[:, 0, 2], "ytheta_cov": cov[:, 1, 2],
+        "certified": (np.full(n, np.nan) if steps.certified is None
+                      else np.asarray(steps.certified, dtype=float).reshape(n)),
     }
 
 
