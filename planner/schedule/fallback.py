@@ -4,8 +4,10 @@ For the marker in slot q of a fix's subset, the fallback is the candidate subset
 marker whose static PEF over the fix's stretch is lowest (the best subset without it, as in
 :attr:`planner.pef.map.PefResult.fallback`); its promise is the moving fix's fault area of that
 subset at the same start and speed (:func:`planner.schedule.promise.predict`). A fix whose
-marker has no fallback (no other visible subset) names an empty one: with that marker blocked
-the fix fails and the robot dead-reckons on.
+marker has no fallback (no other visible subset, or none whose promise is under
+``eps_max / (1 + PROMISE_TOLERANCE)``, the limit of a scheduled fix) names an empty one: with that
+marker blocked the robot improvises with the best visible subset (beyond what the plan
+promises) or, with fewer than k visible, dead-reckons on.
 """
 
 from __future__ import annotations
@@ -66,4 +68,9 @@ def fallbacks(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: n
                                          [subs[i][q] for i in rows])
             for i, p in zip(rows, pred, strict=True):
                 taus[i][q] = float(p)
+    limit = scenario.planning.eps_max / (1.0 + promise.PROMISE_TOLERANCE)
+    for i in range(len(orders)):
+        for q in range(k):
+            if not taus[i][q] < limit:  # a fallback that cannot keep the promise is none
+                subs[i][q], taus[i][q] = (), math.inf
     return [tuple(s) for s in subs], [tuple(t) for t in taus]

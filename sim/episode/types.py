@@ -92,6 +92,9 @@ class FixLog:
         Updates that passed the gate.
     fallback : (F,) bool
         The fix measured the schedule's fallback subset (a scheduled marker was blocked).
+    beyond_redundancy : (F,) bool
+        Blocked lines of sight left neither the scheduled subset nor its fallback: the robot
+        improvised with the best visible subset, which the plan promised nothing for.
     """
 
     t: np.ndarray
@@ -109,6 +112,7 @@ class FixLog:
     nis: np.ndarray
     n_accepted: np.ndarray
     fallback: np.ndarray | None = None
+    beyond_redundancy: np.ndarray | None = None
 
 
 @dataclass

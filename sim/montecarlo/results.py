@@ -86,6 +86,7 @@ FIX_SCHEMA = pa.schema([
     ("markers", pa.list_(pa.int32())),   # marker indices in scenario file order
     ("ranges", pa.list_(pa.float64())), ("rho", pa.list_(pa.float64())),
     ("fallback", pa.bool_()),            # measured the schedule's fallback subset
+    ("beyond_redundancy", pa.bool_()),   # improvised: blocks left neither the subset nor its fallback
 ])
 """One row per fix: true and snapshot positions [m], realised and predicted bounds [m], NIS."""
 
@@ -233,6 +234,8 @@ def fix_columns(run: int, fixes: FixLog) -> dict[str, np.ndarray]:
         "rho": _matrix(fixes.rho, n, np.float64),
         "fallback": (np.zeros(n, dtype=bool) if fixes.fallback is None
                      else np.asarray(fixes.fallback, dtype=bool).reshape(n)),
+        "beyond_redundancy": (np.zeros(n, dtype=bool) if fixes.beyond_redundancy is None
+                              else np.asarray(fixes.beyond_redundancy, dtype=bool).reshape(n)),
     }
 
 
