@@ -256,8 +256,8 @@ class PEF:
         else:
             def evaluate(v: np.ndarray) -> PefResult:
                 t, b = self._kernel_grid(x, y, v.reshape(v.shape[0], y.size, x.size))
-                return PefResult(tau=t.ravel(), best=b.reshape(-1, self.k))
-        r = self._redundant(evaluate, vis.reshape(vis.shape[0], -1))
+                return PefResult(tau=t.ravel(), best=b.reshape(y.size * x.size, self.k))
+        r = self._redundant(evaluate, vis.reshape(vis.shape[0], y.size * x.size))
         size = self.scenario.workspace.size
         shape = (y.size, x.size)
         return PefMap(x=x, y=y, tau=r.tau.reshape(shape), best=r.best.reshape(*shape, self.k), free=free,
