@@ -12,7 +12,12 @@ shared); ``cpu/2`` is the process CPU time of the best call over two cores, whic
 idle machine would take when other load shares the cores. The load average is printed before
 and after.
 
-Run: ``python benchmarks/pef_map.py [--repeat N] [--no-cold]``. The last line is one JSON object.
+Redundancy (``planning.redundancy = 1``, tau_1: the worst over one visible marker blocked) on
+the same floors, with the 20 markers as flat reflectors facing into the hall (45 degrees
+incidence): the redundancy-1 map against the plain one of the same floor. Target: <= 3x.
+
+Run: ``python benchmarks/pef_map.py [--repeat N] [--no-cold] [--redundancy-only]``. The last
+line is one JSON object.
 """
 
 from __future__ import annotations
@@ -181,6 +186,47 @@ print((t2 - t1) - (t3 - t2))
 """
 
 
+def variant(sc: scenarios.Scenario, flat: bool, redundancy: int) -> scenarios.Scenario:
+    """Return ``sc`` with ``planning.redundancy`` and, if ``flat``, its wall markers flat facing into the hall."""
+    import dataclasses
+
+    def facing(x: float, y: float) -> float:
+        if y == 0.0:
+            return math.pi / 2
+        if y == SIZE:
+            return -math.pi / 2
+        return 0.0 if x == 0.0 else math.pi
+
+    markers = tuple(dataclasses.replace(m, kind=scenarios.MarkerKind.FLAT, facing=facing(*m.position))
+                    for m in sc.markers) if flat else sc.markers
+    return dataclasses.replace(sc, markers=markers,
+                               planning=dataclasses.replace(sc.planning, redundancy=redundancy))
+
+
+def redundancy_figures(repeat: int) -> dict:
+    """Time plain and redundancy-1 parallelogram maps (posts and flat markers), print a table."""
+    from planner.pef.map import PEF
+
+    out = {}
+    print(f"redundancy-1 map against the plain one, 1000x1000 cells, {N_MARKERS} markers, best of {repeat}")
+    print(f"{'markers':<8} {'boxes':>5} {'plain [s]':>10} {'r=1 [s]':>9} {'ratio':>6}")
+    for kind in ("post", "flat"):
+        for n_boxes in (0, N_BOXES):
+            base = bench_scenario(n_boxes, "parallelogram")
+            times = []
+            for r in (0, 1):
+                pef = PEF(variant(base, kind == "flat", r))
+                pef.grid(1.0)
+                (wall, _, _), _ = best_of(repeat, lambda pef=pef: pef.grid())
+                times.append(wall)
+            ratio = times[1] / times[0]
+            out[f"redundancy_{kind}_{'boxes' if n_boxes else 'open'}"] = {
+                "plain_s": round(times[0], 4), "r1_s": round(times[1], 4), "ratio": round(ratio, 2)}
+            print(f"{kind:<8} {n_boxes:>5} {times[0]:10.3f} {times[1]:9.3f} {ratio:6.2f}")
+    out["redundancy_target_ratio"] = 3.0
+    return out
+
+
 def first_call_overhead(cache_dir: str | None) -> float:
     """Measure the extra seconds of the first small maps in a fresh process.
 
@@ -199,7 +245,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=9)
     ap.add_argument("--no-cold", action="store_true", help="skip the cold-compile subprocess")
+    ap.add_argument("--redundancy-only", action="store_true", help="only the redundancy-1 against plain maps")
     args = ap.parse_args()
+    if args.redundancy_only:
+        print(json.dumps(redundancy_figures(args.repeat)))
+        return
 
     from estimators.fault.linearized import chi2_2dof_ppf
     from planner.pef.map import PEF
@@ -271,6 +321,7 @@ def main() -> None:
               f"{model:<14} {n_ob:>5} {n_pc:>6} {wall:9.3f} {median:7.3f} {cpu2:9.3f} {err:10.1e} {str(agree):>8}")
     print(f"numba first-call overhead: {warm:.2f} s from the cache, "
           f"{cold:.2f} s compiling into an empty cache")
+    figures.update(redundancy_figures(args.repeat))
     print(json.dumps({"cells": 1_000_000, "markers": N_MARKERS, "k": 2, "boxes": N_BOXES, **figures,
                       "numba_cache_load_s": round(warm, 2),
                       "numba_cold_compile_s": None if math.isnan(cold) else round(cold, 2),

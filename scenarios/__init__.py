@@ -15,6 +15,7 @@ from scenarios.obstacles import ConvexPieces
 from scenarios.schema import (
     Dock,
     Marker,
+    MarkerKind,
     MonteCarloSpec,
     NoiseModel,
     Obstacle,
@@ -32,7 +33,8 @@ from scenarios.schema import (
 )
 
 __all__ = [
-    "ConvexPieces", "Dock", "Marker", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError", "PefModel",
+    "ConvexPieces", "Dock", "Marker", "MarkerKind", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError",
+    "PefModel",
     "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteEdge", "RouteNetwork",
     "Scenario", "ScenarioError", "SensorSpec", "SimulationError", "Task", "Weights", "Workspace",
     "builtin_names", "from_dict", "load", "loads", "resolve",

@@ -20,6 +20,7 @@ from scenarios.routegraph import place_node_docks, portable_routes_text, read_no
 from scenarios.schema import (
     Dock,
     Marker,
+    MarkerKind,
     MonteCarloSpec,
     NoiseModel,
     PefModel,
@@ -114,6 +115,9 @@ def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:
         measurement_time=t.number("measurement_time", d.measurement_time, low=0.0, high=60.0),
         markers_per_fix=t.integer("markers_per_fix", d.markers_per_fix, low=2, high=MAX_MARKERS_PER_FIX),
         fix_rate_hz=t.number("fix_rate_hz", d.fix_rate_hz, low=0.0, low_open=True, high=1000.0),
+        max_incidence=math.radians(t.number("max_incidence_deg", math.degrees(d.max_incidence),
+                                            low=0.0, low_open=True, high=90.0)),
+        block_probability=t.number("block_probability", d.block_probability, low=0.0, high=1.0),
     )
     if spec.relative_error == 0.0 and spec.absolute_error == 0.0:
         t.fail(t.key("absolute_error"), "expected relative_error or absolute_error > 0", 0.0)
@@ -157,6 +161,7 @@ def _planning(t: Table) -> PlanningSpec:
         order=tuple(order),
         heading_std_deg=t.number("heading_std_deg", d.heading_std_deg, low=0.0, high=90.0),
         min_fix_speed=t.number("min_fix_speed", d.min_fix_speed, low=0.0, low_open=True, high=100.0),
+        redundancy=t.integer("redundancy", d.redundancy, low=0),
     )
 
 
@@ -191,7 +196,10 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         if any(m.id == mid for m in markers):
             t.fail(t.key("id"), "expected a unique marker id", mid)
         facing = t.number("facing_deg", None) if t.has("facing_deg") else None
-        markers.append(Marker(mid, pos, None if facing is None else math.radians(facing)))
+        kind = MarkerKind(t.string("kind", MarkerKind.POST.value, choices=tuple(k.value for k in MarkerKind)))
+        if kind is MarkerKind.FLAT and facing is None:
+            t.fail(t.key("facing_deg"), "expected the normal's direction in degrees for a flat marker (missing)")
+        markers.append(Marker(mid, pos, None if facing is None else math.radians(facing), kind))
         t.done()
 
     s_t = root.table("sensor")
@@ -281,6 +289,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         candidates=tuple(cands),
         spacing=pl_t.number("spacing", PlacementSpec().spacing, low=MIN_SPACING),
         cover=pl_t.string("cover", PlacementSpec().cover, choices=("routes", "free")),
+        marker_kind=MarkerKind(pl_t.string("marker_kind", PlacementSpec().marker_kind.value,
+                                           choices=tuple(k.value for k in MarkerKind))),
     )
     pl_t.done()
     root.done()

@@ -83,17 +83,37 @@ class Workspace:
         return x0 - tol <= p[0] <= x1 + tol and y0 - tol <= p[1] <= y1 + tol
 
 
+class MarkerKind(str, Enum):
+    """How a reflector can be seen.
+
+    ``post``: a round post, seen from every side.
+    ``flat``: a flat reflector (tape on a wall or a rack face), seen only from the points whose
+    direction from it is within ``sensor.max_incidence_deg`` of its normal ``facing``.
+    """
+
+    POST = "post"
+    FLAT = "flat"
+
+
 @dataclass(frozen=True)
 class Marker:
     """A landmark (laser reflector, anchor) at a known ``position`` (x, y) [m].
 
     ``facing`` [rad] is the direction the reflector faces (file key ``facing_deg``; a DXF
-    block's rotation), None when not given.
+    block's rotation), None when not given; a ``flat`` marker always has one.
     """
 
     id: str
     position: tuple[float, float]
     facing: float | None = None
+    kind: MarkerKind = MarkerKind.POST
+
+    @property
+    def normal(self) -> tuple[float, float]:
+        """Unit normal (cos facing, sin facing) of a flat marker; (0, 0) for a post."""
+        if self.kind is not MarkerKind.FLAT or self.facing is None:
+            return (0.0, 0.0)
+        return (math.cos(self.facing), math.sin(self.facing))
 
 
 @dataclass(frozen=True)
@@ -118,6 +138,12 @@ class SensorSpec:
         k, markers measured per fix.
     fix_rate_hz : float
         Highest rate at which fixes can start [Hz].
+    max_incidence : float
+        A flat marker is seen only within this angle of its normal [rad] (file key
+        ``max_incidence_deg``, in (0, 90]).
+    block_probability : float
+        Simulation only: chance that a scheduled marker's line of sight is blocked at a fix
+        (a person, a pallet), independently per marker and fix [-].
     """
 
     relative_error: float = 6.7e-5
@@ -128,6 +154,13 @@ class SensorSpec:
     measurement_time: float = 0.02
     markers_per_fix: int = 2
     fix_rate_hz: float = 5.0
+    max_incidence: float = math.radians(45.0)
+    block_probability: float = 0.0
+
+    @property
+    def cos_incidence(self) -> float:
+        """Cos of :attr:`max_incidence`, the flat-marker test's threshold [-]."""
+        return math.cos(self.max_incidence)
 
     def range_bound(self, r: np.ndarray | float) -> np.ndarray | float:
         """ρ(r) = Re·r + ρ0 [m], the bound of the range error at range ``r`` [m]."""
@@ -214,6 +247,8 @@ class PlanningSpec:
     odometry shift of the fix's earlier ranges, :mod:`estimators.fault.carried`)."""
     min_fix_speed: float = 0.05
     """Slowest speed the planner may slow down to for a fix [m/s]."""
+    redundancy: int = 0
+    """r: markers that may be blocked without breaking the promise (tau_r, DESIGN section 1)."""
 
     @property
     def heading_std(self) -> float:
@@ -254,6 +289,8 @@ class PlacementSpec:
     spacing: float = 2.0
     cover: str = "routes"
     """``routes`` (the route network, or free-space routes between the tasks' docks) or ``free``."""
+    marker_kind: MarkerKind = MarkerKind.FLAT
+    """Kind of the placed markers: ``flat`` sites on faces face out of them; ``post`` everywhere."""
 
 
 @dataclass(frozen=True)
@@ -299,6 +336,10 @@ class Scenario:
     def marker_positions(self) -> np.ndarray:
         """Marker positions, shape (M, 2) [m], in file order."""
         return np.array([m.position for m in self.markers], dtype=float).reshape(-1, 2)
+
+    def marker_normals(self) -> np.ndarray:
+        """Return the unit normals of flat markers, (0, 0) for posts, shape (M, 2), in file order."""
+        return np.array([m.normal for m in self.markers], dtype=float).reshape(-1, 2)
 
     def marker_ids(self) -> list[str]:
         return [m.id for m in self.markers]

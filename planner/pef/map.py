@@ -20,8 +20,17 @@
   ``exact_margin=inf`` clips every subset.
 
 ``tau`` is inf where fewer than k markers are visible, outside the workspace and inside
-obstacles. Points and grids go through the same kernels (:mod:`planner.pef.kernels`); a grid
-is its cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
+obstacles.
+
+Redundancy (``planning.redundancy`` = r): ``tau_r(p)`` is the largest, over every set of r
+visible markers removed, of the best-subset tau. Removing a marker outside the best subset
+leaves tau unchanged and removing markers never lowers it, so only the best subset's members
+matter: ``tau_r(vis) = max over members j of best(vis) of tau_{r-1}(vis without j)``, exact,
+at k^r evaluations of the plain PEF (3 for k = 2, r = 1, on the same visibility) instead of
+C(M, r). The best subset without member j is that member's *fallback* (:attr:`PefResult.fallback`).
+
+Points and grids go through the same kernels (:mod:`planner.pef.kernels`); a grid is its
+cell centres (the parallelogram kernel walks a grid in tiles, for its pair pruning,
 with the same values as on the points). The kernels rank candidate subsets in float32 and
 recompute the winner's tau in float64: tau is exact for the chosen subset and within ~1e-6
 relative of the minimum. Speed and the one-off numba compilation (kernels are compiled per model on first use
@@ -65,10 +74,17 @@ class PefResult:
         Predicted error [m]; inf where no k-subset is visible or the point is not free.
     best : ndarray of int, shape (N, k)
         Marker indices (into ``scenario.markers``) of the best subset, ascending; -1 where none.
+    tau_plain : ndarray, shape (N,)
+        The best-subset tau with every visible marker [m]; equal to ``tau`` when r = 0.
+    fallback : ndarray of int, shape (N, k, k)
+        ``fallback[n, j]``: the best subset without marker ``best[n, j]`` (-1 where none, and
+        everywhere when r = 0).
     """
 
     tau: np.ndarray
     best: np.ndarray
+    tau_plain: np.ndarray | None = None
+    fallback: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -91,6 +107,10 @@ class PefMap:
         The error model.
     cell_size : (float, float)
         Cell width and height [m] (the workspace divided evenly, closest to the resolution).
+    redundancy : int
+        r: ``tau`` is tau_r, the worst over r visible markers blocked (module docstring).
+    tau_plain : ndarray, shape (ny, nx)
+        The best-subset tau with every visible marker [m] (``tau`` itself when r = 0).
     """
 
     x: np.ndarray
@@ -100,6 +120,8 @@ class PefMap:
     free: np.ndarray
     model: PefModel
     cell_size: tuple[float, float]
+    redundancy: int = 0
+    tau_plain: np.ndarray | None = None
 
     def navigable(self, eps_max: float) -> np.ndarray:
         """Cells of the navigation region ``tau < eps_max``, shape (ny, nx) bool."""
@@ -151,10 +173,12 @@ class PEF:
         Markers per fix; default ``scenario.sensor.markers_per_fix``.
     exact_margin : float
         Candidate factor of the ``exact`` model (see the module docstring).
+    redundancy : int, optional
+        r, markers that may be blocked (tau_r); default ``scenario.planning.redundancy``.
     """
 
     def __init__(self, scenario: Scenario, model: PefModel | str | None = None, k: int | None = None,
-                 exact_margin: float = EXACT_MARGIN):
+                 exact_margin: float = EXACT_MARGIN, redundancy: int | None = None):
         self.scenario = scenario
         self.sensor = scenario.sensor
         try:
@@ -170,6 +194,9 @@ class PEF:
         if not exact_margin >= 1.0:
             raise PlanningError(f"exact_margin: expected >= 1, got {exact_margin}")
         self.exact_margin = float(exact_margin)
+        self.redundancy = int(redundancy) if redundancy is not None else scenario.planning.redundancy
+        if self.redundancy < 0:
+            raise PlanningError(f"redundancy: expected a number of markers >= 0, got {self.redundancy}")
         self.markers = scenario.marker_positions()
         n = len(self.markers)
         if n >= self.k and math.comb(n, self.k) > MAX_SUBSETS:
@@ -208,11 +235,13 @@ class PEF:
         Returns
         -------
         PefResult
-            ``tau`` (N,) [m] and ``best`` (N, k) marker indices.
+            ``tau`` (N,) [m] (tau_r), ``best`` (N, k) marker indices, and with r >= 1 the
+            fallback subsets.
         """
         pts = _points(points)
         vis, _ = scenario_visible_points(self.scenario, pts)
-        return self._evaluate(np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), vis)
+        px, py = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
+        return self._redundant(lambda v: self._evaluate(px, py, v), vis)
 
     def grid(self, resolution: float | None = None) -> PefMap:
         """Evaluate the PEF on the cell centres of a grid over the workspace.
@@ -230,8 +259,10 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
-        if self.model is PefModel.PARALLELOGRAM:
-            # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles)
+        plain_posts = self.redundancy == 0 and not np.any(self.scenario.marker_normals())
+        if self.model is PefModel.PARALLELOGRAM and plain_posts:
+            # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles); it
+            # knows neither incidence limits nor redundancy, which take the general path below
             sc = self.scenario
             tau, best, free = parallelogram_grid(x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range,
                                                  sc.workspace.bounds, float(self.sensor.relative_error),
@@ -241,12 +272,17 @@ class PEF:
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
-            r = self._evaluate(px, py, vis.reshape(vis.shape[0], -1))
-            tau, best = r.tau.reshape(y.size, x.size), r.best.reshape(y.size, x.size, self.k)
+            evaluate = lambda v: self._evaluate(px, py, v)  # noqa: E731
         else:
-            tau, best = self._kernel_grid(x, y, vis)
-        return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                      cell_size=(size[0] / x.size, size[1] / y.size))
+            def evaluate(v: np.ndarray) -> PefResult:
+                t, b = self._kernel_grid(x, y, v.reshape(v.shape[0], y.size, x.size))
+                return PefResult(tau=t.ravel(), best=b.reshape(y.size * x.size, self.k))
+        r = self._redundant(evaluate, vis.reshape(vis.shape[0], y.size * x.size))
+        size = self.scenario.workspace.size
+        shape = (y.size, x.size)
+        return PefMap(x=x, y=y, tau=r.tau.reshape(shape), best=r.best.reshape(*shape, self.k), free=free,
+                      model=self.model, cell_size=(size[0] / x.size, size[1] / y.size),
+                      redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape))
 
     def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:
         """Evaluate the model's error of one given marker subset at points.
@@ -282,6 +318,39 @@ class PEF:
                             _KERNEL_MODEL[self.model], self.markers[sub[0]])[0]
 
     # --- internals ----------------------------------------------------------------------------
+
+    def _redundant(self, evaluate, vis: np.ndarray) -> PefResult:
+        """tau_r by the recursion over the best subset's members (module docstring).
+
+        ``evaluate(vis)`` returns the plain :class:`PefResult` for a visibility ``vis`` (M, N)
+        (its own points); the recursion hands it copies with one marker per point cleared.
+        """
+        plain = evaluate(vis)
+        n = plain.tau.size
+        fallback = np.full((n, self.k, self.k), -1, dtype=np.int64)
+        if self.redundancy == 0:
+            return PefResult(tau=plain.tau, best=plain.best, tau_plain=plain.tau, fallback=fallback)
+        worst = plain.tau.copy()
+        for j in range(self.k):
+            tau_j, best_j = self._without(evaluate, vis, plain.best[:, j], self.redundancy - 1)
+            np.maximum(worst, tau_j, out=worst)
+            fallback[:, j] = best_j
+        return PefResult(tau=worst, best=plain.best, tau_plain=plain.tau, fallback=fallback)
+
+    def _without(self, evaluate, vis: np.ndarray, drop: np.ndarray, depth: int) -> tuple[np.ndarray, np.ndarray]:
+        """tau_depth and the best subset with marker ``drop[n]`` (N,) hidden at point n (-1: none)."""
+        rows = np.flatnonzero(drop >= 0)
+        v = vis.copy()
+        v[drop[rows], rows] = False
+        r = evaluate(v)
+        tau = r.tau.copy()
+        tau[drop < 0] = np.inf  # no best subset: already no fix, and none without a marker either
+        if depth > 0:
+            for j in range(self.k):
+                tau_j, _ = self._without(evaluate, v, r.best[:, j], depth - 1)
+                np.maximum(tau, tau_j, out=tau)
+        best = np.where((drop >= 0)[:, None], r.best, -1)
+        return tau, best
 
     def _kernel(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray, subsets: np.ndarray,
                 model: int, markers: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -322,6 +391,7 @@ class PEF:
         return tau, best
 
     def _evaluate(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> PefResult:
+        """Evaluate the plain best-subset PEF at points (px, py) (N,) [m] with visibility ``vis`` (M, N)."""
         if self.model is PefModel.EXACT:
             tau, best = self._exact(px, py, vis)
         else:

@@ -2,7 +2,11 @@
 
 A marker is visible from a point when the point is in free space (inside the closed
 workspace rectangle and not inside any obstacle, boundary included), the range is at most
-``max_range`` and the segment point-marker does not cross the *interior* of any obstacle.
+``max_range``, the segment point-marker does not cross the *interior* of any obstacle and,
+for a flat marker with unit normal ``n``, the point lies in its incidence wedge: the angle
+between ``p - M`` and ``n`` is at most ``max_incidence`` (:func:`facing_ok`; a post has
+``n = 0`` and no wedge). Both paths apply the wedge with the same per-cell predicate, so
+they agree on its boundary too.
 
 Obstacles of every shape arrive as convex pieces (:meth:`scenarios.Scenario.obstacle_pieces`,
 kernels in :mod:`planner.pef.convex`). Markers sit on the walls or on obstacle faces. To let a
@@ -93,6 +97,20 @@ def _is_free(px, py, x0, y0, x1, y1, planes, count, bbox):
 
 
 @numba.njit(cache=True)
+def facing_ok(dx, dy, nx, ny, cos_inc):
+    """Tell whether offset (dx, dy) = p - M [m] lies in the incidence wedge of normal (nx, ny).
+
+    The wedge ``angle(d, n) <= max_incidence`` is ``d.n >= |d| cos(max_incidence)``; squared
+    (no square root) it is ``d.n >= 0`` and ``(d.n)^2 >= |d|^2 cos^2``, exact for a limit up to
+    90 degrees. ``n = (0, 0)`` (a post) passes everywhere.
+    """
+    if nx == 0.0 and ny == 0.0:
+        return True
+    dot = dx * nx + dy * ny
+    return dot >= 0.0 and dot * dot >= (dx * dx + dy * dy) * (cos_inc * cos_inc)
+
+
+@numba.njit(cache=True)
 def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
     """Tell whether segment a-b enters the open line-of-sight piece of any blocking piece."""
     lox, hix = min(ax, bx), max(ax, bx)
@@ -107,8 +125,8 @@ def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
 
 
 @numba.njit(cache=True, nogil=True)
-def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, planes, sight, count, bbox,
-                          sight_bbox, blocks, vis, free):
+def _visible_points_range(lo, hi, px, py, mx, my, fnx, fny, cos_inc, max_range, x0, y0, x1, y1, planes, sight,
+                          count, bbox, sight_bbox, blocks, vis, free):
     r2max = max_range * max_range
     for n in range(lo, hi):
         f = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
@@ -117,14 +135,15 @@ def _visible_points_range(lo, hi, px, py, mx, my, max_range, x0, y0, x1, y1, pla
             ok = f
             if ok:
                 dx, dy = px[n] - mx[m], py[n] - my[m]
-                ok = dx * dx + dy * dy <= r2max
+                ok = dx * dx + dy * dy <= r2max and facing_ok(dx, dy, fnx[m], fny[m], cos_inc)
             if ok:
                 ok = not _blocked(px[n], py[n], mx[m], my[m], planes, sight, count, sight_bbox, blocks)
             vis[m, n] = ok
 
 
 def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
-                   bounds: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+                   bounds: tuple[float, float, float, float], normals: np.ndarray | None = None,
+                   max_incidence: float = math.pi / 2) -> tuple[np.ndarray, np.ndarray]:
     """Visibility of markers from arbitrary points.
 
     Parameters
@@ -139,6 +158,11 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
         Sensor range limit [m] (inclusive).
     bounds : (float, float, float, float)
         Workspace ``(x0, y0, x1, y1)`` [m] (``Workspace.bounds``); points outside are not free.
+    normals : ndarray, shape (M, 2), optional
+        Unit normals of flat markers, (0, 0) for posts (``Scenario.marker_normals``); default
+        all posts.
+    max_incidence : float
+        Largest angle between ``p - M`` and a flat marker's normal [rad], in (0, pi/2].
 
     Returns
     -------
@@ -151,15 +175,27 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     p = np.ascontiguousarray(np.asarray(points, float).reshape(-1, 2))
     mk = np.asarray(markers, float).reshape(-1, 2)
     pa = prepare(obstacles)
+    fn = _normals(normals, mk.shape[0])
     x0, y0, x1, y1 = (float(v) for v in bounds)
     vis = np.empty((mk.shape[0], p.shape[0]), dtype=np.bool_)
     free = np.empty(p.shape[0], dtype=np.bool_)
     run_ranges(_visible_points_range, p.shape[0],
                (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), float(max_range),
+                np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
+                fn[:, 0].copy(), fn[:, 1].copy(), math.cos(max_incidence), float(max_range),
                 x0, y0, x1, y1, pa.planes, pa.sight, pa.count, pa.bbox, pa.sight_bbox, pa.blocks, vis, free),
                min_chunk=2048)
     return vis, free
+
+
+def _normals(normals: np.ndarray | None, m: int) -> np.ndarray:
+    """Markers' normals as a (M, 2) float array; all posts (zeros) when None."""
+    if normals is None:
+        return np.zeros((m, 2))
+    fn = np.asarray(normals, float).reshape(-1, 2)
+    if fn.shape[0] != m:
+        raise ValueError(f"normals: expected {m} rows (one per marker), got {fn.shape[0]}")
+    return fn
 
 
 def segment_blocked(a, b, obstacles) -> bool:
@@ -259,8 +295,9 @@ def shadow_row(hp, n, yy, x):
 
 
 @numba.njit(cache=True)
-def _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, count, blocks, free, vis):
-    """Fill ``vis[m]``: in range and free, then clear each piece's shadow row by row."""
+def _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
+                         free, vis):
+    """Fill ``vis[m]``: free, in range and in the incidence wedge, then clear each piece's shadow row by row."""
     r2max = max_range * max_range
     npc = count.size
     hp = np.empty((npc, planes.shape[1] + 2, 3))
@@ -276,7 +313,8 @@ def _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, coun
         dy = yy - my[m]
         for ix in range(x.size):
             dx = x[ix] - mx[m]
-            vis[m, iy, ix] = free[iy, ix] and (dx * dx + dy * dy <= r2max) and not hidden
+            vis[m, iy, ix] = (free[iy, ix] and (dx * dx + dy * dy <= r2max) and not hidden
+                              and facing_ok(dx, dy, fnx[m], fny[m], cos_inc))
         if hidden:
             continue
         for p in range(npc):
@@ -286,13 +324,16 @@ def _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, coun
 
 
 @numba.njit(cache=True, nogil=True)
-def _visible_grid_markers(m0, m1, x, y, mx, my, max_range, planes, sight, shrunk, count, blocks, free, vis):
+def _visible_grid_markers(m0, m1, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
+                          free, vis):
     for m in range(m0, m1):
-        _visible_grid_marker(m, x, y, mx, my, max_range, planes, sight, shrunk, count, blocks, free, vis)
+        _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
+                             free, vis)
 
 
 def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
-                 max_range: float, bounds: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+                 max_range: float, bounds: tuple[float, float, float, float], normals: np.ndarray | None = None,
+                 max_incidence: float = math.pi / 2) -> tuple[np.ndarray, np.ndarray]:
     """Visibility of markers from the cell centres of a regular grid.
 
     Parameters
@@ -301,7 +342,7 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
         Cell-centre x coordinates, ascending and uniformly spaced [m].
     y : ndarray, shape (ny,)
         Cell-centre y coordinates, ascending and uniformly spaced [m].
-    markers, obstacles, max_range, bounds
+    markers, obstacles, max_range, bounds, normals, max_incidence
         As in :func:`visible_points`.
 
     Returns
@@ -315,32 +356,36 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
     y = np.ascontiguousarray(y, dtype=float)
     mk = np.asarray(markers, float).reshape(-1, 2)
     pa = prepare(obstacles)
+    fn = _normals(normals, mk.shape[0])
     x0, y0, x1, y1 = (float(v) for v in bounds)
     free = np.empty((y.size, x.size), dtype=np.bool_)
     _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
     vis = np.empty((mk.shape[0], y.size, x.size), dtype=np.bool_)
     run_ranges(_visible_grid_markers, mk.shape[0],
-               (x, y, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), float(max_range),
+               (x, y, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), fn[:, 0].copy(),
+                fn[:, 1].copy(), math.cos(max_incidence), float(max_range),
                 pa.planes, pa.sight, pa.shrunk, pa.count, pa.blocks, free, vis))
     return vis, free
 
 
 def scenario_visible_points(scenario: Scenario, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`visible_points` for a scenario's markers, obstacles and declared sensor range.
+    """:func:`visible_points` for a scenario's markers (their kinds too), obstacles and declared sensor.
 
     Returns ``vis`` (M, N) and ``free`` (N,).
     """
     return visible_points(points, scenario.marker_positions(), scenario.obstacle_pieces(),
-                          scenario.sensor.max_range, scenario.workspace.bounds)
+                          scenario.sensor.max_range, scenario.workspace.bounds, scenario.marker_normals(),
+                          scenario.sensor.max_incidence)
 
 
 def scenario_visible_grid(scenario: Scenario, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`visible_grid` for a scenario's markers, obstacles and declared sensor range.
+    """:func:`visible_grid` for a scenario's markers (their kinds too), obstacles and declared sensor.
 
     Returns ``vis`` (M, ny, nx) and ``free`` (ny, nx).
     """
     return visible_grid(x, y, scenario.marker_positions(), scenario.obstacle_pieces(),
-                        scenario.sensor.max_range, scenario.workspace.bounds)
+                        scenario.sensor.max_range, scenario.workspace.bounds, scenario.marker_normals(),
+                        scenario.sensor.max_incidence)
 
 
 compiled.keep_fresh(__name__)

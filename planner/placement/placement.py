@@ -40,9 +40,11 @@ import tomli_w
 from estimators import compiled
 from planner.pef import kernels as pef_kernels
 from planner.placement.cover import MILP_TIME_LIMIT, PairCover, solve_exact
+from planner.placement.facing import site_facings, site_marker
+from planner.placement.redundant import greedy_robust
 from planner.placement.sites import candidate_sites, cover_points
 from scenarios.errors import PlanningError, output_errors
-from scenarios.schema import Marker, PefModel, Scenario
+from scenarios.schema import Marker, MarkerKind, PefModel, Scenario
 
 MILP_MAX_SITES = 150
 """Largest number of useful sites (in some good pair) for which ``auto`` runs integer rounds."""
@@ -74,6 +76,10 @@ class PlacementResult:
         The points to cover [m].
     chosen : ndarray of int, shape (count,)
         Indices of the chosen sites.
+    facings : tuple of (float or None)
+        Facing of each chosen marker [rad]: flat, out of its face; None for a post.
+    redundancy : int
+        r: every covered point keeps a good subset with any r chosen markers blocked.
     """
 
     markers: list[tuple[str, tuple[float, float]]]
@@ -85,6 +91,8 @@ class PlacementResult:
     sites: np.ndarray
     points: np.ndarray
     chosen: np.ndarray
+    facings: tuple = ()
+    redundancy: int = 0
 
 
 @numba.njit(parallel=True, cache=True)
@@ -119,7 +127,9 @@ def _good_pairs_kernel(px, py, sx, sy, vis, model, rel, ab, tan_xi, chi2, limit,
 
 
 def _site_scenario(scenario: Scenario, sites: np.ndarray) -> Scenario:
-    markers = tuple(Marker(f"S{j}", (float(x), float(y))) for j, (x, y) in enumerate(sites))
+    """Return a copy of ``scenario`` whose markers are the sites (flat on faces, see :mod:`.facing`)."""
+    markers = tuple(site_marker(f"S{j}", p, f) for j, (p, f) in enumerate(zip(sites, site_facings(scenario, sites),
+                                                                            strict=True)))
     return dataclasses.replace(scenario, markers=markers)
 
 
@@ -200,7 +210,10 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     sites : ndarray, shape (S, 2), optional
         Candidate sites [m]; default :func:`planner.placement.sites.candidate_sites`.
     eps_max : float, optional
-        Allowed error [m]; default ``scenario.planning.eps_max``.
+        Allowed error [m]; default ``scenario.planning.eps_max``. With
+        ``planning.redundancy`` = 1 every covered point keeps a pair under it with any one
+        chosen marker blocked (:mod:`planner.placement.redundant`: the exact redundancy-0
+        cover completed greedily; its count is the lower bound).
     method : {"auto", "milp", "greedy"}
         ``auto``: the exact solver with at most :data:`MILP_MAX_SITES` useful sites, else
         greedy (with the LP bound).
@@ -217,6 +230,7 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     cand = candidate_sites(scenario) if sites is None else np.asarray(sites, dtype=float).reshape(-1, 2)
     eps = scenario.planning.eps_max if eps_max is None else float(eps_max)
     k = scenario.sensor.markers_per_fix
+    redundancy = scenario.planning.redundancy
     cov, coverable = build_cover(scenario, pts, cand, eps)
     chosen, bound, optimal, used = np.zeros(len(cand), dtype=bool), 0.0, True, "greedy"
     if coverable.any():
@@ -225,17 +239,40 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
         chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral)
         used = "milp" if integral else "greedy"
         bound = max(bound, float(k))
+        if redundancy > 0:
+            start = chosen
+            chosen, target = greedy_robust(cov, k, redundancy, start)
+            coverable = coverable.copy()
+            coverable[np.flatnonzero(coverable)] = target[cov.row_of]
+            bound = max(float(start.sum()) if optimal else bound, float(k + redundancy))
+            optimal, used = False, used + "+greedy"
     idx = np.flatnonzero(chosen)
     lower = min(math.ceil(bound - 1e-6), len(idx))
     markers = [(f"P{n + 1}", (float(cand[j, 0]), float(cand[j, 1]))) for n, j in enumerate(idx)]
+    facing = site_facings(scenario, cand[idx]) if len(idx) else []
     return PlacementResult(markers=markers, count=len(idx), lower_bound=lower,
                            optimal=bool(optimal and lower == len(idx)), uncovered=pts[~coverable],
-                           method=used, sites=cand, points=pts, chosen=idx)
+                           method=used, sites=cand, points=pts, chosen=idx, facings=tuple(facing),
+                           redundancy=redundancy)
 
 
 def scenario_with_markers(scenario: Scenario, result: PlacementResult) -> Scenario:
-    """Return a copy of ``scenario`` whose markers are the placement's."""
-    return dataclasses.replace(scenario, markers=tuple(Marker(i, p) for i, p in result.markers))
+    """Return a copy of ``scenario`` whose markers are the placement's (flat ones facing out of their faces)."""
+    return dataclasses.replace(scenario, markers=tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(result)))
+
+
+def _facing_pairs(result: PlacementResult):
+    facings = result.facings if len(result.facings) == result.count else (None,) * result.count
+    return zip(result.markers, facings, strict=True)
+
+
+def _marker_dict(m: Marker) -> dict:
+    d = {"id": m.id, "position": [float(m.position[0]), float(m.position[1])]}
+    if m.kind is MarkerKind.FLAT:
+        d["kind"] = "flat"
+    if m.facing is not None:
+        d["facing_deg"] = round(math.degrees(m.facing), 9)
+    return d
 
 
 # --------------------------------------------------------------------------- writing TOML
@@ -249,7 +286,7 @@ def _scenario_dict(sc: Scenario) -> dict:
             v = getattr(obj, f.name)
             if base is not None and v == getattr(base, f.name):
                 continue
-            key, v = (("bearing_error_deg", math.degrees(v)) if f.name == "bearing_error"
+            key, v = ((f.name + "_deg", math.degrees(v)) if f.name in ("bearing_error", "max_incidence")
                       else (f.name, v.value if hasattr(v, "value") else v))
             out[key] = v
         return out
@@ -257,7 +294,7 @@ def _scenario_dict(sc: Scenario) -> dict:
     d: dict = {"name": sc.name, "seed": sc.seed, "description": sc.description,
                "workspace": {"size": list(sc.workspace.size), "origin": list(sc.workspace.origin)},
                "obstacles": [o.to_dict() for o in sc.obstacles],
-               "markers": [{"id": m.id, "position": list(m.position)} for m in sc.markers],
+               "markers": [_marker_dict(m) for m in sc.markers],
                "sensor": spec(sc.sensor), "robot": spec(sc.robot)}
     if sc.sensor_actual != sc.sensor:
         d["sensor"]["actual"] = spec(sc.sensor_actual, sc.sensor)
@@ -266,7 +303,8 @@ def _scenario_dict(sc: Scenario) -> dict:
     pl = sc.planning
     d["planning"] = {"eps_max": pl.eps_max, "pef_model": pl.pef_model.value, "gdop_level": pl.gdop_level,
                      "resolution": pl.resolution, "weights": spec(pl.weights),
-                     "heading_std_deg": pl.heading_std_deg, "min_fix_speed": pl.min_fix_speed}
+                     "heading_std_deg": pl.heading_std_deg, "min_fix_speed": pl.min_fix_speed,
+                     "redundancy": pl.redundancy}
     if pl.order:
         d["planning"]["order"] = list(pl.order)
     d["docks"] = [{"name": k.name, "node": k.node, "yaw_deg": math.degrees(k.pose[2])} if k.node is not None
@@ -282,7 +320,8 @@ def _scenario_dict(sc: Scenario) -> dict:
     d["tasks"] = [{"from": t.start, "to": t.goal} for t in sc.tasks]
     d["montecarlo"] = {"runs": sc.montecarlo.runs, "success_target": sc.montecarlo.success_target}
     d["placement"] = {"candidates": [list(c) for c in sc.placement.candidates],
-                      "spacing": sc.placement.spacing, "cover": sc.placement.cover}
+                      "spacing": sc.placement.spacing, "cover": sc.placement.cover,
+                      "marker_kind": sc.placement.marker_kind.value}
     return d
 
 
@@ -315,7 +354,7 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
             data = None
     if data is None:
         data = _scenario_dict(scenario)
-    data["markers"] = [{"id": i, "position": [float(x), float(y)]} for i, (x, y) in result.markers]
+    data["markers"] = [_marker_dict(site_marker(i, p, f)) for (i, p), f in _facing_pairs(result)]
     if scenario.routes is not None and scenario.routes.source:
         # a relative graph file would be looked up beside the new scenario: name it absolutely
         data["routes"]["file"] = str(Path(scenario.routes.source).resolve())

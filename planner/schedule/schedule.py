@@ -50,6 +50,7 @@ import numpy as np
 from planner.routes.smoothing import acceleration_limited
 from planner.schedule import promise
 from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
+from planner.schedule.fallback import fallbacks
 from planner.schedule.pathtime import Kinematics, sample_track
 from planner.schedule.promise import MAX_SUBSETS
 from planner.schedule.search import StretchError, Windows, search
@@ -84,6 +85,11 @@ class ScheduledFix:
         The plan slows down for this fix (its promise would break at the cruising speed).
     poses : tuple of (x, y)
         Planned position at each measurement, in order [m].
+    fallbacks : tuple of tuple of int
+        ``fallbacks[q]``: the subset to measure instead when ``markers[q]`` is blocked, in
+        measurement order (:mod:`planner.schedule.fallback`); () when there is none.
+    fallback_tau : tuple of float
+        The promise of each fallback [m] (inf where there is none).
     """
 
     s: float
@@ -95,6 +101,8 @@ class ScheduledFix:
     speed: float = 0.0
     slowed: bool = False
     poses: tuple[tuple[float, float], ...] = ()
+    fallbacks: tuple[tuple[int, ...], ...] = ()
+    fallback_tau: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -269,12 +277,14 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     starts = np.array([j for j, _, _ in chosen])
     fix_level = level[starts].copy()
     pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k)
+    fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts)
 
     fixes = tuple(
         ScheduledFix(s=float(tr.s[j]), position=(float(tr.xy[j, 0]), float(tr.xy[j, 1])),
                      markers=order[i], tau=float(tau_s[c, j]), switch=i > 0 and c != chosen[i - 1][1],
                      predicted_tau=float(pred[i]), speed=_fix_speed(kin, tr.s[j], k, sensor.measurement_time, i),
-                     slowed=bool(fix_level[i] > 0), poses=tuple(tuple(map(float, q)) for q in poses[i]))
+                     slowed=bool(fix_level[i] > 0), poses=tuple(tuple(map(float, q)) for q in poses[i]),
+                     fallbacks=fb[i], fallback_tau=fb_tau[i])
         for i, (j, c, _) in enumerate(chosen))
     completes = tr.c[starts]
     active = np.maximum(np.searchsorted(completes, tr.s, side="left") - 1, 0)

@@ -44,6 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--runs", type=_positive, help="Monte-Carlo runs of claim 7 (default 10, 3 with --quick)")
     p.add_argument("--workers", type=_positive, help="Monte-Carlo worker processes (default: CPU count)")
     p.add_argument("--claims", type=_claim_ids, metavar="LIST", help="only these claims, e.g. 1,3,5")
+    p.add_argument("--no-sections", action="store_true",
+                   help="skip the results beside the claims (redundancy against blocked lines of sight)")
     p.add_argument("--json", action="store_true",
                    help="print the claims (id, title, verdict, numbers) as JSON")
     p.set_defaults(func=run)
@@ -61,13 +63,21 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     options = Options(quick=args.quick, runs=args.runs, workers=args.workers)
     claims = reproduce(Path(args.out), options, only=args.claims)
+    sections = []
+    if args.claims is None and not args.no_sections:
+        from sim.paper.redundancy import reproduce_redundancy
+
+        sections.append(reproduce_redundancy(Path(args.out), options))
     seconds = time.perf_counter() - start
-    index = write_page(args.out, claims, options, seconds)
+    index = write_page(args.out, claims, options, seconds, sections)
     if args.json:
         print_json({"out": str(args.out), "index": str(index), "quick": args.quick,
-                    "seconds": round(seconds, 1), "claims": [c.to_dict() for c in claims]})
+                    "seconds": round(seconds, 1), "claims": [c.to_dict() for c in claims],
+                    "sections": [x.to_dict() for x in sections]})
         return 0
     for c in claims:
         print(f"{c.id}. {c.title}: {c.verdict}")
+    for x in sections:
+        print(f"beside the claims: {x.title} ({x.seconds:.0f} s)")
     print(f"report: {index} ({seconds:.0f} s)")
     return 0

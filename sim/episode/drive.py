@@ -2,8 +2,11 @@
 
 The loop runs at the control rate (a whole number of physics steps); fixes interrupt it at the
 physics step each measurement falls due, so every measurement happens at its own time while
-the robot keeps moving. Randomness comes from three generators spawned from the episode's
-seed: the start pose, the laser noise and the odometry slip noise.
+the robot keeps moving. Randomness comes from four generators spawned from the episode's
+seed: the start pose, the laser noise, the odometry slip noise and the blocked lines of sight
+(``sensor.block_probability``: at each fix start every marker is blocked for that fix with
+that probability, independently; the laser reports a blocked marker unseen and the robot
+measures the schedule's fallback subset instead).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import numpy as np
 from planner.pef.map import PEF
 from planner.plan import Plan
 from scenarios import PlanningError, Scenario, SimulationError
+from sim.episode.certify import certified_bound
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.follower import PurePursuit, wheel_speeds
 from sim.episode.types import EpisodeResult, StepLog
@@ -96,7 +100,7 @@ def seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:
 def _streams(ss: np.random.SeedSequence) -> tuple[np.random.Generator, ...]:
     # Children are derived from (entropy, spawn_key) rather than ss.spawn(), which counts
     # calls: the same seed must give the same streams however often it is used.
-    keys = ("start", "laser", "odometry")
+    keys = ("start", "laser", "odometry", "block")
     return tuple(np.random.default_rng(np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, j)))
                  for j, _ in enumerate(keys))
 
@@ -179,7 +183,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     from sim.physics.laser import LaserSensor
     from sim.physics.odometry import WheelOdometry
 
-    rng_start, rng_laser, rng_odo = _streams(ss)
+    rng_start, rng_laser, rng_odo, rng_block = _streams(ss)
     task = scenario.tasks[task_index]
     plan, pef = prepared.plan, prepared.pef
     robot, actual = scenario.robot, scenario.robot_actual
@@ -189,7 +193,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     P0 = np.diag([START_POS_STD**2, START_POS_STD**2, START_YAW_STD**2])
     true_start = np.array(dock.pose) + rng_start.multivariate_normal(np.zeros(3), P0)
     world.reset(true_start)
-    laser = LaserSensor(world, scenario.sensor_actual, scenario.marker_positions())
+    laser = LaserSensor(world, scenario.sensor_actual, scenario.marker_positions(), scenario.marker_normals())
     n_visible = int(laser.visible_all().sum())
     if n_visible < k:
         raise SimulationError(
@@ -203,6 +207,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     odo = WheelOdometry(robot, angles0, np.array(dock.pose),
                         slip_std=actual.odometry_noise, rng=rng_odo)
     fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
+    q_block, n_markers = scenario.sensor_actual.block_probability, len(scenario.markers)
     follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
                            max_yaw_rate=robot.max_yaw_rate)
     schedule = plan.schedule
@@ -243,7 +248,11 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         f = bisect.bisect_right(fix_s_list, s_now) - 1
         # scheduled fixes the laser could not start in time are merged into this one: count them
         counts["merged"] += f - next_fix
-        subset = fixes.choose_subset(schedule.fixes[f].markers, loc.x[:2])
+        if q_block > 0.0:
+            # one draw per marker and fix start, whatever is scheduled: the stream stays aligned
+            laser.blocked = frozenset(np.flatnonzero(rng_block.random(n_markers) < q_block).tolist())
+            fixes.blocked_markers += len(laser.blocked & set(schedule.fixes[f].markers))
+        subset = fixes.choose_subset(schedule.fixes[f].markers, loc.x[:2], schedule.fixes[f])
         if subset is None:
             fixes.skipped += 1
         else:
@@ -304,6 +313,9 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     steps = _step_log(log[:, LOG_T], log[:, LOG_TRUE], log[:, LOG_EST], log[:, LOG_COV].reshape(n, 3, 3),
                       log[:, LOG_S], schedule, pef)
     fix_log = fixes.log()
+    certified = certified_bound(robot, steps.t, log[:, LOG_S], steps.est_pose[:, 2], fix_log.t,
+                                fix_log.predicted_tau, k * scenario.sensor.measurement_time)
+    steps.certified = certified
     goal = np.array(scenario.dock(task.goal).position)
     reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=
                    follower.goal_tolerance + scenario.planning.eps_max)
@@ -311,7 +323,10 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         scenario_name=scenario.name, task_index=task_index, seed=_seed_repr(ss),
         eps_max=scenario.planning.eps_max, steps=steps, fixes=fix_log, plan=plan,
         summary={**_summary(steps, fix_log, reached, scenario.planning.eps_max, ss, fixes.skipped,
-                            counts["merged"]), "scheduled_fixes": len(fix_s)})
+                            counts["merged"]), "scheduled_fixes": len(fix_s),
+                 "blocked_markers": fixes.blocked_markers, "fallback_fixes": int(np.sum(fix_log.fallback)),
+                 "failed_fixes": fixes.skipped,
+                 "certified_max": float(np.max(certified, initial=0.0))})
 
 
 def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:

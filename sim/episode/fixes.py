@@ -42,6 +42,8 @@ class _Pending:
     scheduled: object = None
     attempted: int = 0
     slots: list[int] = field(default_factory=list)
+    fallback: bool = False
+    beyond: bool = False
 
 
 class FixRecorder:
@@ -71,20 +73,35 @@ class FixRecorder:
         self.rng = rng
         self.pending: _Pending | None = None
         self.skipped = 0
+        self.blocked_markers = 0
+        self._fallback_next = False
+        self._beyond_next = False
         self._rows: list[dict] = []
         self._polygons: list[np.ndarray] = []
 
     # -- starting ------------------------------------------------------------------------
 
-    def choose_subset(self, scheduled: tuple[int, ...], est_xy: np.ndarray) -> list[int] | None:
+    def choose_subset(self, scheduled: tuple[int, ...], est_xy: np.ndarray, fix=None) -> list[int] | None:
         """Choose the markers of a fix.
 
-        The scheduled subset if the laser sees all of it, else the best visible one by the PEF
-        at the *estimated* position (the robot does not know the truth); None if fewer than k
-        markers are visible.
+        The scheduled subset if the laser sees all of it; else, when one of its markers is
+        unseen and the schedule's fix (``fix``, a ``ScheduledFix``) names a fallback for it
+        that the laser sees, that fallback (the fix is logged as a fallback fix); else the best
+        visible subset by the PEF at the *estimated* position (the robot does not know the
+        truth); None if fewer than k markers are visible.
         """
-        if self.laser.visible_all(scheduled).all():  # the usual case: two rays, not M
+        self._fallback_next = self._beyond_next = False
+        seen_sched = self.laser.visible_all(scheduled)
+        if seen_sched.all():  # the usual case: two rays, not M
             return list(scheduled)
+        fbs = getattr(fix, "fallbacks", ()) if fix is not None else ()
+        if (~seen_sched).sum() == 1 and len(fbs) == len(scheduled):
+            alt = fbs[int(np.flatnonzero(~seen_sched)[0])]
+            if alt and self.laser.visible_all(alt).all():
+                self._fallback_next = True
+                return list(alt)
+        # improvising because lines of sight are blocked: more than the plan's redundancy covers
+        self._beyond_next = bool(self.laser.blocked & set(scheduled))
         seen = np.flatnonzero(self.laser.visible_all())
         if len(seen) < self.k:
             return None
@@ -103,7 +120,8 @@ class FixRecorder:
         """
         mt = self.sensor.measurement_time
         self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))],
-                                scheduled=scheduled)
+                                scheduled=scheduled, fallback=self._fallback_next, beyond=self._beyond_next)
+        self._fallback_next = self._beyond_next = False
 
     @property
     def next_due(self) -> float:
@@ -199,7 +217,7 @@ class FixRecorder:
             rho=rho.tolist() + [math.nan] * pad, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted,
-            predicted_tau=self._promise(p)))
+            predicted_tau=self._promise(p), fallback=p.fallback, beyond=p.beyond))
         self._polygons.append(fa.ring)
 
     def _promise(self, p: _Pending) -> float:
@@ -251,4 +269,5 @@ class FixRecorder:
             fault_diameter=col("fault_diameter", ()), fault_polygons=list(self._polygons),
             contained=col("contained", (), bool), predicted_tau=col("predicted_tau", ()),
             static_tau=self._static(markers, truth),
-            nis=col("nis", ()), n_accepted=col("n_accepted", (), int))
+            nis=col("nis", ()), n_accepted=col("n_accepted", (), int), fallback=col("fallback", (), bool),
+            beyond_redundancy=col("beyond", (), bool))

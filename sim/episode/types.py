@@ -38,6 +38,8 @@ class StepLog:
         PEF τ (best visible subset) at the true position [m]; inf where not enough markers.
     nees : (T,) float
         Normalised estimation error squared of the full pose (3 dof).
+    certified : (T,) float or None
+        The bound the fixes actually taken certify (:mod:`sim.episode.certify`) [m].
     """
 
     t: np.ndarray
@@ -48,6 +50,7 @@ class StepLog:
     predicted_tau: np.ndarray
     pef_tau: np.ndarray
     nees: np.ndarray
+    certified: np.ndarray | None = None
 
 
 @dataclass
@@ -87,6 +90,11 @@ class FixLog:
         Sum over the fix's accepted updates of the normalised innovation squared.
     n_accepted : (F,) int
         Updates that passed the gate.
+    fallback : (F,) bool
+        The fix measured the schedule's fallback subset (a scheduled marker was blocked).
+    beyond_redundancy : (F,) bool
+        Blocked lines of sight left neither the scheduled subset nor its fallback: the robot
+        improvised with the best visible subset, which the plan promised nothing for.
     """
 
     t: np.ndarray
@@ -103,6 +111,8 @@ class FixLog:
     static_tau: np.ndarray
     nis: np.ndarray
     n_accepted: np.ndarray
+    fallback: np.ndarray | None = None
+    beyond_redundancy: np.ndarray | None = None
 
 
 @dataclass
@@ -120,5 +130,6 @@ class EpisodeResult:
 
 
 SUMMARY_KEYS = ("reached", "duration", "steps", "fixes", "rmse", "max_error", "max_predicted_tau",
-                "eps_max", "violations", "seed", "mean_nees", "mean_nis")
+                "eps_max", "violations", "seed", "mean_nees", "mean_nis", "blocked_markers", "fallback_fixes",
+                "failed_fixes", "certified_max")
 """Keys of :attr:`EpisodeResult.summary` (``pefsim run --json`` prints them)."""

@@ -58,6 +58,10 @@ RUN_SCHEMA = pa.schema([
     ("violations", pa.int64()),
     ("mean_nees", pa.float64()),
     ("mean_nis", pa.float64()),
+    ("blocked_markers", pa.int64()),   # scheduled markers whose line of sight was blocked
+    ("fallback_fixes", pa.int64()),    # fixes that measured the schedule's fallback subset
+    ("failed_fixes", pa.int64()),      # scheduled fixes that could not be taken
+    ("certified_max", pa.float64()),   # [m] largest certified bound (sim.episode.certify)
     ("wall_time", pa.float64()),    # [s] of the episode call
     ("cpu_time", pa.float64()),     # [s] CPU time of the worker process during the episode call
 ])
@@ -74,6 +78,7 @@ STEP_SCHEMA = pa.schema([
     ("nees", pa.float64()),
     ("x_var", pa.float64()), ("y_var", pa.float64()), ("theta_var", pa.float64()),
     ("xy_cov", pa.float64()), ("xtheta_cov", pa.float64()), ("ytheta_cov", pa.float64()),
+    ("certified", pa.float64()),   # the bound the fixes taken certify [m] (sim.episode.certify)
 ])
 """One row per control step: poses [m, rad], errors and bounds [m], EKF covariance terms (as read)."""
 STEP_STORAGE = parts.lean(STEP_SCHEMA)
@@ -107,6 +112,8 @@ FIX_SCHEMA = pa.schema([
     ("nis", pa.float64()), ("n_accepted", pa.int32()), ("contained", pa.bool_()),
     ("markers", pa.list_(pa.int32())),   # marker indices in scenario file order
     ("ranges", pa.list_(pa.float64())), ("rho", pa.list_(pa.float64())),
+    ("fallback", pa.bool_()),            # measured the schedule's fallback subset
+    ("beyond_redundancy", pa.bool_()),   # improvised: blocks left neither the subset nor its fallback
 ])
 """One row per fix: true and snapshot positions [m], realised and predicted bounds [m], NIS."""
 
@@ -249,6 +256,8 @@ def _all_step_columns(run: int, steps: StepLog, n: int) -> dict[str, np.ndarray]
         "nees": np.asarray(steps.nees, dtype=float),
         "x_var": cov[:, 0, 0], "y_var": cov[:, 1, 1], "theta_var": cov[:, 2, 2],
         "xy_cov": cov[:, 0, 1], "xtheta_cov": cov[:, 0, 2], "ytheta_cov": cov[:, 1, 2],
+        "certified": (np.full(n, np.nan) if steps.certified is None
+                      else np.asarray(steps.certified, dtype=float).reshape(n)),
     }
 
 
@@ -274,6 +283,10 @@ def fix_columns(run: int, fixes: FixLog) -> dict[str, np.ndarray]:
         "markers": _matrix(fixes.markers, n, np.int32),
         "ranges": _matrix(fixes.ranges, n, np.float64),
         "rho": _matrix(fixes.rho, n, np.float64),
+        "fallback": (np.zeros(n, dtype=bool) if fixes.fallback is None
+                     else np.asarray(fixes.fallback, dtype=bool).reshape(n)),
+        "beyond_redundancy": (np.zeros(n, dtype=bool) if fixes.beyond_redundancy is None
+                              else np.asarray(fixes.beyond_redundancy, dtype=bool).reshape(n)),
     }
 
 

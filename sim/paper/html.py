@@ -68,7 +68,19 @@ def _claim_html(c: Claim) -> str:
             f"{rows}</table></details>\n")
 
 
-def render(claims: list[Claim], options: Options, seconds: float) -> str:
+def _section_html(sec) -> str:
+    png = base64.b64encode(Path(sec.figure).read_bytes()).decode("ascii")
+    rows = "".join(f"<tr><td><code>{html.escape(k)}</code></td><td>{html.escape(_value(v))}</td></tr>"
+                   for k, v in _flatten(sec.numbers))
+    return (f'<h2 id="{html.escape(sec.key)}">Beside the claims: {html.escape(sec.title)}</h2>\n'
+            f"<p><em>Not a claim of the paper.</em></p>\n"
+            f'<img alt="{html.escape(sec.key)} figure" src="data:image/png;base64,{png}">\n'
+            f"<p>{html.escape(sec.explanation)}</p>\n"
+            f"<details open><summary>Numbers</summary><table><tr><th>quantity</th><th>value</th></tr>"
+            f"{rows}</table></details>\n")
+
+
+def render(claims: list[Claim], options: Options, seconds: float, sections=()) -> str:
     """Return the HTML page of the claims.
 
     Parameters
@@ -79,6 +91,8 @@ def render(claims: list[Claim], options: Options, seconds: float) -> str:
         How they were computed (shown in the page).
     seconds : float
         Total wall time [s].
+    sections : sequence of sim.paper.redundancy.Section
+        Results shown after the claims (not claims of the paper).
     """
     summary = "".join(
         f'<tr><td><a href="#claim{c.id}">{c.id}</a></td><td>{html.escape(c.title)}</td>'
@@ -97,14 +111,16 @@ def render(claims: list[Claim], options: Options, seconds: float) -> str:
             f"<p>Mode: {mode}; total {seconds:.1f} s. Reproduce with <code>pefsim paper"
             f"{' --quick' if options.quick else ''}</code>.</p>\n"
             f"<table><tr><th>#</th><th>claim</th><th>verdict</th><th>time</th></tr>{summary}</table>\n"
-            + "".join(_claim_html(c) for c in claims) + "</body></html>\n")
+            + "".join(_claim_html(c) for c in claims) + "".join(_section_html(x) for x in sections)
+            + "</body></html>\n")
 
 
-def write_page(out_dir: str | Path, claims: list[Claim], options: Options, seconds: float) -> Path:
-    """Write ``out_dir/index.html`` atomically and return its path."""
+def write_page(out_dir: str | Path, claims: list[Claim], options: Options, seconds: float,
+               sections=()) -> Path:
+    """Write ``out_dir/index.html`` (claims, then ``sections``) atomically and return its path."""
     path = Path(out_dir) / "index.html"
     tmp = path.with_suffix(".html.tmp")
     with output_errors(path, "write the report"):
-        tmp.write_text(render(claims, options, seconds), encoding="utf-8")
+        tmp.write_text(render(claims, options, seconds, sections), encoding="utf-8")
         os.replace(tmp, path)
     return path

@@ -8,6 +8,11 @@ obstacle face is therefore seen from the open side, where half its post stands o
 Bullet's ray cast sees a post up to 1 mm fatter than ``post_radius`` for rays not along the
 world axes (its convex collision margin): a ray grazing another post within that band counts
 as blocked.
+
+A flat marker (``normals[i]`` not zero) is seen only within ``spec.max_incidence`` of its
+normal, the planner's test (:func:`planner.pef.visibility.facing_ok`, repeated here in plain
+floats). Markers in :attr:`LaserSensor.blocked` are not seen at all: the episode puts there the
+markers whose line of sight a passer-by blocks during a fix (``sensor.block_probability``).
 """
 
 from __future__ import annotations
@@ -87,12 +92,22 @@ class LaserSensor:
     markers : (M, 2) array_like
         Marker positions [m]. A marker standing where the world has a post is seen when the
         ray hits that post; markers without a post are seen when nothing blocks the ray.
+    normals : (M, 2) array_like, optional
+        Unit normals of flat markers, (0, 0) for posts (``Scenario.marker_normals``); default
+        all posts.
     """
 
-    def __init__(self, world: PhysicsWorld, spec: SensorSpec, markers: np.ndarray) -> None:
+    def __init__(self, world: PhysicsWorld, spec: SensorSpec, markers: np.ndarray,
+                 normals: np.ndarray | None = None) -> None:
         self.world = world
         self.spec = spec
         self.markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+        self.normals = (np.zeros_like(self.markers) if normals is None
+                        else np.asarray(normals, dtype=float).reshape(-1, 2))
+        self._normals = [tuple(map(float, n)) for n in self.normals]
+        self._cos2 = math.cos(spec.max_incidence) ** 2
+        #: Markers whose line of sight is blocked now (set by the episode for each fix).
+        self.blocked: frozenset[int] = frozenset()
         posts = world.scenario.marker_positions()
         # Which post (body id) belongs to each marker, matched by position; -2 never matches
         # a pybullet body id (-1 means "no hit").
@@ -121,10 +136,20 @@ class LaserSensor:
         self._check_index(i)
         return self._visible_from(i, self.world.true_pose())
 
+    def _facing(self, i: int, x: float, y: float) -> bool:
+        """Tell whether local point (x, y) [m] is in marker i's incidence wedge (always, for a post)."""
+        nx, ny = self._normals[i]
+        if nx == 0.0 and ny == 0.0:
+            return True
+        tx, ty, _ = self._targets[i]
+        dx, dy = x - tx, y - ty
+        dot = dx * nx + dy * ny
+        return dot >= 0.0 and dot * dot >= (dx * dx + dy * dy) * self._cos2
+
     def _visible_from(self, i: int, pose: np.ndarray) -> bool:
         x, y = float(pose[0]) - self._x0, float(pose[1]) - self._y0
         tx, ty, h = self._targets[i]
-        if math.hypot(tx - x, ty - y) > self.spec.max_range:
+        if i in self.blocked or math.hypot(tx - x, ty - y) > self.spec.max_range or not self._facing(i, x, y):
             return False
         hit = pb.rayTest([x, y, h], self._targets[i], physicsClientId=self.world.client)[0]
         return bool(hit[0] == -1 or hit[0] == self._own_post[i])
@@ -147,7 +172,9 @@ class LaserSensor:
         hits = pb.rayTestBatch([local] * idx.size, [self._targets[i] for i in idx],
                                physicsClientId=self.world.client)
         body = np.array([h[0] for h in hits], dtype=int)
-        return in_range & ((body == -1) | (body == self._own_post[idx]))
+        x, y = local[0], local[1]
+        ok = np.array([int(i) not in self.blocked and self._facing(int(i), x, y) for i in idx], dtype=bool)
+        return in_range & ok & ((body == -1) | (body == self._own_post[idx]))
 
     def measure(self, i: int, rng: np.random.Generator) -> Measurement:
         """Measure marker ``i`` now, drawing noise from ``rng``.

@@ -49,6 +49,18 @@ def log_scene(rec: rr.RecordingStream, scenario: Scenario) -> None:
     rec.log(E.MARKERS, rr.Points2D(scenario.marker_positions(), labels=scenario.marker_ids(),
                                    colors=[E.MARKER], radii=_ui(E.BIG_POINT_PT), show_labels=True),
             static=True)
+    flat = [m for m in scenario.markers if m.kind.value == "flat"]
+    if flat:
+        # the reflector's face across its normal, and the normal as long as the robot is wide
+        size = 2.0 * scenario.robot.radius
+        xy = np.array([m.position for m in flat], dtype=float)
+        n = np.array([m.normal for m in flat], dtype=float)
+        across = np.column_stack([-n[:, 1], n[:, 0]]) * (0.5 * size)
+        rec.log(E.MARKER_FACING,
+                rr.LineStrips2D(np.stack([xy - across, xy + across], axis=1), colors=[E.MARKER],
+                                radii=_ui(E.THICK_LINE_PT)),
+                rr.Arrows2D(origins=xy, vectors=n * size, colors=[E.MARKER], radii=_ui(E.LINE_PT)),
+                static=True)
     docks_xy = np.array([d.position for d in scenario.docks], dtype=float).reshape(-1, 2)
     dock_yaw = np.array([d.pose[2] for d in scenario.docks], dtype=float)
     rec.log(E.DOCKS,

@@ -245,3 +245,41 @@ def failure_rate(failed: np.ndarray, allowed: float, ci_lower: np.ndarray, ci_up
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def fallback_map(scenario: Scenario, fix_x: np.ndarray, fix_y: np.ndarray, fallback: np.ndarray,
+                 step_x: np.ndarray, step_y: np.ndarray, certified: np.ndarray, eps_max: float) -> Figure:
+    """Draw where fixes fell back to the schedule's subset and where the certified bound broke eps_max.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Workspace, obstacles, markers (flat ones with their wedges).
+    fix_x, fix_y : ndarray, shape (F,)
+        True position of every fix [m].
+    fallback : ndarray of bool, shape (F,)
+        The fix measured a fallback subset.
+    step_x, step_y, certified : ndarray, shape (S,)
+        True positions of all steps [m] and the bound the fixes taken certify there [m]
+        (:mod:`sim.episode.certify`; inf where a fix failed with no promise to carry).
+    eps_max : float
+        Allowed error [m].
+    """
+    fig = Figure(figsize=(7.5, 7.5 * scenario.workspace.height / scenario.workspace.width + 1.0))
+    ax = fig.add_subplot()
+    draw_scene(ax, scenario, labels=False, docks=True)
+    fb = np.asarray(fallback, bool)
+    keep = _subsample(int(np.sum(~fb)))
+    ax.scatter(np.asarray(fix_x)[~fb][keep], np.asarray(fix_y)[~fb][keep], s=4, c="tab:green", alpha=0.4,
+               label="fix as scheduled", zorder=4)
+    ax.scatter(np.asarray(fix_x)[fb], np.asarray(fix_y)[fb], s=10, c="tab:orange", label="fallback fix", zorder=4)
+    cert = np.asarray(certified, float)
+    bad = ~(cert < eps_max)
+    bad_i = np.flatnonzero(bad)[_subsample(int(bad.sum()))]
+    ax.scatter(np.asarray(step_x)[bad_i], np.asarray(step_y)[bad_i], s=6, c="tab:red", marker="x",
+               label="certified bound above ε_max", zorder=4)
+    share = float(np.mean(bad)) if bad.size else 0.0
+    ax.set_title(f"Blocked lines of sight: {int(fb.sum())} fallback fixes of {fb.size}; "
+                 f"certified bound above ε_max at {100 * share:.1f} % of steps", fontsize=10)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8)
+    return fig

@@ -58,6 +58,10 @@ def _pef_map(scenario: Scenario) -> Any:
         return None
 
 
+def _has_blocking(scenario: Scenario) -> bool:
+    return scenario.sensor_actual.block_probability > 0.0
+
+
 def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[Figure]:
     """Render the report's figures from the sweep directory ``root``."""
     runs = results.read_runs(root)
@@ -97,6 +101,18 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                           "region's border τ = ε_max; red: τ above ε_max). Right: the largest error observed "
                           "in each cell any run passed through, same colours; red (outlined) cells exceeded "
                           "ε_max." + at, figs.png_bytes(fig)))
+    fx = results.read_fixes(root, columns=["true_x", "true_y", "fallback"]) if _has_blocking(scenario) else None
+    if fx is not None and "fallback" in fx.column_names:
+        st = results.read_steps(root, columns=["true_x", "true_y", "certified"])
+        fig = figs.fallback_map(scenario, col(fx, "true_x"), col(fx, "true_y"),
+                                fx.column("fallback").to_numpy(zero_copy_only=False).astype(bool),
+                                col(st, "true_x"), col(st, "true_y"), col(st, "certified"), eps)
+        out.append(Figure("fallback_map", "Where fixes fell back or failed",
+                          "Lines of sight blocked at random (sensor.block_probability): orange, fixes that "
+                          "measured the schedule's fallback subset; red crosses, steps where the bound the "
+                          "fixes actually taken certify (their promises plus the drift since) exceeded "
+                          "ε_max, i.e. where a fix failed or fell back to a subset whose promise was too weak.",
+                          figs.png_bytes(fig)))
     failed = ~succeeded(runs)
     n = np.arange(1, failed.size + 1)
     lower, upper = clopper_pearson(np.cumsum(failed), n, 1.0 - CONFIDENCE)

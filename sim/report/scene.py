@@ -99,6 +99,32 @@ def draw_pef(ax, pef_map, eps_max: float, norm=None, cmap=None, contour: str = "
     return im
 
 
+def draw_facing(ax, scenario: Scenario, size: float) -> None:
+    """Draw each flat reflector's face (across its normal) and its incidence wedge, ``size`` [m] long.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    scenario : Scenario
+        Its flat markers and ``sensor.max_incidence``.
+    size : float
+        Length of the face and of the wedge's edges [m].
+    """
+    lim = scenario.sensor.max_incidence
+    for m in scenario.markers:
+        if m.kind.value != "flat":
+            continue
+        x, y = m.position
+        f = m.facing
+        ax.plot([x - 0.5 * size * math.sin(f), x + 0.5 * size * math.sin(f)],
+                [y + 0.5 * size * math.cos(f), y - 0.5 * size * math.cos(f)], color="black", lw=2.0, zorder=5,
+                solid_capstyle="butt")
+        for side in (-1.0, 1.0):  # the wedge it is seen from
+            a = f + side * lim
+            ax.plot([x, x + size * math.cos(a)], [y, y + size * math.sin(a)], color="#e8412c", lw=0.8,
+                    ls="--", zorder=5)
+
+
 def draw_scene(ax, scenario: Scenario, labels: bool = True, docks: bool = True) -> None:
     """Draw the workspace border, obstacles, markers and docks, and set limits and axis labels.
 
@@ -127,6 +153,7 @@ def draw_scene(ax, scenario: Scenario, labels: bool = True, docks: bool = True) 
     if len(mk):
         ax.scatter(mk[:, 0], mk[:, 1], zorder=5, clip_on=False, **MARKER_STYLE)
     off = 0.012 * max(width, height)
+    draw_facing(ax, scenario, 2.5 * off)
     if labels:
         for m in scenario.markers:
             x, y = m.position

@@ -46,9 +46,15 @@ def _fmt(x: float) -> str:
 
 
 def _ratios(data: SweepData) -> tuple[np.ndarray, np.ndarray]:
-    """Return the fixes usable for the bound (all markers measured, finite tau) and their error/tau."""
+    """Return the fixes usable for the bound (all markers measured, finite tau) and their error/tau.
+
+    Fixes improvised beyond the plan's redundancy (blocked lines of sight) are left out, as in the
+    promise check: the plan made no prediction for their subsets.
+    """
     fx = data.fixes
     use = fx.full & np.isfinite(fx.predicted_tau) & (fx.predicted_tau > 0) & np.isfinite(fx.snapshot_error)
+    if fx.beyond is not None:
+        use &= ~fx.beyond
     return use, fx.snapshot_error[use] / fx.predicted_tau[use]
 
 

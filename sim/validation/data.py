@@ -132,6 +132,9 @@ class FixTable:
         Marker indices measured (-1 where a marker dropped out of the fix).
     static_tau : (F,) float or None
         The paper's static PEF of the fix's subset at the truth [m] (None: not in the sweep).
+    beyond : (F,) bool or None
+        Improvised fixes: blocked lines of sight left neither the scheduled subset nor its
+        fallback (the plan promised nothing for them).
     """
 
     run: np.ndarray
@@ -147,6 +150,7 @@ class FixTable:
     n_accepted: np.ndarray
     markers: np.ndarray
     static_tau: np.ndarray | None = None
+    beyond: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.run)
@@ -182,7 +186,7 @@ STEP_COLUMNS = ["run", "step", "nees"]
 """The columns of :data:`sim.montecarlo.results.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
 FIX_COLUMNS = ["run", "fix", "true_x", "true_y", "snapshot_x", "snapshot_y", "snapshot_error",
                "snapshot_x_var", "snapshot_y_var", "snapshot_xy_cov", "fault_diameter", "predicted_tau",
-               "nis", "n_accepted", "contained", "markers"]
+               "nis", "n_accepted", "contained", "markers", "beyond_redundancy"]
 """The columns of :data:`sim.montecarlo.results.FIX_SCHEMA` that the checks read."""
 
 
@@ -240,7 +244,9 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
         contained=col("contained", bool, False), fault_diameter=col("fault_diameter"),
         nis=col("nis"), n_accepted=col("n_accepted", np.int64, 0),
         markers=flat.astype(np.int64).reshape(n, width),
-        static_tau=col("static_tau") if "static_tau" in fixes.column_names else None)
+        static_tau=col("static_tau") if "static_tau" in fixes.column_names else None,
+        beyond=(col("beyond_redundancy", bool, False) if "beyond_redundancy" in fixes.column_names
+                else np.zeros(n, dtype=bool)))
 
 
 def step_table(steps: pa.Table) -> StepTable:

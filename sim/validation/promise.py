@@ -15,7 +15,10 @@ only through
 
 So a fix passes when ``fault_diameter <= (1 + PROMISE_TOLERANCE) * predicted_tau + 2 tol`` and
 ``fault_diameter < eps_max``. A fix without a finite promise fails. The check is
-deterministic (false-alarm probability 0), like containment.
+deterministic (false-alarm probability 0), like containment. Fixes the robot improvised because
+blocked lines of sight (``sensor.block_probability``) left neither the scheduled subset nor its
+fallback are beyond the plan's redundancy: it promised nothing for them, so they are counted
+and left out.
 """
 
 from __future__ import annotations
@@ -57,7 +60,8 @@ def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRes
     """Check every realised fault-area diameter against the fix's promise and eps_max."""
     fx = data.fixes
     eps = data.scenario.planning.eps_max
-    real = np.isfinite(fx.fault_diameter)
+    beyond = fx.beyond if fx.beyond is not None else np.zeros(len(fx), dtype=bool)
+    real = np.isfinite(fx.fault_diameter) & ~beyond
     d, pred = fx.fault_diameter[real], fx.predicted_tau[real]
     no_promise = ~np.isfinite(pred)
     allowed = promise_allowance(data)[real]
@@ -69,7 +73,8 @@ def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRes
     detail = (f"realised fault-area diameter <= (1 + {PROMISE_TOLERANCE:g}) x the plan's promise (moving fix at the "
               f"planned poses) + 2 x polygon tolerance ({DEFAULT_TOLERANCE_FRACTION:g} min rho), and < eps_max = "
               f"{eps:g} m; {int(no_promise.sum())} fixes without a promise, {int(over.sum())} over it, "
-              f"{int(over_eps.sum())} at or over eps_max")
+              f"{int(over_eps.sum())} at or over eps_max; {int(beyond.sum())} improvised beyond the "
+              f"redundancy (blocked lines of sight) left out")
     if bad:
         first = int(np.flatnonzero(real)[np.flatnonzero(no_promise | over | over_eps)[0]])
         detail += f"; first in run {int(fx.run[first])}"

@@ -11,9 +11,10 @@ import pytest
 import scenarios
 from planner.pef.map import PEF
 from planner.placement import placement
+from planner.placement.facing import site_facings, site_marker
 from planner.placement.sites import candidate_sites, cover_points
 from scenarios.errors import PlanningError
-from scenarios.schema import Marker
+from scenarios.schema import MarkerKind
 
 TINY = """
 name = "tiny"
@@ -39,14 +40,17 @@ markers_per_fix = {k}
 [planning]
 eps_max = {eps}
 pef_model = "{model}"
+[placement]
+marker_kind = "{kind}"
 """
 
 SITES = np.array([[0.0, 1.5], [0.0, 4.5], [3.0, 0.0], [7.0, 0.0], [10.0, 2.0], [10.0, 5.0], [2.5, 6.0],
                   [5.0, 4.0]])  # the last one on the obstacle's top face
 
 
-def tiny(eps=0.012, k=2, model="parallelogram", max_range=25.0):
-    return scenarios.loads(TINY.format(eps=eps, k=k, model=model, max_range=max_range), source="tiny.toml")
+def tiny(eps=0.012, k=2, model="parallelogram", max_range=25.0, kind="post"):
+    return scenarios.loads(TINY.format(eps=eps, k=k, model=model, max_range=max_range, kind=kind),
+                           source="tiny.toml")
 
 
 def free_points(sc, n, seed):
@@ -57,7 +61,10 @@ def free_points(sc, n, seed):
 
 
 def with_markers(sc, positions):
-    return dataclasses.replace(sc, markers=tuple(Marker(f"X{i}", tuple(p)) for i, p in enumerate(positions)))
+    """Return the scenario with markers at ``positions``, flat on faces as placement makes them."""
+    facing = site_facings(sc, np.asarray(positions, float))
+    return dataclasses.replace(sc, markers=tuple(site_marker(f"X{i}", p, f)
+                                                 for i, (p, f) in enumerate(zip(positions, facing, strict=True))))
 
 
 def exhaustive(sc, points, sites, k):
@@ -72,9 +79,10 @@ def exhaustive(sc, points, sites, k):
     return None, coverable
 
 
-@pytest.mark.parametrize("seed, eps", [(1, 0.03), (2, 0.02), (3, 0.03), (4, 0.015)])
-def test_exact_count_equals_exhaustive_search(seed, eps):
-    sc = tiny(eps=eps)
+@pytest.mark.parametrize("seed, eps, kind", [(1, 0.03, "post"), (2, 0.02, "post"), (3, 0.03, "post"),
+                                             (4, 0.015, "post"), (1, 0.03, "flat"), (3, 0.03, "flat")])
+def test_exact_count_equals_exhaustive_search(seed, eps, kind):
+    sc = tiny(eps=eps, kind=kind)
     pts = free_points(sc, 30, seed)
     best, coverable = exhaustive(sc, pts, SITES, 2)
     exact = placement.place(sc, points=pts, sites=SITES, method="milp")
@@ -118,14 +126,21 @@ def test_uncoverable_points_are_reported():
     np.testing.assert_array_equal(res.uncovered, pts[~coverable])
 
 
-@pytest.mark.parametrize("name, method", [("paper-docks", "auto"), ("warehouse", "greedy")])
-def test_builtin_routes_really_covered(name, method):
+@pytest.mark.parametrize("name, method, kind", [("paper-docks", "auto", "flat"), ("warehouse", "greedy", "post"),
+                                                ("warehouse", "greedy", "flat")])
+def test_builtin_routes_really_covered(name, method, kind):
     sc = scenarios.load(name)
+    sc = dataclasses.replace(sc, placement=dataclasses.replace(sc.placement, marker_kind=MarkerKind(kind)))
     res = placement.place(sc, method=method, time_limit=20)
-    assert len(res.uncovered) == 0
+    # flat sites on the warehouse's rack faces see the narrow aisles only at steep incidence:
+    # the aisles' middles have no good pair of them (posts cover everything)
+    assert len(res.uncovered) == 0 or (name, kind) == ("warehouse", "flat")
+    assert len(res.uncovered) < 0.02 * len(res.points)
     assert res.count >= res.lower_bound >= sc.sensor.markers_per_fix
     placed = placement.scenario_with_markers(sc, res)
-    tau = PEF(placed).at(cover_points(sc)).tau
+    assert {m.kind.value for m in placed.markers} == {kind}
+    covered = ~(cover_points(sc)[:, None, :] == res.uncovered[None, :, :]).all(axis=2).any(axis=1)
+    tau = PEF(placed).at(cover_points(sc)[covered]).tau
     assert np.all(tau < sc.planning.eps_max)
     # negative control: dropping any one chosen marker of a minimal placement uncovers points
     if res.optimal:

@@ -67,7 +67,7 @@ def run_episode(scenario, task_index: int = 0, seed=0, world=None, prepared=None
     tau = np.full(N_STEPS, eps * 0.9)
     nees = np.einsum("ti,tij,tj->t", err, np.linalg.inv(cov), err)
     steps = StepLog(t=s * 10.0, true_pose=true_pose, est_pose=est_pose, est_cov=cov, error=error,
-                    predicted_tau=tau, pef_tau=tau * 0.8, nees=nees)
+                    predicted_tau=tau, pef_tau=tau * 0.8, nees=nees, certified=tau * 1.1)
     idx = np.linspace(0, N_STEPS - 1, N_FIXES).astype(int)
     truth = path[idx]
     snap = truth + rng.uniform(-eps / 4, eps / 4, size=(N_FIXES, 2))
@@ -83,7 +83,8 @@ def run_episode(scenario, task_index: int = 0, seed=0, world=None, prepared=None
     summary = dict(reached=bool(rng.uniform() < 0.9), duration=10.0, steps=N_STEPS, fixes=N_FIXES,
                    rmse=float(np.sqrt(np.mean(error ** 2))), max_error=float(error.max()),
                    max_predicted_tau=float(tau.max()), eps_max=eps, violations=int(np.sum(error > eps)),
-                   seed=0, mean_nees=float(nees.mean()), mean_nis=float(fixes.nis.mean()))
+                   seed=0, mean_nees=float(nees.mean()), mean_nis=float(fixes.nis.mean()),
+                   blocked_markers=0, fallback_fixes=0, failed_fixes=0, certified_max=float(tau.max()))
     assert set(summary) == set(SUMMARY_KEYS)
     return EpisodeResult(scenario.name, task_index, 0, eps, steps, fixes, None, summary)
 

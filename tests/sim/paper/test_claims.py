@@ -49,8 +49,8 @@ def test_page_embeds_every_figure_and_verdict(report, claims):
     assert sorted(claims) == [1, 2, 3, 4, 5, 6, 7]
     page = (out / "index.html").read_text(encoding="utf-8")
     embedded = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
-    assert len(embedded) == 7
-    for c, b64 in zip(sorted(claims.values(), key=lambda c: c["id"]), embedded, strict=True):
+    assert len(embedded) == 8  # seven claims and the redundancy section beside them
+    for c, b64 in zip(sorted(claims.values(), key=lambda c: c["id"]), embedded[:7], strict=True):
         png = (out / "figures").joinpath(c["figure"].rsplit("/", 1)[-1]).read_bytes()
         assert png.startswith(PNG_SIGNATURE) and len(png) > 10_000
         assert base64.b64decode(b64) == png          # the page holds exactly the figure file
@@ -195,3 +195,22 @@ def test_route_figure_draws_a_crashed_run(tmp_path):
     fig = figs.planned_route(series, np.array([0.001, np.inf]), 0.02, numbers)
     path = save_figure(fig, tmp_path / "f.png")
     assert path.read_bytes().startswith(PNG_SIGNATURE)
+
+
+def test_redundancy_section_beside_the_claims(report):
+    out, data = report
+    (sec,) = data["sections"]
+    nb = sec["numbers"]
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "Beside the claims" in page and "Not a claim of the paper" in page
+    # redundancy costs reflectors: the r = 1 placement needs more than the r = 0 one
+    assert nb["placement"]["r1"]["markers"] > nb["placement"]["r0"]["markers"] >= 2
+    rows = {(r["redundancy"], r["q"]): r for r in nb["sweeps"]}
+    assert set(rows) == {(0, 0.0), (0, 0.2), (1, 0.0), (1, 0.2)}
+    for (_, q), row in rows.items():
+        assert 0.0 <= row["success"] <= 1.0 and 0.0 <= row["certified"] <= 1.0
+        # nothing blocked, nothing falls back (negative control of the counters)
+        assert (row["blocked_markers_per_run"] == 0) == (q == 0.0)
+        assert (row["fallback_fixes_per_run"] > 0) == (q > 0.0)
+    # with nothing blocked the fixes taken are the plan's: its promise is certified in every run
+    assert rows[(0, 0.0)]["certified"] == rows[(1, 0.0)]["certified"] == 1.0

@@ -288,7 +288,8 @@ def test_rerun_rrd_verify_accepts_the_file(episode_rrd):
 
 def test_episode_without_fixes_records_its_steps(tmp_path, warehouse):
     ep = synthetic_episode(warehouse, n_steps=20, n_fixes=6)
-    arrays = {name: value[:0] for name, value in vars(ep.fixes).items() if name != "fault_polygons"}
+    arrays = {name: None if value is None else value[:0] for name, value in vars(ep.fixes).items()
+              if name != "fault_polygons"}
     ep.fixes = FixLog(**arrays, fault_polygons=[])  # every per-fix array cut to F = 0
     back = Readback(recording.write_episode_rrd(tmp_path / "nofix.rrd", warehouse, ep))
     _, rows = back.column(E.ERROR, "Scalars:scalars")

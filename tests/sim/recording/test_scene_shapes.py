@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -62,3 +64,27 @@ def test_the_recording_holds_every_ring_of_every_obstacle_in_the_users_frame(tmp
     back = Readback(recording.write_static_rrd(tmp_path / "far.rrd", far))
     _, ws = back.column(E.WORKSPACE, "LineStrips2D:strips", timeline=None)
     assert np.allclose(np.asarray(ws[0][0]).min(axis=0), [250.0, -80.0])
+
+
+def test_flat_reflectors_are_drawn_facing_out_in_figures_and_recordings(tmp_path):
+    from sim import recording
+    from sim.recording import entities as E
+    from tests.planner.pef.test_flat_redundancy import _scenario
+    from tests.sim.recording.test_episode_recording import Readback
+
+    sc = _scenario()
+    flat = [m for m in sc.markers if m.kind.value == "flat"]
+    back = Readback(recording.write_static_rrd(tmp_path / "static.rrd", sc))
+    _, vectors = back.column(E.MARKER_FACING, "Arrows2D:vectors", timeline=None)
+    got = np.asarray(vectors[0], float)
+    want = np.array([m.normal for m in flat]) * 2.0 * sc.robot.radius
+    assert np.allclose(got, want)
+    # negative control: a scenario of posts logs no facing at all
+    posts = dataclasses.replace(sc, markers=tuple(m for m in sc.markers if m.kind.value == "post"))
+    back = Readback(recording.write_static_rrd(tmp_path / "posts.rrd", posts))
+    assert not back.chunks.get(E.MARKER_FACING)
+    # the figure draws each face and its two wedge edges: three lines per flat marker
+    fig = Figure()
+    ax = fig.add_subplot()
+    draw_scene(ax, sc, labels=False, docks=False)
+    assert len(ax.lines) == 3 * len(flat)

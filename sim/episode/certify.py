@@ -1,0 +1,60 @@
+"""The error bound an episode's fixes actually certified: the plan's promise, as driven.
+
+The plan promises ``err(s) = tau_i + drift(s - s_i)`` with every scheduled fix taken. When lines
+of sight are blocked, some fixes are taken with a fallback subset (another promise) and some
+not at all (the drift runs on from the previous fix). Each completed fix j certifies, from then
+on, its promise plus the drift bound (:func:`planner.schedule.drift.drift_bound`, the planner's)
+over the arc length and turning since it started; the position lies in all these regions at
+once, so the *certified* bound at a control step is the smallest of them over the fixes
+completed before it (a weak improvised fix does not undo a good earlier one, as in the
+filter); the calibrated dock stands in for a fix at the start (promise 0). It depends only on
+which fixes were taken and their promises, not on the noise: a run keeps its guarantee when the bound stays under
+eps_max, which is what redundancy buys (the realised error is usually far smaller).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner.schedule.drift import drift_bound
+from scenarios.schema import RobotSpec
+
+
+def certified_bound(robot: RobotSpec, t: np.ndarray, s: np.ndarray, heading: np.ndarray,
+                    fix_t: np.ndarray, fix_tau: np.ndarray, fix_time: float) -> np.ndarray:
+    """Certified position error bound at each control step, shape (N,) [m].
+
+    Parameters
+    ----------
+    robot : RobotSpec
+        The declared robot (the drift model the plan used).
+    t : ndarray, shape (N,)
+        Step times [s], ascending.
+    s : ndarray, shape (N,)
+        Arc length along the path at each step [m].
+    heading : ndarray, shape (N,)
+        Estimated heading at each step [rad].
+    fix_t : ndarray, shape (F,)
+        Completion time of each fix taken [s], ascending.
+    fix_tau : ndarray, shape (F,)
+        Each fix's promise [m] (inf when none was made).
+    fix_time : float
+        Duration of a fix, k * measurement_time [s]: a fix's drift runs from its start.
+    """
+    t, s = np.asarray(t, float), np.asarray(s, float)
+    turn = np.concatenate([[0.0], np.cumsum(np.abs(np.angle(np.exp(1j * np.diff(np.asarray(heading, float))))))])
+    # the dock as fix -1: completed at t[0] (its start clamps to t[0] too), promise 0
+    fix_t = np.concatenate([[t[0]], np.asarray(fix_t, float)])
+    fix_tau = np.concatenate([[0.0], np.asarray(fix_tau, float)])
+    # arc length and turning at each fix's start, interpolated on the step times
+    s0 = np.interp(fix_t - fix_time, t, s)
+    turn0 = np.interp(fix_t - fix_time, t, turn)
+    out = np.full(t.shape, np.inf)
+    for j in range(len(fix_t)):  # F passes over the steps after fix j: a few ms for an episode
+        after = np.searchsorted(t, fix_t[j], side="left")
+        if after >= t.size or not np.isfinite(fix_tau[j]):
+            continue
+        b = fix_tau[j] + drift_bound(robot, np.maximum(s[after:] - s0[j], 0.0),
+                                     np.maximum(turn[after:] - turn0[j], 0.0))
+        np.minimum(out[after:], b, out=out[after:])
+    return out

@@ -1,0 +1,249 @@
+"""Flat reflectors and redundancy against an independent, slow evaluator of the same definitions.
+
+The evaluator below is plain Python with shapely: line of sight by intersecting the segment with
+the obstacle polygon shrunk a little, the incidence angle by ``atan2``, the parallelogram diagonal
+by the paper's eq. 12, and tau_1 by brute force over *every* visible marker removed (not only the
+best subset's members, which is the shortcut the kernels take). Cells whose answer depends on a
+rounding (a segment grazing a corner, an angle within 1e-9 rad of the limit) are left out of the
+comparison, and the test checks they are few.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from shapely.geometry import LineString, Point, box
+
+import scenarios
+from planner.pef.map import PEF
+from planner.pef.visibility import scenario_visible_grid, scenario_visible_points
+
+TOML = """
+name = "flat-test"
+[workspace]
+size = [12.0, 8.0]
+[[obstacles]]
+center = [6.0, 4.0]
+size = [3.0, 1.0]
+[[markers]]
+id = "P1"
+position = [0.0, 0.0]
+[[markers]]
+id = "P2"
+position = [12.0, 8.0]
+[[markers]]
+id = "F1"
+position = [6.0, 3.5]
+kind = "flat"
+facing_deg = -90.0
+[[markers]]
+id = "F2"
+position = [0.0, 4.0]
+kind = "flat"
+facing_deg = 0.0
+[[markers]]
+id = "F3"
+position = [12.0, 2.0]
+kind = "flat"
+facing_deg = 180.0
+[[markers]]
+id = "F4"
+position = [6.0, 8.0]
+kind = "flat"
+facing_deg = -90.0
+[[markers]]
+id = "P3"
+position = [3.0, 8.0]
+[sensor]
+relative_error = 1e-3
+absolute_error = 0.002
+max_range = 11.0
+max_incidence_deg = 50.0
+[planning]
+eps_max = 0.05
+resolution = 0.25
+redundancy = REDUNDANCY
+"""
+
+OBSTACLE = box(4.5, 3.5, 7.5, 4.5)
+RES = 0.25
+
+
+def _scenario(redundancy: int = 0, text: str = TOML) -> scenarios.Scenario:
+    return scenarios.loads(text.replace("REDUNDANCY", str(redundancy)), "flat-test.toml")
+
+
+def _visibility(sc, p, flat: bool = True):
+    """Slow visibility of every marker from point p: (bool (M,), ambiguous (bool))."""
+    out, ambiguous = [], False
+    if OBSTACLE.intersects(Point(p)):
+        return [False] * len(sc.markers), False
+    lim = math.degrees(sc.sensor.max_incidence)
+    for m in sc.markers:
+        mx, my = m.position
+        dx, dy = p[0] - mx, p[1] - my
+        if math.hypot(dx, dy) > sc.sensor.max_range:
+            out.append(False)
+            continue
+        seg = LineString([p, m.position])
+        tight = seg.intersects(OBSTACLE.buffer(-1e-7, join_style=2))
+        loose = seg.intersects(OBSTACLE.buffer(-1e-4, join_style=2))
+        ambiguous |= tight != loose
+        ok = not tight
+        if ok and flat and m.kind is scenarios.MarkerKind.FLAT:
+            ang = abs(math.degrees(math.atan2(dx * math.sin(m.facing) - dy * math.cos(m.facing),
+                                              dx * math.cos(m.facing) + dy * math.sin(m.facing))))
+            ambiguous |= abs(ang - lim) < 1e-7
+            ok = ang <= lim
+        out.append(ok)
+    return out, ambiguous
+
+
+def _diagonal(sc, p, a, b) -> float:
+    """Paper eq. 12: long diagonal of the parallelogram of markers a, b seen from p [m]."""
+    u = [np.subtract(p, sc.markers[i].position) for i in (a, b)]
+    r = [float(np.hypot(*v)) for v in u]
+    if min(r) == 0.0:
+        return math.inf
+    rho = [sc.sensor.relative_error * ri + sc.sensor.absolute_error for ri in r]
+    cos_a = float(np.dot(u[0], u[1])) / (r[0] * r[1])
+    sin_a = math.sqrt(max(0.0, 1.0 - cos_a * cos_a))
+    if sin_a == 0.0:
+        return math.inf
+    return 2.0 / sin_a * math.sqrt(rho[0] ** 2 + rho[1] ** 2 + 2 * rho[0] * rho[1] * abs(cos_a))
+
+
+def _best(sc, p, seen) -> float:
+    pairs = [_diagonal(sc, p, a, b) for a, b in itertools.combinations(seen, 2)]
+    return min(pairs, default=math.inf)
+
+
+def _slow_map(sc, redundancy: int, flat: bool = True):
+    """Tau (or tau_1 by brute force) on the cell centres; and the ambiguous cells."""
+    nx, ny = round(12.0 / RES), round(8.0 / RES)
+    xs, ys = (np.arange(nx) + 0.5) * RES, (np.arange(ny) + 0.5) * RES
+    tau = np.full((ny, nx), np.inf)
+    amb = np.zeros((ny, nx), bool)
+    for iy, y in enumerate(ys):
+        for ix, x in enumerate(xs):
+            vis, amb[iy, ix] = _visibility(sc, (x, y), flat)
+            seen = [i for i, v in enumerate(vis) if v]
+            t = _best(sc, (x, y), seen)
+            if redundancy == 1:
+                t = max([t] + [_best(sc, (x, y), [i for i in seen if i != j]) for j in seen])
+            tau[iy, ix] = t
+    return tau, amb
+
+
+def _agree(fast, slow, amb) -> np.ndarray:
+    """Cells where fast and slow differ (both inf, or within 1e-5 relative), ambiguous ones aside."""
+    both_inf = np.isinf(fast) & np.isinf(slow)
+    close = np.isclose(fast, slow, rtol=1e-5, atol=0.0)
+    return ~(both_inf | close) & ~amb
+
+
+@pytest.fixture(scope="module")
+def slow():
+    sc = _scenario()
+    return {r: _slow_map(sc, r) for r in (0, 1)} | {"posts": _slow_map(sc, 0, flat=False)}
+
+
+def test_flat_markers_parse_with_their_normals():
+    sc = _scenario()
+    assert [m.kind.value for m in sc.markers] == ["post", "post", "flat", "flat", "flat", "flat", "post"]
+    n = sc.marker_normals()
+    assert n[0] == pytest.approx([0.0, 0.0])
+    assert n[2] == pytest.approx([0.0, -1.0])
+    assert n[4] == pytest.approx([-1.0, 0.0])
+    assert sc.sensor.max_incidence == pytest.approx(math.radians(50.0))
+
+
+@pytest.mark.parametrize("bad, match", [
+    ('facing_deg = -90.0\n[[markers]]\nid = "X"\nposition = [1.0, 1.0]\nkind = "flat"\n',
+     r"markers\[6\]\.facing_deg: expected the normal's direction"),
+    ('facing_deg = -90.0\nkind2 = 1\n', r"kind2"),
+])
+def test_flat_marker_without_facing_or_unknown_key_is_one_line_error(bad, match):
+    text = TOML.replace('facing_deg = -90.0\n[[markers]]\nid = "P3"', bad + '[[markers]]\nid = "P3"', 1)
+    with pytest.raises(scenarios.ScenarioError, match=match):
+        _scenario(text=text)
+
+
+def test_bad_incidence_and_redundancy_values_name_key_and_value():
+    with pytest.raises(scenarios.ScenarioError, match=r"sensor\.max_incidence_deg.*95"):
+        _scenario(text=TOML.replace("max_incidence_deg = 50.0", "max_incidence_deg = 95.0"))
+    with pytest.raises(scenarios.ScenarioError, match=r"planning\.redundancy.*-1"):
+        _scenario(-1)
+    with pytest.raises(scenarios.ScenarioError, match=r"sensor\.block_probability.*1\.5"):
+        _scenario(text=TOML.replace("[planning]", "block_probability = 1.5\n[planning]"))
+
+
+def test_grid_and_points_visibility_agree_with_flat_markers():
+    sc = _scenario()
+    pm = PEF(sc).grid(RES)
+    vis_g, _ = scenario_visible_grid(sc, pm.x, pm.y)
+    pts = np.column_stack([np.tile(pm.x, pm.y.size), np.repeat(pm.y, pm.x.size)])
+    vis_p, _ = scenario_visible_points(sc, pts)
+    assert np.array_equal(vis_g.reshape(len(sc.markers), -1), vis_p)
+    # the flat marker on the obstacle's lower face is not seen from above the obstacle
+    assert not vis_g[2][pm.y > 4.5].any()
+    assert vis_g[2][pm.y < 3.0].any()
+
+
+def test_flat_pef_map_agrees_with_slow_evaluator_cell_by_cell(slow):
+    tau, amb = slow[0]
+    pm = PEF(_scenario()).grid(RES)
+    assert amb.mean() < 0.02
+    bad = _agree(pm.tau, tau, amb)
+    assert not bad.any(), f"{bad.sum()} cells differ, first at {np.argwhere(bad)[:3].tolist()}"
+    # negative control: ignoring the incidence limit changes the map where the check looks
+    posts, amb_p = slow["posts"]
+    assert _agree(pm.tau, posts, amb | amb_p).sum() > 20
+
+
+def test_redundancy_1_map_agrees_with_brute_force_over_every_marker_removed(slow):
+    tau1, amb = slow[1]
+    pm = PEF(_scenario(1)).grid(RES)
+    assert pm.redundancy == 1
+    bad = _agree(pm.tau, tau1, amb)
+    assert not bad.any(), f"{bad.sum()} cells differ, first at {np.argwhere(bad)[:3].tolist()}"
+    # the points path gives the same tau_1
+    pts = np.column_stack([np.tile(pm.x, pm.y.size), np.repeat(pm.y, pm.x.size)])
+    assert np.array_equal(PEF(_scenario(1)).at(pts).tau.reshape(pm.tau.shape), pm.tau)
+    # negative control: the plain map is not tau_1 (the check would catch a no-op redundancy)
+    tau0, _ = slow[0]
+    assert _agree(PEF(_scenario(0)).grid(RES).tau, tau1, amb).sum() > 20
+    assert np.array_equal(pm.tau_plain, PEF(_scenario(0)).grid(RES).tau)
+
+
+def test_fallback_subset_avoids_its_blocked_marker_and_gives_the_tau_without_it():
+    sc = _scenario(1)
+    pef = PEF(sc)
+    pts = np.array([[2.0, 2.0], [9.0, 6.5], [6.0, 1.0], [1.0, 6.0]])
+    r = pef.at(pts)
+    plain = PEF(sc, redundancy=0)
+    for n, p in enumerate(pts):
+        vis, _ = _visibility(sc, p)
+        for j in range(2):
+            blocked = r.best[n, j]
+            fb = r.fallback[n, j]
+            if fb[0] < 0:
+                continue
+            assert blocked not in fb
+            seen = [i for i, v in enumerate(vis) if v and i != blocked]
+            assert plain.tau_subset(p, fb)[0] == pytest.approx(_best(sc, p, seen), rel=1e-5)
+
+
+def test_redundancy_2_is_the_worst_over_every_pair_removed():
+    sc = _scenario(2)
+    pts = np.array([[2.0, 2.0], [9.0, 6.5], [6.0, 1.0], [3.0, 6.0], [10.0, 1.0]])
+    got = PEF(sc).at(pts).tau
+    for n, p in enumerate(pts):
+        vis, _ = _visibility(sc, p)
+        seen = [i for i, v in enumerate(vis) if v]
+        want = max([_best(sc, p, seen)] + [_best(sc, p, [i for i in seen if i not in d])
+                                           for d in itertools.combinations(seen, 2)])
+        assert got[n] == pytest.approx(want, rel=1e-5) or (math.isinf(got[n]) and math.isinf(want))

@@ -1,0 +1,65 @@
+"""Blocked lines of sight in simulation: determinism, fallbacks, and validation on a redundancy-1 placement.
+
+``warehouse-reflectors`` is the warehouse with flat reflectors placed for redundancy 1 and
+``sensor.block_probability = 0.2``. A small sweep must pass every applicable check of
+``pefsim validate`` (the 200-run result is in the report of issue 14); negative control: with
+every line of sight blocked (q = 1) the robot can only dead-reckon and the plan check fails.
+The plan check's false-alarm probability is its share of the family alpha = 0.01.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+
+import scenarios
+from sim import cli
+from sim.episode.drive import run_episode
+from sim.montecarlo import results
+
+
+def _validate(capsys, argv):
+    code = cli.main(["validate", *argv, "--json"])
+    return code, json.loads(capsys.readouterr().out)
+
+
+def test_same_seed_same_blocks_and_the_block_stream_leaves_the_others_alone():
+    sc = scenarios.load("warehouse-reflectors")
+    ss = np.random.SeedSequence(7, spawn_key=(3,))
+    a, b = run_episode(sc, 0, seed=ss), run_episode(sc, 0, seed=ss)
+    for key in ("blocked_markers", "fallback_fixes", "failed_fixes", "fixes", "max_error", "certified_max"):
+        assert a.summary[key] == b.summary[key], key
+    assert np.array_equal(a.fixes.markers, b.fixes.markers)
+    assert a.summary["blocked_markers"] > 0 and a.summary["fallback_fixes"] > 0
+    # every fallback fix measured the schedule's fallback of one of its fix's markers
+    assert a.fixes.fallback.sum() == a.summary["fallback_fixes"]
+    clear = dataclasses.replace(sc, sensor_actual=dataclasses.replace(sc.sensor_actual, block_probability=0.0))
+    c = run_episode(clear, 0, seed=ss)
+    assert c.summary["blocked_markers"] == 0 and c.summary["fallback_fixes"] == 0
+    # the start pose comes from its own stream: the same with and without blocking
+    assert np.array_equal(a.steps.true_pose[0], c.steps.true_pose[0])
+    # with nothing blocked the certified bound is the plan's promise (under eps_max)
+    assert c.summary["certified_max"] < sc.planning.eps_max
+
+
+def test_validate_passes_with_a_fifth_of_lines_of_sight_blocked_and_fails_with_all(capsys, tmp_path):
+    out = tmp_path / "q02"
+    code, report = _validate(capsys, ["warehouse-reflectors", "--runs", "4", "--workers", "2", "--out", str(out)])
+    status = {c["name"]: c["status"] for c in report["checks"]}
+    assert code == 0, status
+    assert status["plan"] == "pass" and "FAIL" not in status.values()
+    runs = results.read_runs(out)
+    assert min(runs.column("blocked_markers").to_pylist()) > 0
+    assert min(runs.column("fallback_fixes").to_pylist()) > 0
+    fixes = results.read_fixes(out, columns=["fallback"])
+    assert 0 < np.mean(fixes.column("fallback").to_numpy(zero_copy_only=False)) < 0.5
+    # negative control: q = 1 blocks every fix after the start; dead reckoning breaks eps_max
+    sc = scenarios.load("warehouse-reflectors")
+    blind = tmp_path / "blind.toml"
+    blind.write_text(sc.text.replace("block_probability = 0.2", "block_probability = 1.0"), encoding="utf-8")
+    assert scenarios.load(str(blind)).sensor_actual.block_probability == 1.0
+    code, report = _validate(capsys, [str(blind), "--runs", "4", "--workers", "2", "--out", str(tmp_path / "q1")])
+    status = {c["name"]: c["status"] for c in report["checks"]}
+    assert code == 1 and status["plan"] == "FAIL", status
