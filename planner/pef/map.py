@@ -268,7 +268,7 @@ class PEF:
                                                  sc.workspace.bounds, float(self.sensor.relative_error),
                                                  float(self.sensor.absolute_error))
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                          cell_size=(size[0] / x.size, size[1] / y.size))
+                          cell_size=(size[0] / x.size, size[1] / y.size), tau_plain=tau)
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
