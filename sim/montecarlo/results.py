@@ -31,16 +31,16 @@ from __future__ import annotations
 import os
 import re
 from dataclasses import dataclass
-from enum import Enum
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pyarrow as pa
 
-from scenarios.errors import OutputError, ScenarioError, output_errors
+from scenarios.errors import OutputError, output_errors
 from sim.episode.types import FixLog, StepLog
 from sim.montecarlo import parts
+from sim.montecarlo.steps import StepsMode, steps_mode  # noqa: F401  (re-exported)
 
 RUN_SCHEMA = pa.schema([
     ("run", pa.int64()),
@@ -84,22 +84,6 @@ STEP_SCHEMA = pa.schema([
 STEP_STORAGE = parts.lean(STEP_SCHEMA)
 """How step parts are stored: the floats of :data:`STEP_SCHEMA` as float32 (:mod:`sim.montecarlo.parts`)."""
 
-
-class StepsMode(str, Enum):
-    """Which per-step rows a sweep keeps (``pefsim mc --steps``)."""
-
-    ALL = "all"
-    FIXES = "fixes"
-    NONE = "none"
-
-
-def steps_mode(value: StepsMode | str) -> StepsMode:
-    """Parse a ``--steps`` value; raises a one-line ScenarioError for anything else."""
-    try:
-        return StepsMode(value)
-    except ValueError:
-        choices = ", ".join(m.value for m in StepsMode)
-        raise ScenarioError(f"--steps: expected one of {choices}, got {value!r}") from None
 
 FIX_SCHEMA = pa.schema([
     ("run", pa.int64()), ("fix", pa.int32()), ("t", pa.float64()),
