@@ -307,10 +307,11 @@ class PEF:
             raise PlanningError(f"subset: expected {self.k} distinct marker indices "
                                 f"in [0, {len(self.markers)}), got {sub[0].tolist()}")
         # only the subset's markers matter: their visibility alone (rows in subset order), and
-        # the kernel on those k markers (the winner's tau is recomputed from them alone)
+        # the kernel on those k markers (the winner's tau is recomputed from them alone); a flat
+        # marker's incidence wedge holds here as everywhere else
         sc = self.scenario
         vis, _ = visible_points(pts, self.markers[sub[0]], sc.obstacle_pieces(), self.sensor.max_range,
-                                sc.workspace.bounds)
+                                sc.workspace.bounds, sc.marker_normals()[sub[0]], self.sensor.max_incidence)
         local = np.arange(self.k, dtype=np.int64)
         if self.model is PefModel.EXACT:
             return self._exact_subset(pts, vis, local, self.markers[sub[0]])

@@ -247,3 +247,27 @@ def test_redundancy_2_is_the_worst_over_every_pair_removed():
         want = max([_best(sc, p, seen)] + [_best(sc, p, [i for i in seen if i not in d])
                                            for d in itertools.combinations(seen, 2)])
         assert got[n] == pytest.approx(want, rel=1e-5) or (math.isinf(got[n]) and math.isinf(want))
+
+
+def test_tau_subset_of_every_pair_agrees_with_the_slow_evaluator_incidence_included():
+    # the schedule scores its candidate subsets with tau_subset: a flat marker outside its
+    # incidence wedge must give inf there too, or the plan schedules markers the laser cannot see
+    sc = _scenario()
+    pef = PEF(sc)
+    xs, ys = np.meshgrid(np.arange(0.3, 12.0, 0.7), np.arange(0.3, 8.0, 0.7))
+    pts = np.column_stack([xs.ravel(), ys.ravel()])
+    looks = [_visibility(sc, p) for p in pts]
+    wedge_only = 0
+    for a, b in itertools.combinations(range(len(sc.markers)), 2):
+        got = pef.tau_subset(pts, np.array([a, b]))
+        for n, p in enumerate(pts):
+            vis, amb = looks[n]
+            if amb:
+                continue
+            want = _diagonal(sc, p, a, b) if vis[a] and vis[b] else math.inf
+            # (collinear pairs are 1e13 one way and inf the other: both past any eps_max)
+            assert min(got[n], 1e6) == pytest.approx(min(want, 1e6), rel=1e-5), (a, b, p)
+            posts, _ = _visibility(sc, p, flat=False)
+            wedge_only += bool(posts[a] and posts[b] and not (vis[a] and vis[b]))
+    # the incidence limit decides many of these: the check would catch a tau_subset that ignores it
+    assert wedge_only > 50
