@@ -188,7 +188,7 @@ class FixRecorder:
         reads_over = (None if reads is None or None in p.reads_at
                       else np.array([reads - at for at in p.reads_at], dtype=float))
         ranges = np.array(p.ranges)
-        rho = self.sensor.range_bound(ranges)
+        rho = self.sensor.measured_range_bound(ranges)  # the declared bound holds at the true range
         # every range but one taken at the fix time is carried (unchanged encoders included)
         carried = np.array(p.slots) < p.attempted - 1
         heading_var = max(self.loc.heading_var, 0.0)  # the shift is turned with the filter's heading

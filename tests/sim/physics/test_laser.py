@@ -198,3 +198,18 @@ def test_bad_marker_index_raises():
         laser = LaserSensor(w, sc.sensor_actual, sc.marker_positions())
         with pytest.raises(SimulationError, match="marker index 9"):
             laser.visible(9)
+
+
+def test_the_bound_of_a_measured_range_covers_the_error_drawn_at_the_true_range():
+    # The laser draws |e| <= rho(true range); the fault area only knows the measured range.
+    # At the extreme draws, rho of the measured range must still cover the error (a fix of the
+    # floor-to-layout hall missed its truth by 0.1 um when rho came from the measured range).
+    sensor = scenarios.load("warehouse").sensor
+    r = np.linspace(0.1, sensor.max_range, 500)
+    rho = sensor.range_bound(r)
+    for e in (-rho, rho, -rho * (1 - 1e-12)):
+        assert np.all(np.abs(e) <= sensor.measured_range_bound(r + e) * (1 + 1e-15))
+    # negative control: rho of the measured range falls short of a range measured short by rho
+    assert np.all(sensor.range_bound(r - rho) < rho)
+    # and the correction is no wider than it must be: tight at the short extreme
+    np.testing.assert_allclose(sensor.measured_range_bound(r - rho), rho, rtol=1e-12)
