@@ -19,6 +19,7 @@ import numpy as np
 
 from planner.pef.map import PEF
 from planner.plan import Plan
+from planner.schedule.promise import START_LAG
 from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode.certify import certified_bound
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
@@ -221,6 +222,11 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     dt_phys = world.config.time_step
     dt_ctrl = CONTROL_STEPS * dt_phys
+    if dt_ctrl + dt_phys > START_LAG * (1.0 + 1e-9):
+        # a fix starts up to a control tick late and measures up to a physics step late: the
+        # plan's promises hold for starts up to START_LAG late only
+        raise SimulationError(f"physics time_step {dt_phys:g} s: a fix may start {dt_ctrl + dt_phys:.4g} s late, "
+                              f"the plan's promises allow {START_LAG:.4g} s")
     planned_time = float(np.sum(np.diff(plan.s) / np.maximum(plan.speed[1:], 0.05)))
     t_max = time_limit if time_limit is not None else 3.0 * planned_time + 30.0
     n_max = int(t_max / dt_ctrl) + 2

@@ -42,7 +42,7 @@ class _Pending:
     scheduled: object = None
     attempted: int = 0
     slots: list[int] = field(default_factory=list)
-    fallback: bool = False
+    fallback: int = -1   # the blocked slot whose fallback this fix measures, -1 for none
     beyond: bool = False
 
 
@@ -74,7 +74,7 @@ class FixRecorder:
         self.pending: _Pending | None = None
         self.skipped = 0
         self.blocked_markers = 0
-        self._fallback_next = False
+        self._fallback_next = -1
         self._beyond_next = False
         self._rows: list[dict] = []
         self._polygons: list[np.ndarray] = []
@@ -90,15 +90,16 @@ class FixRecorder:
         visible subset by the PEF at the *estimated* position (the robot does not know the
         truth); None if fewer than k markers are visible.
         """
-        self._fallback_next = self._beyond_next = False
+        self._fallback_next, self._beyond_next = -1, False
         seen_sched = self.laser.visible_all(scheduled)
         if seen_sched.all():  # the usual case: two rays, not M
             return list(scheduled)
         fbs = getattr(fix, "fallbacks", ()) if fix is not None else ()
         if (~seen_sched).sum() == 1 and len(fbs) == len(scheduled):
-            alt = fbs[int(np.flatnonzero(~seen_sched)[0])]
+            q = int(np.flatnonzero(~seen_sched)[0])
+            alt = fbs[q]
             if alt and self.laser.visible_all(alt).all():
-                self._fallback_next = True
+                self._fallback_next = q
                 return list(alt)
         # improvising because lines of sight are blocked: more than the plan's redundancy covers
         self._beyond_next = bool(self.laser.blocked & set(scheduled))
@@ -121,7 +122,7 @@ class FixRecorder:
         mt = self.sensor.measurement_time
         self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))],
                                 scheduled=scheduled, fallback=self._fallback_next, beyond=self._beyond_next)
-        self._fallback_next = self._beyond_next = False
+        self._fallback_next, self._beyond_next = -1, False
 
     @property
     def next_due(self) -> float:
@@ -217,20 +218,23 @@ class FixRecorder:
             rho=rho.tolist() + [math.nan] * pad, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted,
-            predicted_tau=self._promise(p), fallback=p.fallback, beyond=p.beyond))
+            predicted_tau=self._promise(p), fallback=p.fallback >= 0, beyond=p.beyond))
         self._polygons.append(fa.ring)
 
     def _promise(self, p: _Pending) -> float:
         """Return the plan's promise for this fix [m].
 
-        The scheduled fix's, or the same construction for the markers actually measured at the
-        scheduled poses (a fallback subset, a marker lost mid-fix).
+        The scheduled fix's; the schedule's promise of the fallback a fix measured instead; or,
+        for a marker lost mid-fix, the same construction for the markers actually measured at
+        the scheduled poses.
         """
         f = p.scheduled
         if f is None or not f.poses:
             return math.inf
         if tuple(p.measured) == tuple(f.markers):
             return float(f.predicted_tau)
+        if p.fallback >= 0 and tuple(p.measured) == tuple(f.fallbacks[p.fallback]):
+            return float(f.fallback_tau[p.fallback])
         poses = np.array(f.poses)
         area = promised_fault_area(self.sensor, self.robot, self.markers[p.measured], poses[p.slots],
                                    self.scenario.planning.heading_std, end=poses[-1],
