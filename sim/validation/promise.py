@@ -2,9 +2,9 @@
 
 The plan promises each fix the fault-area diameter of the moving fix the robot makes
 (:mod:`planner.schedule.promise`): noise-free ranges at the planned poses, carried to the fix time with
-the odometry bound. The simulation builds the realised fault area of the same construction from
-the measured ranges (:mod:`estimators.fault.carried`). Under bounded (uniform) noise the two differ
-only through
+the odometry bound, the largest for a start up to ``START_LAG`` (one control tick) late. The
+simulation builds the realised fault area of the same construction from the measured ranges
+(:mod:`estimators.fault.carried`). Under bounded (uniform) noise the two differ only through
 
 - the polygonisation: the realised polygon reaches up to ``tol = DEFAULT_TOLERANCE_FRACTION *
   min(rho)`` beyond its arcs, so its diameter up to ``2 tol`` beyond the exact one;
@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
-from planner.schedule.promise import PROMISE_TOLERANCE
+from planner.schedule.promise import PROMISE_TOLERANCE, START_LAG
 from scenarios.schema import NoiseModel, PefModel
 from sim.jsonable import json_number
 from sim.validation.data import CheckResult, CheckStatus, SweepData
@@ -71,7 +71,8 @@ def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRes
     worst = float(np.nanmax(ratio)) if np.isfinite(ratio).any() else math.nan
     bad = int(np.sum(no_promise | over | over_eps))
     detail = (f"realised fault-area diameter <= (1 + {PROMISE_TOLERANCE:g}) x the plan's promise (moving fix at the "
-              f"planned poses) + 2 x polygon tolerance ({DEFAULT_TOLERANCE_FRACTION:g} min rho), and < eps_max = "
+              f"planned poses, started up to {START_LAG:.3g} s late) + 2 x polygon tolerance "
+              f"({DEFAULT_TOLERANCE_FRACTION:g} min rho), and < eps_max = "
               f"{eps:g} m; {int(no_promise.sum())} fixes without a promise, {int(over.sum())} over it, "
               f"{int(over_eps.sum())} at or over eps_max; {int(beyond.sum())} improvised beyond the "
               f"redundancy (blocked lines of sight) left out")
