@@ -306,9 +306,8 @@ class PEF:
         if np.any(sub < 0) or np.any(sub >= len(self.markers)) or len(set(sub[0].tolist())) != self.k:
             raise PlanningError(f"subset: expected {self.k} distinct marker indices "
                                 f"in [0, {len(self.markers)}), got {sub[0].tolist()}")
-        # only the subset's markers matter: their visibility alone (rows in subset order), and
-        # the kernel on those k markers (the winner's tau is recomputed from them alone); a flat
-        # marker's incidence wedge holds here as everywhere else
+        # only the subset's markers matter: their visibility (rows in subset order, incidence
+        # wedges included) and the kernel on those k markers (the winner's tau from them alone)
         sc = self.scenario
         vis, _ = visible_points(pts, self.markers[sub[0]], sc.obstacle_pieces(), self.sensor.max_range,
                                 sc.workspace.bounds, sc.marker_normals()[sub[0]], self.sensor.max_incidence)
