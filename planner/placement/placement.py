@@ -48,6 +48,8 @@ from scenarios.schema import Marker, MarkerKind, PefModel, Scenario
 
 MILP_MAX_SITES = 150
 """Largest number of useful sites (in some good pair) for which ``auto`` runs integer rounds."""
+SEARCH_STREAM = 15
+"""Spawn key of the local search's random stream under the scenario seed."""
 TAU_MARGIN = 1e-5
 """Pairs count as good when ``tau < eps_max (1 - TAU_MARGIN)``: the PEF selects its best
 subset in float32, so its tau may exceed the float64 minimum by ~1e-6 relative."""
@@ -196,6 +198,12 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     return cover, coverable
 
 
+def _search_seed(seed: int) -> int:
+    """Seed of the placement's local search, from its own stream of the scenario seed."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SEARCH_STREAM,)))
+    return int(rng.integers(2**63))
+
+
 def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarray | None = None,
           eps_max: float | None = None, method: str = "auto",
           time_limit: float = MILP_TIME_LIMIT) -> PlacementResult:
@@ -236,7 +244,8 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     if coverable.any():
         used_sites = int(np.unique(np.concatenate([cov.pj, cov.pl])).size)
         integral = method == "milp" or (method == "auto" and used_sites <= MILP_MAX_SITES)
-        chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral)
+        chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral, xy=cand,
+                                             seed=_search_seed(scenario.seed))
         used = "milp" if integral else "greedy"
         bound = max(bound, float(k))
         if redundancy > 0:
