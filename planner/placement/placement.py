@@ -48,6 +48,8 @@ from scenarios.schema import Marker, MarkerKind, PefModel, Scenario
 
 MILP_MAX_SITES = 150
 """Largest number of useful sites (in some good pair) for which ``auto`` runs integer rounds."""
+DENSE_KEYS = 20_000_000
+"""Largest sites**2 for which the pairs are numbered through a dense table (5 bytes a key)."""
 SEARCH_STREAM = 15
 """Spawn key of the local search's random stream under the scenario seed."""
 TAU_MARGIN = 1e-5
@@ -172,7 +174,13 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
 
     n_sites = len(sites)
     key = out_j * n_sites + out_l
-    pair_keys, pair_of_entry = np.unique(key, return_inverse=True)
+    if n_sites * n_sites <= DENSE_KEYS:  # unique keys by a table: the sort of ~1e7 keys took seconds
+        present = np.zeros(n_sites * n_sites, dtype=bool)
+        present[key] = True
+        pair_keys = np.flatnonzero(present)
+        pair_of_entry = (np.cumsum(present, dtype=np.int32) - 1)[key].astype(np.int64)
+    else:
+        pair_keys, pair_of_entry = np.unique(key, return_inverse=True)
     point_of_entry = np.repeat(np.arange(len(points)), counts)
     keep = coverable[point_of_entry]
     # rows: identical (good-pair set, visible set) points merge into one weighted row
