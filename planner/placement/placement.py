@@ -15,14 +15,14 @@ a point that only k mediocre markers together could cover, without a good pair a
 reported uncovered (conservative).
 
 Size limit: with at most :data:`MILP_MAX_SITES` useful sites (in some good pair), ``auto``
-runs the exact solver (LP cutting planes, then HiGHS MILP rounds via
-:func:`scipy.optimize.milp`) within the time limit; it reports ``optimal`` when the bound
-meets the best cover. Above it, the greedy cover (with pair lookahead) is reported with the
-LP relaxation's lower bound. Per-pair tau comes from the PEF's own kernel
-(:func:`planner.pef.kernels.subset_tau`) on the points' visible sites, visibility from
-:class:`planner.pef.map.PEF` over a scenario copy whose markers are the sites; the ``exact``
-model is optimised with its linearisation (``strips``): clipping polygons for every pair and
-point would be far too slow.
+runs the exact solver (LP cutting planes, local search, then HiGHS MILP rounds via
+:func:`scipy.optimize.milp` with a node limit); it reports ``optimal`` when the bound meets the
+best cover. Above it, the LP relaxation's rounding improved by local search
+(:mod:`planner.placement.search`) is reported with the LP relaxation's lower bound. Per-pair
+tau comes from the PEF's own kernel (:func:`planner.pef.kernels.subset_tau`) on the points'
+visible sites, visibility from :class:`planner.pef.map.PEF` over a scenario copy whose markers
+are the sites; the ``exact`` model is optimised with its linearisation (``strips``): clipping
+polygons for every pair and point would be far too slow.
 """
 
 from __future__ import annotations
@@ -73,7 +73,8 @@ class PlacementResult:
     uncovered : ndarray, shape (U, 2)
         Points no subset of sites can cover [m].
     method : str
-        ``milp`` or ``greedy``.
+        ``milp`` (integer rounds ran), ``search`` (LP rounding and local search only), or
+        ``greedy`` (nothing to cover); ``+greedy`` when redundancy completed it greedily.
     sites : ndarray, shape (S, 2)
         The candidate sites [m].
     points : ndarray, shape (N, 2)
@@ -232,7 +233,7 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
         cover completed greedily; its count is the lower bound).
     method : {"auto", "milp", "greedy"}
         ``auto``: the exact solver with at most :data:`MILP_MAX_SITES` useful sites, else
-        greedy (with the LP bound).
+        ``greedy``: LP rounding and local search (with the LP bound), no integer rounds.
     time_limit : float
         Time limit of the solver's LP and MILP rounds [s].
 
@@ -254,7 +255,7 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
         integral = method == "milp" or (method == "auto" and used_sites <= MILP_MAX_SITES)
         chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral, xy=cand,
                                              seed=_search_seed(scenario.seed))
-        used = "milp" if integral else "greedy"
+        used = "milp" if integral else "search"
         bound = max(bound, float(k))
         if redundancy > 0:
             start = chosen
