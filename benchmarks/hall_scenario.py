@@ -29,8 +29,11 @@ def aisle_x(i: int) -> float:
     return 5.0 + PITCH * i
 
 
-def hall_toml(markers: bool = True, resolution: float = 0.1) -> str:
-    """Return the hall scenario as TOML text (``markers`` False: the empty floor)."""
+def hall_toml(markers: bool = True, resolution: float = 0.1, marker_kind: str | None = None) -> str:
+    """Return the hall scenario as TOML text (``markers`` False: the empty floor).
+
+    ``marker_kind``: ``placement.marker_kind`` (``flat`` or ``post``), default left to the loader.
+    """
     out = ['name = "hall-120x80"',
            'description = "120 x 80 m hall: 22 rack rows, 286 reflectors, 24 docks, 81 route segments"',
            "seed = 3", "", "[workspace]", f"size = [{WIDTH}, {HEIGHT}]", ""]
@@ -49,6 +52,8 @@ def hall_toml(markers: bool = True, resolution: float = 0.1) -> str:
                 pts.append((rack_x(i), ROW_Y0 + ROW_LEN))
         for n, (x, y) in enumerate(pts):
             out += ["[[markers]]", f'id = "R{n + 1}"', f"position = [{float(x)}, {float(y)}]", ""]
+    if marker_kind is not None:
+        out += ["[placement]", f'marker_kind = "{marker_kind}"', ""]
     out += ["[sensor]", "max_range = 25.0", "", "[robot]", "radius = 0.4", "",
             "[planning]", "eps_max = 0.03", f"resolution = {resolution}", ""]
     nodes, segs = {}, []
@@ -76,8 +81,9 @@ def hall_toml(markers: bool = True, resolution: float = 0.1) -> str:
     return "\n".join(out)
 
 
-def write_hall(folder: str | Path, markers: bool = True) -> Path:
-    """Write the hall into ``folder`` as ``hall.toml`` (or ``empty-hall.toml``); return the path."""
-    path = Path(folder) / ("hall.toml" if markers else "empty-hall.toml")
-    path.write_text(hall_toml(markers), encoding="utf-8")
+def write_hall(folder: str | Path, markers: bool = True, marker_kind: str | None = None) -> Path:
+    """Write the hall into ``folder`` as ``hall.toml`` (or ``empty-hall[-KIND].toml``); return the path."""
+    name = "hall" if markers else "empty-hall" + (f"-{marker_kind}" if marker_kind else "")
+    path = Path(folder) / f"{name}.toml"
+    path.write_text(hall_toml(markers, marker_kind=marker_kind), encoding="utf-8")
     return path

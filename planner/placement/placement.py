@@ -15,14 +15,14 @@ a point that only k mediocre markers together could cover, without a good pair a
 reported uncovered (conservative).
 
 Size limit: with at most :data:`MILP_MAX_SITES` useful sites (in some good pair), ``auto``
-runs the exact solver (LP cutting planes, then HiGHS MILP rounds via
-:func:`scipy.optimize.milp`) within the time limit; it reports ``optimal`` when the bound
-meets the best cover. Above it, the greedy cover (with pair lookahead) is reported with the
-LP relaxation's lower bound. Per-pair tau comes from the PEF's own kernel
-(:func:`planner.pef.kernels.subset_tau`) on the points' visible sites, visibility from
-:class:`planner.pef.map.PEF` over a scenario copy whose markers are the sites; the ``exact``
-model is optimised with its linearisation (``strips``): clipping polygons for every pair and
-point would be far too slow.
+runs the exact solver (LP cutting planes, local search, then HiGHS MILP rounds via
+:func:`scipy.optimize.milp` with a node limit); it reports ``optimal`` when the bound meets the
+best cover. Above it, the LP relaxation's rounding improved by local search
+(:mod:`planner.placement.search`) is reported with the LP relaxation's lower bound. Per-pair
+tau comes from the PEF's own kernel (:func:`planner.pef.kernels.subset_tau`) on the points'
+visible sites, visibility from :class:`planner.pef.map.PEF` over a scenario copy whose markers
+are the sites; the ``exact`` model is optimised with its linearisation (``strips``): clipping
+polygons for every pair and point would be far too slow.
 """
 
 from __future__ import annotations
@@ -48,6 +48,10 @@ from scenarios.schema import Marker, MarkerKind, PefModel, Scenario
 
 MILP_MAX_SITES = 150
 """Largest number of useful sites (in some good pair) for which ``auto`` runs integer rounds."""
+DENSE_KEYS = 20_000_000
+"""Largest sites**2 for which the pairs are numbered through a dense table (5 bytes a key)."""
+SEARCH_STREAM = 15
+"""Spawn key of the local search's random stream under the scenario seed."""
 TAU_MARGIN = 1e-5
 """Pairs count as good when ``tau < eps_max (1 - TAU_MARGIN)``: the PEF selects its best
 subset in float32, so its tau may exceed the float64 minimum by ~1e-6 relative."""
@@ -69,7 +73,8 @@ class PlacementResult:
     uncovered : ndarray, shape (U, 2)
         Points no subset of sites can cover [m].
     method : str
-        ``milp`` or ``greedy``.
+        ``milp`` (integer rounds ran), ``search`` (LP rounding and local search only), or
+        ``greedy`` (nothing to cover); ``+greedy`` when redundancy completed it greedily.
     sites : ndarray, shape (S, 2)
         The candidate sites [m].
     points : ndarray, shape (N, 2)
@@ -170,7 +175,13 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
 
     n_sites = len(sites)
     key = out_j * n_sites + out_l
-    pair_keys, pair_of_entry = np.unique(key, return_inverse=True)
+    if n_sites * n_sites <= DENSE_KEYS:  # unique keys by a table: the sort of ~1e7 keys took seconds
+        present = np.zeros(n_sites * n_sites, dtype=bool)
+        present[key] = True
+        pair_keys = np.flatnonzero(present)
+        pair_of_entry = (np.cumsum(present, dtype=np.int32) - 1)[key].astype(np.int64)
+    else:
+        pair_keys, pair_of_entry = np.unique(key, return_inverse=True)
     point_of_entry = np.repeat(np.arange(len(points)), counts)
     keep = coverable[point_of_entry]
     # rows: identical (good-pair set, visible set) points merge into one weighted row
@@ -196,6 +207,12 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     return cover, coverable
 
 
+def _search_seed(seed: int) -> int:
+    """Seed of the placement's local search, from its own stream of the scenario seed."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SEARCH_STREAM,)))
+    return int(rng.integers(2**63))
+
+
 def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarray | None = None,
           eps_max: float | None = None, method: str = "auto",
           time_limit: float = MILP_TIME_LIMIT) -> PlacementResult:
@@ -216,7 +233,7 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
         cover completed greedily; its count is the lower bound).
     method : {"auto", "milp", "greedy"}
         ``auto``: the exact solver with at most :data:`MILP_MAX_SITES` useful sites, else
-        greedy (with the LP bound).
+        ``greedy``: LP rounding and local search (with the LP bound), no integer rounds.
     time_limit : float
         Time limit of the solver's LP and MILP rounds [s].
 
@@ -236,8 +253,9 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     if coverable.any():
         used_sites = int(np.unique(np.concatenate([cov.pj, cov.pl])).size)
         integral = method == "milp" or (method == "auto" and used_sites <= MILP_MAX_SITES)
-        chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral)
-        used = "milp" if integral else "greedy"
+        chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral, xy=cand,
+                                             seed=_search_seed(scenario.seed))
+        used = "milp" if integral else "search"
         bound = max(bound, float(k))
         if redundancy > 0:
             start = chosen

@@ -38,13 +38,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="print markers (id, position), count, lower_bound, optimal, method, "
                         "points, sites, uncovered ([x, y] points no sites can cover)")
     p.add_argument("--method", choices=("auto", "milp", "greedy"), default="auto",
-                   help="auto: exact (cutting planes + HiGHS MILP) for small instances, else greedy "
-                        "with the LP lower bound")
+                   help="auto: exact (cutting planes, local search, HiGHS MILP) for small instances, else "
+                        "greedy: LP rounding and local search with the LP lower bound")
     p.add_argument("--cover-only", action="store_true",
                    help="cover the routes under eps_max and stop: do not plan the tasks on the layout "
                         "(nor tighten the cover target until they plan)")
     p.add_argument("--time-limit", type=float, default=None, metavar="S",
-                   help="time limit of the exact solver in seconds (default 30)")
+                   help="safety time limit of the exact solver's LP and MILP rounds in seconds (default 30; "
+                        "the result is decided by round, node and work counts, the same under any load)")
     p.set_defaults(func=run)
 
 
@@ -132,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
           f"points under eps_max = {sc.planning.eps_max:g} m, from {len(result.sites)} candidate sites")
     if target < sc.planning.eps_max:
         print(f"cover target tightened to {target:g} m so that every task plans (the drift between "
-              f"fixes needs room under eps_max)")
+              f"fixes needs room under eps_max); the count and its bound are for that target")
     for mid, (x, y) in result.markers:
         print(f"  {mid:<5} {x:8.3f} {y:8.3f}")
     for path in written:

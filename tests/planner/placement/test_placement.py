@@ -97,6 +97,18 @@ def test_exact_count_equals_exhaustive_search(seed, eps, kind):
         assert np.all(tau < eps)
 
 
+def test_result_is_decided_by_counts_not_by_the_clock():
+    # the LP rounds, the search and the integer rounds stop on counts: a safety time limit far
+    # above what they need changes nothing (under load a wall-clock limit would cut them short)
+    sc = tiny(eps=0.02)
+    pts = free_points(sc, 30, 2)
+    runs = [placement.place(sc, points=pts, sites=SITES, method=m, time_limit=t)
+            for m in ("milp", "greedy") for t in (20.0, 2000.0)]
+    for a, b in (runs[:2], runs[2:]):
+        np.testing.assert_array_equal(a.chosen, b.chosen)
+        assert (a.count, a.lower_bound, a.optimal) == (b.count, b.lower_bound, b.optimal)
+
+
 def test_some_instances_are_not_trivial():
     # guard against the exhaustive comparison passing only on degenerate instances
     counts = {placement.place(tiny(eps=e), points=free_points(tiny(), 30, s), sites=SITES).count
