@@ -15,8 +15,11 @@ learnt through its correlation with the pose. ``x``/``P``/``nees`` stay on the p
 
 What we use of filterpy (``filterpy.kalman.ExtendedKalmanFilter``, 2.0.0):
 - it holds ``x`` (kept 1-D, shape (3,) or (4,)) and ``P``;
-- ``update(z, HJacobian, Hx, R, residual=...)`` does the correction: gain, state update and
-  the Joseph-form covariance update. For bearings ``residual`` wraps the innovation angle.
+- its ``update(z, HJacobian, Hx, R, residual=...)`` defines the correction: gain, state update
+  and the Joseph-form covariance update. For one scalar measurement that is
+  :func:`estimators.update.joseph_update`, the same arithmetic compiled and in place (held to
+  filterpy's result by a test): filterpy's general matrix code cost an episode a fifth of its
+  non-physics time. Its ``z``, ``y``, ``K``, ``S`` and posterior copies are not maintained.
 We do NOT use its ``predict``: it assumes a linear ``F x + B u``. Prediction sets ``x`` and
 ``P`` directly from our motion model (:func:`estimators.motion.propagate_moments`, or
 :func:`~estimators.motion.propagate_moments_biased` for the augmented state), and the
@@ -64,7 +67,7 @@ import numpy as np
 from estimators import compiled, motion, process_noise
 from estimators.measurements import bound_std
 from estimators.predict import BASE_VAR, BIASED, Q_SCALE, QUANT_VAR, REL_VAR, WALK_VAR, WHEEL_BASE, predict_step  # noqa: F401
-from estimators.update import UpdateResult, gate_threshold, wrap_scalar, wrapped_residual
+from estimators.update import UpdateResult, gate_threshold, joseph_update, wrap_scalar
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
 
@@ -196,12 +199,9 @@ class Localizer:
         self.predict_params = np.array([robot.wheel_base, rel_var, base_var, self.q_scale,
                                         self.bias_walk_std**2, float(self.estimate_wheel_bias), quant_var,
                                         robot.turn_slip])
-        # Measurement model at the current state, filled before each filterpy update; the
-        # wheel-error column (if any) stays 0.
+        # Measurement Jacobian at the current state, filled before each update; the wheel-error
+        # and residual columns (if any) stay 0.
         self._H = np.zeros((1, dim))
-        self._hx = np.zeros(1)
-        self._z = np.zeros(1)
-        self._R = np.zeros((1, 1))
 
     # ------------------------------------------------------------------ state
     @property
@@ -276,7 +276,7 @@ class Localizer:
     def state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Return the filter's live state and covariance arrays (not copies), for :func:`predict_step`.
 
-        filterpy's update replaces both arrays: ask again after every update.
+        Updates work in place, so the arrays stay valid across predicts and updates.
         """
         return self._kf.x, self._kf.P
 
@@ -287,25 +287,14 @@ class Localizer:
                                   f"got {marker_index}")
         return self.markers[marker_index, 0], self.markers[marker_index, 1]
 
-    def _cached_H(self, _x):
-        return self._H
-
-    def _cached_hx(self, _x):
-        return self._hx
-
-    def _gated_update(self, z: float, predicted: float, innovation: float, var: float,
-                      residual) -> UpdateResult:
+    def _gated_update(self, innovation: float, var: float) -> UpdateResult:
         H = self._H[0]
         P = self._kf.P
         s = float(H @ P @ H) + var
         nis = innovation * innovation / s
         if nis > self._gate:
             return UpdateResult(False, nis, innovation, s)
-        self._hx[0] = predicted
-        # (1,)- and (1, 1)-arrays, not floats: filterpy would build them with asarray and eye
-        self._z[0] = z
-        self._R[0, 0] = var
-        self._kf.update(self._z, self._cached_H, self._cached_hx, R=self._R, residual=residual)
+        joseph_update(self._kf.x, P, H, innovation, var)
         self._kf.x[2] = wrap_scalar(self._kf.x[2])
         return UpdateResult(True, nis, innovation, s)
 
@@ -335,7 +324,7 @@ class Localizer:
         self._H[0, 2] = 0.0
         std = self.sensor.range_bound(r) * self._std_per_bound
         z = float(measured_range)
-        return self._gated_update(z, r, z - r, std * std, np.subtract)
+        return self._gated_update(z - r, std * std)
 
     def update_bearing(self, marker_index: int, measured_bearing: float) -> UpdateResult:
         """Correct the estimate with one bearing measurement (marker direction in the robot frame).
@@ -365,8 +354,7 @@ class Localizer:
         self._H[0, 2] = -1.0
         predicted = wrap_scalar(math.atan2(dy, dx) - x[2])
         z = float(measured_bearing)
-        return self._gated_update(z, predicted, wrap_scalar(z - predicted), self._bearing_var,
-                                  wrapped_residual)
+        return self._gated_update(wrap_scalar(z - predicted), self._bearing_var)
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

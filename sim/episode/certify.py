@@ -19,6 +19,9 @@ import numpy as np
 from planner.schedule.drift import drift_bound
 from scenarios.schema import RobotSpec
 
+_BLOCK = 32
+"""Fixes per vectorised pass (a block's array is 32 x steps floats)."""
+
 
 def certified_bound(robot: RobotSpec, t: np.ndarray, s: np.ndarray, heading: np.ndarray,
                     fix_t: np.ndarray, fix_tau: np.ndarray, fix_time: float) -> np.ndarray:
@@ -50,11 +53,17 @@ def certified_bound(robot: RobotSpec, t: np.ndarray, s: np.ndarray, heading: np.
     s0 = np.interp(fix_t - fix_time, t, s)
     turn0 = np.interp(fix_t - fix_time, t, turn)
     out = np.full(t.shape, np.inf)
-    for j in range(len(fix_t)):  # F passes over the steps after fix j: a few ms for an episode
-        after = np.searchsorted(t, fix_t[j], side="left")
-        if after >= t.size or not np.isfinite(fix_tau[j]):
-            continue
-        b = fix_tau[j] + drift_bound(robot, np.maximum(s[after:] - s0[j], 0.0),
-                                     np.maximum(turn[after:] - turn0[j], 0.0))
-        np.minimum(out[after:], b, out=out[after:])
+    after = np.searchsorted(t, fix_t, side="left")
+    use = np.flatnonzero((after < t.size) & np.isfinite(fix_tau))
+    # Blocks of fixes at once, each over the steps after its first fix (steps before a fix's own
+    # completion masked): one drift_bound call per block instead of one per fix, whose numpy
+    # overhead (~25 small array operations) made this 7 % of an episode's non-physics time.
+    for lo in range(0, use.size, _BLOCK):
+        js = use[lo:lo + _BLOCK]
+        a0 = int(after[js].min())
+        ss, tt = s[a0:][None, :], turn[a0:][None, :]
+        b = fix_tau[js, None] + drift_bound(robot, np.maximum(ss - s0[js, None], 0.0),
+                                            np.maximum(tt - turn0[js, None], 0.0))
+        b[np.arange(ss.shape[1])[None, :] < (after[js] - a0)[:, None]] = np.inf
+        np.minimum(out[a0:], b.min(axis=0), out=out[a0:])
     return out

@@ -1,7 +1,9 @@
 """The input contract under mutation: every command exits 0, or 2 with one line and no traceback.
 
 Hypothesis mutates the built-in scenarios (keys changed, deleted or retyped, numbers pushed to
-extremes, NaN and inf, empty lists, points outside the workspace, swapped ids) and runs ``map``,
+extremes, NaN and inf, empty lists, points outside the workspace, swapped ids; and plausible
+edits, numbers scaled by 0.5-2 and points moved by up to a metre, so that many mutants still
+load and reach the planner, the grid and the physics) and runs ``map``,
 ``plan`` and ``run`` in-process through :func:`sim.cli.main`. A bug shows as an exception (the
 CLI lets anything but ``PefsimError`` through), a second stderr line, or a numpy / matplotlib
 warning. The profile is derandomised, so CI sees the same examples every time.
@@ -45,6 +47,10 @@ def _paths(doc, prefix=()):
     return out
 
 
+def _number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
 def _parent(doc, path):
     for k in path[:-1]:
         doc = doc[k]
@@ -61,8 +67,19 @@ def mutated(draw, name: str):
             break
         path = draw(st.sampled_from(paths))
         parent, key = _parent(doc, path), path[-1]
-        action = draw(st.sampled_from(["set", "set", "set", "delete", "scale", "swap", "outside"]))
-        if action == "delete":
+        action = draw(st.sampled_from(["nudge", "nudge", "nudge", "set", "set", "delete", "scale", "swap",
+                                       "outside"]))
+        value = parent[key]
+        if action == "nudge" and _number(value):
+            # a plausible edit: what a user changes, still mostly a valid floor
+            f = draw(st.floats(0.5, 2.0))
+            parent[key] = max(1, round(value * f)) if isinstance(value, int) else value * f
+        elif action == "nudge" and isinstance(value, list) and 2 <= len(value) <= 3 and all(map(_number, value)):
+            dx, dy = draw(st.floats(-1.0, 1.0)), draw(st.floats(-1.0, 1.0))
+            parent[key] = [value[0] + dx, value[1] + dy, *value[2:]]
+        elif action == "nudge":
+            continue
+        elif action == "delete":
             del parent[key]
         elif action == "scale" and isinstance(parent[key], (int, float)) and not isinstance(parent[key], bool):
             parent[key] = parent[key] * draw(st.sampled_from([-1, 0, 0.5, 2, 1e-9, 1e9, 1e300]))
