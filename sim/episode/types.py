@@ -36,6 +36,8 @@ class StepLog:
         subset's last fix plus the drift since it (the schedule's promise at this arc length) [m].
     pef_tau : (T,) float
         PEF τ (best visible subset) at the true position [m]; inf where not enough markers.
+        Under the ``exact`` model it is the linearised region's (``strips``): within ~rho / r
+        (~1e-3) of the exact diameter, which costs ~30 ms a step of shapely clipping.
     nees : (T,) float
         Normalised estimation error squared of the full pose (3 dof).
     certified : (T,) float or None
