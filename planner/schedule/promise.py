@@ -66,15 +66,24 @@ class Level:
     speed: np.ndarray
 
 
-def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: np.ndarray) -> tuple:
-    """Best-order k = 2 promise (C, n) and whether the reversed order won, for poses (n, 2, 2)."""
+def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: np.ndarray, where: np.ndarray) -> tuple:
+    """Best-order k = 2 promise (C, n) and whether the reversed order won, for poses (n, 2, 2).
+
+    Only the entries of ``where`` (C, n) are scored (a subset not visible over a stretch never
+    takes a fix there); elsewhere the promise is inf and ``flipped`` False.
+    """
     sub = np.asarray(subsets, dtype=int)                       # (C, 2)
-    m = markers[sub][:, None, :, :]                            # (C, 1, 2, 2)
-    p = poses[None, :, :, :]                                   # (1, n, 2, 2)
+    c, j = np.nonzero(where)
+    m = markers[sub[c]]                                        # (K, 2, 2)
+    p = poses[j]                                               # (K, 2, 2)
     sens, rob, hs = scenario.sensor, scenario.robot, scenario.planning.heading_std
     fwd = promised_parallelogram(sens, rob, m, p, hs)
-    rev = promised_parallelogram(sens, rob, m[:, :, ::-1, :], p, hs)
-    return np.minimum(fwd, rev), rev < fwd
+    rev = promised_parallelogram(sens, rob, m[:, ::-1, :], p, hs)
+    tau = np.full(where.shape, np.inf)
+    flip = np.zeros(where.shape, dtype=bool)
+    tau[c, j] = np.minimum(fwd, rev)
+    flip[c, j] = rev < fwd
+    return tau, flip
 
 
 def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray, k: int) -> list[Level]:
@@ -105,8 +114,8 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
         return [Level(static_tau, np.zeros(static_tau.shape, bool), np.full(n, np.nan))]
     markers = scenario.marker_positions()
     out = []
-    tau, flip = _parallelogram(scenario, markers, subsets, tr.xy_m)
-    out.append(Level(np.where(visible, tau, np.inf), flip, np.full(n, np.nan)))
+    tau, flip = _parallelogram(scenario, markers, subsets, tr.xy_m, visible)
+    out.append(Level(tau, flip, np.full(n, np.nan)))
     mt = scenario.sensor.measurement_time
     v_plan = np.diff(tr.kin.s_at(tr.t_start[:, None] + np.array([0.0, k * mt])), axis=1)[:, 0] / (k * mt)
     v_plan[0] = 0.0
@@ -119,8 +128,7 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
             continue
         s_m = tr.s[:, None] + v[:, None] * mt * np.arange(1, k + 1)[None, :]
         poses = np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1)
-        tau, flip = _parallelogram(scenario, markers, subsets, poses)
-        tau = np.where(visible & slower[None, :], tau, np.inf)
+        tau, flip = _parallelogram(scenario, markers, subsets, poses, visible & slower[None, :])
         out.append(Level(tau, flip, np.where(slower, v, np.nan)))
     return out
 
