@@ -259,16 +259,17 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
-        plain_posts = self.redundancy == 0 and not np.any(self.scenario.marker_normals())
-        if self.model is PefModel.PARALLELOGRAM and plain_posts:
-            # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles); it
-            # knows neither incidence limits nor redundancy, which take the general path below
+        if self.model is PefModel.PARALLELOGRAM and self.redundancy <= 1:
+            # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles), with
+            # tau_1 in the same pass; r >= 2 and the other models take the general path below
             sc = self.scenario
-            tau, best, free = parallelogram_grid(x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range,
-                                                 sc.workspace.bounds, float(self.sensor.relative_error),
-                                                 float(self.sensor.absolute_error))
+            tau, best, free, tau_plain = parallelogram_grid(
+                x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range, sc.workspace.bounds,
+                float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
+                sc.marker_normals(), self.sensor.max_incidence)
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                          cell_size=(size[0] / x.size, size[1] / y.size), tau_plain=tau)
+                          cell_size=(size[0] / x.size, size[1] / y.size), redundancy=self.redundancy,
+                          tau_plain=tau_plain)
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
