@@ -8,7 +8,7 @@ ranges at the planned positions: :func:`estimators.fault.carried.promised_fault_
 simulation uses for the realised fault area.
 
 The schedule searches over thousands of candidate starts, so it scores them with the
-construction's parallelogram (:func:`estimators.fault.carried.promised_parallelogram`, k = 2;
+construction's parallelogram (:func:`estimators.fault.carried.promised_parallelogram_best`, k = 2;
 for other k the static PEF of the stretch), and :func:`predict` then computes the exact
 promise of the fixes it chose.
 
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.fault.carried import promised_fault_area, promised_parallelogram
+from estimators.fault.carried import promised_fault_area, promised_parallelogram_best
 from planner.routes.smoothing import acceleration_limited
 from planner.schedule.pathtime import Kinematics, Track
 from scenarios.schema import Scenario
@@ -72,17 +72,14 @@ def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: np.n
     Only the entries of ``where`` (C, n) are scored (a subset not visible over a stretch never
     takes a fix there); elsewhere the promise is inf and ``flipped`` False.
     """
-    sub = np.asarray(subsets, dtype=int)                       # (C, 2)
     c, j = np.nonzero(where)
-    m = markers[sub[c]]                                        # (K, 2, 2)
-    p = poses[j]                                               # (K, 2, 2)
     sens, rob, hs = scenario.sensor, scenario.robot, scenario.planning.heading_std
-    fwd = promised_parallelogram(sens, rob, m, p, hs)
-    rev = promised_parallelogram(sens, rob, m[:, ::-1, :], p, hs)
+    pairs = np.asarray(subsets, dtype=np.int64)
+    best, flipped = promised_parallelogram_best(sens, rob, markers, pairs, poses, c, j, hs)
     tau = np.full(where.shape, np.inf)
     flip = np.zeros(where.shape, dtype=bool)
-    tau[c, j] = np.minimum(fwd, rev)
-    flip[c, j] = rev < fwd
+    tau[c, j] = best
+    flip[c, j] = flipped
     return tau, flip
 
 
