@@ -298,7 +298,8 @@ class PEF:
         Returns
         -------
         ndarray, shape (N,) or (C, N)
-            tau [m]; inf where a marker of the subset is not visible (or the point not free).
+            tau [m]; inf where a marker of the subset is not visible (out of range, hidden, beyond
+            a flat marker's incidence limit) or the point not free.
         """
         pts = _points(points)
         many = np.ndim(subset) == 2
@@ -314,7 +315,7 @@ class PEF:
         sc = self.scenario
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
-                                     sc.workspace.bounds)
+                                     sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence)
         local = np.arange(self.k, dtype=np.int64)
         out = np.empty((sub.shape[0], pts.shape[0]))
         px, py = pts[:, 0].copy(), pts[:, 1].copy()
