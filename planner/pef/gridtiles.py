@@ -10,14 +10,18 @@ module computes the same map without it. The grid is cut into bands of
 :data:`~planner.pef.pairs.TILE_ROWS` rows; for each band (one thread per range of bands):
 
 1. the markers within ``max_range`` of the band get their visibility on the band's rows, by
-   the grid path's own rules (:mod:`planner.pef.visibility`: free, in range, each piece's
-   shadow cleared row by row with the same half-planes and the same column search), into a
-   band array (markers in range, TILE_ROWS, nx);
+   the grid path's own rules (:mod:`planner.pef.visibility`: free, in range, in a flat
+   marker's incidence wedge, each piece's shadow cleared row by row with the same half-planes
+   and the same column search), into a band array (markers in range, TILE_ROWS, nx);
 2. each tile of the band keeps the markers visible from one of its cells, in ascending index
    order, and its pairs in lexicographic order: the order of the global pair list restricted
    to them, so the pruned sweep (:func:`planner.pef.pairs._block`) picks the same pair as on
    the full list (a pair holding an unseen marker has NaN normals and never wins);
-3. the previous tile's winners, as marker pairs, seed the next tile's pruning.
+3. the previous tile's winners, as marker pairs, seed the next tile's pruning;
+4. with redundancy 1, the tile is swept twice more, each time with every cell's best pair's
+   first (second) marker hidden at that cell: tau_1 is the largest of the three (the
+   recursion of :mod:`planner.pef.map`), at the cost of two more sweeps of a tile already in
+   cache instead of two more passes over a full (M, ny, nx) array.
 
 Values are identical to the full-array path (a test compares them); memory is one band per
 thread, and the cost follows the markers a tile sees rather than all markers.
@@ -34,7 +38,15 @@ from estimators import compiled
 from planner.pef.convex import shadow_halfplanes
 from planner.pef.pairs import BLOCK, MARGIN, TILE_COLS, TILE_ROWS, _block, _scratch
 from planner.pef.threads import run_ranges
-from planner.pef.visibility import _first_above, _first_at_or_above, _free_grid_kernel, prepare, shadow_row
+from planner.pef.visibility import (
+    _first_above,
+    _first_at_or_above,
+    _free_grid_kernel,
+    _normals,
+    facing_ok,
+    prepare,
+    shadow_row,
+)
 
 
 @numba.njit(cache=True)
@@ -109,11 +121,50 @@ def _band_intervals(iy0, th, x, y, mx, my, r2max, hp, nhp, bm, nb, ivs, nint, lo
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def bands_parallelogram(b0, b1, x, y, mx, my, max_range, hp, nhp, hidden, free, rel, ab, margin, tau, best):
+def _without_pass(t, w, nl, npair, gm, local_of, visb, bestb, vist, pxb, pyb, mxl, myl, rel, ab, lsub, margin,
+                  prev, nprev, sct, taut, bestt):
+    """Tau of the tile's ``w`` cells with each cell's plain best marker ``bestb[2 c + t]`` hidden.
+
+    The tile's visibility ``visb`` is copied into ``vist`` with that marker cleared per cell, and
+    the block kernel runs on it (seeded by ``prev[:nprev]``, this pass's previous winners as
+    global pairs, updated in place). Writes ``taut[:w]`` (inf where the cell has no plain best);
+    returns the new ``nprev``.
+    """
+    for j in range(nl):
+        for c in range(w):
+            vist[j * BLOCK + c] = visb[j * BLOCK + c]
+    for c in range(w):
+        s = bestb[2 * c + t]
+        if s >= 0:
+            vist[s * BLOCK + c] = False
+    cand = sct[12]
+    ncand = np.int64(0)
+    for c in range(nprev):
+        a, b = local_of[prev[c, 0]], local_of[prev[c, 1]]
+        if a >= 0 and b >= 0:
+            cand[ncand] = a * (2 * nl - a - 1) // 2 + (b - a - 1)
+            ncand += 1
+    ncand = _block(pxb, pyb, vist, w, mxl[:nl], myl[:nl], rel, ab, lsub[:npair], margin, ncand, sct, taut, bestt)
+    for c in range(ncand):
+        prev[c, 0], prev[c, 1] = gm[lsub[cand[c], 0]], gm[lsub[cand[c], 1]]
+    for c in range(w):
+        if bestb[2 * c + t] < 0:
+            taut[c] = np.inf
+    return ncand
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def bands_parallelogram(b0, b1, x, y, mx, my, fnx, fny, cos_inc, max_range, hp, nhp, hidden, free, rel, ab, margin,
+                        tau, best, redundant, tau_plain):
     """Bands ``b0 <= b < b1`` of the grid (``run_ranges`` kernel); see the module docstring.
 
-    ``x`` (nx,), ``y`` (ny,) cell centres [m]; ``free`` (ny, nx); writes ``tau`` (ny * nx,) [m]
-    and ``best`` (2 * ny * nx,): the (ny, nx) and (ny, nx, 2) arrays flattened.
+    ``x`` (nx,), ``y`` (ny,) cell centres [m]; ``fnx``, ``fny`` (M,) the markers' normals ((0, 0)
+    for a post) and ``cos_inc`` the cosine of the incidence limit (:func:`facing_ok`, per cell,
+    as on the full array); ``free`` (ny, nx); writes ``tau`` (ny * nx,) [m]
+    and ``best`` (2 * ny * nx,): the (ny, nx) and (ny, nx, 2) arrays flattened. With
+    ``redundant`` (redundancy 1), ``tau`` is tau_1, the larger of the plain tau and the best
+    pair's tau with either of its markers hidden, and ``tau_plain`` (ny * nx,) the plain tau
+    (not written otherwise).
     """
     nm, nx, ny = mx.size, x.size, y.size
     npc = nhp.shape[1]
@@ -133,6 +184,11 @@ def bands_parallelogram(b0, b1, x, y, mx, my, max_range, hp, nhp, hidden, free, 
     ivs = np.empty((nm, TILE_ROWS, npc + 1, 2), dtype=np.int64)
     nint = np.zeros((nm, TILE_ROWS), dtype=np.int64)
     sh = np.empty((npc + 1, 2), dtype=np.int64)
+    # the redundancy passes: their own scratch (and candidate chain), visibility and results
+    sca, _, _, visa, taua, besta = _scratch(nm if redundant else 1, npair_max if redundant else 1)
+    scb, _, _, visbb, taubb, bestbb = _scratch(nm if redundant else 1, npair_max if redundant else 1)
+    preva, prevb = np.empty((cand.size, 2), dtype=np.int64), np.empty((cand.size, 2), dtype=np.int64)
+    nprevb = npreva = 0
     for band in range(b0, b1):
         iy0 = band * TILE_ROWS
         th = min(TILE_ROWS, ny - iy0)
@@ -179,7 +235,9 @@ def bands_parallelogram(b0, b1, x, y, mx, my, max_range, hp, nhp, hidden, free, 
                         tau[cell + i] = np.inf
                         best[2 * (cell + i)] = -1
                         best[2 * (cell + i) + 1] = -1
-                nprev = 0
+                        if redundant:
+                            tau_plain[cell + i] = np.inf
+                nprev = nprevb = npreva = 0
                 continue
             for j in range(nl):
                 q, m = loc[j], gm[j]
@@ -195,7 +253,8 @@ def bands_parallelogram(b0, b1, x, y, mx, my, max_range, hp, nhp, hidden, free, 
                     for v in range(nint[q, r]):
                         for i in range(max(ivs[q, r, v, 0], ix0), min(ivs[q, r, v, 1], ix1)):
                             dx = x[i] - mx[m]
-                            visb[o + i] = frow[i] & (dx * dx + dy * dy <= r2max)
+                            visb[o + i] = (frow[i] and dx * dx + dy * dy <= r2max
+                                           and facing_ok(dx, dy, fnx[m], fny[m], cos_inc))
             npair = 0
             for a in range(nl):
                 for b in range(a + 1, nl):
@@ -212,12 +271,22 @@ def bands_parallelogram(b0, b1, x, y, mx, my, max_range, hp, nhp, hidden, free, 
             for c in range(ncand):
                 prev[c, 0], prev[c, 1] = gm[lsub[cand[c], 0]], gm[lsub[cand[c], 1]]
             nprev = ncand
+            if redundant:
+                nl_pairs = npair
+                npreva = _without_pass(0, w, nl, nl_pairs, gm, local_of, visb, bestb, visa, pxb, pyb, mxl, myl, rel,
+                                       ab, lsub, margin, preva, npreva, sca, taua, besta)
+                nprevb = _without_pass(1, w, nl, nl_pairs, gm, local_of, visb, bestb, visbb, pxb, pyb, mxl, myl,
+                                       rel, ab, lsub, margin, prevb, nprevb, scb, taubb, bestbb)
             for j in range(nl):
                 local_of[gm[j]] = -1
             for r in range(th):
                 o, cell = r * tw, (iy0 + r) * nx + ix0
                 for i in range(tw):
-                    tau[cell + i] = taub[o + i]
+                    if redundant:
+                        tau_plain[cell + i] = taub[o + i]
+                        tau[cell + i] = max(taub[o + i], taua[o + i], taubb[o + i])
+                    else:
+                        tau[cell + i] = taub[o + i]
                     for t in range(2):
                         s = bestb[2 * (o + i) + t]
                         best[2 * (cell + i) + t] = gm[s] if s >= 0 else -1
@@ -296,7 +365,8 @@ def blocks_points_local(b0, b1, px, py, mx, my, vis, rel, ab, subsets, margin, t
 
 def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
                        bounds: tuple[float, float, float, float], rel: float,
-                       ab: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                       ab: float, redundancy: int = 0, normals: np.ndarray | None = None,
+                       max_incidence: float = math.pi / 2) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Compute the parallelogram PEF (k = 2) on the cell centres of a grid, band by band.
 
     Parameters
@@ -311,16 +381,27 @@ def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstac
         As in :func:`planner.pef.visibility.visible_grid`.
     rel, ab : float
         Range bound ``rho = rel * r + ab`` [m/m, m].
+    redundancy : int
+        0 or 1: with 1, ``tau`` is tau_1 (:mod:`planner.pef.map`: the larger of the plain tau
+        and the best pair's tau with either of its markers hidden), computed in the same tile
+        pass as the plain one.
+    normals, max_incidence
+        Flat markers' normals and incidence limit, as in :func:`planner.pef.visibility.visible_grid`.
 
     Returns
     -------
     tau : ndarray, shape (ny, nx)
-        Long diagonal of the best pair's parallelogram [m]; inf where no pair is visible.
+        Long diagonal of the best pair's parallelogram [m] (tau_1 with redundancy 1); inf where
+        no pair is visible.
     best : ndarray of int64, shape (ny, nx, 2)
-        Marker indices of the best pair (ascending), -1 where none.
+        Marker indices of the plain best pair (ascending), -1 where none.
     free : ndarray of bool, shape (ny, nx)
         Cell centre in free space.
+    tau_plain : ndarray, shape (ny, nx)
+        The plain tau (``tau`` itself with redundancy 0).
     """
+    if redundancy not in (0, 1):
+        raise ValueError(f"redundancy: the streamed grid handles 0 or 1, got {redundancy}")
     x = np.ascontiguousarray(x, dtype=float)
     y = np.ascontiguousarray(y, dtype=float)
     mk = np.asarray(markers, float).reshape(-1, 2)
@@ -331,17 +412,21 @@ def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstac
     _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
     tau = np.empty((y.size, x.size))
     best = np.empty((y.size, x.size, 2), dtype=np.int64)
+    tau_plain = np.empty((y.size, x.size)) if redundancy else tau
     if mk.shape[0] < 2:
         tau.fill(np.inf)
+        tau_plain.fill(np.inf)
         best.fill(-1)
-        return tau, best, free
+        return tau, best, free, tau_plain
     hp, nhp, hidden = _shadows(mx, my, pa.planes, pa.sight, pa.shrunk, pa.count, pa.blocks, pa.sight_bbox,
                                float(max_range))
     nbands = -(-y.size // TILE_ROWS)
+    fn = _normals(normals, mk.shape[0])
     run_ranges(bands_parallelogram, nbands,
-               (x, y, mx, my, float(max_range), hp, nhp, hidden, free, float(rel), float(ab), MARGIN,
-                tau.reshape(-1), best.reshape(-1)), min_chunk=2)
-    return tau, best, free
+               (x, y, mx, my, fn[:, 0].copy(), fn[:, 1].copy(), math.cos(max_incidence), float(max_range), hp, nhp,
+                hidden, free, float(rel), float(ab), MARGIN, tau.reshape(-1), best.reshape(-1), bool(redundancy),
+                tau_plain.reshape(-1)), min_chunk=2)
+    return tau, best, free, tau_plain
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

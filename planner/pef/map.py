@@ -259,16 +259,17 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
-        plain_posts = self.redundancy == 0 and not np.any(self.scenario.marker_normals())
-        if self.model is PefModel.PARALLELOGRAM and plain_posts:
-            # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles); it
-            # knows neither incidence limits nor redundancy, which take the general path below
+        if self.model is PefModel.PARALLELOGRAM and self.redundancy <= 1:
+            # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles), with
+            # tau_1 in the same pass; r >= 2 and the other models take the general path below
             sc = self.scenario
-            tau, best, free = parallelogram_grid(x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range,
-                                                 sc.workspace.bounds, float(self.sensor.relative_error),
-                                                 float(self.sensor.absolute_error))
+            tau, best, free, tau_plain = parallelogram_grid(
+                x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range, sc.workspace.bounds,
+                float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
+                sc.marker_normals(), self.sensor.max_incidence)
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                          cell_size=(size[0] / x.size, size[1] / y.size), tau_plain=tau)
+                          cell_size=(size[0] / x.size, size[1] / y.size), redundancy=self.redundancy,
+                          tau_plain=tau_plain)
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
@@ -285,37 +286,47 @@ class PEF:
                       redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape))
 
     def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:
-        """Evaluate the model's error of one given marker subset at points.
+        """Evaluate the model's error of given marker subsets at points.
 
         Parameters
         ----------
         points : ndarray, shape (N, 2)
             Points [m].
-        subset : ndarray of int, shape (k,)
-            Marker indices.
+        subset : ndarray of int, shape (k,) or (C, k)
+            Marker indices: one subset, or C of them (their markers' visibility is computed once).
 
         Returns
         -------
-        ndarray, shape (N,)
-            tau [m]; inf where a marker of the subset is not visible (or the point not free).
+        ndarray, shape (N,) or (C, N)
+            tau [m]; inf where a marker of the subset is not visible (out of range, hidden, beyond
+            a flat marker's incidence limit) or the point not free.
         """
         pts = _points(points)
-        sub = np.asarray(subset, dtype=np.int64).reshape(1, -1)
+        many = np.ndim(subset) == 2
+        sub = np.asarray(subset, dtype=np.int64).reshape(-1, np.shape(subset)[-1] if np.ndim(subset) else 1)
         if sub.shape[1] != self.k:
             raise PlanningError(f"subset: expected {self.k} marker indices, got {sub.shape[1]}")
-        if np.any(sub < 0) or np.any(sub >= len(self.markers)) or len(set(sub[0].tolist())) != self.k:
-            raise PlanningError(f"subset: expected {self.k} distinct marker indices "
-                                f"in [0, {len(self.markers)}), got {sub[0].tolist()}")
-        # only the subset's markers matter: their visibility (rows in subset order, incidence
-        # wedges included) and the kernel on those k markers (the winner's tau from them alone)
+        for row in sub.tolist():
+            if min(row) < 0 or max(row) >= len(self.markers) or len(set(row)) != self.k:
+                raise PlanningError(f"subset: expected {self.k} distinct marker indices "
+                                    f"in [0, {len(self.markers)}), got {row}")
+        # only the subsets' markers matter: their visibility alone, and the kernel on each
+        # subset's k markers (the winner's tau is recomputed from them alone)
         sc = self.scenario
-        vis, _ = visible_points(pts, self.markers[sub[0]], sc.obstacle_pieces(), self.sensor.max_range,
-                                sc.workspace.bounds, sc.marker_normals()[sub[0]], self.sensor.max_incidence)
+        used = np.unique(sub)
+        vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
+                                     sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence)
         local = np.arange(self.k, dtype=np.int64)
-        if self.model is PefModel.EXACT:
-            return self._exact_subset(pts, vis, local, self.markers[sub[0]])
-        return self._kernel(pts[:, 0].copy(), pts[:, 1].copy(), vis, local.reshape(1, -1),
-                            _KERNEL_MODEL[self.model], self.markers[sub[0]])[0]
+        out = np.empty((sub.shape[0], pts.shape[0]))
+        px, py = pts[:, 0].copy(), pts[:, 1].copy()
+        for i, row in enumerate(sub):
+            vis = np.ascontiguousarray(vis_used[np.searchsorted(used, row)])  # rows in subset order
+            if self.model is PefModel.EXACT:
+                out[i] = self._exact_subset(pts, vis, local, self.markers[row])
+            else:
+                out[i] = self._kernel(px, py, vis, local.reshape(1, -1), _KERNEL_MODEL[self.model],
+                                      self.markers[row])[0]
+        return out if many else out[0]
 
     # --- internals ----------------------------------------------------------------------------
 

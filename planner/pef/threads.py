@@ -9,6 +9,7 @@ seconds per fresh cache, for the same speed on our loops.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
@@ -16,6 +17,26 @@ import numba
 import numpy as np
 
 _threads: int | None = None
+_pool: ThreadPoolExecutor | None = None  # shared by every call: a plan makes hundreds of calls
+_pool_size = 0
+
+
+def _forget_pool() -> None:
+    # a forked child has the pool object but none of its threads: it makes its own
+    global _pool, _pool_size
+    _pool, _pool_size = None, 0
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _executor(threads: int) -> ThreadPoolExecutor:
+    global _pool, _pool_size
+    if _pool is None or _pool_size != threads:
+        if _pool is not None:
+            _pool.shutdown(wait=False)
+        _pool, _pool_size = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="pef-kernel"), threads
+    return _pool
 
 
 def set_threads(n: int | None) -> None:
@@ -48,6 +69,8 @@ def run_ranges(kernel: Callable, n: int, args: tuple, min_chunk: int = 1) -> Non
     Uses ``numba.config.NUMBA_NUM_THREADS`` threads (the environment variable of that name,
     default: the cores; reading it does not start numba's own thread pool, which costs ~0.1 s),
     with four ranges per thread so that uneven ranges (e.g. cells inside obstacles) balance out.
+    The threads are kept between calls (one pool per process). Not reentrant from the kernel
+    threads themselves (no kernel calls back into Python).
     """
     threads = _threads if _threads is not None else max(1, int(numba.config.NUMBA_NUM_THREADS))
     if n <= 0:
@@ -57,8 +80,8 @@ def run_ranges(kernel: Callable, n: int, args: tuple, min_chunk: int = 1) -> Non
         return
     parts = max(2, min(4 * threads, math.ceil(n / min_chunk)))
     bounds = np.linspace(0, n, parts + 1).astype(np.int64)
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        futures = [pool.submit(kernel, int(lo), int(hi), *args)
-                   for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-        for f in futures:
-            f.result()  # re-raises a kernel's exception
+    pool = _executor(threads)
+    futures = [pool.submit(kernel, int(lo), int(hi), *args)
+               for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+    for f in futures:
+        f.result()  # re-raises a kernel's exception

@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy import ndimage
 
 SQRT2 = math.sqrt(2.0)
 
@@ -96,6 +95,8 @@ def conservative_tau(tau: np.ndarray) -> np.ndarray:
     one, stays inside that cell's 3×3 block; using the block maximum keeps grid decisions on
     the safe side of the τ < ε_max boundary.
     """
+    from scipy import ndimage  # here: its import costs 0.3 s, and a route network never gets here
+
     t = np.where(np.isfinite(tau), tau, np.inf)
     return ndimage.maximum_filter(t, size=3, mode="nearest")
 
@@ -317,6 +318,8 @@ def alternatives(grid: Grid, tau: np.ndarray, allowed: np.ndarray, eps_max: floa
         The label says how the route was found, e.g. ``"w=1"`` or ``"w=1, avoid 2"``.
     """
     tau_ok = np.where(allowed, tau, 0.0)
+    from scipy import ndimage
+
     tries: list[tuple[str, float, bool]] = [(f"w={weight:g}", weight, False), ("w=0", 0.0, False),
                                             (f"w={4 * weight + 1:g}", 4 * weight + 1, False)]
     tries += [(f"w={weight:g}, avoid", weight, True)] * max(0, n_routes - 1)

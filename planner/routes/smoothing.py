@@ -297,9 +297,11 @@ def acceleration_limited(s: np.ndarray, v: np.ndarray, max_accel: float = MAX_AC
         Acceleration limit [m/s^2].
     """
     v = np.array(v, dtype=float)
-    two_a_ds = 2.0 * max_accel * np.diff(s)
-    for i in range(1, len(v)):
-        v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + two_a_ds[i - 1]))
-    for i in range(len(v) - 2, -1, -1):
-        v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + two_a_ds[i]))
-    return v
+    shape = v.shape
+    two_a_ds = (2.0 * max_accel * np.diff(s)).tolist()
+    w = v.ravel().tolist()  # plain floats: the same IEEE arithmetic, without numpy's per-element cost
+    for i in range(1, len(w)):
+        w[i] = min(w[i], math.sqrt(w[i - 1] ** 2 + two_a_ds[i - 1]))
+    for i in range(len(w) - 2, -1, -1):
+        w[i] = min(w[i], math.sqrt(w[i + 1] ** 2 + two_a_ds[i]))
+    return np.array(w, dtype=float).reshape(shape)

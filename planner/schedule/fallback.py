@@ -52,14 +52,20 @@ def fallbacks(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: n
     """
     k = len(orders[0]) if orders else 0
     subs = [[() for _ in range(k)] for _ in orders]
-    for i, (order, j) in enumerate(zip(orders, start_idx, strict=True)):
-        for q, m in enumerate(order):
-            best, at = math.inf, -1
-            for c, sub in enumerate(subsets):
-                if m not in sub and tau_s[c, j] < best:
-                    best, at = float(tau_s[c, j]), c
-            if at >= 0:
-                subs[i][q] = tuple(int(x) for x in subsets[at])
+    if orders:
+        # per fix and slot: the first candidate of lowest finite tau_s among those without the
+        # slot's marker (NaN never wins)
+        sub_arr = np.asarray(subsets, dtype=np.int64).reshape(len(subsets), -1)       # (C, k)
+        cols = np.asarray(tau_s, dtype=float)[:, np.asarray(start_idx, dtype=np.int64)].T  # (F, C)
+        cols = np.where(np.isnan(cols), np.inf, cols)
+        marks = np.asarray(orders, dtype=np.int64)                                     # (F, k)
+        for q in range(k):
+            holds = (sub_arr[None, :, :] == marks[:, q, None, None]).any(axis=2)        # (F, C)
+            masked = np.where(holds, np.inf, cols)
+            at = np.argmin(masked, axis=1)
+            ok = masked[np.arange(len(orders)), at] < math.inf
+            for i in np.flatnonzero(ok).tolist():
+                subs[i][q] = tuple(int(x) for x in subsets[at[i]])
     taus = [[math.inf] * k for _ in orders]
     for q in range(k):
         rows = [i for i in range(len(orders)) if subs[i][q]]

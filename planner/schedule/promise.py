@@ -8,7 +8,7 @@ ranges at the planned positions: :func:`estimators.fault.carried.promised_fault_
 simulation uses for the realised fault area.
 
 The schedule searches over thousands of candidate starts, so it scores them with the
-construction's parallelogram (:func:`estimators.fault.carried.promised_parallelogram`, k = 2;
+construction's parallelogram (:func:`estimators.fault.carried.promised_parallelogram_best`, k = 2;
 for other k the static PEF of the stretch), and :func:`predict` then computes the exact
 promise of the fixes it chose.
 
@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.fault.carried import promised_fault_area, promised_parallelogram
+from estimators.fault.carried import promised_fault_area, promised_parallelogram_best
 from planner.routes.smoothing import acceleration_limited
 from planner.schedule.pathtime import Kinematics, Track, positions_at
 from scenarios.schema import Scenario
@@ -80,22 +80,24 @@ class Level:
     speed: np.ndarray
 
 
-def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: list[np.ndarray]) -> tuple:
+def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: list[np.ndarray],
+                   where: np.ndarray) -> tuple:
     """Best-order k = 2 promise (C, n) and whether the reversed order won.
 
     ``poses`` lists the measurement positions (n, 2, 2) of each start lag scored; each order's
-    promise is its largest over them.
+    promise is its largest over them. Only the entries of ``where`` (C, n) are scored (a subset
+    not visible over a stretch never takes a fix there); elsewhere the promise is inf and
+    ``flipped`` False.
     """
-    sub = np.asarray(subsets, dtype=int)                       # (C, 2)
-    m = markers[sub][:, None, :, :]                            # (C, 1, 2, 2)
+    c, j = np.nonzero(where)
     sens, rob, hs = scenario.sensor, scenario.robot, scenario.planning.heading_std
-    fwd = rev = None
-    for at in poses:
-        p = at[None, :, :, :]                                  # (1, n, 2, 2)
-        f = promised_parallelogram(sens, rob, m, p, hs)
-        r = promised_parallelogram(sens, rob, m[:, :, ::-1, :], p, hs)
-        fwd, rev = (f, r) if fwd is None else (np.maximum(fwd, f), np.maximum(rev, r))
-    return np.minimum(fwd, rev), rev < fwd
+    pairs = np.asarray(subsets, dtype=np.int64)
+    best, flipped = promised_parallelogram_best(sens, rob, markers, pairs, np.stack(poses), c, j, hs)
+    tau = np.full(where.shape, np.inf)
+    flip = np.zeros(where.shape, dtype=bool)
+    tau[c, j] = best
+    flip[c, j] = flipped
+    return tau, flip
 
 
 def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray, k: int) -> list[Level]:
@@ -130,8 +132,8 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
     # scored at the planned start and START_LAG later (predict's extremes)
     late = positions_at(tr.kin, tr.kin.s_v, path, tr.t_start[:, None] + START_LAG + mt * np.arange(1, k + 1))
     late[0] = path[0]  # the standstill fix before departure does not lag
-    tau, flip = _parallelogram(scenario, markers, subsets, [tr.xy_m, late])
-    out.append(Level(np.where(visible, tau, np.inf), flip, np.full(n, np.nan)))
+    tau, flip = _parallelogram(scenario, markers, subsets, [tr.xy_m, late], visible)
+    out.append(Level(tau, flip, np.full(n, np.nan)))
     v_plan = np.diff(tr.kin.s_at(tr.t_start[:, None] + np.array([0.0, k * mt])), axis=1)[:, 0] / (k * mt)
     v_plan[0] = 0.0
     s_path = tr.kin.s_v
@@ -145,8 +147,7 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
         for lag in (0.0, START_LAG):
             s_m = tr.s[:, None] + v[:, None] * (lag + mt * np.arange(1, k + 1)[None, :])
             at.append(np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1))
-        tau, flip = _parallelogram(scenario, markers, subsets, at)
-        tau = np.where(visible & slower[None, :], tau, np.inf)
+        tau, flip = _parallelogram(scenario, markers, subsets, at, visible & slower[None, :])
         out.append(Level(tau, flip, np.where(slower, v, np.nan)))
     return out
 

@@ -260,7 +260,7 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     else:
         # tau at the samples and at the exact completion points of fixes started there
         both = np.vstack([tr.xy, tr.xy_c])
-        tau = np.stack([np.asarray(pef.tau_subset(both, np.asarray(c)), dtype=float) for c in subsets])
+        tau = np.asarray(pef.tau_subset(both, np.asarray(subsets)), dtype=float)
     tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
           else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])

@@ -271,3 +271,20 @@ def test_tau_subset_of_every_pair_agrees_with_the_slow_evaluator_incidence_inclu
             wedge_only += bool(posts[a] and posts[b] and not (vis[a] and vis[b]))
     # the incidence limit decides many of these: the check would catch a tau_subset that ignores it
     assert wedge_only > 50
+
+
+def test_tau_subset_sees_flat_markers_only_within_their_incidence_limit():
+    sc = _scenario()
+    pef = PEF(sc)
+    pm = pef.grid(RES)
+    pts = np.column_stack([np.tile(pm.x, pm.y.size), np.repeat(pm.y, pm.x.size)])
+    vis = np.asarray(pef.visible(pts), dtype=bool)                 # (N, M), incidence included
+    pairs = np.array(list(itertools.combinations(range(len(sc.markers)), 2)))
+    tau = pef.tau_subset(pts, pairs)                               # (C, N)
+    both = vis[:, pairs[:, 0]].T & vis[:, pairs[:, 1]].T
+    assert not np.isfinite(tau[~both]).any()                       # a hidden marker gives no fix
+    # where the plain map picks a pair, that pair's tau is the map's
+    best, flat_tau = pm.best.reshape(-1, 2), pm.tau.ravel()
+    row = {tuple(p): i for i, p in enumerate(pairs.tolist())}
+    got = np.array([tau[row[tuple(b)], n] if b[0] >= 0 else np.inf for n, b in enumerate(best.tolist())])
+    assert np.array_equal(got, flat_tau)

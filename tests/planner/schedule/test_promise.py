@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 import scenarios
-from estimators.fault.carried import carry, promised_fault_area, promised_parallelogram, shift_bound
+from estimators.fault.carried import (
+    carry,
+    promised_fault_area,
+    promised_parallelogram,
+    promised_parallelogram_best,
+    shift_bound,
+)
 from estimators.fault.exact import exact_fault_area
 from planner.pef.map import PEF
 from planner.plan import plan_task
@@ -100,6 +106,29 @@ def test_moving_map_matches_the_construction_in_every_direction(warehouse):
     assert worst < 1.0
     # negative control: the paper's static map does not describe the moving fix
     assert static_worst > 0.05
+
+
+def test_compiled_best_order_is_the_vectorised_parallelogram_bit_for_bit(warehouse):
+    sc, _ = warehouse
+    rng = np.random.default_rng(11)
+    mk = rng.uniform(0, 30, (12, 2))
+    mk[11] = mk[10] + [5.0, 0.0]  # with pose 2 below: all three collinear, a degenerate fix
+    pairs = np.array([(a, b) for a in range(12) for b in range(a + 1, 12)])
+    start = rng.uniform(0, 30, (40, 2))
+    poses = np.stack([start, start + rng.normal(0, 0.05, (40, 2))], axis=1)        # (n, 2, 2)
+    poses[2] = [mk[10] - [3.0, 0.0], mk[10] - [2.9, 0.0]]
+    poses[3, 1] = poses[3, 0]                                                        # no travel
+    poses[4, 0] = mk[0]                                                              # range 0
+    c, j = np.meshgrid(np.arange(len(pairs)), np.arange(40), indexing="ij")
+    c, j = c.ravel(), j.ravel()
+    hs = sc.planning.heading_std
+    tau, flip = promised_parallelogram_best(sc.sensor, sc.robot, mk, pairs, poses, c, j, hs)
+    m = mk[pairs[c]]
+    fwd = promised_parallelogram(sc.sensor, sc.robot, m, poses[j], hs)
+    rev = promised_parallelogram(sc.sensor, sc.robot, m[:, ::-1], poses[j], hs)
+    assert np.array_equal(tau, np.minimum(fwd, rev))  # bit for bit, inf included
+    assert np.array_equal(flip, rev < fwd)
+    assert np.isinf(tau).any() and flip.any() and not flip.all()
 
 
 def test_parallelogram_of_the_construction_tracks_its_exact_area(warehouse):
