@@ -1,0 +1,110 @@
+"""What the PEF returns: values at points (:class:`PefResult`), grids (:class:`PefMap`), cell centres."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.errors import PlanningError
+from scenarios.schema import PefModel
+
+#: Largest grid :meth:`planner.pef.map.PEF.grid` builds (cells), to turn a typo in the resolution into an error.
+MAX_CELLS = 25_000_000
+
+
+@dataclass(frozen=True)
+class PefResult:
+    """PEF at points.
+
+    Attributes
+    ----------
+    tau : ndarray, shape (N,)
+        Predicted error [m]; inf where no k-subset is visible or the point is not free.
+    best : ndarray of int, shape (N, k)
+        Marker indices (into ``scenario.markers``) of the best subset, ascending; -1 where none.
+    tau_plain : ndarray, shape (N,)
+        The best-subset tau with every visible marker [m]; equal to ``tau`` when r = 0.
+    fallback : ndarray of int, shape (N, k, k)
+        ``fallback[n, j]``: the best subset without marker ``best[n, j]`` (-1 where none, and
+        everywhere when r = 0).
+    """
+
+    tau: np.ndarray
+    best: np.ndarray
+    tau_plain: np.ndarray | None = None
+    fallback: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PefMap:
+    """PEF on the cell centres of a grid covering the workspace.
+
+    Attributes
+    ----------
+    x : ndarray, shape (nx,)
+        Cell-centre x coordinates [m].
+    y : ndarray, shape (ny,)
+        Cell-centre y coordinates [m].
+    tau : ndarray, shape (ny, nx)
+        Predicted error [m]; inf where fewer than k markers are visible or inside obstacles.
+    best : ndarray of int, shape (ny, nx, k)
+        Marker indices of the best subset; -1 where none.
+    free : ndarray of bool, shape (ny, nx)
+        Cell centre in free space (in the workspace, outside every obstacle).
+    model : PefModel
+        The error model.
+    cell_size : (float, float)
+        Cell width and height [m] (the workspace divided evenly, closest to the resolution).
+    redundancy : int
+        r: ``tau`` is tau_r, the worst over r visible markers blocked (:mod:`planner.pef.map`).
+    tau_plain : ndarray, shape (ny, nx)
+        The best-subset tau with every visible marker [m] (``tau`` itself when r = 0).
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    tau: np.ndarray
+    best: np.ndarray
+    free: np.ndarray
+    model: PefModel
+    cell_size: tuple[float, float]
+    redundancy: int = 0
+    tau_plain: np.ndarray | None = None
+
+    def navigable(self, eps_max: float) -> np.ndarray:
+        """Cells of the navigation region ``tau < eps_max``, shape (ny, nx) bool."""
+        return self.free & (self.tau < eps_max)
+
+
+def grid_centres(size: tuple[float, float], resolution: float,
+                 origin: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Cell centres of the grid that divides the workspace evenly into cells of about ``resolution``.
+
+    Parameters
+    ----------
+    size : (float, float)
+        Workspace width and height [m].
+    resolution : float
+        Wanted cell size [m] > 0.
+    origin : (float, float)
+        Lower-left corner of the workspace (``Workspace.origin``) [m].
+
+    Returns
+    -------
+    x : ndarray, shape (nx,)
+        ``x0 + (i + 1/2) * width / nx`` with ``nx = max(1, round(width / resolution))`` [m].
+    y : ndarray, shape (ny,)
+        Likewise for the height [m].
+    """
+    if not (resolution > 0.0 and math.isfinite(resolution)):
+        raise PlanningError(f"resolution: expected a positive number of metres, got {resolution}")
+    out = []
+    for extent, start in zip(size, origin, strict=True):
+        n = max(1, int(round(extent / resolution)))
+        out.append(float(start) + (np.arange(n) + 0.5) * (extent / n))
+    cells = out[0].size * out[1].size
+    if cells > MAX_CELLS:
+        raise PlanningError(f"resolution: {resolution} m gives {cells} cells (at most {MAX_CELLS})")
+    return out[0], out[1]
