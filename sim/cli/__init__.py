@@ -16,7 +16,7 @@ import json
 import sys
 from typing import Any
 
-from scenarios import PefsimError
+from scenarios import PefsimError, PlanningError
 
 COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export")
 
@@ -88,6 +88,14 @@ def _quick_exit(code: int) -> None:
     os._exit(code)
 
 
+def _with_source(args: argparse.Namespace, exc: PefsimError) -> str:
+    """Name the scenario in a planning error that does not (a plan or placement that failed on it)."""
+    message, scenario = str(exc), getattr(args, "scenario", None)
+    if not isinstance(exc, PlanningError) or not isinstance(scenario, str) or not scenario or scenario in message:
+        return message
+    return f"{scenario}: {message}"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -97,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         if argv is None and args.command in QUICK_EXIT and not getattr(args, "rrd", None):
             _quick_exit(code)
     except PefsimError as exc:
-        print(f"pefsim: error: {exc}", file=sys.stderr)
+        print(f"pefsim: error: {_with_source(args, exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pefsim: interrupted", file=sys.stderr)

@@ -61,7 +61,7 @@ def test_uncoverable_points_exit_2(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "place", str(path), "--json")
     assert code == 2
     doc = json.loads(out)
-    n = int(err.split("pefsim: error: ")[1].split()[0])
+    n = int(err.split(f"pefsim: error: {path}: ")[1].split()[0])  # the scenario named first
     assert len(doc["uncovered"]) == n > 0 and all(len(p) == 2 for p in doc["uncovered"])
 
 

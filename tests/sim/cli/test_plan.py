@@ -98,4 +98,5 @@ def test_infeasible_eps_exit_2(capsys, tmp_path):
         assert code == 2 and out == "" and err.count("\n") == 1
         assert "no admissible route" in err or "outside the navigation region" in err
         assert "tau" in err
+        assert err.startswith(f"pefsim: error: {f}: "), err  # the scenario is named
     assert not (tmp_path / "x.png").exists()
