@@ -41,7 +41,7 @@ import numpy as np
 from estimators import compiled
 from estimators.fault.linearized import strip_max_vertex_sq_k
 from planner.pef import pairs as pef_pairs
-from planner.pef.gridtiles import blocks_points_local
+from planner.pef.pointblocks import blocks_points_local
 from planner.pef.scalar import (
     GDOP,
     PARALLELOGRAM,
