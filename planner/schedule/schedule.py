@@ -140,7 +140,11 @@ def _candidate_subsets(pef, xy: np.ndarray, k: int) -> list[tuple[int, ...]]:
     if math.comb(len(seen), k) <= MAX_SUBSETS:
         # only subsets seen together from some sample can ever be used
         return [tuple(int(m) for m in c) for c in combinations(seen, k) if vis[:, list(c)].all(axis=1).any()]
-    best = np.asarray(pef.at(xy).best)
+    res = pef.at(xy)
+    best = np.asarray(res.best)
+    if res.fallback is not None:
+        # with redundancy, each best subset's fallbacks too: the fixes name them for blocked markers
+        best = np.vstack([best, np.asarray(res.fallback).reshape(-1, best.shape[1])])
     ok = (best >= 0).all(axis=1)
     return [tuple(int(m) for m in row) for row in np.unique(np.sort(best[ok], axis=1), axis=0)]
 
@@ -224,8 +228,12 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
             return _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
                             t_planned)
         except StretchError as exc:
-            slower = _slow_stretch(s_v, v_try, exc.stretch, scenario.planning.min_fix_speed)
-            if slower is None:
+            slower, moved = v_try, False
+            for stretch in (exc.stretch, *exc.more):
+                cand = _slow_stretch(s_v, slower, stretch, scenario.planning.min_fix_speed)
+                if cand is not None:
+                    slower, moved = cand, True
+            if not moved:
                 raise
             v_try = slower
 
@@ -277,7 +285,26 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     starts = np.array([j for j, _, _ in chosen])
     fix_level = level[starts].copy()
     pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k)
-    fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts)
+    # a fallback's area is in force until the next fix completes, as the fix's own
+    margin = np.array([pl.err_at_completion(starts[i], 0.0, starts[i + 1]) for i in range(len(starts) - 1)]
+                      + [pl.err_at_end(starts[-1], 0.0)])
+    fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin)
+    if scenario.planning.redundancy > 0:
+        holes = [i for i in range(len(starts))
+                 if not all(fb[i]) and not _covered_without(pl, starts, pred, fb, fb_tau, i)]
+        if holes:
+            # a marker whose blocking the plan cannot survive here: slower, the fallback's
+            # earlier ranges shift less and the drift to the next fix shrinks
+            ends = [float(tr.c[starts[i + 1]]) if i + 1 < len(starts) else float(tr.s[-1]) for i in holes]
+            i = holes[0]
+            x, y = tr.xy[starts[i]]
+            raise StretchError(
+                f"planning.redundancy = {scenario.planning.redundancy}: the fix at s = {tr.s[starts[i]]:.2f} m "
+                f"({x:.2f}, {y:.2f}) has no fallback that keeps the error under eps_max = {eps:.4g} m "
+                f"with marker {order[i][fb[i].index(())]} blocked, even at "
+                f"{scenario.planning.min_fix_speed:g} m/s",
+                (float(tr.s[starts[i]]), ends[0]),
+                more=tuple((float(tr.s[starts[j]]), e) for j, e in zip(holes[1:], ends[1:], strict=True)))
 
     fixes = tuple(
         ScheduledFix(s=float(tr.s[j]), position=(float(tr.xy[j, 0]), float(tr.xy[j, 1])),
@@ -301,6 +328,22 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                            (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
     return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
                     worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
+
+
+def _covered_without(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list, fb_tau: list, i: int) -> bool:
+    """Whether the plan keeps the error under eps_max with fix ``i`` not taken at all.
+
+    The fix before it then stays in force until the fix after it completes. It may itself have
+    been taken with a fallback (each fix may lose one line of sight), so its weakest promise
+    counts, and it must have a fallback for every marker: two lost fixes in a row are more than
+    one lost line of sight per fix allows for. The calibrated dock (promise 0) stands before the
+    first fix.
+    """
+    if i > 0 and not all(fb[i - 1]):
+        return False
+    j, tau = (starts[i - 1], max(pred[i - 1], *fb_tau[i - 1])) if i > 0 else (0, 0.0)
+    err = pl.err_at_completion(j, tau, starts[i + 1]) if i + 1 < len(starts) else pl.err_at_end(j, tau)
+    return bool(err < pl.eps)
 
 
 def _fix_speed(kin, s0: float, k: int, mt: float, i: int) -> float:

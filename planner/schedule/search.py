@@ -16,12 +16,14 @@ from scenarios.errors import PlanningError
 class StretchError(PlanningError):
     """No schedule keeps the error under eps_max; ``stretch`` = (s_from, s_to) [m] is where.
 
-    The schedule slows this stretch down and tries again (:func:`planner.schedule.schedule.make_schedule`).
+    The schedule slows this stretch (and those in ``more``) down and tries again
+    (:func:`planner.schedule.schedule.make_schedule`).
     """
 
-    def __init__(self, message: str, stretch: tuple[float, float]):
+    def __init__(self, message: str, stretch: tuple[float, float], more: tuple[tuple[float, float], ...] = ()):
         super().__init__(message)
         self.stretch = stretch
+        self.more = more
 
 
 class Windows:

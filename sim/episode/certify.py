@@ -67,3 +67,51 @@ def certified_bound(robot: RobotSpec, t: np.ndarray, s: np.ndarray, heading: np.
         b[np.arange(ss.shape[1])[None, :] < (after[js] - a0)[:, None]] = np.inf
         np.minimum(out[a0:], b.min(axis=0), out=out[a0:])
     return out
+
+
+def single_failure_excused(t: np.ndarray, attempt_t: np.ndarray, beyond: np.ndarray, fix_time: float) -> np.ndarray:
+    """Mark the steps the single-failure test does not judge (too many lines of sight lost before).
+
+    A fix attempt is *beyond* the test when more of the markers the plan counted on at it (the
+    scheduled subset and, with one of them blocked, its fallback) were blocked than the test
+    allows (:func:`lost_markers`). From such an attempt's start until the next attempt within the
+    test completes (its start plus ``fix_time``) the certified bound is not judged: no layout
+    promised anything there.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Step times [s], ascending.
+    attempt_t : ndarray, shape (A,)
+        Start time of each fix attempt [s], ascending (attempts that started no fix included).
+    beyond : ndarray of bool, shape (A,)
+        The attempt lost more lines of sight than the test allows.
+    fix_time : float
+        Duration of a fix [s].
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+    """
+    t = np.asarray(t, float)
+    attempt_t, beyond = np.asarray(attempt_t, float), np.asarray(beyond, bool)
+    out = np.zeros(t.shape, dtype=bool)
+    ok_t = attempt_t[~beyond]
+    for a in attempt_t[beyond].tolist():
+        i = int(np.searchsorted(ok_t, a, side="right"))
+        end = ok_t[i] + fix_time if i < ok_t.size else np.inf
+        out[(t >= a) & (t <= end)] = True
+    return out
+
+
+def lost_markers(blocked: frozenset[int], scheduled: tuple[int, ...], fallbacks: tuple[tuple[int, ...], ...]) -> int:
+    """Lines of sight lost at a fix among the markers the plan counted on.
+
+    The scheduled subset's blocked markers; with exactly one of them blocked and a fallback named
+    for it, plus the fallback's own blocked markers (the robot would measure those next).
+    """
+    lost = [q for q, m in enumerate(scheduled) if m in blocked]
+    n = len(lost)
+    if n == 1 and len(fallbacks) == len(scheduled) and fallbacks[lost[0]]:
+        n += sum(1 for m in fallbacks[lost[0]] if m in blocked and m not in scheduled)
+    return n

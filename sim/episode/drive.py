@@ -19,10 +19,10 @@ import numpy as np
 
 from planner.pef.map import PEF
 from planner.plan import Plan
-from planner.schedule.promise import START_LAG
+from planner.schedule.promise import PROMISE_TOLERANCE, START_LAG
 from scenarios import PlanningError, Scenario, SimulationError
 from scenarios.schema import PefModel
-from sim.episode.certify import certified_bound
+from sim.episode.certify import certified_bound, lost_markers, single_failure_excused
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.follower import PurePursuit, wheel_speeds
 from sim.episode.types import EpisodeResult, StepLog
@@ -245,6 +245,10 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     counts = {"merged": 0, "reads": 0}   # reads: odometry reads outside the control ticks
 
     fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
+    # the single-failure test: with lines of sight blocked, the guarantee must survive any
+    # max(1, redundancy) of them lost at a fix (a redundancy-0 layout is held to one too)
+    attempts: list[tuple[float, bool]] = []
+    tolerated = max(1, scenario.planning.redundancy)
 
     def start_fix(s_now: float, t: float) -> None:
         # Start the latest scheduled fix the robot has passed, when the laser is free again.
@@ -259,6 +263,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             # one draw per marker and fix start, whatever is scheduled: the stream stays aligned
             laser.blocked = frozenset(np.flatnonzero(rng_block.random(n_markers) < q_block).tolist())
             fixes.blocked_markers += len(laser.blocked & set(schedule.fixes[f].markers))
+            lost = lost_markers(laser.blocked, schedule.fixes[f].markers, schedule.fixes[f].fallbacks)
+            attempts.append((t, lost > tolerated))
         subset = fixes.choose_subset(schedule.fixes[f].markers, loc.x[:2], schedule.fixes[f])
         if subset is None:
             fixes.skipped += 1
@@ -323,6 +329,12 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     certified = certified_bound(robot, steps.t, log[:, LOG_S], steps.est_pose[:, 2], fix_log.t,
                                 fix_log.predicted_tau, k * scenario.sensor.measurement_time)
     steps.certified = certified
+    lost_guarantee = 0
+    if q_block > 0.0:
+        at = np.array(attempts, dtype=float).reshape(-1, 2)
+        excused = single_failure_excused(steps.t, at[:, 0], at[:, 1] > 0.5, k * scenario.sensor.measurement_time)
+        lost_guarantee = int(np.sum((certified > scenario.planning.eps_max * (1.0 + PROMISE_TOLERANCE)) & ~excused))
+        steps.excused = excused
     goal = np.array(scenario.dock(task.goal).position)
     reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=
                    follower.goal_tolerance + scenario.planning.eps_max)
@@ -333,7 +345,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                             counts["merged"]), "scheduled_fixes": len(fix_s),
                  "blocked_markers": fixes.blocked_markers, "fallback_fixes": int(np.sum(fix_log.fallback)),
                  "failed_fixes": fixes.skipped,
-                 "certified_max": float(np.max(certified, initial=0.0))})
+                 "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee})
 
 
 def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:

@@ -42,6 +42,9 @@ class StepLog:
         Normalised estimation error squared of the full pose (3 dof).
     certified : (T,) float or None
         The bound the fixes actually taken certify (:mod:`sim.episode.certify`) [m].
+    excused : (T,) bool or None
+        Steps the single-failure test does not judge: a fix lost more lines of sight than it
+        allows (:func:`sim.episode.certify.single_failure_excused`); None without blocking.
     """
 
     t: np.ndarray
@@ -53,6 +56,7 @@ class StepLog:
     pef_tau: np.ndarray
     nees: np.ndarray
     certified: np.ndarray | None = None
+    excused: np.ndarray | None = None
 
 
 @dataclass
@@ -133,5 +137,5 @@ class EpisodeResult:
 
 SUMMARY_KEYS = ("reached", "duration", "steps", "fixes", "rmse", "max_error", "max_predicted_tau",
                 "eps_max", "violations", "seed", "mean_nees", "mean_nis", "blocked_markers", "fallback_fixes",
-                "failed_fixes", "certified_max")
+                "failed_fixes", "certified_max", "lost_guarantee")
 """Keys of :attr:`EpisodeResult.summary` (``pefsim run --json`` prints them)."""

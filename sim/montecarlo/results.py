@@ -62,6 +62,7 @@ RUN_SCHEMA = pa.schema([
     ("fallback_fixes", pa.int64()),    # fixes that measured the schedule's fallback subset
     ("failed_fixes", pa.int64()),      # scheduled fixes that could not be taken
     ("certified_max", pa.float64()),   # [m] largest certified bound (sim.episode.certify)
+    ("lost_guarantee", pa.int64()),    # steps the single-failure test judged lost (blocking only)
     ("wall_time", pa.float64()),    # [s] of the episode call
     ("cpu_time", pa.float64()),     # [s] CPU time of the worker process during the episode call
 ])
@@ -79,6 +80,7 @@ STEP_SCHEMA = pa.schema([
     ("x_var", pa.float64()), ("y_var", pa.float64()), ("theta_var", pa.float64()),
     ("xy_cov", pa.float64()), ("xtheta_cov", pa.float64()), ("ytheta_cov", pa.float64()),
     ("certified", pa.float64()),   # the bound the fixes taken certify [m] (sim.episode.certify)
+    ("excused", pa.bool_()),       # not judged by the single-failure test (too many lines of sight lost)
 ])
 """One row per control step: poses [m, rad], errors and bounds [m], EKF covariance terms (as read)."""
 STEP_STORAGE = parts.lean(STEP_SCHEMA)
@@ -242,6 +244,7 @@ def _all_step_columns(run: int, steps: StepLog, n: int) -> dict[str, np.ndarray]
         "xy_cov": cov[:, 0, 1], "xtheta_cov": cov[:, 0, 2], "ytheta_cov": cov[:, 1, 2],
         "certified": (np.full(n, np.nan) if steps.certified is None
                       else np.asarray(steps.certified, dtype=float).reshape(n)),
+        "excused": (np.zeros(n, dtype=bool) if steps.excused is None else np.asarray(steps.excused, bool).reshape(n)),
     }
 
 

@@ -43,11 +43,19 @@ class SweepSummary:
 
 
 def succeeded(runs: pa.Table) -> np.ndarray:
-    """Per row of a runs table: ran (status ok), reached its goal and never exceeded ε_max."""
+    """Per row of a runs table: ran (status ok), reached its goal and never exceeded ε_max.
+
+    With lines of sight blocked (``sensor.block_probability`` > 0) a run must also pass the
+    single-failure test: its certified bound stayed under ε_max wherever no more lines of sight
+    were lost at a fix than ``max(1, planning.redundancy)`` (column ``lost_guarantee``,
+    :func:`sim.episode.certify.single_failure_excused`; 0 without blocking).
+    """
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)
     reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
     violations = np.asarray(runs.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
-    return (status == "ok") & reached & (violations == 0)
+    lost = (np.asarray(runs.column("lost_guarantee").fill_null(0).to_numpy(zero_copy_only=False))
+            if "lost_guarantee" in runs.column_names else np.zeros(len(status), dtype=np.int64))
+    return (status == "ok") & reached & (violations == 0) & (lost == 0)
 
 
 def summarize(out: str | Path, success_target: float, executed: int = 0,

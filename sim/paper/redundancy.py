@@ -90,13 +90,16 @@ def reproduce_redundancy(out: Path, options: Options) -> Section:
                 return np.array([runs[name][i] if runs[name][i] is not None else fill for i in keep], float)
 
             ok = np.array([runs["status"][i] == "ok" and bool(runs["reached"][i]) for i in keep])
+            err_ok = ok & (col("max_error", np.inf) < eps)
             rows.append({"redundancy": r, "q": q, "runs": len(keep),
-                         "success": float(np.mean(ok & (col("max_error", np.inf) < eps))),
+                         "success": float(np.mean(err_ok & (col("lost_guarantee", 0.0) == 0))),
+                         "error_under_eps": float(np.mean(err_ok)),
                          "certified": float(np.mean(ok & (col("certified_max", np.inf) < eps))),
                          "fallback_fixes_per_run": float(np.nanmean(col("fallback_fixes"))),
                          "failed_fixes_per_run": float(np.nanmean(col("failed_fixes"))),
                          "blocked_markers_per_run": float(np.nanmean(col("blocked_markers"))),
-                         "median_certified_max_mm": float(np.nanmedian(col("certified_max", np.inf)) * 1e3)})
+                         "median_certified_max_mm": float(np.nanmedian(col("certified_max", np.inf)) * 1e3),
+                         "duration_s": float(np.nanmean(col("duration")))})
     numbers = {"scenario": SCENARIO, "eps_max_m": layouts[1].planning.eps_max, "placement": counts,
                "reflector_cost_r1_over_r0": counts["r1"]["markers"] / max(counts["r0"]["markers"], 1),
                "sweeps": rows}
@@ -105,14 +108,22 @@ def reproduce_redundancy(out: Path, options: Options) -> Section:
     text = (f"Flat reflectors (45° incidence) on the warehouse's walls, rack faces and columns, placed by "
             f"pefsim place for redundancy 0 ({c0} reflectors) and 1 ({c1}); {n} seeded episodes of task 0 per "
             f"point. A line of sight is blocked at each fix with probability q; the robot then measures the "
-            f"schedule's fallback subset, or improvises with the best visible one, or dead-reckons. Success: "
-            f"the error stayed under ε_max (the realised error, what pefsim validate counts; an EKF that keeps "
-            f"its earlier fixes rarely comes near ε_max). Certified: the bound the fixes actually taken "
-            f"guarantee (their promises plus the drift since) stayed under ε_max: what redundancy is for. "
-            f"Redundancy 1 survives one blocked reflector per fix; two at once (about q² of the fixes) are "
-            f"beyond it.")
+            f"schedule's fallback subset, or improvises with the best visible one, or dead-reckons. Success "
+            f"(what pefsim validate's plan check counts): the error stayed under ε_max and the certified bound "
+            f"(the promises of the fixes actually taken plus the drift since) stayed under it through every fix "
+            f"that lost at most one line of sight: the single-failure test a layout engineer asks for. "
+            f"Certified: the bound stayed under ε_max all along, two or more lost lines of sight at one fix "
+            f"(about q² of the fixes) included, which no single-failure layout promises. Error: the realised "
+            f"error alone (an EKF that keeps its earlier fixes rarely comes near ε_max). The redundancy-1 plan "
+            f"slows down where a fallback would not keep its promise until the next fix: the mean run takes "
+            f"{rows_mean(rows, 1, 'duration_s'):.0f} s against {rows_mean(rows, 0, 'duration_s'):.0f} s.")
     return Section("redundancy", "Redundancy: blocked lines of sight and what they cost in reflectors", text,
                    sig(numbers), fig, time.perf_counter() - start)
+
+
+def rows_mean(rows: list[dict], r: int, key: str) -> float:
+    """Mean of ``key`` over the sweeps of redundancy ``r``."""
+    return float(np.nanmean([x[key] for x in rows if x["redundancy"] == r]))
 
 
 def _figure(rows: list[dict], counts: dict) -> Any:
@@ -123,8 +134,10 @@ def _figure(rows: list[dict], counts: dict) -> Any:
     for r, color in ((0, "tab:red"), (1, "tab:blue")):
         sel = [x for x in rows if x["redundancy"] == r]
         q = [x["q"] for x in sel]
-        ax.plot(q, [x["success"] for x in sel], "-o", color=color, label=f"r = {r}: error < ε_max")
-        ax.plot(q, [x["certified"] for x in sel], "--s", color=color, label=f"r = {r}: certified bound < ε_max")
+        ax.plot(q, [x["success"] for x in sel], "-o", color=color, label=f"r = {r}: success (single-failure test)")
+        ax.plot(q, [x["certified"] for x in sel], "--s", color=color,
+                label=f"r = {r}: certified bound < ε_max all along")
+        ax.plot(q, [x["error_under_eps"] for x in sel], ":^", color=color, label=f"r = {r}: error < ε_max")
     ax.set(xlabel="probability q that a line of sight is blocked at a fix", ylabel="fraction of runs",
            ylim=(-0.05, 1.05), title="Success against blocking")
     ax.grid(alpha=0.3)

@@ -103,15 +103,19 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                           "ε_max." + at, figs.png_bytes(fig)))
     fx = results.read_fixes(root, columns=["true_x", "true_y", "fallback"]) if _has_blocking(scenario) else None
     if fx is not None and "fallback" in fx.column_names:
-        st = results.read_steps(root, columns=["true_x", "true_y", "certified"])
+        st = results.read_steps(root, columns=["true_x", "true_y", "certified", "excused"])
+        excused = (st.column("excused").fill_null(False).to_numpy(zero_copy_only=False).astype(bool)
+                   if "excused" in st.column_names else None)
         fig = figs.fallback_map(scenario, col(fx, "true_x"), col(fx, "true_y"),
                                 fx.column("fallback").to_numpy(zero_copy_only=False).astype(bool),
-                                col(st, "true_x"), col(st, "true_y"), col(st, "certified"), eps)
-        out.append(Figure("fallback_map", "Where fixes fell back or failed",
+                                col(st, "true_x"), col(st, "true_y"), col(st, "certified"), eps, excused)
+        out.append(Figure("fallback_map", "Where fixes fell back, and where the layout fails one lost line of sight",
                           "Lines of sight blocked at random (sensor.block_probability): orange, fixes that "
-                          "measured the schedule's fallback subset; red crosses, steps where the bound the "
-                          "fixes actually taken certify (their promises plus the drift since) exceeded "
-                          "ε_max, i.e. where a fix failed or fell back to a subset whose promise was too weak.",
+                          "measured the schedule's fallback subset; crosses, steps where the bound the fixes "
+                          "actually taken certify (their promises plus the drift since) exceeded ε_max. Red: "
+                          "after fixes that lost at most max(1, redundancy) lines of sight, i.e. where the "
+                          "layout fails the single-failure test the plan check counts; grey: after fixes "
+                          "that lost more, which no such layout promises.",
                           figs.png_bytes(fig)))
     failed = ~succeeded(runs)
     n = np.arange(1, failed.size + 1)

@@ -7,7 +7,7 @@ import pytest
 
 import scenarios
 from planner.schedule.drift import drift_bound
-from sim.episode.certify import certified_bound
+from sim.episode.certify import certified_bound, lost_markers, single_failure_excused
 
 
 def _reference(robot, t, s, heading, fix_t, fix_tau, fix_time):
@@ -53,3 +53,41 @@ def test_a_fix_left_out_is_told_apart():
     worse[np.flatnonzero(np.isfinite(worse))[10]] += 0.001
     assert not np.allclose(certified_bound(robot, t, s, heading, fix_t, fix_tau, 0.04),
                            certified_bound(robot, t, s, heading, fix_t, worse, 0.04), rtol=1e-12, atol=0)
+
+
+def _excused_reference(t, attempt_t, beyond, fix_time):
+    # the docstring, step by step: excused when some attempt beyond the test started at or before
+    # the step and no attempt within the test started after it and completed before the step
+    out = np.zeros(t.size, dtype=bool)
+    for i, ti in enumerate(t):
+        for a in np.flatnonzero(beyond & (attempt_t <= ti)):
+            cleared = (~beyond) & (attempt_t > attempt_t[a]) & (attempt_t + fix_time < ti)
+            if not cleared.any():
+                out[i] = True
+                break
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_single_failure_excused_matches_its_definition(seed):
+    rng = np.random.default_rng(seed)
+    t = np.arange(1200) / 60.0
+    attempt_t = np.sort(rng.choice(t[3:], 90, replace=False))
+    beyond = rng.random(attempt_t.size) < 0.25
+    got = single_failure_excused(t, attempt_t, beyond, fix_time=0.04)
+    np.testing.assert_array_equal(got, _excused_reference(t, attempt_t, beyond, 0.04))
+    assert 0 < got.sum() < t.size
+    # negative control: no attempt beyond the test excuses nothing
+    assert not single_failure_excused(t, attempt_t, np.zeros_like(beyond), 0.04).any()
+
+
+def test_lost_markers_counts_the_scheduled_subset_and_its_fallback():
+    sched, fbs = (3, 7), ((7, 9), (3, 11))
+    assert lost_markers(frozenset(), sched, fbs) == 0
+    assert lost_markers(frozenset({5, 9}), sched, fbs) == 0          # neither is counted on
+    assert lost_markers(frozenset({3}), sched, fbs) == 1             # the fallback (7, 9) is clear
+    assert lost_markers(frozenset({3, 9}), sched, fbs) == 2          # ... and then its 9 is blocked too
+    assert lost_markers(frozenset({3, 7}), sched, fbs) == 2
+    assert lost_markers(frozenset({7, 11}), sched, fbs) == 2
+    assert lost_markers(frozenset({3}), sched, ((), (3, 11))) == 1   # no fallback named: one lost
+    assert lost_markers(frozenset({3, 9}), sched, ()) == 1

@@ -84,7 +84,8 @@ def run_episode(scenario, task_index: int = 0, seed=0, world=None, prepared=None
                    rmse=float(np.sqrt(np.mean(error ** 2))), max_error=float(error.max()),
                    max_predicted_tau=float(tau.max()), eps_max=eps, violations=int(np.sum(error > eps)),
                    seed=0, mean_nees=float(nees.mean()), mean_nis=float(fixes.nis.mean()),
-                   blocked_markers=0, fallback_fixes=0, failed_fixes=0, certified_max=float(tau.max()))
+                   blocked_markers=0, fallback_fixes=0, failed_fixes=0, certified_max=float(tau.max()),
+                   lost_guarantee=0)
     assert set(summary) == set(SUMMARY_KEYS)
     return EpisodeResult(scenario.name, task_index, 0, eps, steps, fixes, None, summary)
 
