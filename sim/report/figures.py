@@ -283,9 +283,9 @@ def fallback_map(scenario: Scenario, fix_x: np.ndarray, fix_y: np.ndarray, fallb
     for sel, color, label in ((over & exc, "tab:gray", "above ε_max, beyond one lost line of sight"),
                               (over & ~exc, "tab:red", "above ε_max: the single-failure test failed")):
         i = np.flatnonzero(sel)[_subsample(int(sel.sum()))]
-        ax.scatter(np.asarray(step_x)[i], np.asarray(step_y)[i], s=6, c=color, marker="x", label=label, zorder=4)
+        ax.scatter(np.asarray(step_x)[i], np.asarray(step_y)[i], s=16, c=color, marker="x", label=label, zorder=5)
     share = float(np.mean(over & ~exc)) if over.size else 0.0
     ax.set_title(f"Blocked lines of sight: {int(fb.sum())} fallback fixes of {fb.size}; "
                  f"single-failure test failed at {100 * share:.2f} % of steps", fontsize=10)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8)
     return fig
