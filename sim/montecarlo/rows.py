@@ -1,0 +1,185 @@
+"""What a sweep stores per run, step and fix: the Parquet schemas and the rows built from an episode.
+
+:mod:`sim.montecarlo.results` writes and reads them (and re-exports every name here).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from sim.episode.types import FixLog, StepLog
+from sim.montecarlo import parts
+from sim.montecarlo.steps import StepsMode
+
+RUN_SCHEMA = pa.schema([
+    ("run", pa.int64()),
+    ("seed", pa.string()),          # the run's SeedSequence, as Python that rebuilds it
+    ("task", pa.int32()),
+    ("status", pa.string()),        # "ok" or "crashed: <error>"
+    ("reached", pa.bool_()),
+    ("duration", pa.float64()),     # simulated time [s]
+    ("steps", pa.int64()),
+    ("fixes", pa.int64()),
+    ("rmse", pa.float64()),         # [m]
+    ("max_error", pa.float64()),    # [m]
+    ("max_predicted_tau", pa.float64()),  # [m]
+    ("eps_max", pa.float64()),      # [m]
+    ("violations", pa.int64()),
+    ("mean_nees", pa.float64()),
+    ("mean_nis", pa.float64()),
+    ("blocked_markers", pa.int64()),   # scheduled markers whose line of sight was blocked
+    ("fallback_fixes", pa.int64()),    # fixes that measured the schedule's fallback subset
+    ("failed_fixes", pa.int64()),      # scheduled fixes that could not be taken
+    ("certified_max", pa.float64()),   # [m] largest certified bound (sim.episode.certify)
+    ("lost_guarantee", pa.int64()),    # steps the single-failure test judged lost (blocking only)
+    ("wall_time", pa.float64()),    # [s] of the episode call
+    ("cpu_time", pa.float64()),     # [s] CPU time of the worker process during the episode call
+])
+"""One row per run. Numeric columns are null for a crashed run."""
+
+TIMING_COLUMNS = ("wall_time", "cpu_time")
+"""The columns of :data:`RUN_SCHEMA` that depend on the machine, not on the seed."""
+
+STEP_SCHEMA = pa.schema([
+    ("run", pa.int64()), ("step", pa.int32()), ("t", pa.float64()),
+    ("true_x", pa.float64()), ("true_y", pa.float64()), ("true_theta", pa.float64()),
+    ("est_x", pa.float64()), ("est_y", pa.float64()), ("est_theta", pa.float64()),
+    ("error", pa.float64()), ("predicted_tau", pa.float64()), ("pef_tau", pa.float64()),
+    ("nees", pa.float64()),
+    ("x_var", pa.float64()), ("y_var", pa.float64()), ("theta_var", pa.float64()),
+    ("xy_cov", pa.float64()), ("xtheta_cov", pa.float64()), ("ytheta_cov", pa.float64()),
+    ("certified", pa.float64()),   # the bound the fixes taken certify [m] (sim.episode.certify)
+    ("excused", pa.bool_()),       # not judged by the single-failure test (too many lines of sight lost)
+])
+"""One row per control step: poses [m, rad], errors and bounds [m], EKF covariance terms (as read)."""
+STEP_STORAGE = parts.lean(STEP_SCHEMA)
+"""How step parts are stored: the floats of :data:`STEP_SCHEMA` as float32 (:mod:`sim.montecarlo.parts`)."""
+
+
+FIX_SCHEMA = pa.schema([
+    ("run", pa.int64()), ("fix", pa.int32()), ("t", pa.float64()),
+    ("true_x", pa.float64()), ("true_y", pa.float64()),
+    ("snapshot_x", pa.float64()), ("snapshot_y", pa.float64()),
+    ("snapshot_error", pa.float64()),   # |snapshot - true position| [m]
+    ("snapshot_x_var", pa.float64()), ("snapshot_y_var", pa.float64()), ("snapshot_xy_cov", pa.float64()),
+    ("fault_diameter", pa.float64()), ("predicted_tau", pa.float64()),   # the plan's promise
+    ("static_tau", pa.float64()),                                        # the paper's static PEF
+    ("nis", pa.float64()), ("n_accepted", pa.int32()), ("contained", pa.bool_()),
+    ("markers", pa.list_(pa.int32())),   # marker indices in scenario file order
+    ("ranges", pa.list_(pa.float64())), ("rho", pa.list_(pa.float64())),
+    ("fallback", pa.bool_()),            # measured the schedule's fallback subset
+    ("beyond_redundancy", pa.bool_()),   # improvised: blocks left neither the subset nor its fallback
+])
+"""One row per fix: true and snapshot positions [m], realised and predicted bounds [m], NIS."""
+
+
+# -- building rows ------------------------------------------------------------------------
+
+def run_row(run: int, seed: str, task: int, summary: dict[str, Any] | None, wall_time: float | None,
+            status: str = "ok", cpu_time: float | None = None) -> dict[str, Any]:
+    """Build the ``runs`` row of one run from an episode summary (``None`` for a crashed run)."""
+    row: dict[str, Any] = {name: None for name in RUN_SCHEMA.names}
+    row.update(run=run, seed=seed, task=task, status=status, wall_time=wall_time, cpu_time=cpu_time)
+    if summary is not None:
+        for name in RUN_SCHEMA.names:
+            if name in summary and name not in ("run", "seed", "task", "status", *TIMING_COLUMNS):
+                row[name] = _scalar(summary[name])
+    return row
+
+
+def _scalar(v: Any) -> Any:
+    return v.item() if isinstance(v, np.generic) else v
+
+
+def fix_steps(step_t: np.ndarray, fix_t: np.ndarray) -> np.ndarray:
+    """Return the indices of the steps at or after each fix time (the first step whose filter holds the fix), unique."""
+    step_t = np.asarray(step_t, dtype=float)
+    idx = np.searchsorted(step_t, np.asarray(fix_t, dtype=float), side="left")
+    return np.unique(idx[idx < step_t.size])
+
+
+def step_columns(run: int, steps: StepLog, mode: StepsMode = StepsMode.ALL,
+                 fix_t: np.ndarray | None = None) -> dict[str, np.ndarray] | None:
+    """Per-step columns of :data:`STEP_SCHEMA` from an episode's :class:`StepLog`, as ``mode`` keeps them.
+
+    ``fix_t`` (the fix times [s]) selects the rows of :attr:`StepsMode.FIXES`; None for :attr:`StepsMode.NONE`.
+    """
+    mode = StepsMode(mode)
+    if mode is StepsMode.NONE:
+        return None
+    n = len(steps.t)
+    keep = np.arange(n) if mode is StepsMode.ALL else fix_steps(steps.t, np.zeros(0) if fix_t is None else fix_t)
+    cols = _all_step_columns(run, steps, n)
+    return {k: v[keep] for k, v in cols.items()}
+
+
+def _all_step_columns(run: int, steps: StepLog, n: int) -> dict[str, np.ndarray]:
+    tp, ep, cov = np.asarray(steps.true_pose), np.asarray(steps.est_pose), np.asarray(steps.est_cov)
+    tp, ep, cov = tp.reshape(n, 3), ep.reshape(n, 3), cov.reshape(n, 3, 3)
+    return {
+        "run": np.full(n, run, dtype=np.int64), "step": np.arange(n, dtype=np.int32),
+        "t": np.asarray(steps.t, dtype=float),
+        "true_x": tp[:, 0], "true_y": tp[:, 1], "true_theta": tp[:, 2],
+        "est_x": ep[:, 0], "est_y": ep[:, 1], "est_theta": ep[:, 2],
+        "error": np.asarray(steps.error, dtype=float),
+        "predicted_tau": np.asarray(steps.predicted_tau, dtype=float),
+        "pef_tau": np.asarray(steps.pef_tau, dtype=float),
+        "nees": np.asarray(steps.nees, dtype=float),
+        "x_var": cov[:, 0, 0], "y_var": cov[:, 1, 1], "theta_var": cov[:, 2, 2],
+        "xy_cov": cov[:, 0, 1], "xtheta_cov": cov[:, 0, 2], "ytheta_cov": cov[:, 1, 2],
+        "certified": (np.full(n, np.nan) if steps.certified is None
+                      else np.asarray(steps.certified, dtype=float).reshape(n)),
+        "excused": (np.zeros(n, dtype=bool) if steps.excused is None else np.asarray(steps.excused, bool).reshape(n)),
+    }
+
+
+def fix_columns(run: int, fixes: FixLog) -> dict[str, np.ndarray]:
+    """Per-fix columns of :data:`FIX_SCHEMA` from an episode's :class:`FixLog`."""
+    n = len(fixes.t)
+    truth = np.asarray(fixes.true_position, dtype=float).reshape(n, 2)
+    snap = np.asarray(fixes.snapshot, dtype=float).reshape(n, 2)
+    scov = np.asarray(fixes.snapshot_cov, dtype=float).reshape(n, 2, 2)
+    return {
+        "run": np.full(n, run, dtype=np.int64), "fix": np.arange(n, dtype=np.int32),
+        "t": np.asarray(fixes.t, dtype=float),
+        "true_x": truth[:, 0], "true_y": truth[:, 1],
+        "snapshot_x": snap[:, 0], "snapshot_y": snap[:, 1],
+        "snapshot_error": np.hypot(snap[:, 0] - truth[:, 0], snap[:, 1] - truth[:, 1]),
+        "snapshot_x_var": scov[:, 0, 0], "snapshot_y_var": scov[:, 1, 1], "snapshot_xy_cov": scov[:, 0, 1],
+        "fault_diameter": np.asarray(fixes.fault_diameter, dtype=float),
+        "predicted_tau": np.asarray(fixes.predicted_tau, dtype=float),
+        "static_tau": np.asarray(fixes.static_tau, dtype=float),
+        "nis": np.asarray(fixes.nis, dtype=float),
+        "n_accepted": np.asarray(fixes.n_accepted, dtype=np.int32),
+        "contained": np.asarray(fixes.contained, dtype=bool),
+        "markers": _matrix(fixes.markers, n, np.int32),
+        "ranges": _matrix(fixes.ranges, n, np.float64),
+        "rho": _matrix(fixes.rho, n, np.float64),
+        "fallback": (np.zeros(n, dtype=bool) if fixes.fallback is None
+                     else np.asarray(fixes.fallback, dtype=bool).reshape(n)),
+        "beyond_redundancy": (np.zeros(n, dtype=bool) if fixes.beyond_redundancy is None
+                              else np.asarray(fixes.beyond_redundancy, dtype=bool).reshape(n)),
+    }
+
+
+def _table(columns: dict[str, np.ndarray], schema: pa.Schema) -> pa.Table:
+    arrays = []
+    for f in schema:
+        col = columns[f.name]
+        if pa.types.is_list(f.type):
+            n, k = col.shape
+            offsets = pa.array(np.arange(n + 1, dtype=np.int32) * k)
+            values = pa.array(col.reshape(-1), type=f.type.value_type)
+            arrays.append(pa.ListArray.from_arrays(offsets, values))
+        else:
+            arrays.append(pa.array(col, type=f.type))
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def _matrix(a: Any, n: int, dtype: type) -> np.ndarray:
+    """Return ``a`` as an (n, k) array, also when a fix log is empty and came as a flat array."""
+    a = np.asarray(a, dtype=dtype)
+    return a.reshape(n, -1) if a.size else np.zeros((n, a.shape[1] if a.ndim == 2 else 0), dtype)
