@@ -52,6 +52,11 @@ class DamagedPartError(OutputError):
         super().__init__(f"{path}: does not read back ({reason})")
 
 
+LATER_COLUMNS = frozenset({"lost_guarantee", "excused"})
+"""Columns added after sweeps were first written: a part without one reads back with it null
+(the runs' ``lost_guarantee``: not tested; the steps' ``excused``: nothing excused)."""
+
+
 def lean(schema: pa.Schema) -> pa.Schema:
     """Return ``schema`` with float64 fields as float32 (the storage of per-step parts)."""
     return pa.schema([pa.field(f.name, pa.float32()) if pa.types.is_float64(f.type) else f for f in schema])
@@ -86,7 +91,12 @@ def read_part(path: Path, schema: pa.Schema, columns: list[str] | None = None) -
             raise DamagedPartError(path, "empty file")
         # ParquetFile.read, not pq.read_table: the latter builds a dataset per file, ~3x slower here.
         with pq.ParquetFile(path, page_checksum_verification=True) as part:
-            table = part.read(columns=names)
+            have = set(part.schema_arrow.names)
+            # a part written before a column was added reads back with that column null
+            absent = [n for n in names if n not in have and n in LATER_COLUMNS]
+            table = part.read(columns=[n for n in names if n not in absent])
+            for n in absent:
+                table = table.append_column(schema.field(n), pa.nulls(table.num_rows, schema.field(n).type))
     except DamagedPartError:
         raise
     except FileNotFoundError:

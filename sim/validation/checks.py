@@ -259,6 +259,8 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
     if sc.sensor_actual.block_probability > 0:
         single = (f" and kept the certified bound under it through every fix that lost at most "
                   f"{max(1, sc.planning.redundancy)} line(s) of sight")
+        if runs.untested:
+            single += f" ({runs.untested} runs from an older pefsim without that test)"
     detail = (f"runs that reached the goal and never exceeded eps_max = {sc.planning.eps_max:g} m{single} "
               f"({crashed} crashed, counted as failures); Clopper-Pearson [{_fmt(lo)}, {_fmt(hi)}]")
     return CheckResult("plan", CheckStatus.PASS if hi >= target else CheckStatus.FAIL,

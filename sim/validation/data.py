@@ -89,12 +89,15 @@ class RunTable:
         Ran, reached its goal and never exceeded eps_max (:func:`sim.montecarlo.engine.succeeded`).
     mean_nees : (N,) float
         Time-averaged NEES of the pose (3 dof); NaN for a crashed run.
+    untested : int
+        Finished runs written before the single-failure test existed (``lost_guarantee`` null).
     """
 
     run: np.ndarray
     ok: np.ndarray
     succeeded: np.ndarray
     mean_nees: np.ndarray
+    untested: int = 0
 
     def __len__(self) -> int:
         return len(self.run)
@@ -221,7 +224,9 @@ def run_table(runs: pa.Table) -> RunTable:
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)
     return RunTable(run=_np(runs, "run", np.int64, -1), ok=status == "ok",
                     succeeded=np.asarray(succeeded(runs), dtype=bool),
-                    mean_nees=_np(runs, "mean_nees", float, math.nan))
+                    mean_nees=_np(runs, "mean_nees", float, math.nan),
+                    untested=int(np.sum((status == "ok") & np.asarray(runs.column("lost_guarantee").is_null())))
+                    if "lost_guarantee" in runs.column_names else 0)
 
 
 def fix_table(fixes: pa.Table, k: int) -> FixTable:

@@ -137,3 +137,22 @@ def test_unwritable_directory_is_an_output_error(tmp_path):
     blocker.write_text("x")
     with pytest.raises(OutputError, match="cannot create the output directory"):
         SweepLayout(blocker / "sub").make_dirs()
+
+
+def test_parts_written_before_a_column_was_added_read_back_with_it_null(tmp_path, scenario):
+    # a sweep of an earlier pefsim (no lost_guarantee, no excused) still reads, validates and
+    # resumes; a column missing that was always there is still a damaged part
+    layout = SweepLayout(tmp_path)
+    layout.make_dirs()
+    rec, _ = _record(scenario, 0)
+    results.write_record(layout, rec)
+    for folder, name in ((layout.runs_dir, "lost_guarantee"), (layout.steps_dir, "excused")):
+        path = layout.part(folder, 0)
+        pq.write_table(pq.read_table(path).drop_columns([name]), path)
+    runs, steps = results.read_runs(tmp_path), results.read_steps(tmp_path)
+    assert runs.column("lost_guarantee").null_count == 1 and steps.column("excused").null_count == steps.num_rows
+    assert steps.column("certified").null_count == 0
+    path = layout.part(layout.steps_dir, 0)
+    pq.write_table(pq.read_table(path).drop_columns(["certified"]), path)
+    with pytest.raises(OutputError, match="does not read back"):
+        results.read_steps(tmp_path)
