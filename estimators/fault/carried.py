@@ -27,7 +27,8 @@ import numba
 import numpy as np
 
 from estimators import compiled
-from estimators.fault.exact import FaultArea, exact_fault_area
+from estimators.fault.annuli import _OK, _region
+from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION, FaultArea, _input_summary, exact_fault_area
 from scenarios.schema import RobotSpec, SensorSpec
 
 K_SIGMA = 3.0
@@ -247,10 +248,33 @@ def promised_diameters(sensor: SensorSpec, robot: RobotSpec, markers, poses,
     bound = 2.0 * tick + per_metre * np.maximum(travelled.reshape(dx.shape), 0.0)
     carried = np.arange(m.shape[1]) < m.shape[1] - 1
     rho = sensor.range_bound(ranges) + np.where(carried[None, :], bound, 0.0)
-    for i in range(m.shape[0]):
-        area = exact_fault_area(shifted[i], ranges[i], rho[i], p[i, -1])
+    prior = np.ascontiguousarray(p[:, -1])
+    status = np.full(m.shape[0], -1, dtype=np.int64)
+    if m.shape[1] == 2:  # exact_fault_area's closed form, without its per-fix Python and numpy calls
+        _two_range_diameters(np.ascontiguousarray(shifted), ranges, rho, prior, status, diameter)
+    fast = status == _OK
+    empty[fast] = False
+    for i in np.flatnonzero(~fast).tolist():  # the rest as exact_fault_area finds them (or raises)
+        area = exact_fault_area(shifted[i], ranges[i], rho[i], prior[i])
         diameter[i], empty[i] = area.diameter, area.is_empty
     return diameter, empty
+
+
+@numba.njit(cache=True, nogil=True)
+def _two_range_diameters(markers, ranges, rho, prior, status, diameter):
+    """Diameter of exact_fault_area's closed form (default tolerance) for each two-range fix.
+
+    ``status[i]`` is the closed form's (0: applies), or -1 where the inputs are not finite, a
+    rho is not > 0, or a range plus its rho is negative: exact_fault_area decides those rows.
+    """
+    for i in range(markers.shape[0]):
+        total, rho_min, reach_min = _input_summary(markers[i], ranges[i], rho[i])
+        if not (math.isfinite(total) and rho_min > 0.0 and reach_min >= 0.0):
+            continue
+        code, _, _, _, _, d = _region(markers[i], ranges[i], rho[i], prior[i],
+                                      DEFAULT_TOLERANCE_FRACTION * rho_min, False)
+        status[i] = code
+        diameter[i] = d
 
 
 def promised_parallelogram(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float) -> np.ndarray:

@@ -141,6 +141,7 @@ def test_batched_promise_is_the_per_fix_fault_area_bit_for_bit(warehouse, k):
     start = rng.uniform(0, 30, (n, 1, 2))
     poses = start + np.cumsum(rng.normal(0, 0.05, (n, k, 2)), axis=1)
     poses[1] = poses[1, :1]                                                            # standstill
+    poses[2] = markers[2].mean(axis=0)             # on the marker line: not the closed form's case
     hs = sc.planning.heading_std
     diameter, empty = promised_diameters(sc.sensor, sc.robot, markers, poses, hs)
     areas = [promised_fault_area(sc.sensor, sc.robot, m, p, hs) for m, p in zip(markers, poses, strict=True)]
