@@ -82,7 +82,9 @@ def drift_bound(robot: RobotSpec, distance: np.ndarray | float, turned: np.ndarr
     float or ndarray, broadcast shape of ``distance`` and ``turned``
         Position error bound [m]; exactly 0 when the robot has neither moved nor turned.
     """
-    d, phi = np.broadcast_arrays(np.asarray(distance, dtype=float), np.abs(np.asarray(turned, dtype=float)))
+    d, phi = np.asarray(distance, dtype=float), np.abs(np.asarray(turned, dtype=float))
+    if d.shape != phi.shape:
+        d, phi = np.broadcast_arrays(d, phi)
     shape = d.shape
     d, phi = np.ascontiguousarray(d).reshape(-1), np.ascontiguousarray(phi).reshape(-1)
     out = np.empty(d.size)
