@@ -27,7 +27,8 @@ import numba
 import numpy as np
 
 from estimators import compiled
-from estimators.fault.exact import FaultArea, exact_fault_area
+from estimators.fault.annuli import _OK, _region
+from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION, FaultArea, _input_summary, exact_fault_area
 from scenarios.schema import RobotSpec, SensorSpec
 
 K_SIGMA = 3.0
@@ -205,6 +206,75 @@ def promised_fault_area(sensor: SensorSpec, robot: RobotSpec, markers, poses, he
     shifted, travelled = carry(m, p, end)
     rho = sensor.range_bound(ranges) + np.where(carried, shift_bound(robot, travelled, heading_std), 0.0)
     return exact_fault_area(shifted, ranges, rho, end)
+
+
+def promised_diameters(sensor: SensorSpec, robot: RobotSpec, markers, poses,
+                       heading_std: float) -> tuple[np.ndarray, np.ndarray]:
+    """``promised_fault_area(...)``'s diameter and emptiness for many fixes.
+
+    The same construction and the same floating-point operations as :func:`promised_fault_area`
+    with the default ``end`` and ``carried``, prepared for all fixes at once (the schedule's
+    chosen fixes: per-fix numpy calls on arrays of two cost more than the fault areas).
+
+    Parameters
+    ----------
+    sensor, robot, heading_std
+        As in :func:`promised_fault_area`.
+    markers : array_like, shape (F, k, 2)
+        Each fix's markers in measurement order [m].
+    poses : array_like, shape (F, k, 2)
+        Planned position at each measurement of each fix [m]; the last is the fix's position.
+
+    Returns
+    -------
+    diameter : numpy.ndarray, shape (F,)
+        Fault-area diameter [m] (nan where empty).
+    empty : numpy.ndarray of bool, shape (F,)
+        No position is consistent with the fix's ranges.
+    """
+    m = np.asarray(markers, dtype=float)
+    p = np.asarray(poses, dtype=float)
+    if m.ndim != 3 or m.shape[-1] != 2 or p.shape != m.shape:
+        raise ValueError(f"promised_diameters: markers {m.shape} and poses {p.shape} must both be (F, k, 2)")
+    diameter, empty = np.full(m.shape[0], np.nan), np.ones(m.shape[0], dtype=bool)
+    if m.shape[0] == 0 or m.shape[1] == 0:
+        return diameter, empty
+    ranges = np.hypot(p[..., 0] - m[..., 0], p[..., 1] - m[..., 1])
+    # carry() with rotation 0: M + 1.0 (end - at) - 0.0 (...), and math.hypot for the travel
+    dx, dy = p[:, -1:, 0] - p[..., 0], p[:, -1:, 1] - p[..., 1]
+    shifted = np.stack([m[..., 0] + 1.0 * dx - 0.0 * dy, m[..., 1] + 0.0 * dx + 1.0 * dy], axis=-1)
+    travelled = np.array([math.hypot(a, b) for a, b in zip(dx.ravel().tolist(), dy.ravel().tolist(), strict=True)])
+    tick, per_metre = _shift_coefficients(robot, heading_std)
+    bound = 2.0 * tick + per_metre * np.maximum(travelled.reshape(dx.shape), 0.0)
+    carried = np.arange(m.shape[1]) < m.shape[1] - 1
+    rho = sensor.range_bound(ranges) + np.where(carried[None, :], bound, 0.0)
+    prior = np.ascontiguousarray(p[:, -1])
+    status = np.full(m.shape[0], -1, dtype=np.int64)
+    if m.shape[1] == 2:  # exact_fault_area's closed form, without its per-fix Python and numpy calls
+        _two_range_diameters(np.ascontiguousarray(shifted), ranges, rho, prior, status, diameter)
+    fast = status == _OK
+    empty[fast] = False
+    for i in np.flatnonzero(~fast).tolist():  # the rest as exact_fault_area finds them (or raises)
+        area = exact_fault_area(shifted[i], ranges[i], rho[i], prior[i])
+        diameter[i], empty[i] = area.diameter, area.is_empty
+    return diameter, empty
+
+
+@numba.njit(cache=True, nogil=True)
+def _two_range_diameters(markers, ranges, rho, prior, status, diameter):
+    """Diameter of exact_fault_area's closed form (default tolerance) for each two-range fix.
+
+    ``status[i]`` is the closed form's (0: applies), or -1 where the inputs are not finite, a
+    rho is not > 0, or a range plus its rho is negative: exact_fault_area decides those rows.
+    """
+    for i in range(markers.shape[0]):
+        total, rho_min, reach_min = _input_summary(markers[i], ranges[i], rho[i])
+        if not (math.isfinite(total) and rho_min > 0.0 and reach_min >= 0.0):
+            continue
+        code, _, _, _, _, d = _region(markers[i], ranges[i], rho[i], prior[i],
+                                      DEFAULT_TOLERANCE_FRACTION * rho_min, False)
+        status[i] = code
+        diameter[i] = d
 
 
 def promised_parallelogram(sensor: SensorSpec, robot: RobotSpec, markers, poses, heading_std: float) -> np.ndarray:

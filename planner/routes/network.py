@@ -12,9 +12,11 @@ import itertools
 import math
 from collections.abc import Callable
 
-import networkx as nx
 import numpy as np
 
+from planner.routes.paths import Graph, NoPath
+from planner.routes.paths import all_simple_paths as _all_simple_paths
+from planner.routes.paths import shortest_simple_paths as _shortest_simple_paths
 from scenarios.errors import PlanningError
 from scenarios.schema import RouteNetwork
 
@@ -23,7 +25,7 @@ MAX_ALL_PATHS = 200
 
 
 class RouteGraph:
-    """An undirected route graph: a :class:`networkx.Graph` with node positions.
+    """An undirected route graph: a :class:`planner.routes.paths.Graph` with node positions.
 
     Edges carry ``weight`` (the segment's length [m]), ``traffic`` (its density, 0 if
     missing) and ``why_not`` (why it may not be driven, "" if it may; see
@@ -37,13 +39,14 @@ class RouteGraph:
 
     def __init__(self, pos: dict[str, tuple[float, float]]):
         self.pos = dict(pos)
-        self.g = nx.Graph()
-        self.g.add_nodes_from(self.pos)
+        self.g = Graph()
+        for n in self.pos:
+            self.g.add_node(n)
 
     @property
     def adj(self) -> dict[str, dict[str, float]]:
         """Neighbours of each node with the segment length [m] (a fresh dict)."""
-        return {u: {v: d["weight"] for v, d in nbrs.items()} for u, nbrs in self.g.adj.items()}
+        return self.g.weights()
 
     def add_segment(self, a: str, b: str, traffic: float = 0.0, why_not: str = "", label: str = "") -> None:
         """Join nodes ``a`` and ``b`` by a straight segment with the given traffic density.
@@ -55,9 +58,12 @@ class RouteGraph:
                         why_not=why_not, label=label or f"{a}-{b}")
 
     @property
-    def usable(self) -> nx.Graph:
-        """A view of the graph without the segments that may not be driven."""
-        return nx.subgraph_view(self.g, filter_edge=lambda a, b: not self.g.edges[a, b]["why_not"])
+    def usable(self) -> dict[str, dict[str, float]]:
+        """Segment lengths ``{u: {v: m}}`` without the segments that may not be driven.
+
+        Every node, each neighbour list in the graph's order (the searches' tie-breaks).
+        """
+        return self.g.weights(keep=lambda d: not d["why_not"])
 
     def polyline(self, nodes: list[str]) -> np.ndarray:
         """Positions of a node sequence, shape (n, 2) [m]."""
@@ -65,11 +71,11 @@ class RouteGraph:
 
     def segment_traffic(self, nodes: list[str]) -> list[float]:
         """Traffic density of each segment of a node sequence, length n - 1."""
-        return [self.g.edges[a, b]["traffic"] for a, b in zip(nodes[:-1], nodes[1:], strict=True)]
+        return [self.g.edge(a, b)["traffic"] for a, b in zip(nodes[:-1], nodes[1:], strict=True)]
 
     def path_length(self, nodes: list[str]) -> float:
         """Length [m] of a node sequence along its segments."""
-        return sum(self.g.edges[a, b]["weight"] for a, b in zip(nodes[:-1], nodes[1:], strict=True))
+        return sum(self.g.edge(a, b)["weight"] for a, b in zip(nodes[:-1], nodes[1:], strict=True))
 
 
 def build_graph(network: RouteNetwork) -> RouteGraph:
@@ -118,21 +124,21 @@ def all_simple_paths(graph: RouteGraph, start: str, goal: str,
                      limit: int = MAX_ALL_PATHS) -> list[list[str]] | None:
     """Every simple path from ``start`` to ``goal``, or None if there are more than ``limit``.
 
-    networkx's depth-first enumeration, stopped after ``limit + 1`` paths so a huge network
+    A depth-first enumeration (networkx's), stopped after ``limit + 1`` paths so a huge network
     never stalls here.
     """
-    paths = list(itertools.islice(nx.all_simple_paths(graph.usable, start, goal), limit + 1))
+    paths = list(itertools.islice(_all_simple_paths(graph.usable, start, goal), limit + 1))
     return None if len(paths) > limit else paths
 
 
 def k_shortest_paths(graph: RouteGraph, start: str, goal: str, k: int) -> list[list[str]]:
-    """Find the ``k`` shortest simple paths by length (networkx's Yen), shortest first.
+    """Find the ``k`` shortest simple paths by length (Yen, as networkx), shortest first.
 
     Returns fewer when the graph has fewer simple paths.
     """
     try:
-        return list(itertools.islice(nx.shortest_simple_paths(graph.usable, start, goal, weight="weight"), k))
-    except nx.NetworkXNoPath:
+        return list(itertools.islice(_shortest_simple_paths(graph.usable, start, goal), k))
+    except NoPath:
         return []
 
 
@@ -182,11 +188,13 @@ def _unconnected(graph: RouteGraph, start: str, goal: str, names: tuple[str, str
         what = f"from {names[0]!r} to {names[1]!r} (nodes {start} and {goal})"
     else:
         what = f"from {start!r} to {goal!r}"
+    import networkx as nx  # here: its import costs 0.2 s, and only a failed search gets here
+
     try:
-        through = nx.shortest_path(graph.g, start, goal, weight="weight")
+        through = nx.shortest_path(graph.g.to_networkx(), start, goal, weight="weight")
     except nx.NetworkXNoPath:
         return PlanningError(f"no route {what}: the route network does not connect them")
-    blocked = [graph.g.edges[a, b] for a, b in zip(through[:-1], through[1:], strict=True)]
+    blocked = [graph.g.edge(a, b) for a, b in zip(through[:-1], through[1:], strict=True)]
     blocked = [f"edge {e['label']}: {e['why_not']}" for e in blocked if e["why_not"]]
     return PlanningError(f"no admissible route {what}: the route network joins them only over inadmissible "
                          "segments; the shortest such route uses " + "; ".join(blocked))

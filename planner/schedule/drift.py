@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from scenarios.schema import RobotSpec
@@ -81,18 +82,33 @@ def drift_bound(robot: RobotSpec, distance: np.ndarray | float, turned: np.ndarr
     float or ndarray, broadcast shape of ``distance`` and ``turned``
         Position error bound [m]; exactly 0 when the robot has neither moved nor turned.
     """
-    d = np.asarray(distance, dtype=float)
-    phi = np.abs(np.asarray(turned, dtype=float))
-    b, e, sigma = robot.wheel_base, abs(robot.wheel_radius_error), robot.odometry_noise
-    q = encoder_step(robot)
-    arc = 0.5 * b * phi  # each wheel's travel in the turn [m]
+    d, phi = np.asarray(distance, dtype=float), np.abs(np.asarray(turned, dtype=float))
+    if d.shape != phi.shape:
+        d, phi = np.broadcast_arrays(d, phi)
+    shape = d.shape
+    d, phi = np.ascontiguousarray(d).reshape(-1), np.ascontiguousarray(phi).reshape(-1)
+    out = np.empty(d.size)
+    # the power in numpy (its own SIMD loop on some CPUs), the rest compiled: the schedule's search
+    # calls this thousands of times on short arrays, where forty numpy calls cost 60 us
+    _drift_kernel(d, phi, d ** 1.5, float(robot.wheel_base), float(abs(robot.wheel_radius_error)),
+                  float(robot.odometry_noise), float(encoder_step(robot)), float(k_sigma), float(heading_error),
+                  increment is None, 0.0 if increment is None else float(increment), math.sqrt(2.0 / 3.0), out)
+    return float(out[0]) if len(shape) == 0 else out.reshape(shape)
 
-    systematic = e * (d + arc) + e * d * d / b + e * phi * d
-    delta_d = d if increment is None else np.minimum(increment, d)
-    delta_t = arc if increment is None else np.minimum(increment, arc)
-    random_std = sigma * (np.sqrt(0.5 * delta_d * d) + math.sqrt(2.0 / 3.0) * np.sqrt(delta_d) * d ** 1.5 / b
-                          + np.sqrt(0.5 * delta_t * arc) + np.sqrt(delta_t * 2.0 * arc) * d / b)
-    moved = (d > 0.0) | (phi > 0.0)
-    quantisation = np.where(moved, q, 0.0) + 2.0 * q * d / b
-    out = systematic + k_sigma * random_std + quantisation + heading_error * d
-    return float(out) if out.ndim == 0 else out
+
+@numba.njit(cache=True, nogil=True)
+def _drift_kernel(d, phi, d15, b, e, sigma, q, k_sigma, heading_error, correlated, increment, c23, out):
+    """:func:`drift_bound` element by element, in numpy's order of operations (correlated: increment None)."""
+    half_b = 0.5 * b
+    two_q = 2.0 * q
+    for i in range(d.size):
+        di, ph = d[i], phi[i]
+        arc = half_b * ph  # each wheel's travel in the turn [m]
+        systematic = e * (di + arc) + e * di * di / b + e * ph * di
+        delta_d = di if correlated else min(increment, di)
+        delta_t = arc if correlated else min(increment, arc)
+        random_std = sigma * (np.sqrt(0.5 * delta_d * di) + c23 * np.sqrt(delta_d) * d15[i] / b
+                              + np.sqrt(0.5 * delta_t * arc) + np.sqrt(delta_t * 2.0 * arc) * di / b)
+        moved = di > 0.0 or ph > 0.0
+        quantisation = (q if moved else 0.0) + two_q * di / b
+        out[i] = systematic + k_sigma * random_std + quantisation + heading_error * di

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.fault.carried import promised_fault_area, promised_parallelogram_best
+from estimators.fault.carried import promised_diameters, promised_parallelogram_best
 from planner.routes.smoothing import acceleration_limited
 from planner.schedule.pathtime import Kinematics, Track, positions_at
 from scenarios.schema import Scenario
@@ -224,12 +224,14 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
         at = np.stack([np.interp(s_m, s_v, path[:, 0]), np.interp(s_m, s_v, path[:, 1])], axis=-1)
         if n == 0:
             poses = at
-        for i, sub in enumerate(subsets):
-            if n > 0 and (still[i] or not np.isfinite(out[i])):
-                continue  # a standstill fix does not lag; an empty area stays none
-            area = promised_fault_area(scenario.sensor, scenario.robot, markers[list(sub)], at[i],
-                                       scenario.planning.heading_std)
-            out[i] = max(out[i], area.diameter) if not area.is_empty else np.inf
+        # a standstill fix does not lag; an empty area stays none
+        rows = np.arange(len(subsets)) if n == 0 else np.flatnonzero(~still & np.isfinite(out))
+        if rows.size == 0:
+            continue
+        diameter, empty = promised_diameters(scenario.sensor, scenario.robot, markers[np.asarray(subsets)[rows]],
+                                             at[rows], scenario.planning.heading_std)
+        for i, d, e in zip(rows.tolist(), diameter.tolist(), empty.tolist(), strict=True):
+            out[i] = max(out[i], d) if not e else np.inf
     return np.where(out == -np.inf, np.inf, out), poses, kin
 
 

@@ -306,10 +306,11 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                 (float(tr.s[starts[i]]), ends[0]),
                 more=tuple((float(tr.s[starts[j]]), e) for j, e in zip(holes[1:], ends[1:], strict=True)))
 
+    fix_speed = _fix_speeds(kin, tr.s[starts], k, sensor.measurement_time)
     fixes = tuple(
         ScheduledFix(s=float(tr.s[j]), position=(float(tr.xy[j, 0]), float(tr.xy[j, 1])),
                      markers=order[i], tau=float(tau_s[c, j]), switch=i > 0 and c != chosen[i - 1][1],
-                     predicted_tau=float(pred[i]), speed=_fix_speed(kin, tr.s[j], k, sensor.measurement_time, i),
+                     predicted_tau=float(pred[i]), speed=float(fix_speed[i]),
                      slowed=bool(fix_level[i] > 0), poses=tuple(tuple(map(float, q)) for q in poses[i]),
                      fallbacks=fb[i], fallback_tau=fb_tau[i])
         for i, (j, c, _) in enumerate(chosen))
@@ -346,12 +347,11 @@ def _covered_without(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list
     return bool(err < pl.eps)
 
 
-def _fix_speed(kin, s0: float, k: int, mt: float, i: int) -> float:
-    """Mean planned speed over a fix started at ``s0`` [m/s] (0 for the standstill fix, i = 0)."""
-    if i == 0:
-        return 0.0
-    t0 = float(kin.t_at(np.array(s0)))
-    return float((kin.s_at(np.array(t0 + k * mt)) - s0) / (k * mt))
+def _fix_speeds(kin, s0: np.ndarray, k: int, mt: float) -> np.ndarray:
+    """Mean planned speed over each fix started at ``s0`` (F,) [m/s] (0 for the standstill fix, the first)."""
+    speed = (kin.s_at(kin.t_at(s0) + k * mt) - s0) / (k * mt)
+    speed[:1] = 0.0
+    return speed
 
 
 def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):

@@ -100,3 +100,21 @@ def test_disconnected_goal_raises():
                        segments=(("a", "b"), ("c", "d")))
     with pytest.raises(PlanningError, match="does not connect"):
         network.candidate_routes(network.build_graph(net), "a", "d")
+
+
+def test_usable_graph_keeps_the_neighbour_order_and_drops_inadmissible_segments():
+    rng = np.random.default_rng(4)
+    g = network.build_graph(random_network(rng, 9, 0.5))
+    edges = g.g.edges()
+    for a, b in edges[::3]:  # re-added segments keep their place, the last why_not counts
+        g.add_segment(a, b, why_not="one way")
+    g.add_segment(*edges[3], why_not="")
+    network.attach(g, "D", (5.0, 5.0), lambda p, q: True)
+    u = g.usable
+    kept = [(a, b) for a, b in g.g.edges() if not g.g.edge(a, b)["why_not"]]
+    assert 0 < len(kept) < len(edges) and sum(map(len, u.values())) == 2 * len(kept)
+    assert list(u) == list(g.pos)
+    # a neighbour list is the graph's own, less the inadmissible segments: the searches' tie-break
+    for n in g.pos:
+        assert list(u[n]) == [m for m in g.g.adj[n] if not g.g.edge(n, m)["why_not"]]
+    assert all(u[a][b] == g.g.edge(a, b)["weight"] == math.dist(g.pos[a], g.pos[b]) for a, b in kept)

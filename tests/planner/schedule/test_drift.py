@@ -113,3 +113,33 @@ def test_vectorised_monotone_and_zero_at_rest():
     heavier = dataclasses.replace(robot, wheel_radius_error=0.01)
     assert drift_bound(heavier, 1.0) > drift_bound(robot, 1.0)
     assert drift_bound(robot, 1.0, heading_error=0.01) == pytest.approx(drift_bound(robot, 1.0) + 0.01)
+
+
+def _numpy_bound(robot, d, phi, k_sigma=3.0, heading_error=0.0, increment=0.02):
+    """Compute the bound as plain numpy expressions (the module doc's formula, numpy's order of operations)."""
+    d, phi = np.asarray(d, float), np.abs(np.asarray(phi, float))
+    b, e, sigma, q = robot.wheel_base, abs(robot.wheel_radius_error), robot.odometry_noise, encoder_step(robot)
+    arc = 0.5 * b * phi
+    systematic = e * (d + arc) + e * d * d / b + e * phi * d
+    delta_d = d if increment is None else np.minimum(increment, d)
+    delta_t = arc if increment is None else np.minimum(increment, arc)
+    random_std = sigma * (np.sqrt(0.5 * delta_d * d) + math.sqrt(2.0 / 3.0) * np.sqrt(delta_d) * d ** 1.5 / b
+                          + np.sqrt(0.5 * delta_t * arc) + np.sqrt(delta_t * 2.0 * arc) * d / b)
+    quantisation = np.where((d > 0.0) | (phi > 0.0), q, 0.0) + 2.0 * q * d / b
+    return systematic + k_sigma * random_std + quantisation + heading_error * d
+
+
+@pytest.mark.parametrize("kw", [{}, {"increment": None}, {"increment": 0.005, "k_sigma": 2.0, "heading_error": 3e-3}])
+def test_compiled_bound_is_the_numpy_formula_bit_for_bit(kw):
+    robot = dataclasses.replace(RobotSpec(), wheel_radius_error=-0.003)
+    rng = np.random.default_rng(21)
+    d = np.concatenate([[0.0, 0.0, 1e-9, 0.005, 0.02], rng.uniform(0, 50, 5000), rng.exponential(0.01, 500)])
+    phi = np.concatenate([[0.0, 0.4, 0.0, 0.0, 1e-3], rng.uniform(-6, 6, 5000), np.zeros(500)])
+    ref = _numpy_bound(robot, d, phi, **kw)
+    assert np.array_equal(drift_bound(robot, d, phi, **kw), ref)
+    grid = drift_bound(robot, d[:60].reshape(6, 10), phi[:10], **kw)             # broadcast (6, 10)
+    assert grid.shape == (6, 10) and np.array_equal(grid, _numpy_bound(robot, d[:60].reshape(6, 10), phi[:10], **kw))
+    one = drift_bound(robot, 3.0, 0.2, **kw)
+    assert isinstance(one, float) and one == float(_numpy_bound(robot, 3.0, 0.2, **kw))
+    # negative control: a different increment is a different bound, so the comparison can tell
+    assert not np.array_equal(drift_bound(robot, d, phi, **(kw | {"increment": 0.03})), ref)

@@ -10,6 +10,7 @@ import pytest
 import scenarios
 from estimators.fault.carried import (
     carry,
+    promised_diameters,
     promised_fault_area,
     promised_parallelogram,
     promised_parallelogram_best,
@@ -129,6 +130,26 @@ def test_compiled_best_order_is_the_vectorised_parallelogram_bit_for_bit(warehou
     assert np.array_equal(tau, np.minimum(fwd, rev))  # bit for bit, inf included
     assert np.array_equal(flip, rev < fwd)
     assert np.isinf(tau).any() and flip.any() and not flip.all()
+
+
+@pytest.mark.parametrize("k", [2, 3])
+def test_batched_promise_is_the_per_fix_fault_area_bit_for_bit(warehouse, k):
+    sc, _ = warehouse
+    rng = np.random.default_rng(5 + k)
+    n = 12 if k == 2 else 4
+    markers = rng.uniform(0, 30, (n, k, 2))
+    start = rng.uniform(0, 30, (n, 1, 2))
+    poses = start + np.cumsum(rng.normal(0, 0.05, (n, k, 2)), axis=1)
+    poses[1] = poses[1, :1]                                                            # standstill
+    poses[2] = markers[2].mean(axis=0)             # on the marker line: not the closed form's case
+    hs = sc.planning.heading_std
+    diameter, empty = promised_diameters(sc.sensor, sc.robot, markers, poses, hs)
+    areas = [promised_fault_area(sc.sensor, sc.robot, m, p, hs) for m, p in zip(markers, poses, strict=True)]
+    assert np.array_equal(diameter, [a.diameter for a in areas])
+    assert np.array_equal(empty, [a.is_empty for a in areas]) and not empty.any()
+    # the measurement order matters (the earlier ranges are carried): the check can tell
+    reversed_order, _ = promised_diameters(sc.sensor, sc.robot, markers[:, ::-1], poses, hs)
+    assert not np.array_equal(reversed_order, diameter)
 
 
 def test_parallelogram_of_the_construction_tracks_its_exact_area(warehouse):
