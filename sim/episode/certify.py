@@ -69,14 +69,16 @@ def certified_bound(robot: RobotSpec, t: np.ndarray, s: np.ndarray, heading: np.
     return out
 
 
-def single_failure_excused(t: np.ndarray, attempt_t: np.ndarray, beyond: np.ndarray, fix_time: float) -> np.ndarray:
+def single_failure_excused(t: np.ndarray, attempt_t: np.ndarray, beyond: np.ndarray, done_t: np.ndarray,
+                           planned: np.ndarray, fix_time: float) -> np.ndarray:
     """Mark the steps the single-failure test does not judge (too many lines of sight lost before).
 
-    A fix attempt is *beyond* the test when more of the markers the plan counted on at it (the
-    scheduled subset and, with one of them blocked, its fallback) were blocked than the test
-    allows (:func:`lost_markers`). From such an attempt's start until the next attempt within the
-    test completes (its start plus ``fix_time``) the certified bound is not judged: no layout
-    promised anything there.
+    A fix attempt is *beyond* the test when more than one of the markers the plan counted on at
+    it (the scheduled subset and, with one of them blocked, its fallback) were blocked
+    (:func:`lost_markers`). From such an attempt's start, the certified bound is not judged
+    until a fix *completes* that was started by a later attempt within the test and measured
+    what the plan named (the scheduled subset or its fallback): an attempt that started no fix,
+    lost a marker mid-fix or improvised leaves the robot on fixes older than the excused one.
 
     Parameters
     ----------
@@ -86,8 +88,12 @@ def single_failure_excused(t: np.ndarray, attempt_t: np.ndarray, beyond: np.ndar
         Start time of each fix attempt [s], ascending (attempts that started no fix included).
     beyond : ndarray of bool, shape (A,)
         The attempt lost more lines of sight than the test allows.
+    done_t : ndarray, shape (F,)
+        Completion time of each fix completed [s], ascending.
+    planned : ndarray of bool, shape (F,)
+        The completed fix measured the scheduled subset or its fallback.
     fix_time : float
-        Duration of a fix [s].
+        Duration of a fix [s]; a fix completes no earlier than its attempt's start plus this.
 
     Returns
     -------
@@ -95,12 +101,19 @@ def single_failure_excused(t: np.ndarray, attempt_t: np.ndarray, beyond: np.ndar
     """
     t = np.asarray(t, float)
     attempt_t, beyond = np.asarray(attempt_t, float), np.asarray(beyond, bool)
+    done_t, planned = np.asarray(done_t, float), np.asarray(planned, bool)
     out = np.zeros(t.shape, dtype=bool)
-    ok_t = attempt_t[~beyond]
-    for a in attempt_t[beyond].tolist():
-        i = int(np.searchsorted(ok_t, a, side="right"))
-        end = ok_t[i] + fix_time if i < ok_t.size else np.inf
-        out[(t >= a) & (t <= end)] = True
+    if not beyond.any():
+        return out
+    # each completed fix's attempt: the last one started at least a fix's duration before it
+    of = np.searchsorted(attempt_t, done_t - fix_time * (1.0 - 1e-9), side="right") - 1
+    closes = planned & (of >= 0)
+    closes[closes] &= ~beyond[of[closes]]
+    close_t, close_of = done_t[closes], of[closes]
+    for a in np.flatnonzero(beyond).tolist():
+        later = np.flatnonzero(close_of > a)
+        end = close_t[later[0]] if later.size else np.inf
+        out[(t >= attempt_t[a]) & (t <= end)] = True
     return out
 
 

@@ -245,10 +245,10 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     counts = {"merged": 0, "reads": 0}   # reads: odometry reads outside the control ticks
 
     fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
-    # the single-failure test: with lines of sight blocked, the guarantee must survive any
-    # max(1, redundancy) of them lost at a fix (a redundancy-0 layout is held to one too)
+    # the single-failure test: with lines of sight blocked, the guarantee must survive one of
+    # them lost at any fix (a redundancy-0 layout is held to it too; the schedule's one
+    # fallback per marker covers no more, whatever planning.redundancy says)
     attempts: list[tuple[float, bool]] = []
-    tolerated = max(1, scenario.planning.redundancy)
 
     def start_fix(s_now: float, t: float) -> None:
         # Start the latest scheduled fix the robot has passed, when the laser is free again.
@@ -264,7 +264,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             laser.blocked = frozenset(np.flatnonzero(rng_block.random(n_markers) < q_block).tolist())
             fixes.blocked_markers += len(laser.blocked & set(schedule.fixes[f].markers))
             lost = lost_markers(laser.blocked, schedule.fixes[f].markers, schedule.fixes[f].fallbacks)
-            attempts.append((t, lost > tolerated))
+            attempts.append((t, lost > 1))
         subset = fixes.choose_subset(schedule.fixes[f].markers, loc.x[:2], schedule.fixes[f])
         if subset is None:
             fixes.skipped += 1
@@ -332,7 +332,9 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     lost_guarantee = 0
     if q_block > 0.0:
         at = np.array(attempts, dtype=float).reshape(-1, 2)
-        excused = single_failure_excused(steps.t, at[:, 0], at[:, 1] > 0.5, k * scenario.sensor.measurement_time)
+        planned = ~np.asarray(fix_log.beyond_redundancy, bool) & np.isfinite(fix_log.predicted_tau)
+        excused = single_failure_excused(steps.t, at[:, 0], at[:, 1] > 0.5, fix_log.t, planned,
+                                         k * scenario.sensor.measurement_time)
         lost_guarantee = int(np.sum((certified > scenario.planning.eps_max * (1.0 + PROMISE_TOLERANCE)) & ~excused))
         steps.excused = excused
     goal = np.array(scenario.dock(task.goal).position)

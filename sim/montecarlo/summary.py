@@ -47,7 +47,7 @@ def succeeded(runs: pa.Table) -> np.ndarray:
 
     With lines of sight blocked (``sensor.block_probability`` > 0) a run must also pass the
     single-failure test: its certified bound stayed under ε_max wherever no more lines of sight
-    were lost at a fix than ``max(1, planning.redundancy)`` (column ``lost_guarantee``,
+    were lost at a fix than one (column ``lost_guarantee``,
     :func:`sim.episode.certify.single_failure_excused`; 0 without blocking).
     """
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)

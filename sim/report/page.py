@@ -113,7 +113,7 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                           "Lines of sight blocked at random (sensor.block_probability): orange, fixes that "
                           "measured the schedule's fallback subset; crosses, steps where the bound the fixes "
                           "actually taken certify (their promises plus the drift since) exceeded ε_max. Red: "
-                          "after fixes that lost at most max(1, redundancy) lines of sight, i.e. where the "
+                          "after fixes that lost at most one line of sight, i.e. where the "
                           "layout fails the single-failure test the plan check counts; grey: after fixes "
                           "that lost more, which no such layout promises.",
                           figs.png_bytes(fig)))

@@ -243,7 +243,7 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
     """Check the fraction of runs that reach the goal with the error under eps_max all along.
 
     With lines of sight blocked, a run must also keep its certified bound under eps_max through
-    every fix that lost at most ``max(1, planning.redundancy)`` of the markers the plan counted
+    every fix that lost at most one of the markers the plan counted
     on (the single-failure test, :func:`sim.montecarlo.summary.succeeded`): what a layout placed
     for redundancy promises, and what a redundancy-0 layout does not.
     Crashed runs count as failures. Fails when the upper end of the two-sided Clopper-Pearson
@@ -257,8 +257,8 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
     sc = data.scenario
     single = ""
     if sc.sensor_actual.block_probability > 0:
-        single = (f" and kept the certified bound under it through every fix that lost at most "
-                  f"{max(1, sc.planning.redundancy)} line(s) of sight")
+        single = (" and kept the certified bound under it through every fix that lost at most "
+                  "one line of sight")
         if runs.untested:
             single += f" ({runs.untested} runs from an older pefsim without that test)"
     detail = (f"runs that reached the goal and never exceeded eps_max = {sc.planning.eps_max:g} m{single} "

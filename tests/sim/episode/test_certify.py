@@ -55,30 +55,44 @@ def test_a_fix_left_out_is_told_apart():
                            certified_bound(robot, t, s, heading, fix_t, worse, 0.04), rtol=1e-12, atol=0)
 
 
-def _excused_reference(t, attempt_t, beyond, fix_time):
+def _excused_reference(t, attempt_t, beyond, done_t, planned, fix_time):
     # the docstring, step by step: excused when some attempt beyond the test started at or before
-    # the step and no attempt within the test started after it and completed before the step
+    # the step and no fix completed before the step that a later attempt within the test
+    # started (the last attempt at least fix_time before its completion) and that was planned
     out = np.zeros(t.size, dtype=bool)
+    owner = [int(np.flatnonzero(attempt_t <= d - fix_time + 1e-12)[-1]) for d in done_t]
     for i, ti in enumerate(t):
         for a in np.flatnonzero(beyond & (attempt_t <= ti)):
-            cleared = (~beyond) & (attempt_t > attempt_t[a]) & (attempt_t + fix_time < ti)
-            if not cleared.any():
+            cleared = any(o > a and not beyond[o] and p and d < ti
+                          for o, d, p in zip(owner, done_t, planned, strict=True))
+            if not cleared:
                 out[i] = True
                 break
     return out
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_single_failure_excused_matches_its_definition(seed):
+def _attempts(seed):
     rng = np.random.default_rng(seed)
     t = np.arange(1200) / 60.0
-    attempt_t = np.sort(rng.choice(t[3:], 90, replace=False))
+    attempt_t = np.sort(rng.choice(t[3:-30], 90, replace=False))
     beyond = rng.random(attempt_t.size) < 0.25
-    got = single_failure_excused(t, attempt_t, beyond, fix_time=0.04)
-    np.testing.assert_array_equal(got, _excused_reference(t, attempt_t, beyond, 0.04))
+    completes = rng.random(attempt_t.size) < 0.85          # some attempts start or finish no fix
+    done_t = attempt_t[completes] + 0.04 + rng.uniform(0.0, 1.0 / 240.0, completes.sum())
+    planned = rng.random(done_t.size) < 0.9                 # some completed fixes improvised
+    return t, attempt_t, beyond, done_t, planned
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_single_failure_excused_matches_its_definition(seed):
+    t, attempt_t, beyond, done_t, planned = _attempts(seed)
+    got = single_failure_excused(t, attempt_t, beyond, done_t, planned, fix_time=0.04)
+    np.testing.assert_array_equal(got, _excused_reference(t, attempt_t, beyond, done_t, planned, 0.04))
     assert 0 < got.sum() < t.size
+    # an attempt that completes nothing, or improvises, does not end the excuse
+    every = single_failure_excused(t, attempt_t, beyond, attempt_t + 0.04, np.ones(attempt_t.size, bool), 0.04)
+    assert np.all(got >= every) and got.sum() > every.sum()
     # negative control: no attempt beyond the test excuses nothing
-    assert not single_failure_excused(t, attempt_t, np.zeros_like(beyond), 0.04).any()
+    assert not single_failure_excused(t, attempt_t, np.zeros_like(beyond), done_t, planned, 0.04).any()
 
 
 def test_lost_markers_counts_the_scheduled_subset_and_its_fallback():
