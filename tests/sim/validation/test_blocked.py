@@ -68,9 +68,10 @@ def test_validate_passes_with_a_fifth_of_lines_of_sight_blocked_and_fails_with_a
 def test_a_redundancy_0_layout_fails_the_single_failure_test(capsys, tmp_path):
     # The same candidate sites placed for redundancy 0 (26 reflectors against 49): at q = 0.2 a
     # fifth of the fixes lose a marker that has no fallback, and the certified bound breaks
-    # eps_max in about 3 runs of 4 (40-run sweep). The plan check fails when the Clopper-Pearson
-    # upper end is under 0.95: at 8 runs that takes at least 4 failures, which a 3-in-4 failure
-    # rate misses with probability 0.027. The redundancy-1 placement of the test above passes.
+    # eps_max in about half the runs (95 of 200 pass). The plan check fails when the
+    # Clopper-Pearson upper end is under 0.95: at 20 runs, at 14 successes or fewer, which a
+    # success rate of 0.475 exceeds with probability 0.012. The redundancy-1 placement of the
+    # test above passes (200 of 200 at 200 runs).
     from planner.placement.placement import place, write_scenario_with_markers
 
     base = scenarios.load("warehouse-reflectors")
@@ -80,14 +81,14 @@ def test_a_redundancy_0_layout_fails_the_single_failure_test(capsys, tmp_path):
     assert res.count < len(base.markers)
     path = write_scenario_with_markers(sc, res, tmp_path / "r0.toml")
     out = tmp_path / "r0"
-    code, report = _validate(capsys, [str(path), "--runs", "8", "--workers", "2", "--out", str(out)])
+    code, report = _validate(capsys, [str(path), "--runs", "20", "--workers", "2", "--out", str(out)])
     status = {c["name"]: c["status"] for c in report["checks"]}
     assert code == 1 and status["plan"] == "FAIL", status
     # it is the single-failure test that fails it: the realised error stays small
     runs = results.read_runs(out)
     assert max(runs.column("max_error").to_pylist()) < sc.planning.eps_max
     lost = np.array(runs.column("lost_guarantee").to_pylist())
-    assert np.sum(lost > 0) >= 4
+    assert np.sum(lost > 0) >= 20 - 14
     steps = results.read_steps(out, columns=["certified", "excused"])
     cert = steps.column("certified").to_numpy(zero_copy_only=False)
     excused = steps.column("excused").to_numpy(zero_copy_only=False).astype(bool)
