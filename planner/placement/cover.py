@@ -64,16 +64,7 @@ class PairCover:
 @numba.njit(cache=True)
 def _rows_covered(row_ptr, ea, eb, vis, k, chosen):
     """Rows with a chosen good pair and at least k visible chosen sites, shape (R,) bool."""
-    n_rows = row_ptr.size - 1
-    out = np.zeros(n_rows, dtype=np.bool_)
-    for r in range(n_rows):
-        for e in range(row_ptr[r], row_ptr[r + 1]):
-            if chosen[ea[e]] and chosen[eb[e]]:
-                out[r] = True
-                break
-        if out[r] and k > 2:
-            out[r] = np.sum(vis[r] & chosen) >= k
-    return out
+    return _recheck(row_ptr, ea, eb, vis, k, chosen, np.zeros(row_ptr.size - 1, dtype=np.bool_))
 
 
 @numba.njit(cache=True)
