@@ -9,9 +9,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from estimators import compiled
 from estimators.measurements import (
     _MIN_RANGE,
     wrap_angle,
@@ -66,7 +66,7 @@ def _normal_step(jw, rw):
     return np.array([(c * g0 - b * g1) / det, (a * g1 - b * g0) / det])
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _stack_ranges(px, py, markers, meas, w, res, jac):
     """Fill ``res`` (k,) and ``jac`` (k, 2) at (px, py) as :func:`_stack` does; return the cost."""
     cost = 0.0
@@ -81,7 +81,7 @@ def _stack_ranges(px, py, markers, meas, w, res, jac):
     return cost
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _gauss_newton_ranges(markers, meas, w, prior, max_iter, step_tol):
     """:func:`solve_position` for ranges only, the same iteration compiled (sums in another order).
 

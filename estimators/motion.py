@@ -90,8 +90,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from estimators import compiled
 
 VARIANCE_FLOOR = 1e-12
 """Smallest per-wheel travel variance per step [m^2] (1 µm std)."""
@@ -101,7 +102,7 @@ _SERIES_LIMIT = 1e-2
 forms lose digits to cancellation); truncation error < 3e-16."""
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _arc_terms(theta, d_left, d_right, wheel_base, turn_slip=0.0):
     """Intermediate terms of one arc step: ds, dtheta, h, sinc(h), sinc'(h), cos, sin(phi).
 
@@ -123,7 +124,7 @@ def _arc_terms(theta, d_left, d_right, wheel_base, turn_slip=0.0):
     return ds, dtheta, h, k, dk, math.cos(phi), math.sin(phi)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def arc_step(pose, d_left, d_right, wheel_base):
     """Pose after one arc step (module docstring): ``(x, y, theta)`` floats in, floats out.
 
@@ -135,7 +136,7 @@ def arc_step(pose, d_left, d_right, wheel_base):
     return pose[0] + ds * k * c, pose[1] + ds * k * s, pose[2] + dtheta
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _propagate_rows(states, d_left, d_right, wheel_base, out, turn_slip):
     for i in range(states.shape[0]):
         ds, dtheta, _, k, _, c, s = _arc_terms(states[i, 2], d_left[i], d_right[i], wheel_base, turn_slip)
@@ -144,7 +145,7 @@ def _propagate_rows(states, d_left, d_right, wheel_base, out, turn_slip):
         out[i, 2] = states[i, 2] + dtheta
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _jacobians_into(theta, d_left, d_right, wheel_base, F, G, turn_slip=0.0):
     ds, _, _, k, dk, c, s = _arc_terms(theta, d_left, d_right, wheel_base, turn_slip)
     lag = 1.0 - 2.0 * turn_slip   # d phi / d h
@@ -165,7 +166,7 @@ def _jacobians_into(theta, d_left, d_right, wheel_base, F, G, turn_slip=0.0):
         G[2, j] = 2.0 * dh
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right, turn_slip=0.0):
     """Propagate a pose estimate and its covariance through one arc step, in place.
 
@@ -209,7 +210,7 @@ def propagate_moments(x, P, d_left, d_right, wheel_base, var_left, var_right, tu
             P[j, i] = v
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, bias_walk_var,
                              turn_slip=0.0):
     """EKF predict step of the pose augmented with the relative wheel-radius error, in place.

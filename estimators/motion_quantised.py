@@ -36,14 +36,13 @@ or (6,).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from estimators import compiled
 from estimators.motion import _arc_terms, _jacobians_into
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right, quant_var,
                                 bias_walk_var, turn_slip=0.0):
     """EKF predict step of the pose augmented with the encoder residuals, in place.

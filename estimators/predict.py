@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import math
 
-import numba
-
 from estimators import compiled, motion
 from estimators.motion_quantised import propagate_moments_quantised
 
@@ -20,7 +18,7 @@ from estimators.motion_quantised import propagate_moments_quantised
 WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED, QUANT_VAR, TURN_SLIP = range(8)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def predict_step(x, P, d_left, d_right, params):
     """Run the Localizer's predict on its state arrays, in place (see :meth:`Localizer.predict`).
 

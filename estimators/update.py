@@ -14,7 +14,6 @@ import functools
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from scipy import stats
 
@@ -57,7 +56,7 @@ def gate_threshold(probability: float) -> float:
     return float(stats.chi2.ppf(probability, 1))
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def joseph_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, innovation: float, var: float) -> None:
     """Correct ``x`` and ``P`` in place with one scalar measurement (filterpy's EKF update).
 

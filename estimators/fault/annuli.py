@@ -29,8 +29,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
+
+from estimators import compiled
 
 MAX_VERTICES = 256
 """Vertex limit of the closed-form polygon (the simplicity check is quadratic in it)."""
@@ -61,7 +62,7 @@ class AnnuliRegion:
     diameter: float
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def max_pairwise_distance(xy):
     """Largest distance [m] between two rows of ``xy`` (n, 2)."""
     best = 0.0
@@ -73,7 +74,7 @@ def max_pairwise_distance(xy):
     return math.sqrt(best)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def arc_steps(radius, span, tol, outside):
     """Segment count and vertex radius of a polyline within ``tol`` of an arc of ``span`` [rad].
 
@@ -94,7 +95,7 @@ def arc_steps(radius, span, tol, outside):
     return n, rad
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _corner(u, v, d):
     """Intersection (x, h) of circles |p| = u and |p - (d, 0)| = v with h >= 0; h = -1 if none.
 
@@ -110,17 +111,17 @@ def _corner(u, v, d):
     return x, h, slack
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _orient(ax, ay, bx, by, cx, cy):
     return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _sign(x):
     return (x > 0.0) - (x < 0.0)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def is_simple_ring(ring):
     """Tell whether the closed ring (n + 1, 2) is a simple polygon (no self-contact).
 
@@ -154,7 +155,7 @@ def is_simple_ring(ring):
     return True
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def ring_contains(ring, x, y):
     """Tell whether point (x, y) lies in the polygon of the closed ring (n + 1, 2), boundary included.
 
@@ -172,7 +173,7 @@ def ring_contains(ring, x, y):
     return inside
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _fill_arc(ring, pos, cx, radius, phi_s, phi_e, n, rad, outside, chords):
     """Write the n - 1 (inscribed) or n (circumscribed) interior vertices of one arc polyline."""
     step = (phi_e - phi_s) / n
@@ -191,7 +192,7 @@ def _fill_arc(ring, pos, cx, radius, phi_s, phi_e, n, rad, outside, chords):
     return pos
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _quadrilateral(d, a1, b1, a2, b2, tol, outer_chords):
     """Ring (n + 1, 2) of the upper component in the frame M_1 = (0, 0), M_2 = (d, 0).
 
@@ -241,7 +242,7 @@ def _quadrilateral(d, a1, b1, a2, b2, tol, outer_chords):
     return _OK, ring
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _area_centroid(ring):
     """Signed area and centroid of a closed ring, about its first vertex (no cancellation)."""
     x0, y0 = ring[0, 0], ring[0, 1]
@@ -256,7 +257,7 @@ def _area_centroid(ring):
     return 0.5 * a2, x0 + sx / (3.0 * a2), y0 + sy / (3.0 * a2)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _region(markers, ranges, rho, prior, tol, outer_chords):
     """Kernel of :func:`two_annuli_region`: (status, world ring, area, cx, cy, diameter)."""
     m1x, m1y, m2x, m2y = markers[0, 0], markers[0, 1], markers[1, 0], markers[1, 1]

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -260,7 +259,9 @@ def promised_diameters(sensor: SensorSpec, robot: RobotSpec, markers, poses,
     return diameter, empty
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled.njit(cache=True, nogil=True,
+               aot=("void(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64[::1], "
+                    "float64[::1])"))
 def _two_range_diameters(markers, ranges, rho, prior, status, diameter):
     """Diameter of exact_fault_area's closed form (default tolerance) for each two-range fix.
 
@@ -314,7 +315,7 @@ def promised_parallelogram(sensor: SensorSpec, robot: RobotSpec, markers, poses,
     return np.where((sin_a > 1e-12) & (r.min(axis=-1) > 0), diag, np.inf)
 
 
-@numba.njit(cache=True, inline="always")
+@compiled.njit(cache=True, inline="always")
 def _diagonal(ax, ay, bx, by, p0x, p0y, p1x, p1y, rel, ab, sb):
     """:func:`promised_parallelogram` of one fix: marker a measured at p0 (carried), b at p1."""
     d0x, d0y, d1x, d1y = p0x - ax, p0y - ay, p1x - bx, p1y - by
@@ -331,7 +332,9 @@ def _diagonal(ax, ay, bx, by, p0x, p0y, p1x, p1y, rel, ab, sb):
     return 2.0 / sin_a * math.sqrt(rho0 * rho0 + rho1 * rho1 + 2.0 * rho0 * rho1 * cos_a)
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled.njit(cache=True, nogil=True,
+               aot=("void(float64[:, ::1], int64[:, ::1], float64[:, :, :, ::1], int64[::1], int64[::1], float64, "
+                    "float64, float64, float64, float64[::1], boolean[::1])"))
 def _best_order(mk, sub, p, c, j, rel, ab, tick, per_metre, tau, flip):
     for i in range(c.size):
         a, b = sub[c[i], 0], sub[c[i], 1]

@@ -43,11 +43,11 @@ import functools
 import math
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
+from estimators import compiled
 from estimators.fault.annuli import max_pairwise_distance, ring_contains, two_annuli_region
 from estimators.fault.pieces import annulus_piece, wedge_piece
 from estimators.lsq import solve_position
@@ -227,7 +227,7 @@ def _mirror_polygon(poly, markers):
     return shapely.polygons(shell, holes=holes or None)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _input_summary(markers, meas, rho):
     """Sum of every input (finite iff all are, barring overflow), min rho, min(range + rho)."""
     total, rho_min, reach_min = 0.0, math.inf, math.inf

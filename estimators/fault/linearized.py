@@ -33,8 +33,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
+
+from estimators import compiled
 
 #: A vertex is inside a strip if ``|g . delta| <= 1 + FEASIBLE_TOL`` (relative to the half-width).
 FEASIBLE_TOL = 1e-9
@@ -58,7 +59,7 @@ def chi2_2dof_ppf(p: float) -> float:
 
 # --- scalar kernels (numba) ------------------------------------------------------------------
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def parallelogram_diag_sq_k(g1x, g1y, g2x, g2y):
     """Squared long diagonal of ``{|g1.d| <= 1, |g2.d| <= 1}`` [m^2]; inf when parallel."""
     det = g1x * g2y - g1y * g2x
@@ -69,7 +70,7 @@ def parallelogram_diag_sq_k(g1x, g1y, g2x, g2y):
     return 4.0 * num / den
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def parallelogram_area_k(u1x, u1y, u2x, u2y, rho1, rho2):
     """Area ``4 rho1 rho2 / sin a`` of two strips with unit normals u1, u2 [m^2]."""
     s = abs(u1x * u2y - u1y * u2x)
@@ -78,7 +79,7 @@ def parallelogram_area_k(u1x, u1y, u2x, u2y, rho1, rho2):
     return 4.0 * rho1 * rho2 / s
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def parallelogram_diagonal_k(u1x, u1y, u2x, u2y, rho1, rho2):
     """Long diagonal ``(2/sin a) sqrt(rho1^2 + rho2^2 + 2 rho1 rho2 |cos a|)`` [m]."""
     s = abs(u1x * u2y - u1y * u2x)
@@ -88,7 +89,7 @@ def parallelogram_diagonal_k(u1x, u1y, u2x, u2y, rho1, rho2):
     return 2.0 / s * math.sqrt(rho1 * rho1 + rho2 * rho2 + 2.0 * rho1 * rho2 * c)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def strip_max_vertex_sq_k(gx, gy, n):
     """Largest squared vertex norm of ``{d : |g_l . d| <= 1, l < n}`` [m^2].
 
@@ -121,7 +122,7 @@ def strip_max_vertex_sq_k(gx, gy, n):
     return best
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def info_lambda_max_inv_k(sxx, sxy, syy):
     """Largest eigenvalue of the inverse of the 2x2 information ``[[sxx, sxy], [sxy, syy]]``.
 
@@ -137,12 +138,12 @@ def info_lambda_max_inv_k(sxx, sxy, syy):
     return (t + math.sqrt(disc)) / (2.0 * d)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _strip_max_vertex_sq_rows(gx, gy):
     return strip_max_vertex_sq_k(gx, gy, gx.size)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _parallelogram_rows(u1, u2, rho1, rho2, area, diag):
     for i in range(rho1.size):
         area[i] = parallelogram_area_k(u1[i, 0], u1[i, 1], u2[i, 0], u2[i, 1], rho1[i], rho2[i])

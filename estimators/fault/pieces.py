@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 import shapely
 
@@ -19,7 +18,7 @@ from estimators import compiled
 from estimators.fault.annuli import arc_steps
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
     """Build the closed ring (n, 2) of the annular sector phi0..phi1 [rad], radii r_in..r_out.
 

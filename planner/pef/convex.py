@@ -21,9 +21,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from estimators import compiled
 from scenarios.obstacles import ConvexPieces
 
 
@@ -164,7 +164,7 @@ def _clipped_corners(normal: np.ndarray, offset: np.ndarray, q: np.ndarray) -> t
     return start, True
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def inside_closed(px, py, planes, count, p):
     """Tell whether point (px, py) lies in piece ``p``, boundary included."""
     for k in range(count[p]):
@@ -173,7 +173,7 @@ def inside_closed(px, py, planes, count, p):
     return True
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def segment_enters(ax, ay, bx, by, planes, sight, count, p):
     """Tell whether segment a-b meets the open line-of-sight piece ``p`` (offsets ``sight``; Cyrus-Beck)."""
     dx, dy = bx - ax, by - ay
@@ -198,7 +198,7 @@ def segment_enters(ax, ay, bx, by, planes, sight, count, p):
     return t0 < t1
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def shadow_halfplanes(mx, my, planes, sight, shrunk, count, p, out):
     """Half-planes ``a x + b y + c < 0`` whose intersection is the shadow of piece ``p`` from a marker.
 
@@ -236,7 +236,8 @@ def shadow_halfplanes(mx, my, planes, sight, shrunk, count, p, out):
     return nrow
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled.njit(cache=True, nogil=True,
+               aot=("void(float64[::1], float64[::1], float64[:, :, ::1], int64[::1], float64[:, ::1], float64[::1])"))
 def signed_distance_min(px, py, vertices, count, bbox, out):
     """Lower ``out[n]`` to the signed distance from point n to the nearest piece [m].
 

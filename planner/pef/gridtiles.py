@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -50,7 +49,10 @@ from planner.pef.visibility import (
 )
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True,
+               aot=("Tuple((float64[:, :, :, ::1], int64[:, ::1], boolean[::1]))(float64[::1], float64[::1], "
+                    "float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1], int64[::1], boolean[::1], "
+                    "float64[:, ::1], float64)"))
 def _shadows(mx, my, planes, sight, shrunk, count, blocks, bbox, max_range):
     """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
 
@@ -73,7 +75,7 @@ def _shadows(mx, my, planes, sight, shrunk, count, blocks, bbox, max_range):
     return hp, nhp, hidden
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _band_intervals(iy0, th, x, y, mx, my, r2max, hp, nhp, bm, nb, ivs, nint, lo_col, hi_col, sh):
     """Columns of band row r that band marker q (= ``bm[q]``) may see: ``ivs[q, r, :nint[q, r]]``.
 
@@ -121,7 +123,7 @@ def _band_intervals(iy0, th, x, y, mx, my, r2max, hp, nhp, bm, nb, ivs, nint, lo
                 hi_col[q] = max(hi_col[q], ivs[q, r, n - 1, 1])
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def _without_pass(t, w, nl, npair, gm, local_of, visb, bestb, vist, pxb, pyb, mxl, myl, rel, ab, lsub, margin,
                   prev, nprev, sct, taut, bestt):
     """Tau of the tile's ``w`` cells with each cell's plain best marker ``bestb[2 c + t]`` hidden.
@@ -154,7 +156,10 @@ def _without_pass(t, w, nl, npair, gm, local_of, visb, bestb, vist, pxb, pyb, mx
     return ncand
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy",
+               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
+                    "float64[::1], float64, float64, float64[:, :, :, ::1], int64[:, ::1], boolean[::1], "
+                    "boolean[:, ::1], float64, float64, float64, float64[::1], int64[::1], boolean, float64[::1])"))
 def bands_parallelogram(b0, b1, x, y, mx, my, fnx, fny, cos_inc, max_range, hp, nhp, hidden, free, rel, ab, margin,
                         tau, best, redundant, tau_plain):
     """Bands ``b0 <= b < b1`` of the grid (``run_ranges`` kernel); see the module docstring.

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -58,7 +57,7 @@ __all__ = ["BLOCK", "GDOP", "PARALLELOGRAM", "STRIPS", "best_subset", "best_subs
 BLOCK = 256
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, scale):
     """Compute float64 normals g = u / rho, h = t / (r tan xi) of one block (NaN where hidden).
 
@@ -97,7 +96,7 @@ def _block_normals(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, gx, gy, hx, hy, 
                 hy[m, c] = hx[m, c]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _block_scale(px, py, mx, my, vis, rel32, ab32, tan32, lo, w, r, scale):
     """Ranges ``r`` (M, BLOCK) and per-point scale: the smallest half-width seen (float32)."""
     bearing = tan32 > 0
@@ -119,7 +118,7 @@ def _block_scale(px, py, mx, my, vis, rel32, ab32, tan32, lo, w, r, scale):
             scale[c] = min(scale[c], half) if ok else scale[c]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _planes_gdop(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, r, scale, a0, a1, a2):
     """Fill float32 planes (xx, xy, yy) of the information ``s^2 (g g^T + h h^T)`` per marker.
 
@@ -147,12 +146,12 @@ def _planes_gdop(px, py, mx, my, vis, rel, ab, tan_xi, lo, w, r, scale, a0, a1, 
             sxx[c], sxy[c], syy[c] = nan, nan, nan
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _take(better, new, old):
     return new if better else old
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _sweep_gdop(subsets, a0, a1, a2, bn, bd, bs, sxx, sxy, syy):
     """Best subset per point of the block by lambda_max of the inverse information."""
     zero, two, four = np.float32(0.0), np.float32(2.0), np.float32(4.0)
@@ -178,7 +177,7 @@ def _sweep_gdop(subsets, a0, a1, a2, bn, bd, bs, sxx, sxy, syy):
             bs[c] = _take(better, ss, bs[c])
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _sweep_strips(subsets, gx, gy, hx, hy, w, bearing, bs):
     """Best subset per point of the block by the strip-polygon diameter (float64, scalar)."""
     nsub, k = subsets.shape
@@ -204,14 +203,14 @@ def _sweep_strips(subsets, gx, gy, hx, hy, w, bearing, bs):
                     bs[c] = s
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _store_best(best, p, subsets, s):
     """Write the marker indices of subset row ``s`` (or -1 when ``s < 0``) into ``best[p]``."""
     for t in range(best.shape[1]):
         best[p, t] = subsets[s, t] if s >= 0 else -1
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best):
     nm = mx.size
     k = subsets.shape[1]
@@ -240,7 +239,7 @@ def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf
                                    tx, ty, tb) if s >= 0 else np.inf
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def _blocks_strips(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, best):
     nm = mx.size
     k = subsets.shape[1]

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -43,7 +42,7 @@ N_CANDIDATES = 4
 _PLANE = 3 * BLOCK  # one marker's x, y, |g|^2 rows in the flat planes array
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _planes(pxb, pyb, visb, w, mx, my, rel, ab, dxb, dyb, scale, seen, planes):
     """Fill the float32 planes of one block; count the markers ``seen`` from each point.
 
@@ -86,7 +85,7 @@ def _planes(pxb, pyb, visb, w, mx, my, rel, ab, dxb, dyb, scale, seen, planes):
             pm[c], pm[BLOCK + c], pm[2 * BLOCK + c] = nan, nan, nan
 
 
-@numba.njit(cache=True, fastmath={"contract"})
+@compiled.njit(cache=True, fastmath={"contract"})
 def _score(p, q, c):
     """``num, den`` of the pair with planes ``p``, ``q`` at point ``c``."""
     det = p[c] * q[BLOCK + c] - p[BLOCK + c] * q[c]
@@ -94,12 +93,12 @@ def _score(p, q, c):
     return p[2 * BLOCK + c] + q[2 * BLOCK + c] + np.float32(2.0) * abs(dot), det * det
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _take(better, new, old):
     return new if better else old
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
+@compiled.njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _sweep(order, n, subsets, planes, bnd, bs):
     """Best of the pairs ``subsets[order[:n]]`` per point, two pairs per pass over the block.
 
@@ -121,13 +120,13 @@ def _sweep(order, n, subsets, planes, bnd, bs):
             bnd[c], bnd[BLOCK + c], bs[c] = _take(b, num, nb), _take(b, den, db), _take(b, st, sb)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _reset(bnd, bs):
     for c in range(BLOCK):
         bnd[c], bnd[BLOCK + c], bs[c] = 1.0, 0.0, -1  # 1 / 0: worse than any pair
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _prune(nm, subsets, planes, seen, cand, ncand, margin, bnd, bs, bound, bits, order):
     """Write the rows of the pairs worth sweeping into ``order``; return their count.
 
@@ -178,7 +177,7 @@ def _prune(nm, subsets, planes, seen, cand, ncand, margin, bnd, bs, bound, bits,
     return n
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _next_candidates(bs, w, counts, touched, cand):
     """Write the most frequent winners among ``bs[:w:4]`` into ``cand``; return their count.
 
@@ -207,7 +206,7 @@ def _next_candidates(bs, w, counts, touched, cand):
     return n
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _tau_pairs(pxb, pyb, w, mx, my, subsets, rel, ab, bs, ax, ay, bx, by, taub, bestb):
     """Write the chosen pair ``subsets[bs[c]]`` (into ``bestb[2c:2c + 2]``) and its float64 tau.
 
@@ -226,7 +225,7 @@ def _tau_pairs(pxb, pyb, w, mx, my, subsets, rel, ab, bs, ax, ay, bx, by, taub, 
         taub[c] = t if bs[c] >= 0 else np.inf
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _scratch(nm, nsub):
     """Allocate the per-thread buffers.
 
@@ -243,7 +242,7 @@ def _scratch(nm, nsub):
             np.empty(2 * BLOCK, i64))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _block(pxb, pyb, visb, w, mx, my, rel, ab, subsets, margin, ncand, sc, taub, bestb):
     """Best pair and tau for the ``w`` points of one block; return the next block's candidate count.
 
@@ -261,7 +260,7 @@ def _block(pxb, pyb, visb, w, mx, my, rel, ab, subsets, margin, ncand, sc, taub,
 # The drivers take flat arrays and index them with unsigned integers: a signed index gets a
 # negative-index wraparound select, which makes the short row copies ten times slower.
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def blocks_points(b0, b1, px, py, mx, my, vis, rel, ab, subsets, margin, tau, best):
     """Blocks ``b0 <= b < b1`` of :data:`BLOCK` consecutive points (``run_ranges`` kernel).
 
@@ -288,7 +287,7 @@ def tile_count(nx: int, ny: int) -> int:
     return -(-ny // TILE_ROWS) * -(-nx // TILE_COLS)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def blocks_grid(t0, t1, x, y, mx, my, vis, rel, ab, subsets, margin, tau, best):
     """Tiles ``t0 <= t < t1`` of the grid of cell centres ``x`` (nx,), ``y`` (ny,) [m].
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -18,7 +17,7 @@ from estimators.fault.linearized import info_lambda_max_inv_k, strip_max_vertex_
 PARALLELOGRAM, STRIPS, GDOP = 0, 1, 2
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
     """Fill unit normals and half-widths of the strips of ``sub`` at (px, py).
 
@@ -38,7 +37,7 @@ def _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
     return ns
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def diagonal_of_offsets(d1x, d1y, d2x, d2y, rel, ab):
     """Long diagonal [m] of the parallelogram of two markers seen at offsets ``d = point - marker``.
 
@@ -56,13 +55,13 @@ def diagonal_of_offsets(d1x, d1y, d2x, d2y, rel, ab):
     return np.inf if (r1 == 0.0) | (r2 == 0.0) | (sn == 0.0) else tau
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def tau_parallelogram(px, py, mx, my, sub, rel, ab):
     """Long diagonal [m] of the parallelogram of the pair ``sub`` (2,) at (px, py), float64."""
     return diagonal_of_offsets(px - mx[sub[0]], py - my[sub[0]], px - mx[sub[1]], py - my[sub[1]], rel, ab)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
     """Major axis [m] of the p-level ellipse of subset ``sub`` at (px, py), float64.
 
@@ -82,7 +81,7 @@ def tau_gdop(px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
     return 2.0 * math.sqrt(chi2_ppf * info_lambda_max_inv_k(sxx, sxy, syy) / 9.0)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def tau_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
     """Strip-polygon diameter [m] of subset ``sub`` at (px, py), float64 (``nx, ny, b``: scratch >= 2k)."""
     ns = _fill_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b)
@@ -94,7 +93,7 @@ def tau_strips(px, py, mx, my, sub, rel, ab, tan_xi, nx, ny, b):
     return 2.0 * math.sqrt(strip_max_vertex_sq_k(nx, ny, ns))
 
 
-@numba.njit(cache=True, error_model="numpy")
+@compiled.njit(cache=True, error_model="numpy")
 def subset_tau(model, px, py, mx, my, sub, rel, ab, tan_xi, chi2_ppf, nx, ny, b):
     """Return the model's error [m] of marker subset ``sub`` (k,) at point (px, py), in float64.
 

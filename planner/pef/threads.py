@@ -1,6 +1,6 @@
 """Run a ``nogil`` numba kernel over index ranges on several threads.
 
-The PEF and visibility kernels are plain ``@numba.njit(nogil=True, cache=True)`` functions of an
+The PEF and visibility kernels are plain ``@compiled.njit(nogil=True, cache=True)`` functions of an
 index range; Python threads run the ranges in parallel. This replaces ``parallel=True``/``prange``,
 whose compilation (the parfor passes and a second optimisation of every callee) cost tens of
 seconds per fresh cache, for the same speed on our loops.
@@ -13,8 +13,9 @@ import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
+
+from estimators import compiled
 
 _threads: int | None = None
 _pool: ThreadPoolExecutor | None = None  # shared by every call: a plan makes hundreds of calls
@@ -49,6 +50,18 @@ def set_threads(n: int | None) -> None:
     _threads = None if n is None else max(1, int(n))
 
 
+def default_threads() -> int:
+    """Threads of a kernel call: ``NUMBA_NUM_THREADS`` if set, else the cores this process may use.
+
+    numba's own default, read without importing numba (0.5 s, which a command whose kernels are
+    built ahead of time does not pay).
+    """
+    try:
+        return max(1, int(os.environ["NUMBA_NUM_THREADS"]))
+    except (KeyError, ValueError):
+        return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
 def run_ranges(kernel: Callable, n: int, args: tuple, min_chunk: int = 1) -> None:
     """Call ``kernel(lo, hi, *args)`` for ranges covering ``[0, n)``, in parallel.
 
@@ -66,13 +79,13 @@ def run_ranges(kernel: Callable, n: int, args: tuple, min_chunk: int = 1) -> Non
 
     Notes
     -----
-    Uses ``numba.config.NUMBA_NUM_THREADS`` threads (the environment variable of that name,
-    default: the cores; reading it does not start numba's own thread pool, which costs ~0.1 s),
+    Uses :func:`default_threads` threads (numba's own thread pool is never started: ~0.1 s),
     with four ranges per thread so that uneven ranges (e.g. cells inside obstacles) balance out.
     The threads are kept between calls (one pool per process). Not reentrant from the kernel
     threads themselves (no kernel calls back into Python).
     """
-    threads = _threads if _threads is not None else max(1, int(numba.config.NUMBA_NUM_THREADS))
+    kernel = kernel.resolve() if isinstance(kernel, compiled.Kernel) else kernel  # once, not in each thread
+    threads = _threads if _threads is not None else default_threads()
     if n <= 0:
         return
     if threads == 1 or n < 2 * min_chunk:

@@ -33,7 +33,6 @@ from __future__ import annotations
 import math
 import weakref
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -85,7 +84,7 @@ class _Corners:
         return (self._c,)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _is_free(px, py, x0, y0, x1, y1, planes, count, bbox):
     if px < x0 or px > x1 or py < y0 or py > y1:
         return False
@@ -96,7 +95,7 @@ def _is_free(px, py, x0, y0, x1, y1, planes, count, bbox):
     return True
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def facing_ok(dx, dy, nx, ny, cos_inc):
     """Tell whether offset (dx, dy) = p - M [m] lies in the incidence wedge of normal (nx, ny).
 
@@ -110,7 +109,7 @@ def facing_ok(dx, dy, nx, ny, cos_inc):
     return dot >= 0.0 and dot * dot >= (dx * dx + dy * dy) * (cos_inc * cos_inc)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
     """Tell whether segment a-b enters the open line-of-sight piece of any blocking piece."""
     lox, hix = min(ax, bx), max(ax, bx)
@@ -124,7 +123,11 @@ def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled.njit(cache=True, nogil=True,
+               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
+                    "float64[::1], float64, float64, float64, float64, float64, float64, float64[:, :, ::1], "
+                    "float64[:, ::1], int64[::1], float64[:, ::1], float64[:, ::1], boolean[::1], boolean[:, ::1], "
+                    "boolean[::1])"))
 def _visible_points_range(lo, hi, px, py, mx, my, fnx, fny, cos_inc, max_range, x0, y0, x1, y1, planes, sight,
                           count, bbox, sight_bbox, blocks, vis, free):
     r2max = max_range * max_range
@@ -207,7 +210,7 @@ def segment_blocked(a, b, obstacles) -> bool:
 
 # --- grid path ------------------------------------------------------------------------------
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _first_above(x, v):
     """Smallest index i with x[i] > v (x ascending, uniform); x.size if none."""
     n = x.size
@@ -228,7 +231,7 @@ def _first_above(x, v):
     return i
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _first_at_or_above(x, v):
     """Smallest index i with x[i] >= v (x ascending, uniform); x.size if none."""
     n = x.size
@@ -248,7 +251,9 @@ def _first_at_or_above(x, v):
     return i
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True,
+               aot=("void(float64[::1], float64[::1], float64, float64, float64, float64, float64[:, :, ::1], "
+                    "int64[::1], float64[:, ::1], boolean[:, ::1])"))
 def _free_grid_kernel(x, y, x0, y0, x1, y1, planes, count, bbox, free):
     for iy in range(y.size):
         for ix in range(x.size):
@@ -265,7 +270,7 @@ def _free_grid_kernel(x, y, x0, y0, x1, y1, planes, count, bbox, free):
                     free[iy, ix] = False
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def shadow_row(hp, n, yy, x):
     """Columns ``i0 <= ix < i1`` of grid row ``yy`` inside a shadow (``n`` half-planes ``hp``).
 
@@ -294,7 +299,7 @@ def shadow_row(hp, n, yy, x):
     return _first_above(x, lo), _first_at_or_above(x, hi)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
                          free, vis):
     """Fill ``vis[m]``: free, in range and in the incidence wedge, then clear each piece's shadow row by row."""
@@ -323,7 +328,7 @@ def _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, 
                 vis[m, iy, ix] = False
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled.njit(cache=True, nogil=True)
 def _visible_grid_markers(m0, m1, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
                           free, vis):
     for m in range(m0, m1):

@@ -20,10 +20,10 @@ import math
 import time
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from scipy import optimize, sparse
 
+from estimators import compiled
 from planner.placement.search import WORK, local_search
 
 MILP_TIME_LIMIT = 30.0
@@ -61,13 +61,13 @@ class PairCover:
         return np.repeat(np.arange(len(self.weight)), np.diff(self.row_ptr))
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _rows_covered(row_ptr, ea, eb, vis, k, chosen):
     """Rows with a chosen good pair and at least k visible chosen sites, shape (R,) bool."""
     return _recheck(row_ptr, ea, eb, vis, k, chosen, np.zeros(row_ptr.size - 1, dtype=np.bool_))
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _recheck(row_ptr, ea, eb, vis, k, chosen, covered):
     """``covered`` after adding sites to ``chosen``: only the uncovered rows can change."""
     for r in range(row_ptr.size - 1):
@@ -82,7 +82,7 @@ def _recheck(row_ptr, ea, eb, vis, k, chosen, covered):
     return covered
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _greedy_kernel(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, chosen):
     """Greedy completion of ``chosen`` (in place), then removal of redundant sites."""
     n_rows, n_sites, n_pairs = row_ptr.size - 1, chosen.size, pj.size
@@ -141,7 +141,7 @@ def greedy(cov: PairCover, k: int, start: np.ndarray | None = None) -> np.ndarra
     return _greedy_kernel(cov.row_ptr, cov.ea, cov.eb, cov.ep, cov.pj, cov.pl, cov.weight, cov.vis, k, chosen)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts):
     """Independent-set cuts, one per row: ``cuts[r]`` = S_r minus a maximal independent set T.
 

@@ -100,7 +100,7 @@ class PlacementResult:
     redundancy: int = 0
 
 
-@numba.njit(parallel=True, cache=True)
+@compiled.njit(parallel=True, cache=True)
 def _good_pairs_kernel(px, py, sx, sy, vis, model, rel, ab, tan_xi, chi2, limit, offsets, out_j, out_l):
     """Count (``offsets`` None-like: size 0) or list the good pairs of every point.
 

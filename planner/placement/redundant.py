@@ -15,9 +15,9 @@ pairs at non-robust rows), then drops chosen sites that are no longer needed.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from estimators import compiled
 from planner.placement.cover import PairCover
 from scenarios.errors import PlanningError
 
@@ -25,7 +25,7 @@ from scenarios.errors import PlanningError
 MAX_REDUNDANCY = 1
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _robust_row(row_ptr, ea, eb, vis, k, r, chosen, row):
     a, b = -1, -1
     for e in range(row_ptr[row], row_ptr[row + 1]):
@@ -48,7 +48,7 @@ def _robust_row(row_ptr, ea, eb, vis, k, r, chosen, row):
     return True
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _robust_rows(row_ptr, ea, eb, vis, k, r, chosen):
     out = np.zeros(row_ptr.size - 1, dtype=np.bool_)
     for row in range(out.size):
@@ -56,7 +56,7 @@ def _robust_rows(row_ptr, ea, eb, vis, k, r, chosen):
     return out
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _greedy_robust(row_ptr, ea, eb, vis, weight, k, r, target, chosen):
     """Complete ``chosen`` (in place) until every ``target`` row is r-robust, then prune."""
     n_sites = chosen.size

@@ -19,8 +19,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
+
+from estimators import compiled
 
 if TYPE_CHECKING:  # the solver in cover imports this module
     from planner.placement.cover import PairCover
@@ -32,7 +33,7 @@ MAX_DESTROY = 3
 """Most chosen sites one move drops."""
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _rand(state):
     """splitmix64: next uniform in [0, 1) from ``state`` (1,) uint64, advanced in place."""
     state[0] += np.uint64(0x9E3779B97F4A7C15)
@@ -43,7 +44,7 @@ def _rand(state):
     return (z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _lists(row_ptr, ep, pj, pl, n_sites):
     """Rows of each pair (CSR ``pptr`` (P + 1,), ``prow``) and pairs of each site (``sptr`` (S + 1,), ``spair``)."""
     n_pairs = pj.size
@@ -72,7 +73,7 @@ def _lists(row_ptr, ep, pj, pl, n_sites):
     return pptr, prow, sptr, spair
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _toggle(j, on, chosen, cnt, vcnt, vis, k, ls):
     """Choose (``on``) or drop site j, updating the pair counts ``cnt`` and visible counts ``vcnt``.
 
@@ -95,7 +96,7 @@ def _toggle(j, on, chosen, cnt, vcnt, vis, k, ls):
     return work
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _removable(j, chosen, cnt, vcnt, vis, k, ls, tmp):
     """Whether dropping chosen site j leaves every row covered, and the work done."""
     pptr, prow, sptr, spair, pj, pl = ls
@@ -125,12 +126,12 @@ def _removable(j, chosen, cnt, vcnt, vis, k, ls, tmp):
     return ok, work
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _covered_row(r, cnt, vcnt, k):
     return cnt[r] > 0 and (k <= 2 or vcnt[r] >= k)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _drop(j, chosen, cnt, vcnt, vis, k, ls, unc, n_unc, inunc):
     """Drop chosen site j; rows it leaves uncovered are appended to ``unc``. Returns the new length."""
     pptr, prow, sptr, spair, pj, pl = ls
@@ -156,7 +157,7 @@ def _drop(j, chosen, cnt, vcnt, vis, k, ls, unc, n_unc, inunc):
     return n_unc
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _repair(row_ptr, ea, eb, ep, weight, vis, k, chosen, cnt, vcnt, ls, unc, n_unc, inunc,
             gain1, gain2, stamp, sites_hit, pairs_hit, added, n_added, state, noise):
     """Greedy completion of the uncovered rows ``unc[:n_unc]``; returns (work, n_added)."""
@@ -241,7 +242,7 @@ def _repair(row_ptr, ea, eb, ep, weight, vis, k, chosen, cnt, vcnt, ls, unc, n_u
                 n_added += 1
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _search(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, xy, start, seed, work, max_destroy, noise, n_prune,
             stall):
     """Local search from the cover ``start`` (S,) bool; returns the best cover found, shape (S,) bool."""

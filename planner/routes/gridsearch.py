@@ -18,8 +18,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
+
+from estimators import compiled
 
 SQRT2 = math.sqrt(2.0)
 
@@ -101,7 +102,7 @@ def conservative_tau(tau: np.ndarray) -> np.ndarray:
     return ndimage.maximum_filter(t, size=3, mode="nearest")
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _heap_push(fk, nd, i, f, node):
     # 4-ary min-heap on key fk; i is the current size (the new slot).
     while i > 0:
@@ -115,7 +116,7 @@ def _heap_push(fk, nd, i, f, node):
     nd[i] = node
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _heap_pop(fk, nd, size):
     node = nd[0]
     size -= 1
@@ -142,7 +143,7 @@ def _heap_pop(fk, nd, size):
     return node
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _astar(cost, allowed, sr, sc, gr, gc, hx, hy, cmin):
     # Flat indices on a grid padded by one blocked cell, so neighbours need no bounds checks.
     # state: 0 blocked, 1 open, 2 closed (one byte array keeps the hot loop in cache).

@@ -14,7 +14,6 @@ keys that cache on their files too, so an edit of any of them is compiled on the
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -33,7 +32,7 @@ LOG_COLUMNS = 17
 _TRUE0, _EST0, _COV0 = LOG_TRUE.start, LOG_EST.start, LOG_COV.start  # numba indexes with ints
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _tick(odo_state, odo_params, normals, angle_left, angle_right, kf_x, kf_P, ekf_params,
           table, limits, follower_state, log, n, t, true_x, true_y, true_theta, s_prev, steer, dt):
     d_left, d_right, used_up = odometry_step(odo_state, odo_params, normals, angle_left, angle_right)

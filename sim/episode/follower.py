@@ -10,8 +10,9 @@ import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-import numba
 import numpy as np
+
+from estimators import compiled
 
 
 class FollowerCommand(NamedTuple):
@@ -100,7 +101,7 @@ class PurePursuit:
         return FollowerCommand(v, omega, done, s)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _limit(state, limits, v_ref, w_ref, dt):
     """Apply the speed and acceleration limits to a command; remember it in ``state``."""
     max_yaw_rate, max_accel, max_yaw_accel = limits[MAX_YAW_RATE], limits[MAX_ACCEL], limits[MAX_YAW_ACCEL]
@@ -112,7 +113,7 @@ def _limit(state, limits, v_ref, w_ref, dt):
     return v, w
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def _project(xs, ys, sl, i, px, py):
     """Arc length of (px, py) projected on the segment after vertex i, or before it [m]."""
     n = xs.size
@@ -133,7 +134,7 @@ def _project(xs, ys, sl, i, px, py):
     return sl[i]
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def command_step(table, limits, state, px, py, th, dt):
     """Run one pure-pursuit step (compiled, so that ``sim.episode.control_tick`` can chain it).
 

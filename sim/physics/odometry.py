@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
 from estimators import compiled
@@ -70,7 +69,7 @@ TICKS_LEFT, TICKS_RIGHT, POSE_X, POSE_Y, POSE_THETA, NEXT_NORMAL = range(6)
 METRES_PER_TICK, TICKS_PER_REV, SLIP_STD, WHEEL_BASE = range(4)
 
 
-@numba.njit(cache=True)
+@compiled.njit(cache=True)
 def odometry_step(state, params, normals, angle_left, angle_right):
     """Read the encoders at the wheel angles [rad]; advance ``state`` in place.
 
