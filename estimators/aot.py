@@ -110,6 +110,26 @@ def function(key: str, signature: str):
     return getattr(module, entry["symbol"], None)
 
 
+def array_arguments(key: str) -> tuple[int, tuple[tuple[int, str, int, bool], ...]]:
+    """Return the argument count and the array arguments (position, dtype, ndim, C-contiguous).
+
+    The built code does not check the arrays it is given (another dtype or layout would be read
+    as if it were the signature's): :mod:`estimators.compiled` checks them before each call.
+    """
+    entry = _load()[1]["kernels"][key]
+    return entry["nargs"], tuple((int(i), str(dt), int(nd), bool(c)) for i, dt, nd, c in entry["arrays"])
+
+
+def _describe_arguments(signature: str) -> tuple[int, list]:
+    from numba.core import sigutils, types
+    from numba.np.numpy_support import as_dtype
+
+    args, _ = sigutils.normalize_signature(signature)
+    arrays = [[i, str(as_dtype(t.dtype)), t.ndim, t.layout == "C"] for i, t in enumerate(args)
+              if isinstance(t, types.Array)]
+    return len(args), arrays
+
+
 def status(kernels) -> dict[str, str]:
     """For each kernel with an ``aot`` signature: ``"built"``, ``"stale"`` or ``"missing"``."""
     module, manifest = _load()
@@ -179,7 +199,8 @@ def build(kernels, folder: Path = HERE) -> dict:
         files = [_relative(Path(k.py_func.__code__.co_filename))] + [
             _relative(p) for p in compiled.inlined_sources(k._dispatcher)]
         symbol = k.key.replace(".", "__")
-        entries[k.key] = {"symbol": symbol, "signature": k.aot, "files": files}
+        nargs, arrays = _describe_arguments(k.aot)
+        entries[k.key] = {"symbol": symbol, "signature": k.aot, "files": files, "nargs": nargs, "arrays": arrays}
         by_function[k.py_func] = k._dispatcher
     _flags_of_each_kernel(by_function)
     folder.mkdir(parents=True, exist_ok=True)

@@ -92,7 +92,7 @@ class Kernel:
 
                     built = aot.function(self.key, self.aot)
                     if built is not None:
-                        fn = functools.partial(_built_or_jit, built, self)
+                        fn = _checked(built, *aot.array_arguments(self.key), self)
                 if fn is None:
                     jit()
                     fn = self._dispatcher
@@ -112,14 +112,31 @@ class Kernel:
         return f"<pefsim kernel {self.key}>"
 
 
-def _built_or_jit(built: Callable, kernel: Kernel, *args):
-    # The built code takes only its signature's types: a caller passing other arrays (another
-    # dtype or layout) gets numba's dispatcher, which compiles for them, as njit would.
-    try:
-        return built(*args)
-    except TypeError:
+def _checked(built: Callable, nargs: int, arrays: tuple, kernel: Kernel) -> Callable:
+    """``built``, called only with the arrays of its signature; numba's dispatcher for any others.
+
+    The built code reads whatever array it is given as its signature's dtype and layout (an
+    int64 array as float64, a strided view as contiguous, a list as memory: a crash), so each
+    call checks its arrays first (about 0.3 us each). Other arguments (another dtype, layout,
+    type or count) go to numba's dispatcher, which compiles for them, as ``numba.njit`` would.
+    """
+    import numpy as np
+
+    wanted = tuple((i, np.dtype(dt), nd, c) for i, dt, nd, c in arrays)
+
+    def call(*args):
+        if len(args) == nargs:
+            for i, dt, nd, contiguous in wanted:
+                a = args[i]
+                if type(a) is not np.ndarray or a.dtype != dt or a.ndim != nd or (
+                        contiguous and not a.flags.c_contiguous):
+                    break
+            else:
+                return built(*args)
         jit()
         return kernel._dispatcher(*args)
+
+    return call
 
 
 def _by_name(module: str, qualname: str):

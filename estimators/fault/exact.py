@@ -227,7 +227,7 @@ def _mirror_polygon(poly, markers):
     return shapely.polygons(shell, holes=holes or None)
 
 
-@compiled.njit(cache=True)
+@compiled.njit(cache=True, aot="Tuple((float64, float64, float64))(float64[:, ::1], float64[::1], float64[::1])")
 def _input_summary(markers, meas, rho):
     """Sum of every input (finite iff all are, barring overflow), min rho, min(range + rho)."""
     total, rho_min, reach_min = 0.0, math.inf, math.inf

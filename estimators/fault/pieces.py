@@ -18,7 +18,7 @@ from estimators import compiled
 from estimators.fault.annuli import arc_steps
 
 
-@compiled.njit(cache=True)
+@compiled.njit(cache=True, aot="float64[:, ::1](float64, float64, float64, float64, float64, float64, float64)")
 def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
     """Build the closed ring (n, 2) of the annular sector phi0..phi1 [rad], radii r_in..r_out.
 

@@ -210,7 +210,9 @@ def _store_best(best, p, subsets, s):
         best[p, t] = subsets[s, t] if s >= 0 else -1
 
 
-@compiled.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy",
+               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], boolean[:, ::1], "
+                    "float64, float64, float64, int64[:, ::1], float64, float64[::1], int64[:, ::1])"))
 def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best):
     nm = mx.size
     k = subsets.shape[1]
@@ -239,7 +241,9 @@ def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf
                                    tx, ty, tb) if s >= 0 else np.inf
 
 
-@compiled.njit(cache=True, nogil=True, error_model="numpy")
+@compiled.njit(cache=True, nogil=True, error_model="numpy",
+               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], boolean[:, ::1], "
+                    "float64, float64, float64, int64[:, ::1], float64[::1], int64[:, ::1])"))
 def _blocks_strips(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, best):
     nm = mx.size
     k = subsets.shape[1]

@@ -328,7 +328,10 @@ def _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, 
                 vis[m, iy, ix] = False
 
 
-@compiled.njit(cache=True, nogil=True)
+@compiled.njit(cache=True, nogil=True,
+               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
+                    "float64[::1], float64, float64, float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1], "
+                    "int64[::1], boolean[::1], boolean[:, ::1], boolean[:, :, ::1])"))
 def _visible_grid_markers(m0, m1, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
                           free, vis):
     for m in range(m0, m1):

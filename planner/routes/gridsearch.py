@@ -143,7 +143,9 @@ def _heap_pop(fk, nd, size):
     return node
 
 
-@compiled.njit(cache=True)
+@compiled.njit(cache=True,
+               aot=("Tuple((float64, int64[::1], int64))(float64[:, ::1], boolean[:, ::1], int64, int64, int64, "
+                    "int64, float64, float64, float64)"))
 def _astar(cost, allowed, sr, sc, gr, gc, hx, hy, cmin):
     # Flat indices on a grid padded by one blocked cell, so neighbours need no bounds checks.
     # state: 0 blocked, 1 open, 2 closed (one byte array keeps the hot loop in cache).

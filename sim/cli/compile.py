@@ -31,12 +31,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def all_kernels() -> list:
     """Import every module of :data:`PACKAGES` and return every kernel they define."""
-    from estimators import compiled
+    from estimators import aot, compiled
 
     for pkg in PACKAGES:
         base = importlib.import_module(pkg)
         for info in pkgutil.walk_packages(base.__path__, prefix=pkg + "."):
-            importlib.import_module(info.name)
+            if not info.name.endswith("." + aot.NAME):  # the build itself is loaded by estimators.aot only
+                importlib.import_module(info.name)
     return compiled.kernels()
 
 
