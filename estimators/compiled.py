@@ -162,12 +162,13 @@ def njit(*args, aot: str | None = None, **options):
     """
     def wrap(fn: Callable):
         with _lock:
-            if _jitted:
-                import numba
-
-                return numba.njit(**options)(fn)
             kernel = Kernel(fn, options, aot)
             _kernels.append(kernel)
+            if _jitted:  # defined after jit(): its module gets the dispatcher, as the others did
+                import numba
+
+                kernel._dispatcher = numba.njit(**options)(fn)
+                return kernel._dispatcher
             return kernel
 
     if args and callable(args[0]):
