@@ -3,9 +3,10 @@
 Run: ``python benchmarks/hall.py [--skip-place] [--repeat N]``. The hall is written into a
 temporary folder (nothing is written elsewhere). Each command runs as a subprocess, measured by
 ``os.wait4``: wall time, CPU (user + sys) and peak RSS; ``map`` and ``plan`` run ``--repeat``
-times (default 3) after a warm-up run, and the medians are printed. Targets: ``map --resolution 0.05 --json`` (3.84 M
-cells) <= 1.5 s and <= 1 GB; ``plan`` <= 2 s (with the ahead-of-time build of ``pefsim compile``;
-each is also run with ``PEFSIM_AOT=0``, numba's JIT only, interleaved, and the outputs compared); ``place`` from the empty floor <= 60 s and
+times (default 3) after a warm-up run, and the medians are printed. Targets:
+``map --resolution 0.05 --json`` (3.84 M cells) <= 1.5 s and <= 1 GB; ``plan`` <= 2 s (with the
+ahead-of-time build of ``pefsim compile``; each is also run with ``PEFSIM_AOT=0``, numba's JIT
+only, interleaved, and the outputs compared); ``place`` from the empty floor <= 60 s and
 <= 1.5 GB with at most 1.2 x its lower bound. The machine may be shared: compare CPU times,
 and the baselines measured in this same run:
 
