@@ -76,11 +76,16 @@ def _load() -> tuple:
         if os.environ.get("PEFSIM_AOT", "1") != "0":
             try:
                 manifest = json.loads(manifest_path().read_text())
-                path = library_path()
-                loader = importlib.machinery.ExtensionFileLoader(NAME, str(path))
-                spec = importlib.util.spec_from_file_location(NAME, path, loader=loader)
-                module = importlib.util.module_from_spec(spec)
-                loader.exec_module(module)
+                # as the submodule it is, so that importing estimators._aot_kernels finds this one
+                name = f"{__package__}.{NAME}"
+                module = sys.modules.get(name)
+                if module is None:
+                    path = library_path()
+                    loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+                    spec = importlib.util.spec_from_file_location(name, path, loader=loader)
+                    module = importlib.util.module_from_spec(spec)
+                    loader.exec_module(module)
+                    sys.modules[name] = module
             except (OSError, ValueError, ImportError):
                 module, manifest = None, {}  # not built, or built for another Python or numpy
         _state = (module, manifest)

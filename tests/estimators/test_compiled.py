@@ -60,6 +60,21 @@ def test_an_edit_of_an_inlined_kernel_reaches_the_cached_caller(kernels):
     assert {p: p.stat().st_mtime_ns for p in kernels.glob("__pycache__/fresh.g-*")} == before
 
 
+LAZY_CALLEE = "from estimators import compiled\n\n\n@compiled.njit(cache=True)\ndef f(x):\n    return x + {add}\n"
+LAZY_CALLER = CALLER.replace("import numba\n\n", "").replace("@numba.njit", "@compiled.njit")
+
+
+def test_kernels_of_compiled_njit_are_kept_fresh_when_they_become_dispatchers(tmp_path):
+    (tmp_path / "callee.py").write_text(LAZY_CALLEE.format(add=1.0))
+    (tmp_path / "fresh.py").write_text(LAZY_CALLER + "\n\ncompiled.keep_fresh(__name__)\n")
+    (tmp_path / "stale.py").write_text(LAZY_CALLER)  # negative control
+    assert _run(tmp_path, "fresh") == 4.0
+    assert _run(tmp_path, "stale") == 4.0
+    (tmp_path / "callee.py").write_text(LAZY_CALLEE.format(add=2.0))
+    assert _run(tmp_path, "fresh") == 6.0
+    assert _run(tmp_path, "stale") == 4.0
+
+
 def _our_modules():
     for pkg in ("estimators", "planner", "sim"):
         base = importlib.import_module(pkg)
