@@ -145,3 +145,17 @@ def test_map_and_plan_run_the_build_without_numba_and_print_what_the_jit_prints(
     assert "NO-NUMBA" in built.stderr
     assert "NUMBA-IMPORTED" in jit.stderr  # negative control: without the build numba runs them
     assert built.stdout == jit.stdout
+
+
+def test_pefsim_compile_check_tells_a_fresh_build_from_none():
+    _built()
+    check = [sys.executable, "-m", "sim.cli", "compile", "--check", "--json"]
+    fresh = subprocess.run(check, cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+    assert fresh.returncode == 0, fresh.stderr
+    report = json.loads(fresh.stdout)
+    assert report["fresh"] and set(report["kernels"].values()) == {"built"} and len(report["kernels"]) >= 9
+    # negative control: with the build ignored, every kernel is missing and --check exits 1
+    ignored = subprocess.run(check, cwd=ROOT, env={**ENV, "PEFSIM_AOT": "0"}, capture_output=True, text=True,
+                             timeout=120)
+    assert ignored.returncode == 1 and not json.loads(ignored.stdout)["fresh"]
+    assert set(json.loads(ignored.stdout)["kernels"].values()) == {"missing"}
