@@ -13,7 +13,10 @@ callees, runs numba's JIT (correct, only slower to start) until the next ``pefsi
 
 Each kernel is built with its own numba options (``nogil`` releases the GIL, as the threads of
 :mod:`planner.pef.threads` need; ``error_model``, ``fastmath``), so it computes what the JIT
-computes. The build holds code for the CPU family only (no host-specific instructions).
+computes. The build targets the host's CPU, as numba's JIT does: kernels with
+``fastmath={"contract"}`` (:mod:`planner.pef.pairs`) fuse multiply-adds where the CPU has FMA, and
+code for the generic CPU family would round differently (another map on warehouse-reflectors).
+A build is therefore for the machine that made it (``cpu`` in the manifest).
 """
 
 from __future__ import annotations
@@ -212,12 +215,16 @@ def build(kernels, folder: Path = HERE) -> dict:
     with tempfile.TemporaryDirectory(prefix="pefsim-aot-") as tmp:
         cc = CC(NAME)
         cc.output_dir = tmp
+        cc.target_cpu = "host"  # the JIT's instructions (FMA under fastmath contract), its rounding
         for k in chosen:
             cc.export(entries[k.key]["symbol"], k.aot)(k.py_func)
         cc.compile()
         for e in entries.values():
             e["digest"] = sources_digest(e["files"])
-        manifest = {"numba": numba.__version__, "python": sys.version.split()[0], "kernels": entries}
+        from llvmlite import binding
+
+        manifest = {"numba": numba.__version__, "python": sys.version.split()[0],
+                    "cpu": binding.get_host_cpu_name(), "kernels": entries}
         built = Path(tmp) / library_path(Path(tmp)).name
         # replace, never overwrite in place: a running process may have the old library mapped
         tmp_lib = folder / (built.name + ".new")

@@ -116,8 +116,9 @@ def _checked(built: Callable, nargs: int, arrays: tuple, kernel: Kernel) -> Call
     """``built``, called only with the arrays of its signature; numba's dispatcher for any others.
 
     The built code reads whatever array it is given as its signature's dtype and layout (an
-    int64 array as float64, a strided view as contiguous, a list as memory: a crash), so each
-    call checks its arrays first (about 0.3 us each). Other arguments (another dtype, layout,
+    int64 array as float64, a strided view as contiguous, a list as memory: a crash; and it writes
+    into a read-only array, where numba refuses to), so each call checks its arrays first (about
+    0.3 us each). Other arguments (another dtype, layout,
     type or count) go to numba's dispatcher, which compiles for them, as ``numba.njit`` would.
     """
     import numpy as np
@@ -128,7 +129,7 @@ def _checked(built: Callable, nargs: int, arrays: tuple, kernel: Kernel) -> Call
         if len(args) == nargs:
             for i, dt, nd, contiguous in wanted:
                 a = args[i]
-                if type(a) is not np.ndarray or a.dtype != dt or a.ndim != nd or (
+                if type(a) is not np.ndarray or a.dtype != dt or a.ndim != nd or not a.flags.writeable or (
                         contiguous and not a.flags.c_contiguous):
                     break
             else:

@@ -159,3 +159,20 @@ def test_pefsim_compile_check_tells_a_fresh_build_from_none():
                              timeout=120)
     assert ignored.returncode == 1 and not json.loads(ignored.stdout)["fresh"]
     assert set(json.loads(ignored.stdout)["kernels"].values()) == {"missing"}
+
+
+def test_a_read_only_array_runs_through_the_jit_which_refuses_to_write_it():
+    _built()
+    from planner.schedule import drift  # noqa: F401 (defines the kernel)
+
+    (kernel,) = [k for k in compiled.kernels() if k.key == "planner.schedule.drift._drift_kernel"]
+    d, phi = np.array([0.0, 1.0, 2.0]), np.array([0.0, 0.3, 0.1])
+    rest = (0.5, 0.002, 0.01, 0.001, 3.0, 0.0, False, 0.05, 0.8)
+    frozen = np.zeros(3)
+    frozen.flags.writeable = False
+    with pytest.raises(Exception, match="readonly|read-only|immutable"):
+        kernel(d, phi, d ** 1.5, *rest, frozen)
+    assert not frozen.any()
+    # negative control: the built code itself writes into the read-only array
+    aot.function(kernel.key, kernel.aot)(d, phi, d ** 1.5, *rest, frozen)
+    assert np.count_nonzero(frozen) == 2
