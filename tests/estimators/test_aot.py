@@ -97,6 +97,21 @@ def test_the_build_is_used_only_for_the_sources_it_was_built_from(monkeypatch):
     assert aot.function(key, entry["signature"]) is not None
 
 
+@pytest.mark.parametrize("host, used", [(None, True), ("another-cpu", False)])
+def test_a_build_made_on_another_cpu_is_not_used(host, used):
+    """The build targets its host's instructions; on another CPU it is ignored, the JIT runs."""
+    manifest = _built()
+    key, entry = next(iter(manifest["kernels"].items()))
+    out = _python(f"""
+        from estimators import aot
+        if {host!r} is not None:
+            aot.host_fingerprint = lambda: {host!r}
+        print(aot.function({key!r}, {entry["signature"]!r}) is not None)
+        """)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == [str(used)]
+
+
 def test_every_declared_kernel_is_in_the_build_with_its_declared_signature():
     manifest = _built()
     from sim.cli.compile import all_kernels
