@@ -235,8 +235,10 @@ def build(kernels, folder: Path = HERE) -> dict:
     chosen = [k for k in kernels if k.aot is not None]
     entries, by_function = {}, {}
     for k in chosen:
+        # and the two files that decide what a build holds: a change there may change every entry
         files = [_relative(Path(k.py_func.__code__.co_filename))] + [
-            _relative(p) for p in compiled.inlined_sources(k._dispatcher)]
+            _relative(p) for p in compiled.inlined_sources(k._dispatcher)] + [
+            _relative(Path(__file__)), _relative(Path(compiled.__file__))]
         symbol = k.key.replace(".", "__")
         nargs, arrays = _describe_arguments(k.aot)
         entries[k.key] = {"symbol": symbol, "signature": k.aot, "files": files, "nargs": nargs, "arrays": arrays}

@@ -18,8 +18,8 @@ numba caches a compiled function beside its own source file (``cache=True``) and
 cache away when that file changes. A kernel that calls kernels of other files compiles their
 code into its own, so after an edit of one of *those* files the caller's cache would still run
 the old code. :func:`keep_fresh`, called at the end of a module that defines cached kernels,
-keys each of them on the sources of every module whose kernels it reaches (found from the
-names its code uses, transitively): when their hash differs from the one stored beside the
+keys each of them on the sources of every module whose kernels it reaches, or whose constants
+it reads (found from the names its code uses, transitively): when their hash differs from the one stored beside the
 cache, the kernel's cache is flushed, and numba compiles it afresh on first use. For a module of
 :class:`Kernel` objects this happens in :func:`jit`, when they become dispatchers.
 
@@ -246,8 +246,70 @@ def _callees(dispatcher) -> list:
     return found
 
 
+#: top-level packages whose modules' constants a kernel may freeze into its code
+_OWN_PACKAGES = ("estimators", "planner", "sim", "scenarios")
+
+
+@functools.cache
+def _installed_roots() -> tuple[str, ...]:
+    import sysconfig
+
+    return tuple({str(Path(sysconfig.get_path(k)).resolve()) for k in ("stdlib", "platstdlib", "purelib", "platlib")})
+
+
+def _ours(module: types.ModuleType | None) -> bool:
+    """Tell whether a module is ours or the user's (not the standard library, not an installed one).
+
+    numpy's or numba's constants change only with their version, which numba's cache keys on.
+    """
+    name, path = getattr(module, "__name__", ""), getattr(module, "__file__", None)
+    if not path:
+        return False
+    return name.split(".")[0] in _OWN_PACKAGES or not str(Path(path).resolve()).startswith(_installed_roots())
+
+
+@functools.cache
+def _imported_from(module_name: str) -> dict[str, str]:
+    """``{name: module}`` of a module's ``from X import name`` statements (X one of :func:`_ours`)."""
+    module = sys.modules.get(module_name)
+    path = getattr(module, "__file__", None)
+    out: dict[str, str] = {}
+    if not path or not path.endswith(".py"):
+        return out
+    import ast
+    import importlib.util
+
+    for node in ast.walk(ast.parse(Path(path).read_bytes())):
+        if isinstance(node, ast.ImportFrom):
+            package = module.__package__ if node.level else None
+            source = importlib.util.resolve_name("." * node.level + (node.module or ""), package)
+            if _ours(sys.modules.get(source)):
+                out.update({a.asname or a.name: source for a in node.names})
+    return out
+
+
+def _constant_sources(fn) -> set[Path]:
+    """Files of our modules whose constants ``fn``'s code reads (numba freezes globals)."""
+    files = set()
+    imported = _imported_from(fn.__module__)
+    for name in _code_names(fn.__code__):
+        obj = fn.__globals__.get(name)
+        source = None
+        if isinstance(obj, types.ModuleType):
+            source = obj
+        elif name in imported:
+            source = sys.modules.get(imported[name])
+        if _ours(source):
+            files.add(Path(source.__file__).resolve())
+    return files
+
+
 def inlined_sources(dispatcher) -> list[Path]:
-    """Source files of every kernel ``dispatcher`` reaches, other than its own, sorted.
+    """Source files, other than its own, whose content ``dispatcher``'s compiled code holds, sorted.
+
+    Those of every kernel it reaches, and those of the modules it or they read a constant from
+    (``from estimators.measurements import _MIN_RANGE``, ``module.CONSTANT``): numba compiles a
+    global's value into the code, so an edit there changes the code as an edit of a callee does.
 
     Parameters
     ----------
@@ -261,7 +323,9 @@ def inlined_sources(dispatcher) -> list[Path]:
     own = Path(dispatcher.py_func.__code__.co_filename).resolve()
     seen, todo, files = {id(dispatcher.py_func)}, [dispatcher], set()
     while todo:
-        for callee in _callees(todo.pop()):
+        current = todo.pop()
+        files |= _constant_sources(current.py_func)
+        for callee in _callees(current):
             if id(callee.py_func) not in seen:
                 seen.add(id(callee.py_func))
                 todo.append(callee)

@@ -203,3 +203,6 @@ def _gauss_newton(markers, meas_ranges, w, p, world_bearings, max_iter, step_tol
             break
         p, res, jac, cost = q, res_q, jac_q, cost_q
     return LsqSolution(position=p, jacobian=jac, residuals=res, iterations=it, converged=converged)
+
+
+compiled.keep_fresh(__name__)

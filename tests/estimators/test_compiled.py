@@ -85,6 +85,7 @@ def _our_modules():
 
 
 def test_every_module_whose_cached_kernels_inline_others_keeps_them_fresh():
+    compiled.jit()  # every kernel a numba dispatcher, whichever tests ran before
     missing = []
     for name in _our_modules():
         mod = importlib.import_module(name)
@@ -94,3 +95,35 @@ def test_every_module_whose_cached_kernels_inline_others_keeps_them_fresh():
         if inlining and "compiled.keep_fresh(__name__)" not in Path(mod.__file__).read_text():
             missing.append(name)
     assert missing == []
+
+
+CONSTANTS = "LIMIT = {value}\n"
+CONSTANT_READER = textwrap.dedent("""\
+    import constants
+    from constants import LIMIT
+    from estimators import compiled
+
+
+    @compiled.njit(cache=True)
+    def g(x):
+        return x + LIMIT + constants.LIMIT
+    """)
+
+
+def test_an_edit_of_a_constant_the_kernel_imports_reaches_its_cached_code(tmp_path):
+    # numba freezes a global's value into the compiled code, and keys its cache on the kernel's file only
+    (tmp_path / "constants.py").write_text(CONSTANTS.format(value=1.0))
+    (tmp_path / "fresh.py").write_text(CONSTANT_READER + "\n\ncompiled.keep_fresh(__name__)\n")
+    (tmp_path / "stale.py").write_text(CONSTANT_READER)  # negative control
+    assert _run(tmp_path, "fresh") == 3.0
+    assert _run(tmp_path, "stale") == 3.0
+    (tmp_path / "constants.py").write_text(CONSTANTS.format(value=2.0))
+    assert _run(tmp_path, "fresh") == 5.0
+    assert _run(tmp_path, "stale") == 3.0
+
+
+def test_the_ahead_of_time_digest_covers_a_constant_imported_from_another_file():
+    from estimators import lsq
+
+    compiled.jit()
+    assert ROOT / "estimators" / "measurements.py" in compiled.inlined_sources(lsq._gauss_newton_ranges)
