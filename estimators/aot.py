@@ -149,24 +149,29 @@ def function(key: str, signature: str):
     return getattr(module, entry["symbol"], None)
 
 
-def array_arguments(key: str) -> tuple[int, tuple[tuple[int, str, int, bool], ...]]:
-    """Return the argument count and the array arguments (position, dtype, ndim, C-contiguous).
+def array_arguments(key: str) -> tuple[int, tuple[tuple[int, str, int, bool], ...], tuple[int, ...]]:
+    """Return the argument count, the array arguments and the positions of the integer ones.
 
-    The built code does not check the arrays it is given (another dtype or layout would be read
-    as if it were the signature's): :mod:`estimators.compiled` checks them before each call.
+    An array argument is (position, dtype, ndim, C-contiguous).
+
+    The built code does not check what it is given (another dtype or layout would be read as if
+    it were the signature's, a float for an integer truncated): :mod:`estimators.compiled`
+    checks the arguments before each call.
     """
     entry = _load()[1]["kernels"][key]
-    return entry["nargs"], tuple((int(i), str(dt), int(nd), bool(c)) for i, dt, nd, c in entry["arrays"])
+    arrays = tuple((int(i), str(dt), int(nd), bool(c)) for i, dt, nd, c in entry["arrays"])
+    return entry["nargs"], arrays, tuple(int(i) for i in entry["integers"])
 
 
-def _describe_arguments(signature: str) -> tuple[int, list]:
+def _describe_arguments(signature: str) -> tuple[int, list, list]:
     from numba.core import sigutils, types
     from numba.np.numpy_support import as_dtype
 
     args, _ = sigutils.normalize_signature(signature)
     arrays = [[i, str(as_dtype(t.dtype)), t.ndim, t.layout == "C"] for i, t in enumerate(args)
               if isinstance(t, types.Array)]
-    return len(args), arrays
+    integers = [i for i, t in enumerate(args) if isinstance(t, types.Integer)]
+    return len(args), arrays, integers
 
 
 def status(kernels) -> dict[str, str]:
@@ -240,8 +245,9 @@ def build(kernels, folder: Path = HERE) -> dict:
             _relative(p) for p in compiled.inlined_sources(k._dispatcher)] + [
             _relative(Path(__file__)), _relative(Path(compiled.__file__))]
         symbol = k.key.replace(".", "__")
-        nargs, arrays = _describe_arguments(k.aot)
-        entries[k.key] = {"symbol": symbol, "signature": k.aot, "files": files, "nargs": nargs, "arrays": arrays}
+        nargs, arrays, integers = _describe_arguments(k.aot)
+        entries[k.key] = {"symbol": symbol, "signature": k.aot, "files": files, "nargs": nargs, "arrays": arrays,
+                          "integers": integers}
         by_function[k.py_func] = k._dispatcher
     _flags_of_each_kernel(by_function)
     folder.mkdir(parents=True, exist_ok=True)

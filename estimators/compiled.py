@@ -112,14 +112,15 @@ class Kernel:
         return f"<pefsim kernel {self.key}>"
 
 
-def _checked(built: Callable, nargs: int, arrays: tuple, kernel: Kernel) -> Callable:
-    """``built``, called only with the arrays of its signature; numba's dispatcher for any others.
+def _checked(built: Callable, nargs: int, arrays: tuple, integers: tuple, kernel: Kernel) -> Callable:
+    """``built``, called only with the arguments of its signature; numba's dispatcher for any others.
 
     The built code reads whatever array it is given as its signature's dtype and layout (an
     int64 array as float64, a strided view as contiguous, a list as memory: a crash; and it writes
     into a read-only array, where numba refuses to), so each call checks its arrays first (about
-    0.3 us each). Other arguments (another dtype, layout,
-    type or count) go to numba's dispatcher, which compiles for them, as ``numba.njit`` would.
+    0.3 us each), and that its integer arguments are integers (it would truncate a float). Other
+    arguments (another dtype, layout, type or count) go to numba's dispatcher, which compiles for
+    them, as ``numba.njit`` would.
     """
     import numpy as np
 
@@ -133,7 +134,8 @@ def _checked(built: Callable, nargs: int, arrays: tuple, kernel: Kernel) -> Call
                         contiguous and not a.flags.c_contiguous):
                     break
             else:
-                return built(*args)
+                if all(isinstance(args[i], (int, np.integer)) for i in integers):
+                    return built(*args)
         jit()
         return kernel._dispatcher(*args)
 

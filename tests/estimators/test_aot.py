@@ -191,3 +191,22 @@ def test_a_read_only_array_runs_through_the_jit_which_refuses_to_write_it():
     # negative control: the built code itself writes into the read-only array
     aot.function(kernel.key, kernel.aot)(d, phi, d ** 1.5, *rest, frozen)
     assert np.count_nonzero(frozen) == 2
+
+
+@compiled.njit(cache=False)
+def _scaled(x, n):
+    return x * n
+
+
+def test_a_float_for_an_integer_argument_runs_through_the_jit():
+    """The built code would truncate it (no kernel of ours takes an integer today: this guards the next)."""
+    def built(x, n):
+        return "built"
+
+    (kernel,) = [k for k in compiled.kernels() if k.key == f"{__name__}._scaled"]  # jit() may have rebound the name
+    call = compiled._checked(built, 2, (), (1,), kernel)
+    assert call(2.0, 3) == "built"
+    assert call(2.0, np.int64(3)) == "built"
+    assert call(2.0, 3.5) == 7.0  # numba's dispatcher, compiled for a float
+    # negative control: without the integer positions the built code gets the float
+    assert compiled._checked(built, 2, (), (), kernel)(2.0, 3.5) == "built"
