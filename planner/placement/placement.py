@@ -20,9 +20,9 @@ runs the exact solver (LP cutting planes, local search, then HiGHS MILP rounds v
 best cover. Above it, the LP relaxation's rounding improved by local search
 (:mod:`planner.placement.search`) is reported with the LP relaxation's lower bound. Per-pair
 tau comes from the PEF's own kernel (:func:`planner.pef.kernels.subset_tau`) on the points'
-visible sites, visibility from :class:`planner.pef.map.PEF` over a scenario copy whose markers
-are the sites; the ``exact`` model is optimised with its linearisation (``strips``): clipping
-polygons for every pair and point would be far too slow.
+visible sites, visibility the PEF's (:func:`planner.pef.visibility.scenario_visible_points`) over
+a scenario copy whose markers are the sites; the ``exact`` model is optimised with its
+linearisation (``strips``): clipping polygons for every pair and point would be far too slow.
 """
 
 from __future__ import annotations
@@ -153,18 +153,23 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     coverable : ndarray of bool, shape (N,)
         Points some subset of sites can cover.
     """
-    from planner.pef.map import PEF
+    from estimators.fault.linearized import chi2_2dof_ppf
+    from planner.pef.visibility import scenario_visible_points
 
     k = scenario.sensor.markers_per_fix
-    pef = PEF(_site_scenario(scenario, sites), model=_model(scenario), k=2)
-    vis = np.ascontiguousarray(pef.visible(points))
+    # the sites' visibility only: a PEF over them would list every pair of sites (4e6 for 3000
+    # sites, past its limit), where a point's good pairs are among the few sites it sees
+    points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
+    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites), points)[0].T)
+    model = _model(scenario)
     kernel_model = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
-                    PefModel.GDOP: pef_kernels.GDOP}[pef.model]
+                    PefModel.GDOP: pef_kernels.GDOP}[model]
     sensor = scenario.sensor
     tan_xi = math.tan(sensor.bearing_error) if sensor.uses_bearing else 0.0
+    chi2 = float(chi2_2dof_ppf(scenario.planning.gdop_level))
     args = (np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]),
             np.ascontiguousarray(sites[:, 0]), np.ascontiguousarray(sites[:, 1]), vis, kernel_model,
-            float(sensor.relative_error), float(sensor.absolute_error), tan_xi, float(pef.chi2_ppf),
+            float(sensor.relative_error), float(sensor.absolute_error), tan_xi, chi2,
             float(eps_max) * (1.0 - TAU_MARGIN))
     empty = np.zeros(0, dtype=np.int64)
     counts = _good_pairs_kernel(*args, empty, empty, empty)

@@ -141,8 +141,12 @@ def run(args: argparse.Namespace) -> int:
     if n_bad:
         first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in result.uncovered[:3])
         note = "; -o not written: no markers" if args.output and not written_toml else ""
+        hint = ("" if sc.placement.candidates else
+                f"; candidate sites lie placement.spacing = {sc.placement.spacing:g} m apart: a finer spacing"
+                + (", or posts (placement.marker_kind)," if sc.placement.marker_kind.value == "flat" else "")
+                + " may cover them")
         raise PlanningError(f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
-                            f"(first: {first}){note}")
+                            f"(first: {first}){hint}{note}")
     if unplanned:
         raise PlanningError(f"{len(unplanned)} of {len(sc.tasks)} tasks have no admissible route on the "
                             f"placed markers, even with the cover target at {target:g} m: {unplanned[0]}")

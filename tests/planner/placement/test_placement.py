@@ -205,3 +205,18 @@ def test_nothing_to_write_and_bad_method(tmp_path):
         placement.write_scenario_with_markers(sc, res, tmp_path / "x.toml")
     with pytest.raises(PlanningError, match="method"):
         placement.place(sc, points=np.array([[2.0, 2.0]]), sites=SITES, method="magic")
+
+
+def test_a_cover_over_more_sites_than_a_pef_can_pair():
+    """A point's good pairs are among the sites it sees: 2100 sites (2.2e6 pairs) are no limit."""
+    from scenarios.errors import PlanningError
+
+    sc = scenarios.load("paper-docks")
+    sites = candidate_sites(sc, spacing=0.035)
+    assert len(sites) > 2100
+    pts = cover_points(sc)[::40]
+    cov, coverable = placement.build_cover(sc, pts, sites, sc.planning.eps_max)
+    assert coverable.all()
+    # negative control: a PEF over all the sites refuses them
+    with pytest.raises(PlanningError, match="subsets to score"):
+        PEF(placement._site_scenario(sc, sites), k=2)
