@@ -273,7 +273,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             last_fix_start = t
         next_fix = f + 1
 
-    step = world.step
+    step, pose_now = world.step, world.robot.true_pose_tuple
 
     def advance() -> None:
         # One control period, stopping at each physics step a measurement falls due.
@@ -288,7 +288,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                 world.step(max(due_step - world.steps, 0))
                 read_odometry()
                 # every control tick reads the odometry once: n of them so far
-                fixes.measure_due(odo.pose, world.true_pose(), world.time, n + counts["reads"])
+                fixes.measure_due(odo.pose, pose_now(), world.time, n + counts["reads"])
             else:
                 world.step(end - world.steps)
 

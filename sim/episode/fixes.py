@@ -91,9 +91,9 @@ class FixRecorder:
         truth); None if fewer than k markers are visible.
         """
         self._fallback_next, self._beyond_next = -1, False
-        seen_sched = self.laser.visible_all(scheduled)
-        if seen_sched.all():  # the usual case: two rays, not M
+        if self.laser.sees_all(scheduled):  # the usual case: two rays, not M
             return list(scheduled)
+        seen_sched = self.laser.visible_all(scheduled)
         fbs = getattr(fix, "fallbacks", ()) if fix is not None else ()
         if (~seen_sched).sum() == 1 and len(fbs) == len(scheduled):
             q = int(np.flatnonzero(~seen_sched)[0])
@@ -130,8 +130,10 @@ class FixRecorder:
 
     # -- measuring -----------------------------------------------------------------------
 
-    def measure_due(self, dr_pose: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None = None) -> None:
+    def measure_due(self, dr_pose: np.ndarray, true_pose, t: float, reads: int | None = None) -> None:
         """Take the measurement that is due now (the caller has predicted the EKF up to ``t``).
+
+        ``true_pose`` is the robot's true pose now (x, y, theta), a tuple or an array.
 
         ``reads`` counts the odometry reads so far (any origin): the shifts' slip variance
         depends on how many increments they span (None: counted as one, an upper bound).
@@ -142,7 +144,7 @@ class FixRecorder:
         i = p.markers.pop(0)
         p.due.pop(0)
         try:
-            m = self.laser.measure(i, self.rng)  # it checks the line of sight itself
+            m = self.laser.measure(i, self.rng, true_pose)  # it checks the line of sight itself
         except SimulationError:
             m = None  # the marker went behind an obstacle during the fix
         if m is not None:

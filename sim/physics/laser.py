@@ -154,6 +154,20 @@ class LaserSensor:
         hit = pb.rayTest([x, y, h], self._targets[i], physicsClientId=self.world.client)[0]
         return bool(hit[0] == -1 or hit[0] == self._own_post[i])
 
+    def sees_all(self, indices) -> bool:
+        """Tell whether every marker of ``indices`` is visible now (stops at the first that is not).
+
+        The check of a fix's scheduled markers, once per fix: plain floats and a ray each. Right
+        after physics steps the interpreter runs from cold caches, and the numpy calls of
+        :meth:`visible_all` cost ~150 us there (a fifth of an episode's laser time).
+        """
+        pose = self.world.robot.true_pose_tuple()
+        for i in indices:
+            self._check_index(int(i))
+            if not self._visible_from(int(i), pose):
+                return False
+        return True
+
     def visible_all(self, indices=None) -> np.ndarray:
         """Visibility of every marker, or of the markers ``indices``: shape (M,) or (len(indices),) bool.
 
@@ -176,8 +190,11 @@ class LaserSensor:
         ok = np.array([int(i) not in self.blocked and self._facing(int(i), x, y) for i in idx], dtype=bool)
         return in_range & ok & ((body == -1) | (body == self._own_post[idx]))
 
-    def measure(self, i: int, rng: np.random.Generator) -> Measurement:
+    def measure(self, i: int, rng: np.random.Generator, pose: tuple[float, float, float] | None = None) -> Measurement:
         """Measure marker ``i`` now, drawing noise from ``rng``.
+
+        ``pose`` is the robot's true pose now (x, y, theta) if the caller has read it already
+        (:meth:`sim.physics.robot.DiffDriveRobot.true_pose_tuple`); it is read otherwise.
 
         Range noise: uniform in ±ρ or gaussian with σ = ρ/3, ρ = Re·r + ρ0 at the true range.
         Bearing (when the spec's bearing error ξ > 0): likewise with ξ. The range is drawn
@@ -189,7 +206,7 @@ class LaserSensor:
             If marker ``i`` is not visible (callers check :meth:`visible` first).
         """
         self._check_index(i)
-        pose = self.world.true_pose()
+        pose = np.array(self.world.robot.true_pose_tuple() if pose is None else pose, dtype=float)
         if not self._visible_from(i, pose):
             raise SimulationError(f"laser: marker {i} at {self.markers[i].tolist()} is not visible "
                                   f"from {pose[:2].round(3).tolist()}")
