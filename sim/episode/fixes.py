@@ -77,6 +77,7 @@ class FixRecorder:
         self._fallback_next = -1
         self._beyond_next = False
         self._rows: list[dict] = []
+        self._finished: list[tuple] = []  # fixes whose rows log() completes
         self._polygons: list[np.ndarray] = []
 
     # -- starting ------------------------------------------------------------------------
@@ -167,16 +168,25 @@ class FixRecorder:
         if not p.markers:
             self._finish(dr_pose, true_pose, t, reads)
 
-    def _finish(self, dr_end: np.ndarray, true_pose: np.ndarray, t: float, reads: int | None) -> None:
+    def _finish(self, dr_end: np.ndarray, true_pose, t: float, reads: int | None) -> None:
         p, self.pending = self.pending, None
         if len(p.measured) < 2:
             self.skipped += 1  # a marker vanished behind an obstacle mid-fix: no fix
             return
+        # What the fix's snapshot and fault area need from now; they are computed in log(), after
+        # the episode: between physics steps the interpreter runs from cold caches, and these
+        # ~40 small numpy calls cost 3-4 times what they cost in one loop (a fifth of an
+        # episode's non-physics time). Nothing in the episode reads them.
+        self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x,
+                               self.loc.heading_var))
+
+    def _complete(self, p: _Pending, dr_end: tuple, true_pose: tuple, t: float, reads: int | None,
+                  x_est: np.ndarray, heading_var_now: float) -> None:
+        """Compute a finished fix's snapshot, fault area and promise, with the filter as it was then."""
         idx = np.array(p.measured)
         # Dead reckoning drifts in heading without bound; only its displacement over the fix is
         # trusted, turned into the world frame with the filter's heading. (A fix has a few
         # measurements: plain floats, numpy's per-call cost would dominate.)
-        x_est = self.loc.x
         at = np.array([[float(d[0]), float(d[1])] for d in p.dr_at])
         shifted, travelled = carry(self.markers[idx], at, (float(dr_end[0]), float(dr_end[1])),
                                    float(x_est[2]) - float(dr_end[2]))
@@ -194,7 +204,7 @@ class FixRecorder:
         rho = self.sensor.measured_range_bound(ranges)  # the declared bound holds at the true range
         # every range but one taken at the fix time is carried (unchanged encoders included)
         carried = np.array(p.slots) < p.attempted - 1
-        heading_var = max(self.loc.heading_var, 0.0)  # the shift is turned with the filter's heading
+        heading_var = max(heading_var_now, 0.0)  # the shift is turned with the filter's heading
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
         # the least-squares weights add its variance.
@@ -205,7 +215,7 @@ class FixRecorder:
             turned = np.array([float(dr_end[2]) - float(d[2]) for d in p.dr_at])
             bearings = np.array(p.bearings) - turned
             # the filter's heading is not exact: widen the wedges by its 3-sigma bound
-            bearing_error += 3.0 * math.sqrt(max(float(self.loc.P[2, 2]), 0.0))
+            bearing_error += 3.0 * math.sqrt(max(heading_var_now, 0.0))
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
@@ -259,6 +269,9 @@ class FixRecorder:
     # -- result --------------------------------------------------------------------------
 
     def log(self) -> FixLog:
+        for finished in self._finished:
+            self._complete(*finished)
+        self._finished.clear()
         rows, k = self._rows, self.k
 
         def col(name, shape, dtype=float):
