@@ -35,7 +35,7 @@ class _Pending:
     measured: list[int] = field(default_factory=list)
     ranges: list[float] = field(default_factory=list)
     bearings: list[float] = field(default_factory=list)
-    dr_at: list[np.ndarray] = field(default_factory=list)
+    dr_at: list[tuple[float, float, float]] = field(default_factory=list)
     reads_at: list[int | None] = field(default_factory=list)
     nis: float = 0.0
     accepted: int = 0
@@ -163,7 +163,7 @@ class FixRecorder:
             p.measured.append(i)
             p.slots.append(slot)
             p.ranges.append(m.measured_range)
-            p.dr_at.append(np.array(dr_pose, dtype=float))
+            p.dr_at.append(tuple(map(float, dr_pose)))  # floats: no numpy between physics steps
             p.reads_at.append(reads)
         if not p.markers:
             self._finish(dr_pose, true_pose, t, reads)

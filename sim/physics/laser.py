@@ -105,6 +105,7 @@ class LaserSensor:
         self.normals = (np.zeros_like(self.markers) if normals is None
                         else np.asarray(normals, dtype=float).reshape(-1, 2))
         self._normals = [tuple(map(float, n)) for n in self.normals]
+        self._xy = [tuple(map(float, m)) for m in self.markers]
         self._cos2 = math.cos(spec.max_incidence) ** 2
         #: Markers whose line of sight is blocked now (set by the episode for each fix).
         self.blocked: frozenset[int] = frozenset()
@@ -206,18 +207,20 @@ class LaserSensor:
             If marker ``i`` is not visible (callers check :meth:`visible` first).
         """
         self._check_index(i)
-        pose = np.array(self.world.robot.true_pose_tuple() if pose is None else pose, dtype=float)
-        if not self._visible_from(i, pose):
+        # plain floats: called between physics steps, where numpy's calls run from cold caches
+        px, py, pth = (float(v) for v in (self.world.robot.true_pose_tuple() if pose is None else pose))
+        if not self._visible_from(i, (px, py)):
             raise SimulationError(f"laser: marker {i} at {self.markers[i].tolist()} is not visible "
-                                  f"from {pose[:2].round(3).tolist()}")
-        dx, dy = self.markers[i, 0] - float(pose[0]), self.markers[i, 1] - float(pose[1])
+                                  f"from {[round(px, 3), round(py, 3)]}")
+        mx, my = self._xy[i]
+        dx, dy = mx - px, my - py
         r = math.hypot(dx, dy)
         rho = float(self.spec.range_bound(r))
         measured = r + _draw(rng, self.spec.noise, rho)
-        bearing = wrap_angle(math.atan2(dy, dx) - pose[2])
+        bearing = wrap_angle(math.atan2(dy, dx) - pth)
         xi = self.spec.bearing_error
         measured_bearing = (wrap_angle(bearing + _draw(rng, self.spec.noise, xi))
                             if self.spec.uses_bearing else None)
         return Measurement(marker=i, time=self.world.time, true_range=r, measured_range=measured,
                            range_bound=rho, true_bearing=bearing, measured_bearing=measured_bearing,
-                           bearing_bound=xi if self.spec.uses_bearing else 0.0, true_pose=pose)
+                           bearing_bound=xi if self.spec.uses_bearing else 0.0, true_pose=np.array([px, py, pth]))
