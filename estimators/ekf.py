@@ -67,7 +67,7 @@ import numpy as np
 from estimators import compiled, motion, process_noise
 from estimators.measurements import bound_std
 from estimators.predict import BASE_VAR, BIASED, Q_SCALE, QUANT_VAR, REL_VAR, WALK_VAR, WHEEL_BASE, predict_step  # noqa: F401
-from estimators.update import UpdateResult, gate_threshold, joseph_update, wrap_scalar
+from estimators.update import UpdateResult, gate_threshold, gated_joseph_update, wrap_scalar
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
 
@@ -288,15 +288,9 @@ class Localizer:
         return self.markers[marker_index, 0], self.markers[marker_index, 1]
 
     def _gated_update(self, innovation: float, var: float) -> UpdateResult:
-        H = self._H[0]
-        P = self._kf.P
-        s = float(H @ P @ H) + var
-        nis = innovation * innovation / s
-        if nis > self._gate:
-            return UpdateResult(False, nis, innovation, s)
-        joseph_update(self._kf.x, P, H, innovation, var)
-        self._kf.x[2] = wrap_scalar(self._kf.x[2])
-        return UpdateResult(True, nis, innovation, s)
+        accepted, nis, s = gated_joseph_update(self._kf.x, self._kf.P, self._H[0], float(innovation), float(var),
+                                               self._gate)
+        return UpdateResult(accepted, nis, innovation, s)
 
     def update_range(self, marker_index: int, measured_range: float) -> UpdateResult:
         """Correct the estimate with one range measurement.

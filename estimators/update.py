@@ -83,5 +83,38 @@ def joseph_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, innovation: float
     P[:, :] = A @ P @ A.T + var * np.outer(K, K)
 
 
+@compiled.njit(cache=True)
+def gated_joseph_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, innovation: float, var: float,
+                        gate: float) -> tuple[bool, float, float]:
+    """Gate one scalar measurement and, if it passes, :func:`joseph_update` it and wrap the heading.
+
+    One compiled call for the localiser's update: its numpy steps (``H P H^T``, the NIS, the
+    heading's wrap) cost ~90 us between physics steps, where the interpreter runs from cold
+    caches. The same operations in the same order as those steps.
+
+    Parameters
+    ----------
+    x, P, H, innovation, var
+        As :func:`joseph_update`; ``x[2]`` is the heading [rad].
+    gate : float
+        Largest NIS accepted (``inf``: no gate).
+
+    Returns
+    -------
+    accepted : bool
+    nis : float
+        ``innovation**2 / s``, before the update.
+    s : float
+        ``H P H^T + var`` before the update.
+    """
+    s = (H @ P) @ H + var
+    nis = innovation * innovation / s
+    if nis > gate:
+        return False, nis, s
+    joseph_update(x, P, H, innovation, var)
+    x[2] = math.pi - (math.pi - x[2]) % (2.0 * math.pi)  # wrap_scalar
+    return True, nis, s
+
+
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed
 compiled.keep_fresh(__name__)
