@@ -123,11 +123,18 @@ def test_every_declared_kernel_is_in_the_build_with_its_declared_signature():
         assert e["files"][0] == key.rsplit(".", 1)[0].replace(".", "/") + ".py"
 
 
-def test_other_argument_types_than_the_signature_run_through_the_jit():
+def _drift_case():
+    """Return the drift kernel (built) and arguments of its signature but the output array."""
     _built()
+    from planner.schedule import drift  # noqa: F401 (defines the kernel)
+
     (kernel,) = [k for k in compiled.kernels() if k.key == "planner.schedule.drift._drift_kernel"]
     d, phi = np.array([0.0, 1.0, 2.0]), np.array([0.0, 0.3, 0.1])
-    rest = (0.5, 0.002, 0.01, 0.001, 3.0, 0.0, False, 0.05, 0.8)
+    return kernel, d, phi, (0.5, 0.002, 0.01, 0.001, 3.0, 0.0, False, 0.05, 0.8)
+
+
+def test_other_argument_types_than_the_signature_run_through_the_jit():
+    kernel, d, phi, rest = _drift_case()
     right = np.zeros(3)
     kernel(d, phi, d ** 1.5, *rest, right)
     assert np.count_nonzero(right) == 2
@@ -177,12 +184,7 @@ def test_pefsim_compile_check_tells_a_fresh_build_from_none():
 
 
 def test_a_read_only_array_runs_through_the_jit_which_refuses_to_write_it():
-    _built()
-    from planner.schedule import drift  # noqa: F401 (defines the kernel)
-
-    (kernel,) = [k for k in compiled.kernels() if k.key == "planner.schedule.drift._drift_kernel"]
-    d, phi = np.array([0.0, 1.0, 2.0]), np.array([0.0, 0.3, 0.1])
-    rest = (0.5, 0.002, 0.01, 0.001, 3.0, 0.0, False, 0.05, 0.8)
+    kernel, d, phi, rest = _drift_case()
     frozen = np.zeros(3)
     frozen.flags.writeable = False
     with pytest.raises(Exception, match="readonly|read-only|immutable"):

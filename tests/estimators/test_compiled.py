@@ -64,15 +64,26 @@ LAZY_CALLEE = "from estimators import compiled\n\n\n@compiled.njit(cache=True)\n
 LAZY_CALLER = CALLER.replace("import numba\n\n", "").replace("@numba.njit", "@compiled.njit")
 
 
+def _edit_reaches_fresh_only(tmp: Path, caller: str, other: str, before: str, after: str,
+                             values: tuple[float, float]) -> None:
+    """Check that an edit of file ``other`` (``before`` -> ``after``) reaches ``fresh`` only.
+
+    ``fresh`` is the caller with keep_fresh; ``stale``, the caller alone (the negative control),
+    keeps running its cached code.
+    """
+    (tmp / other).write_text(before)
+    (tmp / "fresh.py").write_text(caller + "\n\ncompiled.keep_fresh(__name__)\n")
+    (tmp / "stale.py").write_text(caller)
+    assert _run(tmp, "fresh") == values[0]
+    assert _run(tmp, "stale") == values[0]
+    (tmp / other).write_text(after)
+    assert _run(tmp, "fresh") == values[1]
+    assert _run(tmp, "stale") == values[0]
+
+
 def test_kernels_of_compiled_njit_are_kept_fresh_when_they_become_dispatchers(tmp_path):
-    (tmp_path / "callee.py").write_text(LAZY_CALLEE.format(add=1.0))
-    (tmp_path / "fresh.py").write_text(LAZY_CALLER + "\n\ncompiled.keep_fresh(__name__)\n")
-    (tmp_path / "stale.py").write_text(LAZY_CALLER)  # negative control
-    assert _run(tmp_path, "fresh") == 4.0
-    assert _run(tmp_path, "stale") == 4.0
-    (tmp_path / "callee.py").write_text(LAZY_CALLEE.format(add=2.0))
-    assert _run(tmp_path, "fresh") == 6.0
-    assert _run(tmp_path, "stale") == 4.0
+    _edit_reaches_fresh_only(tmp_path, LAZY_CALLER, "callee.py", LAZY_CALLEE.format(add=1.0),
+                             LAZY_CALLEE.format(add=2.0), (4.0, 6.0))
 
 
 def _our_modules():
@@ -112,14 +123,8 @@ CONSTANT_READER = textwrap.dedent("""\
 
 def test_an_edit_of_a_constant_the_kernel_imports_reaches_its_cached_code(tmp_path):
     # numba freezes a global's value into the compiled code, and keys its cache on the kernel's file only
-    (tmp_path / "constants.py").write_text(CONSTANTS.format(value=1.0))
-    (tmp_path / "fresh.py").write_text(CONSTANT_READER + "\n\ncompiled.keep_fresh(__name__)\n")
-    (tmp_path / "stale.py").write_text(CONSTANT_READER)  # negative control
-    assert _run(tmp_path, "fresh") == 3.0
-    assert _run(tmp_path, "stale") == 3.0
-    (tmp_path / "constants.py").write_text(CONSTANTS.format(value=2.0))
-    assert _run(tmp_path, "fresh") == 5.0
-    assert _run(tmp_path, "stale") == 3.0
+    _edit_reaches_fresh_only(tmp_path, CONSTANT_READER, "constants.py", CONSTANTS.format(value=1.0),
+                             CONSTANTS.format(value=2.0), (3.0, 5.0))
 
 
 def test_the_ahead_of_time_digest_covers_a_constant_imported_from_another_file():
