@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from scenarios.errors import PefsimError, ScenarioError
+from scenarios.limits import MAX_RUNS
 from scenarios.schema import Scenario
 from sim.montecarlo import directory, executors, lock, results
 from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
@@ -197,10 +198,17 @@ def _one_line(exc: BaseException) -> str:
 
 # -- the sweep ----------------------------------------------------------------------------
 
-def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
-    """Raise a one-line PefsimError for a bad run count, task, worker count or recording period."""
+def check_runs(runs: int) -> None:
+    """Raise a one-line PefsimError unless 0 < ``runs`` <= MAX_RUNS (the file's own cap, montecarlo.runs)."""
     if runs <= 0:
         raise ScenarioError(f"--runs: expected a positive number of runs, got {runs}")
+    if runs > MAX_RUNS:  # a row per run in every table
+        raise ScenarioError(f"--runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
+
+
+def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
+    """Raise a one-line PefsimError for a bad run count, task, worker count or recording period."""
+    check_runs(runs)
     if not scenario.tasks:
         raise ScenarioError(f"{scenario.source}: tasks: expected at least one [[tasks]] entry to drive")
     if task is not None and not 0 <= task < len(scenario.tasks):
@@ -265,6 +273,8 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     kind = _executor_kind(executor)
     if kind is ExecutorKind.RAY:
         executors.import_ray()
+    if runs is not None:
+        check_runs(runs)  # before the directory is made
     out = Path(out if out is not None else f"mc-{scenario.name}")
     wanted = None if steps is None else results.steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
