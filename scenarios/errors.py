@@ -9,7 +9,6 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 
-
 #: Longest message an error prints [characters]: a value or a file name beyond it is elided in
 #: the middle, so that an error stays one readable line whatever the input held.
 MAX_MESSAGE = 1000

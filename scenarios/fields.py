@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from scenarios.errors import ScenarioError
+from scenarios.errors import ScenarioError, elide
 
 _MISSING = object()
 
@@ -66,6 +66,11 @@ def show(value: Any, limit: int = MAX_SHOWN) -> str:
     if walk(value):
         return "".join(out)
     return "".join(out) + " ..."
+
+
+def show_path(path: Any) -> str:
+    """Return a file name for a message, with the middle of a very long one elided."""
+    return elide(str(path), MAX_SHOWN)
 
 
 class Table:

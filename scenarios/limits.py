@@ -19,9 +19,10 @@ MAX_DXF_ENTITIES = 500_000
 """Most entities a DXF drawing may hold after block expansion (INSERT and MINSERT grids, nested
 blocks): counted from the block definitions before anything is expanded; reading costs ~50 µs
 per entity, so the budget is about half a minute of reading."""
-MAX_MAP_PIXELS = 100_000_000
-"""Most pixels of a ROS map image (10 000 x 10 000: a 500 m square at 5 cm): read from the
-image's header before it is decoded; the mask and its traced outlines take ~30 bytes per pixel."""
+MAX_MAP_PIXELS = 25_000_000
+"""Most pixels of a ROS map image (5000 x 5000: a 250 m square at 5 cm): read from the image's
+header before it is decoded; the shades, the mask and the traced outlines take up to ~150 bytes
+per pixel, 4 GB at the budget."""
 MAX_YAML_NODES = 100_000
 """Most nodes of a map YAML once its aliases are expanded: a map_server YAML has about ten;
 aliases of aliases grow exponentially (the "billion laughs")."""
@@ -69,7 +70,3 @@ def nesting_depth(text: str) -> int:
     step[(codes == ord("]")) | (codes == ord("}"))] = -1
     return int(np.cumsum(step).max(initial=0))
 
-
-def over(what: str, count: float, limit: float, unit: str) -> str:
-    """The end of a budget error: ``"<what>: 2.5e+09 pixels, at most 1e+08"``."""
-    return f"{what}: {count:.3g} {unit}, at most {limit:.3g}"

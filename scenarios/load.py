@@ -14,7 +14,7 @@ from typing import Any
 
 from scenarios import floorplan
 from scenarios.errors import ScenarioError
-from scenarios.fields import Table, show
+from scenarios.fields import Table, show_path
 from scenarios.limits import (
     MAX_GRID_CELLS,
     MAX_NESTING,
@@ -74,7 +74,7 @@ def resolve(name_or_path: str | Path) -> Path:
                 raise ScenarioError(f"{p}: no such scenario file")
             return p
     except OSError as exc:  # a name too long for the file system, a path through a file, ...
-        raise ScenarioError(f"{show(str(p))}: cannot read: {exc.strerror or exc}") from None
+        raise ScenarioError(f"{show_path(p)}: cannot read: {exc.strerror or exc}") from None
     candidate = LIBRARY / f"{name_or_path}.toml"
     if candidate.is_file():
         return candidate

@@ -22,6 +22,7 @@ from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import show
+from scenarios.limits import MAX_NESTING, nesting_depth
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
 from scenarios.schema import Obstacle, RouteEdge, RouteNetwork, Workspace
 
@@ -104,10 +105,15 @@ def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"{shown}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
+    depth = nesting_depth(text)
+    if depth > MAX_NESTING:  # json recurses per level: refused before it parses
+        raise ScenarioError(f"{shown}: arrays and objects nested {depth} deep, at most {MAX_NESTING}")
     try:
         data = json.loads(text, parse_constant=lambda c: fail(shown, "<json>", "expected finite numbers", c))
     except json.JSONDecodeError as exc:
         raise ScenarioError(f"{shown}: malformed JSON: {exc}") from None
+    except RecursionError:  # only if the scan above under-counted a malformed file
+        raise ScenarioError(f"{shown}: arrays and objects nested deeper than {MAX_NESTING}") from None
     from scenarios.routegraph import lif, nav2
 
     if isinstance(data, dict) and data.get("type") == "FeatureCollection":
