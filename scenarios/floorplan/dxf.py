@@ -327,6 +327,10 @@ def _expand(insert) -> Iterator:
         yield from ins.virtual_entities()
 
 
+def _count(n: int) -> str:
+    return f"more than {MAX_DXF_ENTITIES}" if n > MAX_DXF_ENTITIES else str(n)
+
+
 def _is_dxf_error(exc: Exception) -> bool:
     import ezdxf
 
@@ -404,7 +408,7 @@ def expanded_size(doc, entities: Iterable, where: str, shown: str) -> int:
         total += n
         if total > MAX_DXF_ENTITIES:
             what = (f"INSERT #{worst.dxf.get('handle')} on layer {show(worst.dxf.get('layer', '0'))} of block "
-                    f"{show(worst.dxf.get('name', ''))} expands to {worst_n:.3g} entities; "
+                    f"{show(worst.dxf.get('name', ''))} expands to {_count(worst_n)} entities; "
                     if worst is not None else "")
             raise ScenarioError(f"{where}.file: {shown}: {what}the drawing has more than {MAX_DXF_ENTITIES} "
                                 f"entities with its blocks expanded, at most {MAX_DXF_ENTITIES}")
