@@ -21,7 +21,6 @@ import io
 import json
 import math
 import os
-import resource
 import struct
 import subprocess
 import sys
@@ -32,7 +31,7 @@ from pathlib import Path
 import ezdxf
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
@@ -51,7 +50,7 @@ MINI = ('name = "mini"\n[workspace]\nsize = [10.0, 10.0]\n'
 
 
 def profile(max_examples: int) -> settings:
-    """The fixed, derandomised profile (no example database: CI reruns exactly these)."""
+    """Return the fixed, derandomised profile (no example database: CI reruns exactly these)."""
     return settings(max_examples=max_examples, derandomize=True, database=None, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                            HealthCheck.function_scoped_fixture])
@@ -101,7 +100,7 @@ def drawing_toml(file: str = "f.dxf", marker: bool = False) -> str:
 
 
 def walled() -> ezdxf.document.Drawing:
-    """A 10 x 10 m room on layer W, an empty marker layer M."""
+    """Return a drawing of a 10 x 10 m room on layer W and an empty marker layer M."""
     doc = ezdxf.new("R2018")
     doc.layers.add("W")
     doc.layers.add("M")
@@ -130,7 +129,7 @@ def fan_out(doc, msp) -> None:
     b.add_line((0, 0), (0.01, 0), dxfattribs={"layer": "0"})
     for level in range(1, 11):
         b = doc.blocks.new(f"L{level}")
-        for i in range(10):
+        for _ in range(10):
             b.add_blockref(f"L{level - 1}", (0.0, 0.0), dxfattribs={"layer": "0"})
     msp.add_blockref("L10", (3, 3), dxfattribs={"layer": "W"})
 
@@ -144,7 +143,8 @@ def scaled_insert(doc, msp) -> None:
 DRAWINGS = [
     ("block inserting itself 3 times", self_inserting, ['block "A" inserts itself', f"{MAX_DXF_ENTITIES}"]),
     ("30 x 30 self-MINSERT", self_minsert, ['block "A" inserts itself', f"{MAX_DXF_ENTITIES}"]),
-    ("fan-out 1e10", fan_out, [f'block "L10" expands to more than {MAX_DXF_ENTITIES} entities', f"at most {MAX_DXF_ENTITIES}"]),
+    ("fan-out 1e10", fan_out,
+     [f'block "L10" expands to more than {MAX_DXF_ENTITIES} entities', f"at most {MAX_DXF_ENTITIES}"]),
     ("ARC NaN centre", lambda d, m: m.add_arc((NAN, 5), 1, 0, 90, dxfattribs={"layer": "W"}),
      ['ARC #', 'on layer "W"', "finite"]),
     ("ARC radius inf", lambda d, m: m.add_arc((5, 5), INF, 0, 90, dxfattribs={"layer": "W"}), ["ARC #", "finite"]),
@@ -201,7 +201,8 @@ def test_a_5000_character_file_name_is_one_short_line(tmp_path):
 # --------------------------------------------------------------------------- maps
 
 def map_toml() -> str:
-    return 'name = "h"\n[floorplan]\nfile = "m.yaml"\n' + TAIL
+    # maps of 30 x 30 px at 5 cm: cells of 5 cm keep the PEF grid above its 2 x 2 floor
+    return 'name = "h"\n[floorplan]\nfile = "m.yaml"\n' + TAIL.replace("resolution = 0.5", "resolution = 0.05")
 
 
 def map_yaml(image: str = "m.pgm", resolution: str = "0.05") -> str:
@@ -210,7 +211,7 @@ def map_yaml(image: str = "m.pgm", resolution: str = "0.05") -> str:
 
 
 def png_claiming(path: Path, w: int, h: int) -> None:
-    """A PNG whose header says w x h (1 bit per pixel) and whose data is one compressed empty row."""
+    """Write a PNG whose header says w x h (1 bit per pixel) and whose data is one compressed empty row."""
     def chunk(kind: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xffffffff)
     ihdr = struct.pack(">IIBBBBB", w, h, 1, 0, 0, 0, 0)
@@ -361,7 +362,7 @@ POINT = st.tuples(NUMBER, NUMBER)
 
 @st.composite
 def drawings(draw):
-    """An ezdxf drawing: a room on layer W plus random entities, some in (nested, cyclic) blocks."""
+    """Draw an ezdxf drawing: a room on layer W plus random entities, some in (nested, cyclic) blocks."""
     doc = walled()
     msp = doc.modelspace()
     blocks = []
@@ -416,10 +417,11 @@ def drawings(draw):
 def test_random_drawings_keep_the_contract(tmp_path, doc):
     try:
         doc.saveas(tmp_path / "f.dxf")
-    except (ValueError, TypeError, ezdxf.DXFError):
-        assume(False)
+    except (ValueError, TypeError, AssertionError, ezdxf.DXFError):
+        assume(False)  # ezdxf does not write it (an ELLIPSE ratio out of range, ...)
     (tmp_path / "s.toml").write_text(drawing_toml(marker=bool(doc.modelspace().query('POINT[layer=="M"]'))))
-    holds(*run(["map", str(tmp_path / "s.toml")]))
+    line = holds(*run(["map", str(tmp_path / "s.toml")]))
+    event(line.split(": ")[-2][:40] if line else "exit 0")  # --hypothesis-show-statistics
 
 
 YAML_VALUES = st.sampled_from(["0.05", "5e-2", "1e-320", "-1", "0", ".nan", ".inf", "abc", "[1, 2]", "{}", "",
@@ -428,8 +430,8 @@ YAML_VALUES = st.sampled_from(["0.05", "5e-2", "1e-320", "-1", "0", ".nan", ".in
 
 @st.composite
 def maps(draw, folder: Path):
-    """A map YAML and an image: random header values, sizes, pixel modes, or raw header bytes."""
-    w, h = draw(st.integers(0, 30)), draw(st.integers(0, 30))
+    """Write a map YAML and an image: random header values, sizes, pixel modes, or raw header bytes."""
+    w, h = draw(st.integers(0, 30)), draw(st.integers(0, 30))  # 0: no image
     kind = draw(st.sampled_from(["L", "RGB", "RGBA", "1", "P", "I;16", "pgm-bytes", "png-header", "missing"]))
     image = "m.png"
     if kind == "pgm-bytes":
@@ -447,10 +449,10 @@ def maps(draw, folder: Path):
     fields = {"image": image, "resolution": draw(st.sampled_from(["0.05", "0.1", "5e-2"])),
               "origin": "[0.0, 0.0, 0.0]", "negate": "0", "occupied_thresh": "0.65", "free_thresh": "0.196",
               "mode": draw(st.sampled_from(["trinary", "scale", "raw"]))}
-    for key in draw(st.lists(st.sampled_from(sorted(fields)), max_size=2)):
-        fields[key] = draw(YAML_VALUES)
+    if draw(st.integers(0, 2)) == 0:  # a third of the headers have a bad value
+        fields[draw(st.sampled_from(sorted(fields)))] = draw(YAML_VALUES)
     text = "".join(f"{k}: {v}\n" for k, v in fields.items())
-    if draw(st.booleans()):
+    if draw(st.integers(0, 4)) == 0:
         text = draw(st.sampled_from([alias_bomb(), "[" * 5000, "a: [" * 200, "- 1\n- 2\n", "image: m.png\n: :"]))
     (folder / "m.yaml").write_text(text)
 
@@ -461,7 +463,8 @@ def test_random_maps_keep_the_contract(tmp_path_factory, data):
     folder = tmp_path_factory.mktemp("map")
     data.draw(maps(folder))
     (folder / "s.toml").write_text(map_toml())
-    holds(*run(["map", str(folder / "s.toml")]))
+    line = holds(*run(["map", str(folder / "s.toml")]))
+    event(line.split(": ")[-2][:40] if line else "exit 0")  # --hypothesis-show-statistics
 
 
 JSON_LEAF = st.one_of(st.none(), st.booleans(), st.integers(-10, 10), st.floats(-20, 20), st.text(max_size=3))
@@ -481,7 +484,7 @@ def nav2(nodes: list, edges: list) -> dict:
 
 @st.composite
 def graphs(draw) -> str:
-    """A route graph file: random JSON, a Nav2 or LIF graph with random values, or deep nesting."""
+    """Draw a route graph file: random JSON, a Nav2 or LIF graph with random values, or deep nesting."""
     kind = draw(st.sampled_from(["json", "nav2", "lif", "deep"]))
     if kind == "deep":
         n = draw(st.integers(1, 3000))
@@ -512,4 +515,5 @@ def graphs(draw) -> str:
 def test_random_route_graphs_keep_the_contract(tmp_path, text):
     (tmp_path / "g.json").write_text(text)
     (tmp_path / "s.toml").write_text(graph_toml())
-    holds(*run(["map", str(tmp_path / "s.toml")]))
+    line = holds(*run(["map", str(tmp_path / "s.toml")]))
+    event(line.split(": ")[-2][:40] if line else "exit 0")  # --hypothesis-show-statistics

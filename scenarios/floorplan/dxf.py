@@ -30,7 +30,7 @@ from scenarios.errors import ScenarioError
 from scenarios.fields import MAX_COORD, show
 from scenarios.floorplan import geometry
 from scenarios.floorplan.spec import INSUNITS, UNITS, FloorPlanData
-from scenarios.limits import MAX_DXF_ENTITIES
+from scenarios.limits import MAX_DXF_ENTITIES, MIN_LENGTH
 
 _OBSTACLE_TYPES = {"LINE", "ARC", "CIRCLE", "LWPOLYLINE", "POLYLINE", "SPLINE", "ELLIPSE",
                    "HATCH", "MPOLYGON", "SOLID", "TRACE"}
@@ -143,12 +143,13 @@ class _Reader:
     (type, handle, layer, and the block and INSERT it came through).
     """
 
-    def __init__(self, obstacle_layers: set[str], marker_layer: str | None, flat: float, bound: float,
+    def __init__(self, obstacle_layers: set[str], marker_layer: str | None, flat: float, factor: float,
                  where: str, shown: str) -> None:
         self.obstacle_layers = obstacle_layers
         self.marker_layer = marker_layer
         self.flat = flat  # flattening distance [drawing units]
-        self.bound = bound  # largest coordinate magnitude [drawing units]
+        self.bound = MAX_COORD / factor  # largest coordinate magnitude [drawing units]
+        self.shortest = MIN_LENGTH / factor  # the loader's floor of a size [drawing units]
         self.where, self.shown = where, shown
         self.found = _Found()
 
@@ -186,8 +187,8 @@ class _Reader:
         ext = e.dxf.get("extrusion")
         if ext is not None and not any(ext):
             self.fail(name, "expected a non-zero extrusion (OCS) vector, found (0, 0, 0)")
-        if kind in ("CIRCLE", "ARC") and not e.dxf.radius > 0.0:
-            self.fail(name, f"expected a radius > 0, found {e.dxf.radius:g}")
+        if kind in ("CIRCLE", "ARC") and not e.dxf.radius >= self.shortest:
+            self.fail(name, f"expected a radius of at least {MIN_LENGTH:g} m, found {e.dxf.radius:g} drawing units")
         if kind == "ELLIPSE" and not (any(e.dxf.major_axis) and 0.0 < e.dxf.ratio <= 1.0):
             self.fail(name, "expected a non-zero major axis and an axis ratio in (0, 1]")
         if kind == "SPLINE" and e.control_point_count() < 2 and e.fit_point_count() < 2:
@@ -482,7 +483,7 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
     flat = max(0.5 * simplify, 1e-3) / factor
     msp = doc.modelspace()
     expanded_size(doc, msp, where, shown)  # the budget, before anything is expanded
-    reader = _Reader(obst, mark, flat, MAX_COORD / factor, where, shown)
+    reader = _Reader(obst, mark, flat, factor, where, shown)
     reader.walk(msp)
     found = reader.found
 
