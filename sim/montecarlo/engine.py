@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import sys
 import tempfile
 import time
@@ -34,7 +35,7 @@ from sim.montecarlo.results import RunRecord, StepsMode, SweepLayout
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
-           "default_api", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
+           "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
 
 
 @dataclass(frozen=True)
@@ -212,6 +213,15 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
         raise ScenarioError(f"--rrd-every: expected 0 (none) or a positive period, got {rrd_every}")
 
 
+def default_out(scenario: Scenario) -> Path:
+    """Return the default sweep directory ``mc-<name>``: a plain name in the working directory.
+
+    Every character of the scenario's name outside ``[A-Za-z0-9._-]`` becomes ``_``, so a name
+    holding ``/`` or ``..`` cannot lead the sweep out of the working directory.
+    """
+    return Path("mc-" + re.sub(r"[^A-Za-z0-9._-]", "_", scenario.name))
+
+
 def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None = None,
           task: int | None = None, workers: int | None = None, executor: ExecutorKind | str = "local",
           address: str | None = None, resume: bool = False, rrd_every: int = 0,
@@ -229,7 +239,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     scenario : Scenario
         Loaded from text (``scenario.text`` is kept as ``out/scenario.toml``).
     out : path, optional
-        Sweep directory; default ``mc-<scenario name>``.
+        Sweep directory; default :func:`default_out` (``mc-<scenario name>``).
     runs : int, optional
         Runs ``0 .. runs-1``; default the earlier sweep's count on resume, else ``scenario.montecarlo.runs``.
     task : int, optional
@@ -265,7 +275,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     kind = _executor_kind(executor)
     if kind is ExecutorKind.RAY:
         executors.import_ray()
-    out = Path(out if out is not None else f"mc-{scenario.name}")
+    out = Path(out) if out is not None else default_out(scenario)
     wanted = None if steps is None else results.steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
     if runs is None:

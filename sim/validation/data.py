@@ -21,15 +21,14 @@ from scenarios.errors import OutputError
 from scenarios.schema import Scenario
 from sim.jsonable import json_number
 from sim.montecarlo import results
+from sim.montecarlo import lock
 from sim.montecarlo.directory import read_settings, stored_steps_mode
+from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
 from sim.montecarlo.results import StepsMode, SweepLayout
 
 EPISODE_GATE_PROBABILITY = 0.999
 """The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
 not stored, only that it exceeded ``chi2.ppf(0.999, 1)``."""
-NEGATIVE_CONTROL_JSON = "negative-control.json"
-"""Written into a sweep directory that ``pefsim validate --q-scale`` ran with a mis-tuned
-filter, so that a later ``--from`` says so (``{"q_scale": 0.01}``)."""
 
 
 class CheckStatus(str, Enum):
@@ -286,9 +285,14 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     Raises
     ------
     OutputError
-        Not a sweep directory, no finished run, or made from another scenario.
+        Not a sweep directory, locked by a live writer, no finished run, or made from another
+        scenario.
     """
     layout = SweepLayout(Path(directory))
+    try:
+        lock.check_free(layout.root)  # a sweep still being written is not yet the tables it will be
+    except OutputError as exc:
+        raise OutputError(f"{exc}: validate it once that sweep has finished") from None
     try:
         text = layout.scenario_toml.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):

@@ -27,10 +27,11 @@ from planner.pef.map import PEF
 from scenarios.errors import OutputError, SimulationError
 from sim.episode.types import FixLog
 from sim.montecarlo import results
+from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
 from sim.montecarlo.results import RunRecord, SweepLayout
 from sim.validation import null
 from sim.validation import suite as validation
-from sim.validation.data import EPISODE_GATE_PROBABILITY, NEGATIVE_CONTROL_JSON
+from sim.validation.data import EPISODE_GATE_PROBABILITY
 from sim.validation.suite import CheckStatus
 
 RUNS, FIXES_PER_RUN, NEES_STEPS = 5, 60, 50
