@@ -18,7 +18,8 @@ from typing import Any
 
 from scenarios.fields import Table, show
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
-from scenarios.routegraph.graph import build_network, read_graph_file
+from scenarios.routegraph.file import read_graph_file
+from scenarios.routegraph.graph import build_network
 from scenarios.schema import Dock, Obstacle, RouteEdge, RouteNetwork, Workspace
 
 FreePoint = Callable[[Table, str, tuple, str], None]

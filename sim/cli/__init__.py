@@ -4,8 +4,9 @@ Each command lives in its own module ``sim/cli/<name>.py`` exposing ``register(s
 (which adds the parser and sets ``func``). Commands import their heavy dependencies inside
 ``func`` so that ``pefsim --help`` and ``pefsim list`` start fast.
 
-``pefsim`` alone prints the help, ``pefsim --version`` the installed version. Errors derived from :class:`scenarios.PefsimError` become one line on stderr and exit code 2;
-anything else is a bug and shows its traceback.
+``pefsim`` alone prints the help, ``pefsim --version`` the installed version. Errors derived
+from :class:`scenarios.PefsimError` become one line on stderr and exit code 2; anything else is
+a bug and shows its traceback.
 """
 
 from __future__ import annotations
