@@ -40,7 +40,7 @@ def _modules() -> dict[str, Path]:
 
 
 def _resolve(name: str, modules: dict[str, Path]) -> str | None:
-    """The project module ``name`` refers to (a module, or the package holding a name), else None."""
+    """Return the project module ``name`` refers to (a module, or the package holding a name), else None."""
     while name:
         if name in modules:
             return name

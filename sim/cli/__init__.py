@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _version() -> str:
-    """The installed distribution's version (package metadata), or a note that it is not installed."""
+    """Return the installed distribution's version (package metadata), or a note that it is not installed."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:

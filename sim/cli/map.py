@@ -7,6 +7,7 @@ to: the figure with ``-o``, the arrays with ``--npz``, a recording with ``--rrd`
 from __future__ import annotations
 
 import argparse
+
 from sim.jsonable import json_number
 
 

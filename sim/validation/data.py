@@ -20,8 +20,7 @@ from scenarios import loads
 from scenarios.errors import OutputError
 from scenarios.schema import Scenario
 from sim.jsonable import json_number
-from sim.montecarlo import results
-from sim.montecarlo import lock
+from sim.montecarlo import lock, results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
 from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
 from sim.montecarlo.results import StepsMode, SweepLayout
