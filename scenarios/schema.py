@@ -17,7 +17,7 @@ import numpy as np
 
 from scenarios.floorplan.spec import FloorPlan
 from scenarios.obstacles import ConvexPieces, Obstacle, pack_pieces
-from scenarios.route_network import RouteEdge, RouteNetwork  # noqa: F401 (RouteEdge: re-exported)
+from scenarios.route_network import RouteNetwork
 
 
 class NoiseModel(str, Enum):

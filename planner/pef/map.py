@@ -48,7 +48,7 @@ import numpy as np
 from estimators.fault.linearized import chi2_2dof_ppf
 from planner.pef import kernels as pef_kernels
 from planner.pef.gridtiles import parallelogram_grid
-from planner.pef.result import MAX_CELLS, PefMap, PefResult, grid_centres  # noqa: F401 (re-exported)
+from planner.pef.result import PefMap, PefResult, grid_centres
 from planner.pef.visibility import scenario_visible_grid, scenario_visible_points, visible_points
 from scenarios.errors import PlanningError
 from scenarios.schema import PefModel, Scenario

@@ -1,9 +1,9 @@
-"""Route graph files into a :class:`~scenarios.schema.RouteNetwork`.
+"""Route graph files into a :class:`~scenarios.route_network.RouteNetwork`.
 
 A graph file holds nodes with ids and positions and *directed* edges between them. The
 route network is undirected: every directed edge between the same two nodes (typically a
 pair of opposite edges, one per direction) becomes one segment that keeps all their ids,
-directions and properties (:class:`~scenarios.schema.RouteEdge`). Segments are straight
+directions and properties (:class:`~scenarios.route_network.RouteEdge`). Segments are straight
 between their nodes, as Nav2's route server drives them (an edge's own geometry is not used).
 
 The file's format is told by its content (:mod:`scenarios.routegraph.file`): a GeoJSON
@@ -20,8 +20,9 @@ from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import show
+from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
-from scenarios.schema import Obstacle, RouteEdge, RouteNetwork, Workspace
+from scenarios.schema import Obstacle, Workspace
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ def map_summary(pef_map, eps_max: float, resolution: float) -> dict:
 
     Parameters
     ----------
-    pef_map : planner.pef.map.PefMap
+    pef_map : planner.pef.result.PefMap
         The map.
     eps_max : float
         Allowed error [m].

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from planner.pef.map import PefMap
+from planner.pef.result import PefMap
 from scenarios.schema import Scenario
 from sim.report.figure_format import figure_format
 from sim.report.scene import NO_FIX_GREY, OBSTACLE_STYLE, draw_pef, draw_scene

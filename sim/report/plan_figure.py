@@ -27,7 +27,7 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
         Obstacles, markers, docks and the route network.
     plan : Plan
         From :func:`planner.plan.plan_route`.
-    pef_map : planner.pef.map.PefMap
+    pef_map : planner.pef.result.PefMap
         ``x`` (nx,), ``y`` (ny,), ``tau`` (ny, nx) [m].
     path : str or Path
         Output file, written at exactly this path (:func:`~sim.report.figure_format.figure_format`).

@@ -23,7 +23,8 @@ from sim.jsonable import json_number
 from sim.montecarlo import lock, results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
 from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
-from sim.montecarlo.results import StepsMode, SweepLayout
+from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.steps import StepsMode
 
 EPISODE_GATE_PROBABILITY = 0.999
 """The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
@@ -184,11 +185,11 @@ class StepTable:
 
 
 STEP_COLUMNS = ["run", "step", "nees"]
-"""The columns of :data:`sim.montecarlo.results.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
+"""The columns of :data:`sim.montecarlo.rows.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
 FIX_COLUMNS = ["run", "fix", "true_x", "true_y", "snapshot_x", "snapshot_y", "snapshot_error",
                "snapshot_x_var", "snapshot_y_var", "snapshot_xy_cov", "fault_diameter", "predicted_tau",
                "nis", "n_accepted", "contained", "markers", "beyond_redundancy"]
-"""The columns of :data:`sim.montecarlo.results.FIX_SCHEMA` that the checks read."""
+"""The columns of :data:`sim.montecarlo.rows.FIX_SCHEMA` that the checks read."""
 
 
 @dataclass(frozen=True)
@@ -216,7 +217,7 @@ def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
 
 
 def run_table(runs: pa.Table) -> RunTable:
-    """Convert a ``runs`` table (:data:`sim.montecarlo.results.RUN_SCHEMA`) to a :class:`RunTable`."""
+    """Convert a ``runs`` table (:data:`sim.montecarlo.rows.RUN_SCHEMA`) to a :class:`RunTable`."""
     from sim.montecarlo.engine import succeeded
 
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)
@@ -228,7 +229,7 @@ def run_table(runs: pa.Table) -> RunTable:
 
 
 def fix_table(fixes: pa.Table, k: int) -> FixTable:
-    """Convert a ``fixes`` table (:data:`sim.montecarlo.results.FIX_SCHEMA`) to a :class:`FixTable`."""
+    """Convert a ``fixes`` table (:data:`sim.montecarlo.rows.FIX_SCHEMA`) to a :class:`FixTable`."""
     n = fixes.num_rows
 
     def col(name, dtype=float, fill=math.nan):
@@ -253,7 +254,7 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
 
 
 def step_table(steps: pa.Table) -> StepTable:
-    """Convert a ``steps`` table (at least :data:`STEP_COLUMNS` of :data:`sim.montecarlo.results.STEP_SCHEMA`)."""
+    """Convert a ``steps`` table (at least :data:`STEP_COLUMNS` of :data:`sim.montecarlo.rows.STEP_SCHEMA`)."""
     return StepTable(run=_np(steps, "run", np.int64, -1), step=_np(steps, "step", np.int64, -1),
                      nees=_np(steps, "nees", float, math.nan))
 

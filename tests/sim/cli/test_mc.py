@@ -12,6 +12,7 @@ import scenarios
 from sim import cli
 from sim.montecarlo import results
 from sim.montecarlo.engine import sweep
+from sim.montecarlo.rows import TIMING_COLUMNS
 from tests.sim.montecarlo import fake_episode as fe
 
 
@@ -72,7 +73,7 @@ def test_real_sweep_end_to_end(capsys, tmp_path):
 
     serial = tmp_path / "serial"
     sweep(scenarios.load("paper-two-markers"), serial, runs=2, workers=1, progress=False)
-    for read in (lambda d: results.read_runs(d).drop(list(results.TIMING_COLUMNS)), results.read_steps,
+    for read in (lambda d: results.read_runs(d).drop(list(TIMING_COLUMNS)), results.read_steps,
                  results.read_fixes):
         a, b = read(out), read(serial)
         for col in a.column_names:

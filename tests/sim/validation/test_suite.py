@@ -29,6 +29,7 @@ from sim.episode.types import FixLog
 from sim.montecarlo import results
 from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
 from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.rows import FIX_SCHEMA, RUN_SCHEMA, fix_columns, run_row
 from sim.validation import null
 from sim.validation import suite as validation
 from sim.validation.data import EPISODE_GATE_PROBABILITY
@@ -92,8 +93,8 @@ def write_sweep(root, scenario, seed: int, error_scale: float = 1.0, nees_scale:
         log.nis[:] = nis_scale * rng.chisquare(1, (FIXES_PER_RUN, 2)).sum(axis=1)
         summary = {"reached": True, "violations": int(run < failed_runs), "fixes": FIXES_PER_RUN,
                    "mean_nees": nees_scale * rng.chisquare(3, NEES_STEPS).mean()}
-        row = results.run_row(run, f"s{run}", 0, summary, 0.1)
-        results.write_record(layout, RunRecord(run, row, None, results.fix_columns(run, log)))
+        row = run_row(run, f"s{run}", 0, summary, 0.1)
+        results.write_record(layout, RunRecord(run, row, None, fix_columns(run, log)))
     return validation.load_sweep(root)
 
 
@@ -194,7 +195,7 @@ def test_plan_fails_when_too_few_runs_stay_under_eps_max(tmp_path):
 
 def test_empty_sweep_is_not_applicable_never_pass():
     sc = _scenario()
-    data = validation.from_tables(sc, results.RUN_SCHEMA.empty_table(), results.FIX_SCHEMA.empty_table())
+    data = validation.from_tables(sc, RUN_SCHEMA.empty_table(), FIX_SCHEMA.empty_table())
     report = validation.validate(data)
     assert all(c.status is NA for c in report.checks)
     assert report.statistical == 0 and report.alpha_per_check is None and report.passed
@@ -218,7 +219,7 @@ def test_gate_probability_is_the_localizers_default():
 
 def test_bad_alpha_and_bad_directories(tmp_path, uniform_model):
     sc = _scenario()
-    data = validation.from_tables(sc, results.RUN_SCHEMA.empty_table(), results.FIX_SCHEMA.empty_table())
+    data = validation.from_tables(sc, RUN_SCHEMA.empty_table(), FIX_SCHEMA.empty_table())
     for bad in (0.0, 1.0, -0.1, math.nan):
         with pytest.raises(SimulationError, match="alpha"):
             validation.validate(data, alpha=bad)
