@@ -1,7 +1,7 @@
 """The Position Error Function: predicted position error tau at points and on grids.
 
 ``tau(p)`` is the error of the best visible subset of k markers at ``p`` under a model
-(DESIGN section 1), computed from the *declared* sensor (``scenario.sensor``):
+(`docs/design.md` §1), computed from the *declared* sensor (``scenario.sensor``):
 
 - ``parallelogram`` (k = 2, ranges only): long diagonal of the linearised parallelogram;
 - ``strips``: diameter of the intersection of the linearised strips of the subset, with the

@@ -1,6 +1,6 @@
 """How a sweep's Parquet parts are encoded on disk, read back (by column), and checked.
 
-Size (DESIGN section 5: steps are the bulk of a sweep). Per-step parts are stored lean:
+Size (`docs/design.md` §5: steps are the bulk of a sweep). Per-step parts are stored lean:
 
 - every float of :data:`~sim.montecarlo.rows.STEP_SCHEMA` as float32, which keeps a
   relative resolution of 2**-24 (6e-8): a position at 16 .. 32 m to 1.9 um (3.8 um at

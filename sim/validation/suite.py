@@ -1,4 +1,4 @@
-"""Statistical validation of the PEF predictions against a Monte-Carlo sweep (DESIGN section 6).
+"""Statistical validation of the PEF predictions against a Monte-Carlo sweep (`docs/design.md` §6).
 
 :func:`validate` runs every check of :mod:`sim.validation.checks` on a :class:`SweepData`
 (:func:`load_sweep` reads one from a sweep directory) and returns a :class:`ValidationReport`.

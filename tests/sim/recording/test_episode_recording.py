@@ -370,7 +370,7 @@ def test_strip_polygon_of_two_markers_is_the_papers_parallelogram():
         x, y = ring[:-1, 0], ring[:-1, 1]
         area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
         assert len(ring) == 5
-        assert area == pytest.approx(4 * r[0] * r[1] / s, rel=1e-9)  # DESIGN eq. (paper eq. 10)
+        assert area == pytest.approx(4 * r[0] * r[1] / s, rel=1e-9)  # docs/design.md §1 (paper eq. 10)
 
 
 def test_local_strip_polygons_agree_with_estimators_linearized():
