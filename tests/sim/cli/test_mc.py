@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
-
-import pytest
 
 import scenarios
 from sim import cli
@@ -57,7 +54,6 @@ def test_ray_missing_tells_how_to_install(capsys, tmp_path, monkeypatch):
     assert not (tmp_path / "r").exists()
 
 
-@pytest.mark.skipif(importlib.util.find_spec("sim.episode.drive") is None, reason="sim.episode.drive not written yet")
 def test_real_sweep_end_to_end(capsys, tmp_path):
     """The real episode through the CLI on 2 workers, then in-process: identical files."""
     out = tmp_path / "real"

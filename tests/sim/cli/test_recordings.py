@@ -11,7 +11,7 @@ import pytest
 
 import scenarios
 from sim.episode.drive import run_episode
-from tests.sim.recording.test_episode_recording import Readback
+from tests.sim.recording.readback import Readback
 
 
 @pytest.fixture(scope="module")
