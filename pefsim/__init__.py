@@ -11,6 +11,7 @@ file unless told where (``out=``, ``rrd=``, ``tum=``)::
     r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
     sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # SweepSummary of the finished sweep
     rep = pefsim.validate(sw)                            # ValidationReport
+    page = pefsim.paper("paper-report", quick=True)      # PaperPage: the paper's claims, one page
 
 Every command of the ``pefsim`` program is these functions plus argument parsing and printing.
 Units are metres, seconds and radians throughout. Bad input raises :class:`PefsimError` (its
@@ -20,18 +21,44 @@ one-line message naming the file, key and value.
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from planner.pef.result import PefMap
-from planner.placement.placement import PlacementResult as Placement
-from planner.plan import Plan
 from scenarios import PefsimError, Scenario
-from sim.episode.types import EpisodeResult
-from sim.montecarlo.summary import SweepSummary
-from sim.validation.suite import DEFAULT_ALPHA, ValidationReport
 
-__all__ = ["DEFAULT_ALPHA", "EpisodeResult", "PefMap", "PefsimError", "Placement", "Plan", "Scenario", "SweepSummary",
-           "ValidationReport", "load", "pef_map", "place", "plan", "run_episode", "sweep", "validate"]
+if TYPE_CHECKING:
+    from planner.pef.result import PefMap
+    from planner.placement.placement import PlacementResult as Placement
+    from planner.plan import Plan
+    from sim.episode.types import EpisodeResult
+    from sim.montecarlo.summary import SweepSummary
+    from sim.paper.page import PaperPage
+    from sim.validation.suite import ValidationReport
+
+_TYPES = {"PefMap": ("planner.pef.result", "PefMap"), "Placement": ("planner.placement.placement", "PlacementResult"),
+          "Plan": ("planner.plan", "Plan"), "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
+          "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"), "PaperPage": ("sim.paper.page", "PaperPage"),
+          "ValidationReport": ("sim.validation.suite", "ValidationReport"),
+          "DEFAULT_ALPHA": ("sim.validation.suite", "DEFAULT_ALPHA")}
+"""The types the functions return, imported on first use: a command that needs one part of the
+library (``pefsim list``, ``pefsim map``) does not pay for importing the others (seconds)."""
+
+
+def __getattr__(name: str) -> Any:
+    """Import the type ``name`` of :data:`_TYPES` on first use (PEP 562)."""
+    try:
+        module, attr = _TYPES[name]
+    except KeyError:
+        raise AttributeError(f"module 'pefsim' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+__all__ = ["DEFAULT_ALPHA", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement", "Plan", "Scenario",
+           "SweepSummary", "ValidationReport", "builtin_names", "load", "paper", "pef_map", "place", "plan",
+           "run_episode", "sweep", "validate"]
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -50,6 +77,19 @@ def load(scenario: str | Path) -> Scenario:
     import scenarios
 
     return scenarios.load(scenario)
+
+
+def builtin_names() -> list[str]:
+    """Return the names of the built-in scenarios (``scenarios/library/``), sorted.
+
+    Returns
+    -------
+    list of str
+        Each loads with :func:`load`.
+    """
+    import scenarios
+
+    return scenarios.builtin_names()
 
 
 def _scenario(scenario: Scenario | str | Path) -> Scenario:
@@ -322,7 +362,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
     return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
 
-def validate(sweep: SweepSummary | str | Path, *, alpha: float = DEFAULT_ALPHA,
+def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
              scenario: Scenario | str | Path | None = None) -> ValidationReport:
     """Check a sweep's results against the predictions (containment, promise, bound, NEES, NIS, ...).
 
@@ -333,8 +373,9 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float = DEFAULT_ALPHA,
     sweep : SweepSummary, str or path
         A sweep (its directory) written by :func:`sweep` (or ``pefsim mc``); refused while
         another process is still writing it.
-    alpha : float
-        Family false-alarm probability, split Bonferroni over the statistical checks.
+    alpha : float, optional
+        Family false-alarm probability, split Bonferroni over the statistical checks; default
+        :data:`sim.validation.suite.DEFAULT_ALPHA` (0.01).
     scenario : Scenario, str or path, optional
         When given, the sweep must have been made from exactly this scenario.
 
@@ -344,12 +385,45 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float = DEFAULT_ALPHA,
         ``checks`` (each with its statistic, acceptance region and false-alarm probability),
         ``passed``, ``failed``.
     """
-    from sim.validation.suite import load_sweep
+    from sim.montecarlo.summary import SweepSummary
+    from sim.validation.suite import DEFAULT_ALPHA, load_sweep
     from sim.validation.suite import validate as _validate
 
     directory = sweep.out if isinstance(sweep, SweepSummary) else sweep
     expected = None if scenario is None else _scenario(scenario)
-    return _validate(load_sweep(directory, expected), alpha=alpha)
+    return _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha)
+
+
+def paper(out: str | Path = "paper-report", *, quick: bool = False, runs: int | None = None,
+          workers: int | None = None, claims: set[int] | None = None, sections: bool = True) -> PaperPage:
+    """Reproduce the source paper's claims as figures, numbers and verdicts on one HTML page.
+
+    Parameters
+    ----------
+    out : str or path
+        Output directory: ``index.html``, ``figures/``, claim 7's sweep in ``mc/`` (completed,
+        not redone, on a second call).
+    quick : bool
+        Fewer samples, coarser grids and 3 Monte-Carlo runs instead of 10 (seconds, for tests).
+    runs : int, optional
+        Monte-Carlo runs of claim 7 (default 10, 3 with ``quick``).
+    workers : int, optional
+        Monte-Carlo worker processes; default the CPU count.
+    claims : set of int, optional
+        Only these claims (1..7); default all.
+    sections : bool
+        Also the results beside the claims (redundancy against blocked lines of sight), when
+        every claim is reproduced.
+
+    Returns
+    -------
+    PaperPage
+        ``index`` (the page), ``claims`` (each with its verdict), ``sections``, ``seconds``.
+    """
+    from sim.paper.claims import Options
+    from sim.paper.page import reproduce_page
+
+    return reproduce_page(out, Options(quick=quick, runs=runs, workers=workers), only=claims, sections=sections)
 
 
 def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None = None,

@@ -63,17 +63,16 @@ def run(args: argparse.Namespace) -> int:
 
     _check_args(args)
     scenario = pefsim.load(args.scenario) if args.scenario is not None else None
-    alpha = args.alpha if args.alpha is not None else pefsim.DEFAULT_ALPHA
     start = time.perf_counter()
     if args.from_dir is not None:
-        report = pefsim.validate(args.from_dir, alpha=alpha, scenario=scenario)
+        report = pefsim.validate(args.from_dir, alpha=args.alpha, scenario=scenario)
         kept = args.from_dir
     else:
         with tempfile.TemporaryDirectory(prefix="pefsim-validate-") as tmp:
             out = args.out if args.out is not None else f"{tmp}/mc"
             swept = pefsim.sweep(scenario, out, runs=args.runs, workers=args.workers, q_scale=args.q_scale or 1.0,
                                  progress=None, report=False)
-            report = pefsim.validate(swept, alpha=alpha, scenario=scenario)
+            report = pefsim.validate(swept, alpha=args.alpha, scenario=scenario)
         kept = args.out
     wall = time.perf_counter() - start
     if args.json:
