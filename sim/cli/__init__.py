@@ -52,7 +52,8 @@ def _jsonable(o: Any) -> Any:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="pefsim", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="pefsim", description="Robot routes planned from a Position Error Function (PEF), "
+                                                "and checked in simulation. Each command takes --help.")
     parser.add_argument("--version", action="version", version=f"pefsim {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
