@@ -116,7 +116,7 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
 
     sol = solve_position(markers, meas, std, prior, world_bearings=world)
     if world is None and _across_marker_line(sol.position, prior, markers):
-        # Both mirror points fit equally well; the prior decides (DESIGN §1).
+        # Both mirror points fit equally well; the prior decides (`docs/design.md` §1).
         sol = solve_position(markers, meas, std, reflect_across_marker_line(sol.position, markers))
 
     fault_rho = rho if fault_margin is None else rho + np.asarray(fault_margin, dtype=float)

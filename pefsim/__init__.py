@@ -9,9 +9,11 @@ file unless told where (``out=``, ``rrd=``, ``tum=``)::
     p = pefsim.plan(sc)                                  # Plan of task 0
     placed = pefsim.place(sc)                            # Placement
     r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
-    sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # a finished sweep directory
+    sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # SweepSummary of the finished sweep
     rep = pefsim.validate(sw)                            # ValidationReport
+    page = pefsim.paper("paper-report", quick=True)      # PaperPage: the paper's claims, one page
 
+Every command of the ``pefsim`` program is these functions plus argument parsing and printing.
 Units are metres, seconds and radians throughout. Bad input raises :class:`PefsimError` (its
 subclasses ``ScenarioError``, ``PlanningError``, ``SimulationError``, ``OutputError``) with a
 one-line message naming the file, key and value.
@@ -19,17 +21,44 @@ one-line message naming the file, key and value.
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from planner.pef.map import PefMap
-from planner.placement.placement import PlacementResult as Placement
-from planner.plan import Plan
 from scenarios import PefsimError, Scenario
-from sim.episode.types import EpisodeResult
-from sim.validation.suite import ValidationReport
 
-__all__ = ["EpisodeResult", "PefMap", "PefsimError", "Placement", "Plan", "Scenario", "ValidationReport",
-           "load", "pef_map", "place", "plan", "run_episode", "sweep", "validate"]
+if TYPE_CHECKING:
+    from planner.pef.result import PefMap
+    from planner.placement.placement import PlacementResult as Placement
+    from planner.plan import Plan
+    from sim.episode.types import EpisodeResult
+    from sim.montecarlo.summary import SweepSummary
+    from sim.paper.page import PaperPage
+    from sim.validation.suite import ValidationReport
+
+_TYPES = {"PefMap": ("planner.pef.result", "PefMap"), "Placement": ("planner.placement.placement", "PlacementResult"),
+          "Plan": ("planner.plan", "Plan"), "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
+          "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"), "PaperPage": ("sim.paper.page", "PaperPage"),
+          "ValidationReport": ("sim.validation.suite", "ValidationReport"),
+          "DEFAULT_ALPHA": ("sim.validation.suite", "DEFAULT_ALPHA")}
+"""The types the functions return, imported on first use: a command that needs one part of the
+library (``pefsim list``, ``pefsim map``) does not pay for importing the others (seconds)."""
+
+
+def __getattr__(name: str) -> Any:
+    """Import the type ``name`` of :data:`_TYPES` on first use (PEP 562)."""
+    try:
+        module, attr = _TYPES[name]
+    except KeyError:
+        raise AttributeError(f"module 'pefsim' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+__all__ = ["DEFAULT_ALPHA", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement", "Plan", "Scenario",
+           "SweepSummary", "ValidationReport", "builtin_names", "load", "paper", "pef_map", "place", "plan",
+           "run_episode", "sweep", "validate"]
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -50,13 +79,30 @@ def load(scenario: str | Path) -> Scenario:
     return scenarios.load(scenario)
 
 
+def builtin_names() -> list[str]:
+    """Return the names of the built-in scenarios (``scenarios/library/``), sorted.
+
+    Returns
+    -------
+    list of str
+        Each loads with :func:`load`.
+    """
+    import scenarios
+
+    return scenarios.builtin_names()
+
+
 def _scenario(scenario: Scenario | str | Path) -> Scenario:
     return scenario if isinstance(scenario, Scenario) else load(scenario)
 
 
 def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolution: float | None = None,
-            speed: float | None = None) -> PefMap:
+            speed: float | None = None, out: str | Path | None = None, npz: str | Path | None = None,
+            rrd: str | Path | None = None) -> PefMap:
     """Compute the PEF map: predicted position error on a grid over the workspace.
+
+    Outputs are checked before the map is computed (a figure's extension, a recording's
+    folder) and written at exactly the paths given.
 
     Parameters
     ----------
@@ -69,6 +115,12 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     speed : float, optional
         The motion-aware PEF: the promise of a fix ending at each cell while driving at
         ``speed`` [m/s] (two markers per fix). Default the paper's static PEF.
+    out : str or path, optional
+        Write the figure here (``.png``, ``.pdf`` or ``.svg``).
+    npz : str or path, optional
+        Write the arrays ``tau``, ``x``, ``y``, ``best`` here (NumPy ``.npz`` content, whatever the name).
+    rrd : str or path, optional
+        Write a rerun recording of the static layers (map, region, markers, docks) here.
 
     Returns
     -------
@@ -79,16 +131,33 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     from planner.pef.map import PEF
 
     sc = _scenario(scenario)
+    _check_outputs(figure=out, rrd=rrd)
     pef = PEF(sc, model=model)
     if speed is not None:
         from planner.schedule.promise import moving_map
 
-        return moving_map(sc, pef, speed, resolution)
-    return pef.grid(resolution)
+        result = moving_map(sc, pef, speed, resolution)
+    else:
+        result = pef.grid(resolution)
+    if npz is not None:
+        from sim.export.npz import write_npz
+
+        write_npz(npz, result)
+    if out is not None:
+        from scenarios.errors import output_errors
+        from sim.report.map_figure import plot_map
+
+        with output_errors(out, "write the figure"):
+            plot_map(sc, result, sc.planning.eps_max, out, pef.k)
+    if rrd is not None:
+        from sim.recording import write_static_rrd
+
+        write_static_rrd(rrd, sc, pef_map=result)
+    return result
 
 
 def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = None, goal: str | None = None,
-         free: bool | None = None) -> Plan:
+         free: bool | None = None, out: str | Path | None = None, rrd: str | Path | None = None) -> Plan:
     """Plan a route: candidates, criteria, the choice and its measurement schedule.
 
     Parameters
@@ -100,6 +169,11 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         Dock names, instead of a task.
     free : bool, optional
         Free-space search (True) or the route network (False); default the network if any.
+    out : str or path, optional
+        Write the figure of the plan over the PEF map here (``.png``, ``.pdf`` or ``.svg``;
+        checked before planning).
+    rrd : str or path, optional
+        Write a rerun recording of the map, the candidate routes and the schedule here.
 
     Returns
     -------
@@ -108,6 +182,7 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         (N, 2) [m] with ``speed`` (N,) [m/s] and the ``schedule`` (each fix with its promise
         ``predicted_tau`` [m]).
     """
+    from planner.pef.map import PEF
     from planner.plan import plan_route, plan_task
 
     sc = _scenario(scenario)
@@ -115,9 +190,22 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         from scenarios import PlanningError
 
         raise PlanningError("plan: give both start and goal, or neither (then a task is planned)")
+    _check_outputs(figure=out, rrd=rrd)
+    pef = PEF(sc)
     if start is not None:
-        return plan_route(sc, start, goal, free=free)
-    return plan_task(sc, task, free=free)
+        result = plan_route(sc, start, goal, free=free, pef=pef)
+    else:
+        result = plan_task(sc, task, free=free, pef=pef)
+    grid = pef.grid() if (out is not None or rrd is not None) else None
+    if out is not None:
+        from sim.report.plan_figure import plot_plan  # matplotlib: only when a figure is asked for
+
+        plot_plan(sc, result, grid, out)
+    if rrd is not None:
+        from sim.recording import write_static_rrd
+
+        write_static_rrd(rrd, sc, pef_map=grid, plan=result)
+    return result
 
 
 def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,
@@ -158,15 +246,18 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     return result
 
 
-def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0, rrd: str | Path | None = None,
-                tum: str | Path | None = None) -> EpisodeResult:
+def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, task: int = 0,
+                rrd: str | Path | None = None, tum: str | Path | None = None) -> EpisodeResult:
     """Drive one episode in PyBullet: plan, follow on the EKF estimate, measure, estimate.
+
+    Outputs are checked before the episode is driven (a recording's folder; the TUM folder is
+    created) and written at exactly the paths given.
 
     Parameters
     ----------
     scenario : Scenario, str or path
-    seed : int
-        Root of the episode's random streams (same seed, same numbers).
+    seed : int, optional
+        Root of the episode's random streams (same seed, same numbers); default the scenario's.
     task : int
         Index into ``scenario.tasks``.
     rrd : str or path, optional
@@ -180,14 +271,16 @@ def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0
         ``steps`` (per control step: poses, covariance, error, NEES), ``fixes`` (per fix: the
         realised fault area against its promise), ``plan`` and ``summary``.
     """
-    from sim.episode.drive import prepare
+    from scenarios import SimulationError
+    from sim.episode.drive import check_task, prepare
     from sim.episode.drive import run_episode as _run
 
     sc = _scenario(scenario)
-    if rrd is not None:
-        from sim.recording import check_writable
-
-        check_writable(rrd)
+    check_task(sc, task)
+    seed = sc.seed if seed is None else seed
+    if seed < 0:
+        raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
+    _check_outputs(rrd=rrd, folder=tum)
     prepared = prepare(sc, task)
     result = _run(sc, task, seed=seed, prepared=prepared)
     if tum is not None:
@@ -201,60 +294,90 @@ def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0
     return result
 
 
-def sweep(scenario: Scenario | str | Path, out: str | Path, *, runs: int | None = None, workers: int | None = None,
-          task: int | None = None, resume: bool = False, progress: bool = False, report: bool = True,
-          steps: str | None = None) -> Path:
+def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, runs: int | None = None,
+          workers: int | None = None, task: int | None = None, executor: str = "local", address: str | None = None,
+          resume: bool = False, rrd_every: int = 0, steps: str | None = None, q_scale: float = 1.0,
+          progress: bool | None = False, report: bool = True) -> SweepSummary:
     """Run a Monte-Carlo sweep into ``out`` (written run by run; ``resume`` completes it).
 
     Parameters
     ----------
     scenario : Scenario, str or path
-    out : str or path
-        Sweep directory (new, or an earlier sweep of the same scenario with ``resume``).
+    out : str or path, optional
+        Sweep directory (new, or an earlier sweep of the same scenario with ``resume``);
+        default ``mc-<scenario name>`` in the working directory.
     runs : int, optional
         Runs ``0 .. runs-1``; default ``montecarlo.runs``.
     workers : int, optional
-        Worker processes; default the CPU count. Results do not depend on it.
+        Worker processes (or Ray actors); default the CPU count. Results do not depend on it.
     task : int, optional
         Drive only this task; default run i drives task ``i % len(tasks)``.
+    executor : {"local", "ray"}
+        Where the runs execute: local worker processes, or a Ray cluster.
+    address : str, optional
+        Ray cluster address (with ``executor="ray"``; default starts one).
     resume : bool
         Complete the runs an earlier sweep into ``out`` left missing.
-    progress : bool
-        Show a progress bar.
-    report : bool
-        Write ``report.html`` and its figures into ``out`` (as ``pefsim mc`` does).
+    rrd_every : int
+        Write a rerun recording of every ``rrd_every``-th run into ``out/recordings/`` (0: none).
     steps : {"all", "fixes", "none"}, optional
         Per-step rows to keep: every control step, the steps at fix times (the N-run NEES
         check then does not apply), or none; default ``all`` (on resume: the sweep's own).
+    q_scale : float
+        NEGATIVE CONTROL ONLY: the filter's process noise times ``q_scale`` (1: as declared);
+        the directory records it (:mod:`sim.montecarlo.negative_control`).
+    progress : bool or None
+        Show a progress bar; None: when stderr is a terminal.
+    report : bool
+        Write ``report.html`` and its figures into ``out`` (as ``pefsim mc`` does).
 
     Returns
     -------
-    pathlib.Path
-        The sweep directory (``runs.parquet``, per-step and per-fix parts, ``report.html``).
+    SweepSummary
+        What the directory holds (``out``, run counts, success and its interval, this call's
+        runs and wall time, bytes per run) and ``report``, the page written (None without).
     """
+    import dataclasses
+
+    from sim.episode.drive import check_markers
     from sim.montecarlo.engine import sweep as _sweep
+    from sim.montecarlo.negative_control import check_q_scale, mark, scaled_api
 
     sc = _scenario(scenario)
+    check_markers(sc)  # before the output directory is made
+    q_scale = check_q_scale(q_scale)
+    written: list[Path] = []
 
-    def write(summary) -> None:  # while the sweep still holds the directory's lock
-        from sim.report.page import write_report
+    def then(summary: SweepSummary) -> None:  # while the sweep still holds the directory's lock
+        if q_scale != 1.0:
+            mark(summary.out, q_scale)
+        if report:
+            from sim.report.page import write_report
 
-        write_report(summary.out, sc)
+            written.append(write_report(summary.out, sc))
 
-    summary = _sweep(sc, out, runs=runs, task=task, workers=workers, resume=resume, progress=progress,
-                     steps=steps, then=write if report else None)
-    return Path(summary.out)
+    summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
+                     resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
+                     api=scaled_api(q_scale) if q_scale != 1.0 else None, then=then)
+    return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
 
-def validate(sweep_dir: str | Path, *, alpha: float = 0.01) -> ValidationReport:
+def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
+             scenario: Scenario | str | Path | None = None) -> ValidationReport:
     """Check a sweep's results against the predictions (containment, promise, bound, NEES, NIS, ...).
+
+    The checks judge the sweep's tables; running the sweep is :func:`sweep`'s job.
 
     Parameters
     ----------
-    sweep_dir : str or path
-        A sweep directory written by :func:`sweep` (or ``pefsim mc``).
-    alpha : float
-        Family false-alarm probability, split Bonferroni over the statistical checks.
+    sweep : SweepSummary, str or path
+        A sweep (its directory) written by :func:`sweep` (or ``pefsim mc``); refused while
+        another process is still writing it.
+    alpha : float, optional
+        Family false-alarm probability, split Bonferroni over the statistical checks; default
+        :data:`sim.validation.suite.DEFAULT_ALPHA` (0.01).
+    scenario : Scenario, str or path, optional
+        When given, the sweep must have been made from exactly this scenario.
 
     Returns
     -------
@@ -262,7 +385,59 @@ def validate(sweep_dir: str | Path, *, alpha: float = 0.01) -> ValidationReport:
         ``checks`` (each with its statistic, acceptance region and false-alarm probability),
         ``passed``, ``failed``.
     """
-    from sim.validation.suite import load_sweep
+    from sim.montecarlo.summary import SweepSummary
+    from sim.validation.suite import DEFAULT_ALPHA, load_sweep
     from sim.validation.suite import validate as _validate
 
-    return _validate(load_sweep(sweep_dir), alpha=alpha)
+    directory = sweep.out if isinstance(sweep, SweepSummary) else sweep
+    expected = None if scenario is None else _scenario(scenario)
+    return _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha)
+
+
+def paper(out: str | Path = "paper-report", *, quick: bool = False, runs: int | None = None,
+          workers: int | None = None, claims: set[int] | None = None, sections: bool = True) -> PaperPage:
+    """Reproduce the source paper's claims as figures, numbers and verdicts on one HTML page.
+
+    Parameters
+    ----------
+    out : str or path
+        Output directory: ``index.html``, ``figures/``, claim 7's sweep in ``mc/`` (completed,
+        not redone, on a second call).
+    quick : bool
+        Fewer samples, coarser grids and 3 Monte-Carlo runs instead of 10 (seconds, for tests).
+    runs : int, optional
+        Monte-Carlo runs of claim 7 (default 10, 3 with ``quick``).
+    workers : int, optional
+        Monte-Carlo worker processes; default the CPU count.
+    claims : set of int, optional
+        Only these claims (1..7); default all.
+    sections : bool
+        Also the results beside the claims (redundancy against blocked lines of sight), when
+        every claim is reproduced.
+
+    Returns
+    -------
+    PaperPage
+        ``index`` (the page), ``claims`` (each with its verdict), ``sections``, ``seconds``.
+    """
+    from sim.paper.claims import Options
+    from sim.paper.page import reproduce_page
+
+    return reproduce_page(out, Options(quick=quick, runs=runs, workers=workers), only=claims, sections=sections)
+
+
+def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None = None,
+                   folder: str | Path | None = None) -> None:
+    """Refuse, before any work, an output that cannot be written: one line naming the path."""
+    if figure is not None:
+        from sim.report.figure_format import figure_format
+
+        figure_format(figure)
+    if rrd is not None:
+        from sim.recording import check_writable
+
+        check_writable(rrd)
+    if folder is not None:
+        from sim.export.tum import make_folder
+
+        make_folder(folder)

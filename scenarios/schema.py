@@ -17,7 +17,7 @@ import numpy as np
 
 from scenarios.floorplan.spec import FloorPlan
 from scenarios.obstacles import ConvexPieces, Obstacle, pack_pieces
-from scenarios.route_network import RouteEdge, RouteNetwork  # noqa: F401 (RouteEdge: re-exported)
+from scenarios.route_network import RouteNetwork
 
 
 class NoiseModel(str, Enum):
@@ -257,7 +257,7 @@ class PlanningSpec:
     min_fix_speed: float = 0.05
     """Slowest speed the planner may slow down to for a fix [m/s]."""
     redundancy: int = 0
-    """r: markers that may be blocked without breaking the promise (tau_r, DESIGN section 1)."""
+    """r: markers that may be blocked without breaking the promise (tau_r, `docs/design.md` §1)."""
 
     @property
     def heading_std(self) -> float:

@@ -7,7 +7,7 @@ dead-reckoned, so each range's error band widens by a bound on the odometry erro
 (:func:`shift_bound`). The fault area of the fix is the intersection of the annuli
 ``| |p - M_i'| - r_i | <= rho_i + shift_bound_i``.
 
-One construction serves both sides of the promise (DESIGN section 1):
+One construction serves both sides of the promise (`docs/design.md` §1):
 
 - the simulation's **realised** fault area (``sim.episode.fixes``): measured ranges,
   dead-reckoned displacements turned into the world frame with the filter's heading, and the

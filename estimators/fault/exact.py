@@ -3,7 +3,7 @@
 A range ``r_i`` with error bound ``rho_i`` confines the robot to the annulus
 ``{p : | |p - M_i| - r_i | <= rho_i}``; a world bearing ``beta_i`` (direction robot -> marker)
 with bound ``xi`` confines it to the wedge with apex ``M_i`` and directions
-``beta_i + pi +- xi``. The fault area is the intersection (DESIGN §1), polygonised with shapely.
+``beta_i + pi +- xi``. The fault area is the intersection (`docs/design.md` §1), polygonised with shapely.
 
 Polygonisation
 --------------

@@ -36,7 +36,6 @@ import numpy as np
 from estimators import compiled
 from planner.pef.convex import shadow_halfplanes
 from planner.pef.pairs import BLOCK, MARGIN, TILE_COLS, TILE_ROWS, _block, _scratch
-from planner.pef.pointblocks import blocks_points_local  # noqa: F401 (re-exported)
 from planner.pef.threads import run_ranges
 from planner.pef.visibility import (
     _first_above,

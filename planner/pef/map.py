@@ -1,7 +1,7 @@
 """The Position Error Function: predicted position error tau at points and on grids.
 
 ``tau(p)`` is the error of the best visible subset of k markers at ``p`` under a model
-(DESIGN section 1), computed from the *declared* sensor (``scenario.sensor``):
+(`docs/design.md` §1), computed from the *declared* sensor (``scenario.sensor``):
 
 - ``parallelogram`` (k = 2, ranges only): long diagonal of the linearised parallelogram;
 - ``strips``: diameter of the intersection of the linearised strips of the subset, with the
@@ -48,7 +48,7 @@ import numpy as np
 from estimators.fault.linearized import chi2_2dof_ppf
 from planner.pef import kernels as pef_kernels
 from planner.pef.gridtiles import parallelogram_grid
-from planner.pef.result import MAX_CELLS, PefMap, PefResult, grid_centres  # noqa: F401 (re-exported)
+from planner.pef.result import PefMap, PefResult, grid_centres
 from planner.pef.visibility import scenario_visible_grid, scenario_visible_points, visible_points
 from scenarios.errors import PlanningError
 from scenarios.schema import PefModel, Scenario

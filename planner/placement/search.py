@@ -17,14 +17,9 @@ and under any load. Random numbers come from the caller's seed (a splitmix64 str
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from estimators import compiled
-
-if TYPE_CHECKING:  # the solver in cover imports this module
-    from planner.placement.cover import PairCover
 
 WORK = 1_000_000_000
 """Default budget of the search, in entries visited (rows of pairs counted or uncounted, pairs of rows scored):
@@ -331,13 +326,14 @@ N_PRUNE = 8
 """Chosen sites nearest to a move, beyond the dropped ones, tried for removal after the repair."""
 
 
-def local_search(cov: PairCover, k: int, start: np.ndarray, xy: np.ndarray, seed: int,
+def local_search(cov, k: int, start: np.ndarray, xy: np.ndarray, seed: int,
                  work: int = WORK) -> np.ndarray:
     """Improve the cover ``start`` (S,) bool by destroy-repair-prune moves (see module doc).
 
     Parameters
     ----------
-    cov : PairCover
+    cov : planner.placement.cover.PairCover
+        The problem (named, not imported: the solver in ``cover`` calls this search).
     k : int
         Markers per fix.
     start : ndarray of bool, shape (S,)

@@ -261,7 +261,7 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
 
     Returns
     -------
-    planner.pef.map.PefMap
+    planner.pef.result.PefMap
         ``tau`` the motion-aware promise [m] (inf where fewer than 2 markers are visible),
         ``best`` the pair in measurement order.
     """

@@ -1,30 +1,28 @@
-"""Route graph files into a :class:`~scenarios.schema.RouteNetwork`.
+"""Route graph files into a :class:`~scenarios.route_network.RouteNetwork`.
 
 A graph file holds nodes with ids and positions and *directed* edges between them. The
 route network is undirected: every directed edge between the same two nodes (typically a
 pair of opposite edges, one per direction) becomes one segment that keeps all their ids,
-directions and properties (:class:`~scenarios.schema.RouteEdge`). Segments are straight
+directions and properties (:class:`~scenarios.route_network.RouteEdge`). Segments are straight
 between their nodes, as Nav2's route server drives them (an edge's own geometry is not used).
 
-The file's format is told by its content: a GeoJSON ``FeatureCollection`` is a Nav2 route
-graph (:mod:`scenarios.routegraph.nav2`), an object with ``layouts`` a VDA LIF file
-(:mod:`scenarios.routegraph.lif`).
+The file's format is told by its content (:mod:`scenarios.routegraph.file`): a GeoJSON
+``FeatureCollection`` is a Nav2 route graph (:mod:`scenarios.routegraph.nav2`), an object with
+``layouts`` a VDA LIF file (:mod:`scenarios.routegraph.lif`); both build on the elements here.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import show
-from scenarios.limits import MAX_NESTING, nesting_depth
+from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
-from scenarios.schema import Obstacle, RouteEdge, RouteNetwork, Workspace
+from scenarios.schema import Obstacle, Workspace
 
 
 @dataclass(frozen=True)
@@ -76,57 +74,6 @@ def finite_xy(file: str, key: str, value: Any, what: str) -> tuple[float, float]
     if not ok:
         fail(file, key, f"expected {what}", value)
     return float(value[0]), float(value[1])
-
-
-def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file: str,
-                    layout_key: str) -> tuple[list[GraphNode], list[GraphEdge], set[str]]:
-    """Read the nodes and directed edges of a Nav2 GeoJSON or VDA LIF file.
-
-    Returns the nodes, the edges and the ids of nodes that exist in the file outside the graph
-    read (a LIF file's other layouts; see ``known_elsewhere`` of :func:`build_network`).
-
-    Parameters
-    ----------
-    path : Path
-        The file.
-    shown : str
-        How errors name the file.
-    layout : str or None
-        LIF only: the ``layoutId`` to read (needed when the file has several layouts).
-    scenario_file, layout_key : str
-        Scenario file and key path of ``layout`` (``routes.layout``), for its errors.
-
-    Raises
-    ------
-    ScenarioError
-        Unreadable file, malformed JSON, an unknown format, or a bad value (naming file and key).
-    """
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{shown}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
-    depth = nesting_depth(text)
-    if depth > MAX_NESTING:  # json recurses per level: refused before it parses
-        raise ScenarioError(f"{shown}: arrays and objects nested {depth} deep, at most {MAX_NESTING}")
-    try:
-        data = json.loads(text, parse_constant=lambda c: fail(shown, "<json>", "expected finite numbers", c))
-    except json.JSONDecodeError as exc:
-        raise ScenarioError(f"{shown}: malformed JSON: {exc}") from None
-    except RecursionError:  # only if the scan above under-counted a malformed file
-        raise ScenarioError(f"{shown}: arrays and objects nested deeper than {MAX_NESTING}") from None
-    from scenarios.routegraph import lif, nav2
-
-    if isinstance(data, dict) and data.get("type") == "FeatureCollection":
-        if layout is not None:
-            fail(scenario_file, layout_key, f"only for VDA LIF files ({shown} is a GeoJSON route graph)", layout)
-        nodes, edges = nav2.read(data, shown)
-        elsewhere: set[str] = set()
-    elif isinstance(data, dict) and "layouts" in data:
-        nodes, edges, elsewhere = lif.read(data, shown, layout, scenario_file, layout_key)
-    else:
-        raise ScenarioError(f"{shown}: expected a Nav2 route graph (a GeoJSON FeatureCollection) or a "
-                            "VDA LIF file (an object with \"layouts\")")
-    return nodes, edges, elsewhere
 
 
 def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown: str, *,

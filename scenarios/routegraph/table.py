@@ -17,9 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.fields import Table, show, show_path
+from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
-from scenarios.routegraph.graph import build_network, read_graph_file
-from scenarios.schema import Dock, Obstacle, RouteEdge, RouteNetwork, Workspace
+from scenarios.routegraph.file import read_graph_file
+from scenarios.routegraph.graph import build_network
+from scenarios.schema import Dock, Obstacle, Workspace
 
 FreePoint = Callable[[Table, str, tuple, str], None]
 

@@ -4,8 +4,9 @@ Each command lives in its own module ``sim/cli/<name>.py`` exposing ``register(s
 (which adds the parser and sets ``func``). Commands import their heavy dependencies inside
 ``func`` so that ``pefsim --help`` and ``pefsim list`` start fast.
 
-Errors derived from :class:`scenarios.PefsimError` become one line on stderr and exit code 2;
-anything else is a bug and shows its traceback.
+``pefsim`` alone prints the help, ``pefsim --version`` the installed version. Errors derived
+from :class:`scenarios.PefsimError` become one line on stderr and exit code 2; anything else is
+a bug and shows its traceback.
 """
 
 from __future__ import annotations
@@ -51,12 +52,23 @@ def _jsonable(o: Any) -> Any:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="pefsim", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="pefsim", description="Robot routes planned from a Position Error Function (PEF), "
+                                                "and checked in simulation. Each command takes --help.")
+    parser.add_argument("--version", action="version", version=f"pefsim {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    sub.required = True
     for name in COMMANDS:
         importlib.import_module(f"sim.cli.{name}").register(sub)
     return parser
+
+
+def _version() -> str:
+    """Return the installed distribution's version (package metadata), or a note that it is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("pefsim")
+    except PackageNotFoundError:
+        return "(not installed: run pip install -e .)"
 
 
 def _quick_exit(code: int) -> None:
@@ -99,6 +111,9 @@ def _with_source(args: argparse.Namespace, exc: PefsimError) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.command is None:  # ``pefsim`` alone: what it can do
+        parser.print_help()
+        return EXIT_OK
     try:
         code = args.func(args)
         code = EXIT_OK if code is None else int(code)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from estimators import compiled
-from estimators.ekf import predict_step
+from estimators.predict import predict_step
 from sim.episode.follower import command_step
 from sim.physics.odometry import odometry_step
 

@@ -206,7 +206,7 @@ class FixRecorder:
         carried = np.array(p.slots) < p.attempted - 1
         heading_var = max(heading_var_now, 0.0)  # the shift is turned with the filter's heading
         # The shift is itself measured: the fault area widens each range by a bound on the
-        # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
+        # odometry error of its shift (the set-membership view of docs/design.md §1, applied to motion), and
         # the least-squares weights add its variance.
         bearings, bearing_error = None, self.sensor.bearing_error
         if p.bearings:

@@ -9,7 +9,7 @@ scenario's frame, which is the user's (``workspace.origin`` is where the workspa
 Nav2 needs integer ids, unique across nodes and edges. A network whose ids are all such
 integers keeps them; otherwise (a LIF layout's string ids) nodes are renumbered 0, 1, ... and
 edges after them, in network order, and each original id is kept as ``source_id``. A
-hand-written network already has generated integer ids (:class:`scenarios.schema.RouteNetwork`).
+hand-written network already has generated integer ids (:class:`scenarios.route_network.RouteNetwork`).
 
 Every edge also carries the PEF along its segment (:mod:`planner.routes.edges`): ``max_tau``,
 ``mean_tau`` [m] (null when infinite: some point has no fix), ``min_visible`` (fewest markers
@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import output_errors
-from scenarios.schema import RouteNetwork, Scenario
+from scenarios.route_network import RouteNetwork
+from scenarios.schema import Scenario
 from sim.jsonable import json_number
 
 #: Properties the export computes; they replace any read from the graph file.

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import sys
 import tempfile
 import time
@@ -31,11 +32,13 @@ from sim.montecarlo import directory, executors, lock, results
 from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
 from sim.montecarlo.executors import ExecutorKind
 from sim.montecarlo.progress import progress_bar
-from sim.montecarlo.results import RunRecord, StepsMode, SweepLayout
+from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.rows import fix_columns, run_row, step_columns
+from sim.montecarlo.steps import StepsMode, steps_mode
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
-           "default_api", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
+           "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
 
 
 @dataclass(frozen=True)
@@ -135,15 +138,15 @@ class RunContext:
             result = p.api.run_episode(p.scenario, task_index=spec.task, seed=spec.seed_sequence(),
                                        world=self._world(), prepared=p.prepared[spec.task])
         except PefsimError as exc:
-            row = results.run_row(spec.run, spec.seed_text, spec.task, None, 0.0, status=f"error: {exc}")
+            row = run_row(spec.run, spec.seed_text, spec.task, None, 0.0, status=f"error: {exc}")
             return RunRecord(spec.run, row, fatal=exc)
         except Exception as exc:  # any other exception is a bug in this run: record it, go on
             self._drop_world()  # it may be left in any state
             return RunContext.died(spec, _one_line(exc), time.perf_counter() - start)
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
-        row = results.run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
-        steps = results.step_columns(spec.run, result.steps, p.steps, result.fixes.t)
-        record = RunRecord(spec.run, row, steps, results.fix_columns(spec.run, result.fixes))
+        row = run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
+        steps = step_columns(spec.run, result.steps, p.steps, result.fixes.t)
+        record = RunRecord(spec.run, row, steps, fix_columns(spec.run, result.fixes))
         if spec.record:
             record.recording, record.warning = self._recording(result)
         return record
@@ -151,7 +154,7 @@ class RunContext:
     @staticmethod
     def died(spec: RunSpec, reason: str, wall_time: float | None = None) -> RunRecord:
         """Make the record of a run that crashed (or whose worker died) with ``reason``."""
-        return RunRecord(spec.run, results.run_row(spec.run, spec.seed_text, spec.task, None, wall_time,
+        return RunRecord(spec.run, run_row(spec.run, spec.seed_text, spec.task, None, wall_time,
                                                    status=f"crashed: {reason}"))
 
     def _recording(self, result: Any) -> tuple[bytes | None, str | None]:
@@ -220,6 +223,15 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
         raise ScenarioError(f"--rrd-every: expected 0 (none) or a positive period, got {rrd_every}")
 
 
+def default_out(scenario: Scenario) -> Path:
+    """Return the default sweep directory ``mc-<name>``: a plain name in the working directory.
+
+    Every character of the scenario's name outside ``[A-Za-z0-9._-]`` becomes ``_``, so a name
+    holding ``/`` or ``..`` cannot lead the sweep out of the working directory.
+    """
+    return Path("mc-" + re.sub(r"[^A-Za-z0-9._-]", "_", scenario.name))
+
+
 def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None = None,
           task: int | None = None, workers: int | None = None, executor: ExecutorKind | str = "local",
           address: str | None = None, resume: bool = False, rrd_every: int = 0,
@@ -237,7 +249,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     scenario : Scenario
         Loaded from text (``scenario.text`` is kept as ``out/scenario.toml``).
     out : path, optional
-        Sweep directory; default ``mc-<scenario name>``.
+        Sweep directory; default :func:`default_out` (``mc-<scenario name>``).
     runs : int, optional
         Runs ``0 .. runs-1``; default the earlier sweep's count on resume, else ``scenario.montecarlo.runs``.
     task : int, optional
@@ -275,8 +287,8 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
         executors.import_ray()
     if runs is not None:
         check_runs(runs)  # before the directory is made
-    out = Path(out if out is not None else f"mc-{scenario.name}")
-    wanted = None if steps is None else results.steps_mode(steps)
+    out = Path(out) if out is not None else default_out(scenario)
+    wanted = None if steps is None else steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
     if runs is None:
         runs = int(settings.get("runs", scenario.montecarlo.runs))

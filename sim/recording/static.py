@@ -105,7 +105,7 @@ def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float) -> None:
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    pef_map : planner.pef.map.PefMap or alike
+    pef_map : planner.pef.result.PefMap or alike
         Needs ``x`` (nx,), ``y`` (ny,) cell centres [m] and ``tau`` (ny, nx) [m], inf where
         too few markers are visible.
     eps_max : float

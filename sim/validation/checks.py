@@ -1,4 +1,4 @@
-"""The validation checks (DESIGN section 6), pure functions of a sweep's tables.
+"""The validation checks (`docs/design.md` §6), pure functions of a sweep's tables.
 
 Each check has an applicability test (the reason it does not apply, or None) and an
 evaluation at a given false-alarm probability ``alpha``. Checks that cannot fail when the

@@ -1,4 +1,4 @@
-"""The promise check: every realised fix within what the plan promised for it (DESIGN section 6).
+"""The promise check: every realised fix within what the plan promised for it (`docs/design.md` §6).
 
 The plan promises each fix the fault-area diameter of the moving fix the robot makes
 (:mod:`planner.schedule.promise`): noise-free ranges at the planned poses, carried to the fix time with

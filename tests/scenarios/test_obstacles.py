@@ -12,7 +12,7 @@ from shapely.ops import unary_union
 import scenarios
 from scenarios import Obstacle, ScenarioError
 from scenarios.geometry import CIRCLE_SAGITTA, circle_vertices, convex_pieces
-from tests.scenarios.test_load import MINIMAL
+from tests.scenarios.worlds import MINIMAL
 
 U_SHAPE = "[[3.0, 2.0], [7.0, 2.0], [7.0, 6.0], [6.0, 6.0], [6.0, 3.0], [4.0, 3.0], [4.0, 6.0], [3.0, 6.0]]"
 

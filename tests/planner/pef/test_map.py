@@ -26,7 +26,8 @@ from estimators.fault.linearized import (
     strip_polygon,
     unit_rows,
 )
-from planner.pef.map import PEF, grid_centres
+from planner.pef.map import PEF
+from planner.pef.result import grid_centres
 from scenarios.errors import PlanningError
 from scenarios.schema import PefModel
 

@@ -206,12 +206,7 @@ def test_workspace_origin_frame(capsys, tmp_path):
         text = text.replace(f"position = [{x}, {y}]", f"position = [{x + 100.0}, {y + 50.0}]")
     path = tmp_path / "o.toml"
     path.write_text(text, encoding="utf-8")
-    try:
-        sc = scenarios.load(path)
-    except scenarios.ScenarioError as exc:
-        if "workspace.origin: unknown key" in str(exc):
-            pytest.skip("the loader does not read workspace.origin yet (branch floorplan)")
-        raise
+    sc = scenarios.load(path)
     assert sc.routes.nodes["0"] == (102.0, 52.0) and sc.dock("B").position == (118.0, 52.0)
     assert sc.routes.why_not(6) == "crosses obstacles[0]"
     out, mk = tmp_path / "o.geojson", tmp_path / "o.csv"

@@ -11,7 +11,7 @@ import pytest
 
 import scenarios
 from sim.episode.drive import run_episode
-from tests.sim.recording.test_episode_recording import Readback
+from tests.sim.recording.readback import Readback
 
 
 @pytest.fixture(scope="module")
@@ -45,11 +45,11 @@ def test_run_recording_holds_the_episode(run_rrd):
     assert verify.returncode == 0, verify.stderr
 
 
-def test_unwritable_recording_still_prints_the_result(tmp_path):
+def test_unwritable_recording_is_refused_before_the_episode(tmp_path):
     p = subprocess.run([sys.executable, "-m", "sim.cli", "run", "paper-two-markers", "--rrd",
                         str(tmp_path / "missing" / "x.rrd"), "--json"], capture_output=True, text=True)
     assert p.returncode == 2
-    assert json.loads(p.stdout)["reached"] is True  # the episode's result is not lost
+    assert p.stdout == ""  # refused before the episode is driven
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "cannot write recording" in lines[0] and "Traceback" not in p.stderr
 

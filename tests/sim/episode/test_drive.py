@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import subprocess
 import sys
 
@@ -12,6 +11,7 @@ import pytest
 import scenarios
 from sim.episode.drive import prepare, run_episode
 from sim.export.tum import read_tum
+from tests.sim.episode.digest import digest
 
 TASKS = [(name, i) for name in scenarios.builtin_names() for i in range(len(scenarios.load(name).tasks))]
 
@@ -26,14 +26,6 @@ def prepared():
             cache[(name, task)] = (s, prepare(s, task))
         return cache[(name, task)]
     return get
-
-
-def digest(result) -> str:
-    h = hashlib.sha256()
-    for a in (result.steps.t, result.steps.true_pose, result.steps.est_pose, result.steps.est_cov,
-              result.fixes.ranges, result.fixes.snapshot, result.fixes.markers):
-        h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
 
 
 @pytest.mark.parametrize("name,task", TASKS, ids=[f"{n}-{t}" for n, t in TASKS])
@@ -69,7 +61,7 @@ def test_same_seed_same_arrays_after_world_reset(prepared):
 SCRIPT = """
 import hashlib, numpy as np, scenarios
 from sim.episode.drive import run_episode
-from tests.sim.episode.test_drive import digest
+from tests.sim.episode.digest import digest
 r = run_episode(scenarios.load("paper-two-markers"), 0, seed=np.random.SeedSequence(5, spawn_key=(2,)))
 print(digest(r))
 """
