@@ -121,12 +121,13 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
 
 
 def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,
-          plannable: bool = True) -> Placement:
+          png: str | Path | None = None, plannable: bool = True, time_limit: float | None = None) -> Placement:
     """Find the fewest markers, among sites on walls and obstacle faces, that keep the routes under eps_max.
 
     With ``plannable`` (the default, as ``pefsim place``) the layout is planned for every task
     and the cover target tightened until each has an admissible route
-    (:mod:`planner.placement.plannable`); ``plannable=False`` is the plain cover.
+    (:mod:`planner.placement.plannable`); ``plannable=False`` is the plain cover. With
+    ``placement.existing = "keep"`` the scenario's markers stay and only added ones are chosen.
 
     Parameters
     ----------
@@ -134,27 +135,52 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     method : {"auto", "milp", "greedy"}
         Exact MILP (small instances), greedy with the LP lower bound, or chosen by size.
     out : str or path, optional
-        Also write the scenario with the placed markers as TOML here.
+        Also write the scenario with the placed markers as TOML here (when the layout has at
+        least k markers).
+    png : str or path, optional
+        Also draw the candidate sites, the points to cover and the markers here.
     plannable : bool
         Check the layout with the planner and tighten the cover until every task plans.
+    time_limit : float, optional
+        Safety limit of the exact solver's LP and MILP rounds [s]; default
+        :data:`planner.placement.cover.MILP_TIME_LIMIT`.
 
     Returns
     -------
     Placement
-        ``markers`` [(id, (x, y))] [m], ``count``, ``lower_bound``, ``optimal``, ``uncovered``.
+        ``markers`` [(id, (x, y))] [m] added, ``kept`` markers, ``count``, ``lower_bound``,
+        ``optimal``, ``uncovered``, ``target`` [m] (the cover target used), ``unplanned`` (tasks
+        without an admissible route on the layout), ``finest_spacing``; ``summary()`` as JSON.
+
+    Raises
+    ------
+    PlanningError
+        A bad method or time limit.
     """
+    from planner.placement.cover import MILP_TIME_LIMIT
     from planner.placement.placement import place as _place
     from planner.placement.placement import write_scenario_with_markers
+    from scenarios import OutputError, PlanningError
 
+    limit = MILP_TIME_LIMIT if time_limit is None else time_limit
+    if not limit > 0:
+        raise PlanningError(f"time_limit (--time-limit): expected a positive number of seconds, got {limit}")
+    for path, suffix, what in ((out, ".toml", "out (-o)"), (png, ".png", "png (--png)")):
+        if path is not None and Path(path).suffix.lower() != suffix:
+            raise OutputError(f"{path}: {what}: expected a {suffix} file, got {Path(path).suffix or 'no extension'!r}")
     sc = _scenario(scenario)
     if plannable:
         from planner.placement.plannable import place_plannable
 
-        result = place_plannable(sc, method=method).result
+        result = place_plannable(sc, method=method, time_limit=limit).result
     else:
-        result = _place(sc, method=method)
-    if out is not None:
+        result = _place(sc, method=method, time_limit=limit)
+    if out is not None and len(result.layout()) >= sc.sensor.markers_per_fix:
         write_scenario_with_markers(sc, result, out)
+    if png is not None:
+        from sim.report.placement_figure import plot_placement
+
+        plot_placement(sc, result, png)
     return result
 
 

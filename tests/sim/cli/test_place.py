@@ -26,7 +26,8 @@ def test_json_and_written_scenario(capsys, tmp_path):
     assert {"markers", "count", "lower_bound", "optimal", "uncovered"} <= set(doc)
     assert doc["count"] == len(doc["markers"]) and doc["uncovered"] == []
     assert isinstance(doc["optimal"], bool) and doc["lower_bound"] <= doc["count"]
-    assert all(set(m) == {"id", "position"} and len(m["position"]) == 2 for m in doc["markers"])
+    assert all({"id", "position", "kind", "new"} <= set(m) and len(m["position"]) == 2 for m in doc["markers"])
+    assert all(m["new"] for m in doc["markers"]) and doc["kept"] == [] and len(doc["new"]) == doc["count"]
     placed = scenarios.load(toml)
     written = [[m.id, list(m.position)] for m in placed.markers]
     assert written == [[m["id"], m["position"]] for m in doc["markers"]]
