@@ -69,3 +69,27 @@ def test_uncoverable_points_exit_2(capsys, tmp_path):
 def test_bad_time_limit(capsys):
     code, _, err = run_cli(capsys, "place", "paper-docks", "--time-limit", "0")
     assert code == 2 and "--time-limit" in err
+
+
+def test_keep_lists_new_markers_text_and_json(capsys, tmp_path):
+    text = scenarios.load("warehouse").text.replace("eps_max = 0.03", "eps_max = 0.02")
+    path = tmp_path / "keep.toml"
+    path.write_text(text + '\n[placement]\nexisting = "keep"\n')
+    code, out, _ = run_cli(capsys, "place", str(path), "--cover-only")
+    assert code == 0
+    rows = [line.split() for line in out.splitlines() if line.startswith("  ")]
+    kept = [r[0] for r in rows if r[-1] == "kept"]
+    new = [r[0] for r in rows if r[-1] == "new"]
+    assert kept == [m.id for m in scenarios.load("warehouse").markers] and new
+    assert f"12 markers kept, {len(new)} added" in out
+    code, out, _ = run_cli(capsys, "place", str(path), "--cover-only", "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["new"] == new and doc["count"] == len(new) and doc["kept"] == kept
+
+
+def test_output_format_from_extension_refused_before_work(capsys, tmp_path):
+    code, _, err = run_cli(capsys, "place", "warehouse", "-o", str(tmp_path / "placed.txt"))
+    assert code == 2 and err.count("\n") == 1 and "expected a .toml file" in err
+    code, _, err = run_cli(capsys, "place", "warehouse", "--png", str(tmp_path / "placed.jpg"))
+    assert code == 2 and err.count("\n") == 1 and "expected a .png file" in err
+    assert not list(tmp_path.iterdir())
