@@ -28,8 +28,12 @@ from scenarios import PefsimError, Scenario
 from sim.episode.types import EpisodeResult
 from sim.validation.suite import ValidationReport
 
-__all__ = ["EpisodeResult", "PefMap", "PefsimError", "Placement", "Plan", "Scenario", "ValidationReport",
-           "load", "pef_map", "place", "plan", "run_episode", "sweep", "validate"]
+__all__ = ["EXPORT_FORMATS", "EpisodeResult", "PefMap", "PefsimError", "Placement", "Plan", "Scenario",
+           "ValidationReport", "export", "load", "pef_map", "place", "plan", "run_episode", "sweep", "validate"]
+
+EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
+                  "keepout": (".yaml", ".yml")}
+"""File extensions :func:`export` accepts for each output (its format comes from them)."""
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -182,6 +186,92 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
 
         plot_placement(sc, result, png)
     return result
+
+
+def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None, markers: str | Path | None = None,
+           dxf: str | Path | None = None, lif: str | Path | None = None,
+           keepout: str | Path | None = None) -> dict[str, tuple[Path, ...]]:
+    """Write the scenario's results for the tools downstream; only the files asked for.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or path
+    routes : str or path, optional
+        The route network as a Nav2 route graph (GeoJSON), each edge with ``max_tau``,
+        ``mean_tau`` [m], ``min_visible``, ``admissible``, ``why_not``
+        (:mod:`sim.export.routegraph`).
+    markers : str or path, optional
+        The markers as CSV ``id,x,y,x_mm,y_mm,kind,facing_deg`` (:mod:`sim.export.markers`).
+    dxf : str or path, optional
+        The drawing with the reflectors, the contour τ = ε_max and the routes, each labelled
+        with its worst τ, inadmissible ones on their own layer (:mod:`sim.export.dxf`).
+    lif : str or path, optional
+        The route network as a VDA LIF file keeping every id, each node with its τ as
+        ``nodePosition.allowedDeviationXY`` [m] (:mod:`sim.export.lif`).
+    keepout : str or path, optional
+        A Nav2 keepout mask: this map_server YAML and a PGM beside it, occupied outside the
+        navigation region (:mod:`sim.export.keepout`).
+
+    Returns
+    -------
+    dict of str to tuple of Path
+        What was written, by output name (``keepout``: the YAML and the PGM).
+
+    Raises
+    ------
+    PefsimError
+        Nothing asked for, an extension that does not name the output's format, or a route
+        export of a scenario without a route network: before anything is computed or written.
+    """
+    from scenarios import OutputError
+
+    asked = {"routes": routes, "markers": markers, "dxf": dxf, "lif": lif, "keepout": keepout}
+    asked = {k: Path(v) for k, v in asked.items() if v is not None}
+    if not asked:
+        raise OutputError("export: give at least one of --routes, --markers, --dxf, --lif, --keepout")
+    for name, path in asked.items():
+        if path.suffix.lower() not in EXPORT_FORMATS[name]:
+            raise OutputError(f"{path}: --{name}: expected a {' or '.join(EXPORT_FORMATS[name])} file, got "
+                              f"{path.suffix or 'no extension'!r}")
+    sc = _scenario(scenario)
+    for name in ("routes", "lif"):
+        if name in asked and sc.routes is None:
+            raise OutputError(f"--{name}: scenario {sc.name!r} has no route network ([routes]) to export")
+    from planner.pef.map import PEF
+
+    pef = PEF(sc)
+    written: dict[str, tuple[Path, ...]] = {}
+    reports = None
+    if sc.routes is not None and ("routes" in asked or "dxf" in asked):
+        from planner.routes.edges import segment_reports
+
+        reports = segment_reports(sc, pef)
+    if "routes" in asked:
+        from sim.export.routegraph import write_route_graph
+
+        written["routes"] = (write_route_graph(asked["routes"], sc, reports),)
+    if "markers" in asked:
+        from sim.export.markers import write_markers_csv
+
+        written["markers"] = (write_markers_csv(asked["markers"], sc),)
+    if "dxf" in asked:
+        from sim.export.dxf import write_dxf
+        from sim.export.region import region_contours, route_lines
+
+        contours = region_contours(pef.grid(), sc.planning.eps_max, sc.workspace.bounds)
+        written["dxf"] = (write_dxf(sc, asked["dxf"], region_contours=contours, route_lines=route_lines(sc),
+                                    route_reports=reports),)
+    if "lif" in asked:
+        from sim.export.lif import write_lif
+
+        names = list(sc.routes.nodes)
+        tau = pef.at([sc.routes.nodes[n] for n in names]).tau
+        written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
+    if "keepout" in asked:
+        from sim.export.keepout import write_keepout
+
+        written["keepout"] = write_keepout(asked["keepout"], sc, pef)
+    return written
 
 
 def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0, rrd: str | Path | None = None,
