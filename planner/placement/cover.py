@@ -12,6 +12,16 @@ cover must choose a site of ``S_r minus T``::
 
 Taking every maximal T this is exact; the cuts are generated as needed (one per row and
 round, T grown greedily), so each LP/MILP has only the site variables and few hundred rows.
+
+Redundancy 1 (any one chosen site may be blocked) is the same formulation with right-hand
+sides one higher: a row is 1-robust exactly when no single chosen site meets every chosen good
+pair of it, i.e. when every independent T leaves at least *two* chosen sites in ``S_r minus T``
+(if only u were left, blocking u leaves the chosen sites of the row inside T, no pair among
+them; conversely, if every chosen pair held u, T = the other chosen sites of the row would be
+independent and leave only u). So ``sum_{S_r minus T} z >= 2``, ``sum_{S_r} z >= 3`` and
+``sum_{visible} z >= k + 1``: its LP is a lower bound on the redundancy-1 count, and its
+integer rounds find redundancy-1 covers directly (completed by
+:func:`planner.placement.redundant.greedy_robust`).
 """
 
 from __future__ import annotations
@@ -23,6 +33,7 @@ from scipy import optimize, sparse
 
 from estimators import compiled
 from planner.placement.pair_cover import PairCover
+from planner.placement.redundant import greedy_robust, robust_rows
 from planner.placement.search import WORK, local_search
 
 MILP_TIME_LIMIT = 30.0
@@ -124,13 +135,14 @@ def _fixed(cov: PairCover, fixed: np.ndarray | None) -> np.ndarray:
 
 
 @compiled.njit(cache=True)
-def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts):
+def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts, need):
     """Independent-set cuts, one per row: ``cuts[r]`` = S_r minus a maximal independent set T.
 
     T is grown greedily in the row's good-pair graph G_r (sites S_r, edges = good pairs), by
     descending ``z`` then ascending degree. No good pair lies inside T, so every cover takes a
-    site of S_r minus T: ``sum_{S_r minus T} z >= 1`` is valid. Returns which rows' cuts ``z``
-    violates by more than ``tol``.
+    site of S_r minus T: ``sum_{S_r minus T} z >= 1`` is valid (``>= 2`` for redundancy 1,
+    see module doc). Returns which rows' cuts ``z`` violates, their sum short of ``need`` by
+    more than ``tol``.
     """
     n_rows = row_ptr.size - 1
     violated = np.zeros(n_rows, dtype=np.bool_)
@@ -159,7 +171,7 @@ def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts):
             for m in sites:  # j joins T: its neighbours can no longer
                 if adj[j, m]:
                     blocked[m] = True
-        violated[r] = slack < 1.0 - tol
+        violated[r] = slack < need - tol
         for e in range(row_ptr[r], row_ptr[r + 1]):
             a, b = ea[e], eb[e]
             adj[a, b] = adj[b, a] = False
@@ -246,7 +258,7 @@ class _Cuts:
 
 def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, integral: bool = True,
                 xy: np.ndarray | None = None, seed: int = 0, work: int | None = None,
-                fixed: np.ndarray | None = None):
+                fixed: np.ndarray | None = None, redundancy: int = 0):
     """Cutting planes on the site-only formulation, local search, then integer rounds (see module doc).
 
     LP phase: solve the LP over the current covering rows, add the independent-set cuts it
@@ -282,6 +294,10 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     fixed : ndarray of bool, shape (S,), optional
         Sites that are chosen whatever happens (markers already installed): held at 1 in the
         LP and MILP, never dropped, and not counted; count and bound are then of the others.
+    redundancy : {0, 1}
+        Cover every row 1-robustly (see module doc): every row must be able to be made robust
+        with every site chosen (:func:`planner.placement.redundant.robust_rows`). The local
+        search is for redundancy 0 only.
 
     Returns
     -------
@@ -296,19 +312,33 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     left = lambda: time_limit - (time.perf_counter() - start)
     fixed = _fixed(cov, fixed)
     size = lambda z: int(np.count_nonzero(z & ~fixed))
+    r = int(redundancy)
+    if r:
+        def complete(z):
+            return greedy_robust(cov, k, r, z, fixed)[0]
+
+        def ok(z):
+            return bool(robust_rows(cov, z, k, r).all())
+        work = 0  # the local search keeps covers, not robust ones
+    else:
+        def complete(z):
+            return greedy(cov, k, z, fixed)
+
+        def ok(z):
+            return bool(covered(cov, z, k).all())
     cuts = _Cuts(cov.n_sites)
     in_pair = np.zeros((len(cov.weight), cov.n_sites), dtype=bool)
     er = cov.er
     in_pair[er, cov.ea] = in_pair[er, cov.eb] = True
-    cuts.add(in_pair, 2.0)
-    if k > 2:
-        cuts.add(cov.vis, float(k))
+    cuts.add(in_pair, 2.0 + r)
+    if k + r > 2:
+        cuts.add(cov.vis, float(k + r))
 
     def separate(z):
         out = np.zeros((len(cov.weight), cov.n_sites), dtype=bool)
-        return out[_separate(cov.row_ptr, cov.ea, cov.eb, cov.n_sites, z, 1e-6, out)]
+        return out[_separate(cov.row_ptr, cov.ea, cov.eb, cov.n_sites, z, 1e-6, out, 1.0 + r)]
 
-    cuts.add(separate(np.zeros(cov.n_sites)), 1.0)
+    cuts.add(separate(np.zeros(cov.n_sites)), 1.0 + r)
     bound, x, history = 0.0, np.zeros(cov.n_sites), []
     for _ in range(MAX_LP_ROUNDS):
         if left() <= 0:
@@ -320,7 +350,7 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
         history.append(bound)
         if len(history) > 2 and history[-1] < history[-3] + LP_STALL:
             break
-        if not cuts.add(separate(res.x), 1.0):
+        if not cuts.add(separate(res.x), 1.0 + r):
             break
     # LP rounding with repair at several thresholds (the hall's LP is fractional everywhere, and
     # which threshold completes best varies by a marker or two), without the search also against
@@ -328,9 +358,9 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     # the local search does better from the roundings than from plain greedy (on the hall, 51-53
     # against 51-55 markers over three seeds), and each greedy costs seconds there
     work = WORK if work is None else int(work)
-    starts = [greedy(cov, k, x >= t, fixed) for t in (0.3, 0.5)]
+    starts = [complete((x >= t) | fixed) for t in (0.3, 0.5)]
     if work <= 0:
-        starts += [greedy(cov, k, x >= 0.7, fixed), greedy(cov, k, None, fixed)]
+        starts += [complete((x >= 0.7) | fixed), complete(fixed.copy())]
     best = min(starts, key=size)
     if work > 0 and math.ceil(bound - 1e-6) < size(best):
         pos = np.column_stack([np.arange(cov.n_sites, dtype=float), np.zeros(cov.n_sites)]) if xy is None else xy
@@ -343,11 +373,11 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
         if res.x is None:
             break
         z = (res.x > 0.5) | fixed
-        if covered(cov, z, k).all():
+        if ok(z):
             best = z
             continue
-        completed = greedy(cov, k, z, fixed)
+        completed = complete(z)
         best = completed if size(completed) < size(best) else best
-        if not cuts.add(separate(z.astype(float)), 1.0):
+        if not cuts.add(separate(z.astype(float)), 1.0 + r):
             break
     return best, bound, math.ceil(bound - 1e-6) >= size(best)

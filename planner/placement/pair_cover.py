@@ -36,3 +36,21 @@ class PairCover:
     def er(self) -> np.ndarray:
         """Row of each entry, shape (E,)."""
         return np.repeat(np.arange(len(self.weight)), np.diff(self.row_ptr))
+
+
+def subset_rows(cov: PairCover, keep: np.ndarray) -> PairCover:
+    """The problem on the rows ``keep`` (R,) bool only (same sites and pairs).
+
+    ``row_of`` maps a point of a dropped row to -1.
+    """
+    idx = np.flatnonzero(keep)
+    lengths = np.diff(cov.row_ptr)[idx]
+    starts = cov.row_ptr[idx]
+    entries = (np.repeat(starts - np.concatenate([[0], np.cumsum(lengths)[:-1]]), lengths)
+               + np.arange(int(lengths.sum())))
+    new_row = np.full(len(cov.weight), -1)
+    new_row[idx] = np.arange(len(idx))
+    return PairCover(weight=cov.weight[idx], row_of=new_row[cov.row_of],
+                     row_ptr=np.concatenate([[0], np.cumsum(lengths)]).astype(cov.row_ptr.dtype),
+                     ep=cov.ep[entries], ea=cov.ea[entries], eb=cov.eb[entries], pj=cov.pj, pl=cov.pl,
+                     vis=np.ascontiguousarray(cov.vis[idx]), n_sites=cov.n_sites)

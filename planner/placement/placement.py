@@ -53,8 +53,8 @@ from estimators import compiled
 from planner.pef import kernels as pef_kernels
 from planner.placement.cover import MILP_TIME_LIMIT, solve_exact
 from planner.placement.facing import site_facings, site_marker
-from planner.placement.pair_cover import PairCover
-from planner.placement.redundant import greedy_robust
+from planner.placement.pair_cover import PairCover, subset_rows
+from planner.placement.redundant import robust_rows
 from planner.placement.sites import candidate_sites, cover_points
 from scenarios.errors import PlanningError, output_errors
 from scenarios.load import MIN_SPACING
@@ -313,8 +313,8 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     eps_max : float, optional
         Allowed error [m]; default ``scenario.planning.eps_max``. With
         ``planning.redundancy`` = 1 every covered point keeps a pair under it with any one
-        chosen marker blocked (:mod:`planner.placement.redundant`: the exact redundancy-0
-        cover completed greedily; its count is the lower bound).
+        chosen marker blocked (the redundancy-1 cutting planes of :mod:`planner.placement.cover`,
+        with their own LP bound; points no choice keeps robust are reported uncovered).
     method : {"auto", "milp", "greedy"}
         ``auto``: the exact solver with at most :data:`MILP_MAX_SITES` useful sites, else
         ``greedy``: LP rounding and local search (with the LP bound), no integer rounds.
@@ -350,21 +350,19 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     if coverable.any():
         used_sites = int(np.setdiff1d(np.concatenate([cov.pj, cov.pl]), np.arange(n_kept)).size)
         integral = method == "milp" or (method == "auto" and used_sites <= MILP_MAX_SITES)
-        chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral, xy=allx(cand),
-                                             seed=_search_seed(scenario.seed), fixed=fixed)
-        used = "milp" if integral else "search"
-        if not n_kept:  # a fix needs k markers; kept ones may already be them
-            bound = max(bound, float(k))
-        if redundancy > 0:
-            start = chosen
-            chosen, target = greedy_robust(cov, k, redundancy, start, fixed)
+        problem = cov
+        if redundancy > 0:  # only rows that all sites together keep robust can be asked to be
+            target = robust_rows(cov, np.ones(cov.n_sites, dtype=bool), k, redundancy)
             coverable = coverable.copy()
             coverable[np.flatnonzero(coverable)] = target[cov.row_of]
-            added = float(np.count_nonzero(start & ~fixed))
-            bound = added if optimal else bound
-            if not n_kept:
-                bound = max(bound, float(k + redundancy))
-            optimal, used = False, used + "+greedy"
+            problem = subset_rows(cov, target)
+        if coverable.any():
+            chosen, bound, optimal = solve_exact(problem, k, time_limit, integral=integral, xy=allx(cand),
+                                                 seed=_search_seed(scenario.seed), fixed=fixed,
+                                                 redundancy=redundancy)
+        used = "milp" if integral else "search"
+        if not n_kept:  # a fix needs k markers (k + r with r blocked); kept ones may already be them
+            bound = max(bound, float(k + redundancy))
     idx = np.flatnonzero(chosen[n_kept:])
     lower = min(math.ceil(bound - 1e-6), len(idx))
     taken = {m.id for m in kept}

@@ -7,10 +7,11 @@ visible from it. Any vertex cover holds an end of the first chosen pair, so for 
 is: a chosen good pair avoids its first end, and one avoids its second end. Only r <= 1 is
 supported here.
 
-Solver: the exact redundancy-0 cover (:func:`~planner.placement.cover.solve_exact`) is a lower
-bound (an r-robust set covers every row) and the start; the greedy adds the site that makes the
+The greedy here completes a set of sites into an r-robust one: it adds the site that makes the
 most points robust (or, where one site is not enough, the one that completes the most chosen
-pairs at non-robust rows), then drops chosen sites that are no longer needed.
+pairs at non-robust rows), then drops chosen sites that are no longer needed. The exact solver
+(:func:`~planner.placement.cover.solve_exact` with ``redundancy=1``) uses it to complete LP
+roundings and integer points.
 """
 
 from __future__ import annotations
