@@ -524,15 +524,36 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
         data["markers"] = added
         if isinstance(data.get("floorplan"), dict):
             data["floorplan"].pop("marker_layer", None)  # the placed markers replace the drawing's too
-    if scenario.routes is not None and scenario.routes.source:
-        # a relative graph file would be looked up beside the new scenario: name it absolutely
-        data["routes"]["file"] = str(Path(scenario.routes.source).resolve())
-    text = tomli_w.dumps(data)
     out = Path(path)
+    if scenario.routes is not None and scenario.routes.source:
+        data["routes"]["file"] = str(Path(scenario.routes.source).resolve())
+    for table in ("floorplan", "routes"):  # files the scenario reads, named from where it is written
+        if isinstance(data.get(table), dict) and isinstance(data[table].get("file"), str):
+            data[table]["file"] = _relative(data[table]["file"], out.parent)
+    data["description"] = _placed_description(scenario, result)
+    text = tomli_w.dumps(data)
     scn.loads(text, source=str(out), base=out.parent)  # a bug here must not leave a broken file behind
     with output_errors(out, "write the placed scenario"):
         out.write_text(text, encoding="utf-8")
     return out
+
+
+def _relative(file: str, folder: Path) -> str:
+    """``file`` (absolute, as a loaded scenario's text has it) relative to ``folder`` where it can be."""
+    import os
+
+    try:
+        return Path(os.path.relpath(Path(file).resolve(), folder.resolve())).as_posix()
+    except ValueError:  # another drive: only the absolute name reaches it
+        return file
+
+
+def _placed_description(scenario: Scenario, result: PlacementResult) -> str:
+    """What the placed scenario is (the source's description counted its own markers)."""
+    what = (f"{len(result.kept)} markers kept and {result.count} added" if result.kept
+            else f"{result.count} markers")
+    target = f" (cover target {result.target:g} m)" if math.isfinite(result.target) else ""
+    return f"{scenario.name} with {what} placed by pefsim place{target}"
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

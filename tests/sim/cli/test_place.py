@@ -93,3 +93,26 @@ def test_output_format_from_extension_refused_before_work(capsys, tmp_path):
     code, _, err = run_cli(capsys, "place", "warehouse", "--png", str(tmp_path / "placed.jpg"))
     assert code == 2 and err.count("\n") == 1 and "expected a .png file" in err
     assert not list(tmp_path.iterdir())
+
+
+def test_placed_scenario_names_its_files_relative_and_says_what_it_is(capsys, tmp_path):
+    import shutil
+    import tomllib
+
+    src = tmp_path / "src"
+    src.mkdir()
+    from scenarios.load import LIBRARY
+
+    shutil.copy(LIBRARY / "hall.dxf", src / "hall.dxf")
+    text = (LIBRARY / "hall.toml").read_text().replace('marker_layer = "AGV-REFL"\n', "")
+    (src / "my-hall.toml").write_text(text)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    code, _, _ = run_cli(capsys, "place", str(src / "my-hall.toml"), "-o", str(out_dir / "placed.toml"),
+                         "--cover-only")
+    assert code == 0
+    data = tomllib.loads((out_dir / "placed.toml").read_text())
+    assert data["floorplan"]["file"] == "../src/hall.dxf"
+    placed = scenarios.load(out_dir / "placed.toml")
+    assert placed.description.startswith(f"hall with {len(placed.markers)} markers placed by pefsim place")
+    assert "12 reflectors" not in placed.description
