@@ -76,7 +76,7 @@ segments = [["a", "b"], ["c", "d"], ["a", "c"], ["b", "d"]]
 
 
 def before(sc) -> tuple[int, int]:
-    """The former method: exact redundancy-0 cover, completed greedily; its bound the r=0 count."""
+    """Place as before: exact redundancy-0 cover completed greedily; its bound is the r=0 count."""
     cov, _ = placement.build_cover(sc, cover_points(sc), candidate_sites(sc), sc.planning.eps_max)
     k = sc.sensor.markers_per_fix
     chosen, _, _ = cover.solve_exact(cov, k, integral=True, xy=candidate_sites(sc),

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import time
+
 import numpy as np
 from scipy import optimize, sparse
 

@@ -39,7 +39,7 @@ class PairCover:
 
 
 def subset_rows(cov: PairCover, keep: np.ndarray) -> PairCover:
-    """The problem on the rows ``keep`` (R,) bool only (same sites and pairs).
+    """Return the problem on the rows ``keep`` (R,) bool only (same sites and pairs).
 
     ``row_of`` maps a point of a dropped row to -1.
     """

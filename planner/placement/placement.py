@@ -140,7 +140,7 @@ class PlacementResult:
         return self.kept + tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(self))
 
     def summary(self) -> dict:
-        """The placement as a JSON-ready dict (positions in metres, facings in degrees).
+        """Return the placement as a JSON-ready dict (positions in metres, facings in degrees).
 
         ``markers`` is the whole layout, each marker with ``new`` (added by this placement);
         ``count`` and ``lower_bound`` are of the added ones.
@@ -549,7 +549,7 @@ def _relative(file: str, folder: Path) -> str:
 
 
 def _placed_description(scenario: Scenario, result: PlacementResult) -> str:
-    """What the placed scenario is (the source's description counted its own markers)."""
+    """Describe the placed scenario (the source's description counted its own markers)."""
     what = (f"{len(result.kept)} markers kept and {result.count} added" if result.kept
             else f"{result.count} markers")
     target = f" (cover target {result.target:g} m)" if math.isfinite(result.target) else ""

@@ -148,8 +148,8 @@ def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown:
     Raises
     ------
     ScenarioError
-        Duplicate ids (edge ids marked ``repeated_ok`` excepted), a node outside the workspace, an edge to an unknown node or from a node
-        to itself.
+        Duplicate ids (edge ids marked ``repeated_ok`` excepted), a node outside the workspace, an edge
+        to an unknown node or from a node to itself.
     """
     pos: dict[str, tuple[float, float]] = {}
     props: dict[str, dict] = {}

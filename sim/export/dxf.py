@@ -28,7 +28,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-
 from ezdxf.enums import TextEntityAlignment
 
 from scenarios.errors import output_errors

@@ -27,7 +27,7 @@ OCCUPIED, FREE = 0, 254
 
 
 def keepout_mask(scenario: Scenario, pef) -> tuple[np.ndarray, float, tuple[float, float]]:
-    """The keepout image of ``scenario``.
+    """Compute the keepout image of ``scenario``.
 
     Parameters
     ----------

@@ -38,7 +38,7 @@ def _deviation(tau: float) -> dict[str, float]:
 
 
 def _source_lif(net: RouteNetwork) -> dict | None:
-    """The parsed LIF file the network was read from, or None (another source)."""
+    """Return the parsed LIF file the network was read from, or None (another source)."""
     if not net.source:
         return None
     try:

@@ -7,7 +7,8 @@ and the node's other properties) and ``LineString`` edges, one per *directed* ed
 scenario's frame, which is the user's (``workspace.origin`` is where the workspace starts in it).
 
 Nav2 needs integer ids, unique across nodes and edges. A network whose ids are all such
-integers keeps them (an edge id its graph file repeated included: the file is Nav2's own kind); otherwise (a LIF layout's string ids) nodes are renumbered 0, 1, ... and
+integers keeps them (an edge id its graph file repeated included: Nav2's own examples do it);
+otherwise (a LIF layout's string ids) nodes are renumbered 0, 1, ... and
 edges after them, in network order, and each original id is kept as ``source_id``. A
 hand-written network already has generated integer ids (:class:`scenarios.schema.RouteNetwork`).
 

@@ -82,7 +82,8 @@ def test_lif_keeps_every_id_and_carries_tau_at_nodes(tmp_path):
 def test_lif_of_a_lif_input_keeps_the_file_and_sets_the_deviation(tmp_path):
     first = graph_lif(tmp_path)
     doc = json.loads(first.read_text())
-    doc["layouts"][0]["stations"] = [{"stationId": "S1", "interactionNodeIds": [doc["layouts"][0]["nodes"][0]["nodeId"]]}]
+    first_node = doc["layouts"][0]["nodes"][0]["nodeId"]
+    doc["layouts"][0]["stations"] = [{"stationId": "S1", "interactionNodeIds": [first_node]}]
     doc["layouts"][0]["nodes"][0]["nodePosition"]["allowedDeviationXY"] = 99.0  # stale: must be replaced
     src = tmp_path / "in.lif"
     src.write_text(json.dumps(doc))
