@@ -1,13 +1,14 @@
 """pefsim: robot routes planned from a Position Error Function, and checked in simulation.
 
 The public Python API; the ``pefsim`` command calls the same functions. Nothing here writes a
-file unless told where (``out=``, ``rrd=``, ``tum=``)::
+file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s files)::
 
     import pefsim
     sc = pefsim.load("paper-docks")                      # Scenario
     m = pefsim.pef_map(sc)                               # PefMap (x, y, tau, best)
     p = pefsim.plan(sc)                                  # Plan of task 0
     placed = pefsim.place(sc)                            # Placement
+    pefsim.export(sc, lif="routes.lif")                  # files for the tools downstream
     r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
     sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # a finished sweep directory
     rep = pefsim.validate(sw)                            # ValidationReport
