@@ -116,3 +116,12 @@ def test_placed_scenario_names_its_files_relative_and_says_what_it_is(capsys, tm
     placed = scenarios.load(out_dir / "placed.toml")
     assert placed.description.startswith(f"hall with {len(placed.markers)} markers placed by pefsim place")
     assert "12 reflectors" not in placed.description
+
+
+def test_cli_prints_what_the_library_returns(capsys):
+    import pefsim
+
+    code, out, _ = run_cli(capsys, "place", "paper-two-markers", "--json", "--time-limit", "20")
+    res = pefsim.place("paper-two-markers", time_limit=20.0)
+    assert code == 0 and json.loads(out) == json.loads(json.dumps(res.summary()))
+    assert res.target == scenarios.load("paper-two-markers").planning.eps_max and res.unplanned == ()
