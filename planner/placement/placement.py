@@ -83,14 +83,15 @@ class PlacementResult:
         Marker ids and positions [m].
     count : int
     lower_bound : int
-        No placement among the sites covers the coverable points with fewer markers.
+        No placement among the sites covers the coverable points with fewer markers (added
+        markers, when some are kept).
     optimal : bool
         ``count`` is proven minimal (MILP solved to optimality).
     uncovered : ndarray, shape (U, 2)
         Points no subset of sites can cover [m].
     method : str
-        ``milp`` (integer rounds ran), ``search`` (LP rounding and local search only), or
-        ``greedy`` (nothing to cover); ``+greedy`` when redundancy completed it greedily.
+        ``milp`` (integer rounds ran), ``search`` (LP rounding and local search only; with
+        redundancy 1 LP rounding completed greedily), or ``greedy`` (nothing to cover).
     sites : ndarray, shape (S, 2)
         The candidate sites [m].
     points : ndarray, shape (N, 2)
