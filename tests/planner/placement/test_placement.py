@@ -186,7 +186,9 @@ def test_written_scenario_loads_and_keeps_the_rest(tmp_path):
     out = placement.write_scenario_with_markers(sc, res, tmp_path / "placed.toml")
     back = scenarios.load(out)
     assert [(m.id, m.position) for m in back.markers] == res.markers
-    same = dataclasses.replace(back, markers=sc.markers, source=sc.source, text=sc.text)
+    # only the markers and the description (which named the source's own markers) change
+    assert back.description.startswith(f"{sc.name} with {res.count} markers placed by pefsim place")
+    same = dataclasses.replace(back, markers=sc.markers, source=sc.source, text=sc.text, description=sc.description)
     assert same == sc
     # a modified copy (no longer its source text) is written from the object itself
     changed = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.03),
