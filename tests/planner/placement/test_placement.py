@@ -195,7 +195,8 @@ def test_written_scenario_loads_and_keeps_the_rest(tmp_path):
                                   robot_actual=dataclasses.replace(sc.robot, wheel_radius_error=0.004))
     out2 = placement.write_scenario_with_markers(changed, res, tmp_path / "changed.toml")
     back2 = scenarios.load(out2)
-    restored = dataclasses.replace(back2, markers=sc.markers, source=sc.source, text=sc.text)
+    restored = dataclasses.replace(back2, markers=sc.markers, source=sc.source, text=sc.text,
+                                   description=sc.description)
     assert restored == dataclasses.replace(changed, text=sc.text)
 
 
