@@ -46,6 +46,10 @@ LP_STALL = 0.01
 """The LP phase stops when two rounds raised the LP value by less than this [markers]."""
 MILP_NODE_LIMIT = 20_000
 """Branch-and-bound nodes of one integer round (HiGHS ``node_limit``)."""
+SEARCH_GAP = 1.1
+"""While the best cover is more than this times the bound, the local search goes on ..."""
+SEARCH_EXTENSIONS = 2
+"""... for at most this many more budgets, each from the best cover with the next seed."""
 
 @compiled.njit(cache=True)
 def _rows_covered(row_ptr, ea, eb, vis, k, chosen):
@@ -267,6 +271,8 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     two rounds, or after :data:`MAX_LP_ROUNDS` rounds; every LP value is a lower bound. Upper
     bound: the best of the greedy cover and the greedy completions of the LP solution's sites
     with ``z >= 0.3, 0.5, 0.7``, improved by :func:`planner.placement.search.local_search`.
+    While the cover exceeds :data:`SEARCH_GAP` times the bound, the search runs again from it
+    with the next seed, at most :data:`SEARCH_EXTENSIONS` times.
     Integer rounds (``integral``): look for an integer point with fewer sites than the best
     cover (HiGHS with a node limit, :data:`MILP_NODE_LIMIT`); if it covers, it is the new best;
     if not, add the cuts it violates (and complete it greedily); if there is none, the best
@@ -366,6 +372,12 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     if work > 0 and math.ceil(bound - 1e-6) < size(best):
         pos = np.column_stack([np.arange(cov.n_sites, dtype=float), np.zeros(cov.n_sites)]) if xy is None else xy
         best = local_search(cov, k, best, pos, seed, work, fixed)
+        # far from the bound: search on from the best with fresh streams (the hall with posts:
+        # 52 -> 51 against a bound of 47), a count of budgets, so the result stays load-free
+        for extra in range(1, SEARCH_EXTENSIONS + 1):
+            if size(best) <= SEARCH_GAP * math.ceil(bound - 1e-6):
+                break
+            best = local_search(cov, k, best, pos, seed + extra, work, fixed)
     while integral and math.ceil(bound - 1e-6) < size(best) and left() > 0:
         res = cuts.solve(left(), at_most=size(best) - 1, fixed=fixed)
         if res.status == 2:  # infeasible: nothing smaller than the best cover exists
