@@ -1,13 +1,14 @@
 """pefsim: robot routes planned from a Position Error Function, and checked in simulation.
 
 The public Python API; the ``pefsim`` command calls the same functions. Nothing here writes a
-file unless told where (``out=``, ``rrd=``, ``tum=``)::
+file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s files)::
 
     import pefsim
     sc = pefsim.load("paper-docks")                      # Scenario
     m = pefsim.pef_map(sc)                               # PefMap (x, y, tau, best)
     p = pefsim.plan(sc)                                  # Plan of task 0
     placed = pefsim.place(sc)                            # Placement
+    pefsim.export(sc, lif="routes.lif")                  # files for the tools downstream
     r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
     sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # SweepSummary of the finished sweep
     rep = pefsim.validate(sw)                            # ValidationReport
@@ -56,9 +57,13 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["DEFAULT_ALPHA", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement", "Plan", "Scenario",
-           "SweepSummary", "ValidationReport", "builtin_names", "load", "paper", "pef_map", "place", "plan",
-           "run_episode", "sweep", "validate"]
+__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement", "Plan",
+           "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper", "pef_map", "place",
+           "plan", "run_episode", "sweep", "validate"]
+
+EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
+                  "keepout": (".yaml", ".yml")}
+"""File extensions :func:`export` accepts for each output (its format comes from them)."""
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -209,12 +214,13 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
 
 
 def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,
-          plannable: bool = True) -> Placement:
+          png: str | Path | None = None, plannable: bool = True, time_limit: float | None = None) -> Placement:
     """Find the fewest markers, among sites on walls and obstacle faces, that keep the routes under eps_max.
 
     With ``plannable`` (the default, as ``pefsim place``) the layout is planned for every task
     and the cover target tightened until each has an admissible route
-    (:mod:`planner.placement.plannable`); ``plannable=False`` is the plain cover.
+    (:mod:`planner.placement.plannable`); ``plannable=False`` is the plain cover. With
+    ``placement.existing = "keep"`` the scenario's markers stay and only added ones are chosen.
 
     Parameters
     ----------
@@ -222,28 +228,139 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     method : {"auto", "milp", "greedy"}
         Exact MILP (small instances), greedy with the LP lower bound, or chosen by size.
     out : str or path, optional
-        Also write the scenario with the placed markers as TOML here.
+        Also write the scenario with the placed markers as TOML here (when the layout has at
+        least k markers).
+    png : str or path, optional
+        Also draw the candidate sites, the points to cover and the markers here.
     plannable : bool
         Check the layout with the planner and tighten the cover until every task plans.
+    time_limit : float, optional
+        Safety limit of the exact solver's LP and MILP rounds [s]; default
+        :data:`planner.placement.cover.MILP_TIME_LIMIT`.
 
     Returns
     -------
     Placement
-        ``markers`` [(id, (x, y))] [m], ``count``, ``lower_bound``, ``optimal``, ``uncovered``.
+        ``markers`` [(id, (x, y))] [m] added, ``kept`` markers, ``count``, ``lower_bound``,
+        ``optimal``, ``uncovered``, ``target`` [m] (the cover target used), ``unplanned`` (tasks
+        without an admissible route on the layout), ``finest_spacing``; ``summary()`` as JSON.
+
+    Raises
+    ------
+    PlanningError
+        A bad method or time limit.
     """
+    from planner.placement.cover import MILP_TIME_LIMIT
     from planner.placement.placement import place as _place
     from planner.placement.placement import write_scenario_with_markers
+    from scenarios import OutputError, PlanningError
 
+    limit = MILP_TIME_LIMIT if time_limit is None else time_limit
+    if not limit > 0:
+        raise PlanningError(f"time_limit (--time-limit): expected a positive number of seconds, got {limit}")
+    for path, suffix, what in ((out, ".toml", "out (-o)"), (png, ".png", "png (--png)")):
+        if path is not None and Path(path).suffix.lower() != suffix:
+            raise OutputError(f"{path}: {what}: expected a {suffix} file, got {Path(path).suffix or 'no extension'!r}")
     sc = _scenario(scenario)
     if plannable:
         from planner.placement.plannable import place_plannable
 
-        result = place_plannable(sc, method=method).result
+        result = place_plannable(sc, method=method, time_limit=limit).result
     else:
-        result = _place(sc, method=method)
-    if out is not None:
+        result = _place(sc, method=method, time_limit=limit)
+    if out is not None and len(result.layout()) >= sc.sensor.markers_per_fix:
         write_scenario_with_markers(sc, result, out)
+    if png is not None:
+        from sim.report.placement_figure import plot_placement
+
+        plot_placement(sc, result, png)
     return result
+
+
+def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None, markers: str | Path | None = None,
+           dxf: str | Path | None = None, lif: str | Path | None = None,
+           keepout: str | Path | None = None) -> dict[str, tuple[Path, ...]]:
+    """Write the scenario's results for the tools downstream; only the files asked for.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or path
+    routes : str or path, optional
+        The route network as a Nav2 route graph (GeoJSON), each edge with ``max_tau``,
+        ``mean_tau`` [m], ``min_visible``, ``admissible``, ``why_not``
+        (:mod:`sim.export.routegraph`).
+    markers : str or path, optional
+        The markers as CSV ``id,x,y,x_mm,y_mm,kind,facing_deg`` (:mod:`sim.export.markers`).
+    dxf : str or path, optional
+        The drawing with the reflectors, the contour τ = ε_max and the routes, each labelled
+        with its worst τ, inadmissible ones on their own layer (:mod:`sim.export.dxf`).
+    lif : str or path, optional
+        The route network as a VDA LIF file keeping every id, each node with its τ as
+        ``nodePosition.allowedDeviationXY`` [m] (:mod:`sim.export.lif`).
+    keepout : str or path, optional
+        A Nav2 keepout mask: this map_server YAML and a PGM beside it, occupied outside the
+        navigation region (:mod:`sim.export.keepout`).
+
+    Returns
+    -------
+    dict of str to tuple of Path
+        What was written, by output name (``keepout``: the YAML and the PGM).
+
+    Raises
+    ------
+    PefsimError
+        Nothing asked for, an extension that does not name the output's format, or a route
+        export of a scenario without a route network: before anything is computed or written.
+    """
+    from scenarios import OutputError
+
+    asked = {"routes": routes, "markers": markers, "dxf": dxf, "lif": lif, "keepout": keepout}
+    asked = {k: Path(v) for k, v in asked.items() if v is not None}
+    if not asked:
+        raise OutputError("export: give at least one of --routes, --markers, --dxf, --lif, --keepout")
+    for name, path in asked.items():
+        if path.suffix.lower() not in EXPORT_FORMATS[name]:
+            raise OutputError(f"{path}: --{name}: expected a {' or '.join(EXPORT_FORMATS[name])} file, got "
+                              f"{path.suffix or 'no extension'!r}")
+    sc = _scenario(scenario)
+    for name in ("routes", "lif"):
+        if name in asked and sc.routes is None:
+            raise OutputError(f"--{name}: scenario {sc.name!r} has no route network ([routes]) to export")
+    from planner.pef.map import PEF
+
+    pef = PEF(sc)
+    written: dict[str, tuple[Path, ...]] = {}
+    reports = None
+    if sc.routes is not None and ("routes" in asked or "dxf" in asked):
+        from planner.routes.edges import segment_reports
+
+        reports = segment_reports(sc, pef)
+    if "routes" in asked:
+        from sim.export.routegraph import write_route_graph
+
+        written["routes"] = (write_route_graph(asked["routes"], sc, reports),)
+    if "markers" in asked:
+        from sim.export.markers import write_markers_csv
+
+        written["markers"] = (write_markers_csv(asked["markers"], sc),)
+    if "dxf" in asked:
+        from sim.export.dxf import write_dxf
+        from sim.export.region import region_contours, route_lines
+
+        contours = region_contours(pef.grid(), sc.planning.eps_max, sc.workspace.bounds)
+        written["dxf"] = (write_dxf(sc, asked["dxf"], region_contours=contours, route_lines=route_lines(sc),
+                                    route_reports=reports),)
+    if "lif" in asked:
+        from sim.export.lif import write_lif
+
+        names = list(sc.routes.nodes)
+        tau = pef.at([sc.routes.nodes[n] for n in names]).tau
+        written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
+    if "keepout" in asked:
+        from sim.export.keepout import write_keepout
+
+        written["keepout"] = write_keepout(asked["keepout"], sc, pef)
+    return written
 
 
 def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, task: int = 0,

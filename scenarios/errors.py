@@ -53,6 +53,14 @@ class OutputError(PefsimError):
     """A result cannot be written (unwritable path, conflicting output directory, ...)."""
 
 
+class ScenarioWarning(UserWarning):
+    """Input pefsim accepts although it is irregular (a route graph's repeated edge ids, ...).
+
+    The message is one line naming the file, key and values; the CLI prints it as
+    ``pefsim: warning: ...`` on stderr.
+    """
+
+
 @contextlib.contextmanager
 def output_errors(path, action: str) -> Iterator[None]:
     """Turn an ``OSError`` raised inside the block into one :class:`OutputError` line.

@@ -346,6 +346,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         cover=pl_t.string("cover", PlacementSpec().cover, choices=("routes", "free")),
         marker_kind=MarkerKind(pl_t.string("marker_kind", PlacementSpec().marker_kind.value,
                                            choices=tuple(k.value for k in MarkerKind))),
+        existing=pl_t.string("existing", PlacementSpec().existing, choices=("replace", "keep")),
     )
     pl_t.done()
     root.done()

@@ -300,6 +300,9 @@ class PlacementSpec:
     """``routes`` (the route network, or free-space routes between the tasks' docks) or ``free``."""
     marker_kind: MarkerKind = MarkerKind.FLAT
     """Kind of the placed markers: ``flat`` sites on faces face out of them; ``post`` everywhere."""
+    existing: str = "replace"
+    """``replace``: place from an empty floor (the scenario's markers are ignored); ``keep``: the
+    scenario's markers stay as they are and placement adds the fewest new ones."""
 
 
 @dataclass(frozen=True)

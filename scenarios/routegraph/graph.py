@@ -52,6 +52,8 @@ class GraphEdge:
     end: str
     properties: dict = field(default_factory=dict)
     key: str = ""
+    repeated_ok: bool = False
+    """The file's format lets this edge share its id with another (see :mod:`.nav2`)."""
 
 
 def fail(file: str, key: str, expected: str, value: Any = None, *, with_value: bool = True) -> None:
@@ -99,8 +101,8 @@ def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown:
     Raises
     ------
     ScenarioError
-        Duplicate ids, a node outside the workspace, an edge to an unknown node or from a node
-        to itself.
+        Duplicate ids (edge ids marked ``repeated_ok`` excepted), a node outside the workspace, an edge
+        to an unknown node or from a node to itself.
     """
     pos: dict[str, tuple[float, float]] = {}
     props: dict[str, dict] = {}
@@ -115,7 +117,7 @@ def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown:
     groups: dict[frozenset, list[GraphEdge]] = {}
     seen: set[str] = set()
     for e in edges:
-        if e.id in seen:
+        if e.id in seen and not e.repeated_ok:
             fail(shown, e.key, "expected a unique edge id", e.id)
         seen.add(e.id)
         for end, name in ((e.start, "start"), (e.end, "end")):

@@ -108,12 +108,27 @@ def _with_source(args: argparse.Namespace, exc: PefsimError) -> str:
     return f"{scenario}: {message}"
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None, _default=None) -> None:
+    """Print pefsim's own warnings (:class:`scenarios.errors.ScenarioWarning`) as one line."""
+    from scenarios.errors import ScenarioWarning
+
+    if issubclass(category, ScenarioWarning):
+        print(f"pefsim: warning: {message}", file=sys.stderr if file is None else file)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
+    import functools
+    import warnings
+
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:  # ``pefsim`` alone: what it can do
         parser.print_help()
         return EXIT_OK
+    if not isinstance(warnings.showwarning, functools.partial):  # once per process
+        warnings.showwarning = functools.partial(_show_warning, _default=warnings.showwarning)
     try:
         code = args.func(args)
         code = EXIT_OK if code is None else int(code)
