@@ -34,7 +34,7 @@ def _sensor(noise: NoiseModel) -> SensorSpec:
 
 
 def _heading_known_map(sensor: SensorSpec) -> np.ndarray:
-    """The null's map (2, 2k) of a fix that takes the heading as exact: rows ``u`` and ``t``."""
+    """Return the null map (2, 2k) of a fix that takes the heading as exact: rows ``u`` and ``t``."""
     d = TRUTH - MARKERS
     r = np.hypot(d[:, 0], d[:, 1])
     u = d / r[:, None]
