@@ -208,17 +208,19 @@ class FixRecorder:
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (the set-membership view of docs/design.md §1, applied to motion), and
         # the least-squares weights add its variance.
-        bearings, bearing_error = None, self.sensor.bearing_error
+        bearings, heading_margin = None, 0.0
         if p.bearings:
             # Each bearing was taken at its own heading: turn it into the frame of the last one
-            # by the dead-reckoned turn since, so that one heading (the filter's) serves all.
+            # by the dead-reckoned turn since, so that one heading serves all (the snapshot
+            # estimates it; the fault area's wedges take the filter's).
             turned = np.array([float(dr_end[2]) - float(d[2]) for d in p.dr_at])
             bearings = np.array(p.bearings) - turned
             # the filter's heading is not exact: widen the wedges by its 3-sigma bound
-            bearing_error += 3.0 * math.sqrt(max(heading_var_now, 0.0))
+            heading_margin = 3.0 * math.sqrt(max(heading_var_now, 0.0))
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
-                            bearings=bearings, bearing_error=bearing_error,
+                            bearings=bearings, bearing_error=self.sensor.bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
+                            heading_margin=heading_margin,
                             extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos),
                             fault_margin=np.where(carried, shift_bound(self.robot, travelled, math.sqrt(heading_var)),
                                                   0.0))

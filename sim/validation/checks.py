@@ -136,7 +136,8 @@ def tightness(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckR
     """Check that the largest observed error / tau reaches the fraction f the model reaches.
 
     f is derived from ``alpha``: the null ratio of every fix is simulated at its own geometry
-    (uniform errors in ``+-rho``, linearised LS, :mod:`sim.validation.null`), and f is the
+    (uniform errors in ``+-rho``, and ``+-xi`` with the heading estimated alongside when the
+    sensor measures bearings, linearised LS, :mod:`sim.validation.null`), and f is the
     largest value with ``P(max over the fixes < f) <= alpha``. A bound that is far from tight
     (real errors much smaller than declared) fails.
     """
@@ -174,7 +175,8 @@ def _coverage_why_not(data: SweepData) -> str | None:
 def coverage(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
     """Check that the fraction of fixes inside their p-level snapshot ellipse matches p.
 
-    Inside: ``d^T C^-1 d <= chi2.ppf(p, 2)`` with d the snapshot error and C its covariance,
+    Inside: ``d^T C^-1 d <= chi2.ppf(p, 2)`` with d the snapshot error and C its covariance
+    (with bearings, the position block of the pose fix's, :mod:`estimators.snapshot`),
     ``p = planning.gdop_level``; two-sided Clopper-Pearson interval at ``alpha`` must hold p.
     """
     fx = data.fixes
