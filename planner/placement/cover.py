@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, sparse
 
-from estimators import compiled
+from jit import compiled
 from planner.placement.search import WORK, local_search
 
 MILP_TIME_LIMIT = 30.0

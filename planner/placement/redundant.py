@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.placement.cover import PairCover
 from scenarios.errors import PlanningError
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 if TYPE_CHECKING:  # the solver in cover imports this module
     from planner.placement.cover import PairCover

@@ -16,9 +16,10 @@ import json
 import sys
 from typing import Any
 
+from jit import compiled
 from scenarios import PefsimError, PlanningError
 
-COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "compile")
+COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export")
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -99,6 +100,8 @@ def _with_source(args: argparse.Namespace, exc: PefsimError) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if argv is None:  # the program, not a caller in Python: a cold numba cache is said, once, at exit
+        compiled.announce_compiles()
     try:
         code = args.func(args)
         code = EXIT_OK if code is None else int(code)
