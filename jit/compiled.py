@@ -136,16 +136,6 @@ def njit(*args, **options):
     return wrap
 
 
-def kernels() -> list[Kernel]:
-    """Every :class:`Kernel` defined so far, in definition order."""
-    return list(_kernels)
-
-
-def jitted() -> bool:
-    """Whether :func:`jit` has run in this process (numba imported, the kernels dispatchers)."""
-    return _jitted
-
-
 def jit() -> None:
     """Turn every :class:`Kernel` into a numba dispatcher, and every name bound to one into it.
 
