@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
 from estimators.measurements import (
     _MIN_RANGE,
     wrap_angle,
 )
+from jit import compiled
 
 
 @dataclass(frozen=True)
@@ -86,9 +86,7 @@ def _stack_ranges(px, py, markers, meas, w, res, jac):
     return cost
 
 
-@compiled.njit(cache=True,
-               aot=("Tuple((float64[::1], float64[:, ::1], float64[::1], int64, boolean, boolean))(float64[:, ::1], "
-                    "float64[::1], float64[::1], float64[::1], int64, float64)"))
+@compiled.njit(cache=True)
 def _gauss_newton_ranges(markers, meas, w, prior, max_iter, step_tol):
     """:func:`solve_position` for ranges only, the same iteration compiled (sums in another order).
 

@@ -20,8 +20,6 @@ LAYERS = ("jit", "scenarios", "estimators", "planner", "sim", "pefsim", "sim.cli
 """Lowest first: a package may import only its own modules and those of packages before it."""
 PACKAGES = ("jit", "scenarios", "estimators", "planner", "sim", "pefsim")
 """The root packages scanned."""
-RETIRING = {("estimators.aot", "estimators.compiled")}
-"""A cycle whose module the ``ci`` branch deletes (the ahead-of-time build); allowed while it exists."""
 
 
 def _module_name(path: Path) -> str:
@@ -94,9 +92,6 @@ def test_the_scan_sees_lazy_and_relative_imports():
 
 def test_no_import_cycle():
     g = _graph()
-    for a, b in RETIRING:
-        if g.has_edge(a, b) and g.has_edge(b, a):
-            g.remove_edge(b, a)
     cycles = [sorted(c) for c in itertools.islice(nx.simple_cycles(g), 10)]  # any length
     assert cycles == [], "import cycles: " + "; ".join(" <-> ".join(c) for c in cycles[:10])
 

@@ -25,9 +25,9 @@ import math
 
 import numpy as np
 
-from estimators import compiled
 from estimators.fault.annuli import _OK, _region
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION, FaultArea, _input_summary, exact_fault_area
+from jit import compiled
 from scenarios.schema import RobotSpec, SensorSpec
 
 K_SIGMA = 3.0
@@ -259,9 +259,7 @@ def promised_diameters(sensor: SensorSpec, robot: RobotSpec, markers, poses,
     return diameter, empty
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64[::1], "
-                    "float64[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def _two_range_diameters(markers, ranges, rho, prior, status, diameter):
     """Diameter of exact_fault_area's closed form (default tolerance) for each two-range fix.
 
@@ -332,9 +330,7 @@ def _diagonal(ax, ay, bx, by, p0x, p0y, p1x, p1y, rel, ab, sb):
     return 2.0 / sin_a * math.sqrt(rho0 * rho0 + rho1 * rho1 + 2.0 * rho0 * rho1 * cos_a)
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(float64[:, ::1], int64[:, ::1], float64[:, :, :, ::1], int64[::1], int64[::1], float64, "
-                    "float64, float64, float64, float64[::1], boolean[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def _best_order(mk, sub, p, c, j, rel, ab, tick, per_metre, tau, flip):
     for i in range(c.size):
         a, b = sub[c[i], 0], sub[c[i], 1]

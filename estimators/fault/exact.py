@@ -47,7 +47,6 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from estimators import compiled
 from estimators.fault.annuli import max_pairwise_distance, ring_contains, two_annuli_region
 from estimators.fault.pieces import annulus_piece, wedge_piece
 from estimators.lsq import solve_position
@@ -60,6 +59,7 @@ from estimators.measurements import (
     world_bearing,
     world_bearing_jacobian,
 )
+from jit import compiled
 
 DEFAULT_TOLERANCE_FRACTION = 1e-3
 """Default polygonisation tolerance as a fraction of the smallest range bound rho."""
@@ -227,7 +227,7 @@ def _mirror_polygon(poly, markers):
     return shapely.polygons(shell, holes=holes or None)
 
 
-@compiled.njit(cache=True, aot="Tuple((float64, float64, float64))(float64[:, ::1], float64[::1], float64[::1])")
+@compiled.njit(cache=True)
 def _input_summary(markers, meas, rho):
     """Sum of every input (finite iff all are, barring overflow), min rho, min(range + rho)."""
     total, rho_min, reach_min = 0.0, math.inf, math.inf

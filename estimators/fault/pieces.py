@@ -14,11 +14,11 @@ import math
 import numpy as np
 import shapely
 
-from estimators import compiled
 from estimators.fault.annuli import arc_steps
+from jit import compiled
 
 
-@compiled.njit(cache=True, aot="float64[:, ::1](float64, float64, float64, float64, float64, float64, float64)")
+@compiled.njit(cache=True)
 def _sector_ring(mx, my, r_out, r_in, phi0, phi1, tol):
     """Build the closed ring (n, 2) of the annular sector phi0..phi1 [rad], radii r_in..r_out.
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from scenarios.obstacles import ConvexPieces
 
 
@@ -236,8 +236,7 @@ def shadow_halfplanes(mx, my, planes, sight, shrunk, count, p, out):
     return nrow
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(float64[::1], float64[::1], float64[:, :, ::1], int64[::1], float64[:, ::1], float64[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def signed_distance_min(px, py, vertices, count, bbox, out):
     """Lower ``out[n]`` to the signed distance from point n to the nearest piece [m].
 

@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.pef.convex import shadow_halfplanes
 from planner.pef.pairs import BLOCK, MARGIN, TILE_COLS, TILE_ROWS, _block, _scratch
 from planner.pef.threads import run_ranges
@@ -48,10 +48,7 @@ from planner.pef.visibility import (
 )
 
 
-@compiled.njit(cache=True,
-               aot=("Tuple((float64[:, :, :, ::1], int64[:, ::1], boolean[::1]))(float64[::1], float64[::1], "
-                    "float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1], int64[::1], boolean[::1], "
-                    "float64[:, ::1], float64)"))
+@compiled.njit(cache=True)
 def _shadows(mx, my, planes, sight, shrunk, count, blocks, bbox, max_range):
     """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
 
@@ -155,10 +152,7 @@ def _without_pass(t, w, nl, npair, gm, local_of, visb, bestb, vist, pxb, pyb, mx
     return ncand
 
 
-@compiled.njit(cache=True, nogil=True, error_model="numpy",
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-                    "float64[::1], float64, float64, float64[:, :, :, ::1], int64[:, ::1], boolean[::1], "
-                    "boolean[:, ::1], float64, float64, float64, float64[::1], int64[::1], boolean, float64[::1])"))
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def bands_parallelogram(b0, b1, x, y, mx, my, fnx, fny, cos_inc, max_range, hp, nhp, hidden, free, rel, ab, margin,
                         tau, best, redundant, tau_plain):
     """Bands ``b0 <= b < b1`` of the grid (``run_ranges`` kernel); see the module docstring.

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.pef.scalar import diagonal_of_offsets
 
 #: Grid tiles: rows x columns of cells per block.

@@ -35,7 +35,7 @@ import weakref
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.pef.convex import PieceArrays, inside_closed, piece_arrays, segment_enters, shadow_halfplanes
 from planner.pef.threads import run_ranges
 from scenarios.obstacles import ConvexPieces, pack_pieces
@@ -123,11 +123,7 @@ def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
     return False
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-                    "float64[::1], float64, float64, float64, float64, float64, float64, float64[:, :, ::1], "
-                    "float64[:, ::1], int64[::1], float64[:, ::1], float64[:, ::1], boolean[::1], boolean[:, ::1], "
-                    "boolean[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def _visible_points_range(lo, hi, px, py, mx, my, fnx, fny, cos_inc, max_range, x0, y0, x1, y1, planes, sight,
                           count, bbox, sight_bbox, blocks, vis, free):
     r2max = max_range * max_range
@@ -251,9 +247,7 @@ def _first_at_or_above(x, v):
     return i
 
 
-@compiled.njit(cache=True,
-               aot=("void(float64[::1], float64[::1], float64, float64, float64, float64, float64[:, :, ::1], "
-                    "int64[::1], float64[:, ::1], boolean[:, ::1])"))
+@compiled.njit(cache=True)
 def _free_grid_kernel(x, y, x0, y0, x1, y1, planes, count, bbox, free):
     for iy in range(y.size):
         for ix in range(x.size):
@@ -328,10 +322,7 @@ def _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, 
                 vis[m, iy, ix] = False
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-                    "float64[::1], float64, float64, float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1], "
-                    "int64[::1], boolean[::1], boolean[:, ::1], boolean[:, :, ::1])"))
+@compiled.njit(cache=True, nogil=True)
 def _visible_grid_markers(m0, m1, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
                           free, vis):
     for m in range(m0, m1):

@@ -32,7 +32,7 @@ import time
 import numpy as np
 from scipy import optimize, sparse
 
-from estimators import compiled
+from jit import compiled
 from planner.placement.pair_cover import PairCover
 from planner.placement.redundant import greedy_robust, robust_rows
 from planner.placement.search import WORK, local_search

@@ -49,7 +49,7 @@ import numba
 import numpy as np
 import tomli_w
 
-from estimators import compiled
+from jit import compiled
 from planner.pef import kernels as pef_kernels
 from planner.placement.cover import MILP_TIME_LIMIT, solve_exact
 from planner.placement.facing import site_facings, site_marker

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.placement.pair_cover import PairCover
 from scenarios.errors import PlanningError
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.placement.pair_cover import PairCover
 
 WORK = 1_000_000_000

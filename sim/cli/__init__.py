@@ -17,18 +17,12 @@ import json
 import sys
 from typing import Any
 
+from jit import compiled
 from scenarios import PefsimError, PlanningError
 
-COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "compile")
+COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export")
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
-
-#: Commands whose process ends without the interpreter's teardown once they succeeded, when run
-#: as the program (``argv`` None): freeing numba's and LLVM's objects module by module takes
-#: ~0.4 s of CPU, a fifth of a whole ``map``. They write their files through closed handles and
-#: start no process; a recording (``--rrd``) keeps the normal exit, as its writer may flush late.
-QUICK_EXIT = ("map", "plan")
-
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # argparse's own usage errors are bad input too
@@ -71,35 +65,6 @@ def _version() -> str:
         return "(not installed: run pip install -e .)"
 
 
-def _quick_exit(code: int) -> None:
-    """End the process now with ``code``: flush the standard streams, run the atexit handlers.
-
-    Returns (and the caller exits normally) under a profiler or tracer (``cProfile``, coverage:
-    they write their results at the normal exit), or while a thread other than the PEF kernels'
-    idle pool is alive.
-    """
-    import atexit
-    import os
-    import threading
-
-    if sys.getprofile() is not None or sys.gettrace() is not None:
-        return
-    main_thread = threading.main_thread()
-    if any(t is not main_thread and not t.daemon and not t.name.startswith("pef-kernel")
-           for t in threading.enumerate()):
-        return
-    try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-    except (BrokenPipeError, ValueError):
-        pass
-    run_exitfuncs = getattr(atexit, "_run_exitfuncs", None)
-    if run_exitfuncs is None:
-        return
-    run_exitfuncs()
-    os._exit(code)
-
-
 def _with_source(args: argparse.Namespace, exc: PefsimError) -> str:
     """Name the scenario in a planning error that does not (a plan or placement that failed on it)."""
     message, scenario = str(exc), getattr(args, "scenario", None)
@@ -129,11 +94,11 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_OK
     if not isinstance(warnings.showwarning, functools.partial):  # once per process
         warnings.showwarning = functools.partial(_show_warning, _default=warnings.showwarning)
+    if argv is None:  # the program, not a caller in Python: a cold numba cache is said, once, at exit
+        compiled.announce_compiles()
     try:
         code = args.func(args)
         code = EXIT_OK if code is None else int(code)
-        if argv is None and args.command in QUICK_EXIT and not getattr(args, "rrd", None):
-            _quick_exit(code)
     except PefsimError as exc:
         print(f"pefsim: error: {_with_source(args, exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT

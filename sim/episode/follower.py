@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 
 class FollowerCommand(NamedTuple):

@@ -138,8 +138,11 @@ def test_uncoverable_points_are_reported():
     np.testing.assert_array_equal(res.uncovered, pts[~coverable])
 
 
-@pytest.mark.parametrize("name, method, kind", [("paper-docks", "auto", "flat"), ("warehouse", "greedy", "post"),
-                                                ("warehouse", "greedy", "flat")])
+@pytest.mark.parametrize("name, method, kind", [
+    ("paper-docks", "auto", "flat"),
+    # posts on the warehouse: every face and corner a site, the big cover (a minute and more)
+    pytest.param("warehouse", "greedy", "post", marks=pytest.mark.e2e),
+    ("warehouse", "greedy", "flat")])
 def test_builtin_routes_really_covered(name, method, kind):
     sc = scenarios.load(name)
     sc = dataclasses.replace(sc, placement=dataclasses.replace(sc.placement, marker_kind=MarkerKind(kind)))

@@ -40,7 +40,8 @@ def test_run_recording_holds_the_episode(run_rrd):
     assert np.allclose(np.asarray(times) * 1e-9, r.steps.t, atol=1e-6)
     _, polys = rb.column("world/fix/fault_area", "LineStrips2D:strips")
     assert sum(len(p) if isinstance(p, list) else 1 for p in polys) >= summary["fixes"] > 0
-    verify = subprocess.run(["rerun", "rrd", "verify", str(path)], capture_output=True, text=True,
+    # the rerun of this interpreter's environment, whether or not it is on PATH (an unactivated venv)
+    verify = subprocess.run([sys.executable, "-m", "rerun", "rrd", "verify", str(path)], capture_output=True, text=True,
                             env={"CI": "1", "PATH": __import__("os").environ["PATH"]})
     assert verify.returncode == 0, verify.stderr
 

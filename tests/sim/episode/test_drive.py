@@ -13,7 +13,10 @@ from sim.episode.drive import prepare, run_episode
 from sim.export.tum import read_tum
 from tests.sim.episode.digest import digest
 
-TASKS = [(name, i) for name in scenarios.builtin_names() for i in range(len(scenarios.load(name).tasks))]
+#: episodes on the big floors (a hall, the warehouse's second task and its reflector variant): the e2e tier
+LONG_TASKS = {("hall", 0), ("hall", 1), ("warehouse-reflectors", 0), ("warehouse-reflectors", 1), ("warehouse", 1)}
+TASKS = [pytest.param(name, i, id=f"{name}-{i}", marks=[pytest.mark.e2e] if (name, i) in LONG_TASKS else [])
+         for name in scenarios.builtin_names() for i in range(len(scenarios.load(name).tasks))]
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +31,7 @@ def prepared():
     return get
 
 
-@pytest.mark.parametrize("name,task", TASKS, ids=[f"{n}-{t}" for n, t in TASKS])
+@pytest.mark.parametrize("name,task", TASKS)
 def test_every_builtin_task_reaches_its_goal(prepared, name, task):
     s, p = prepared(name, task)
     r = run_episode(s, task, seed=11, prepared=p)
@@ -67,6 +70,7 @@ print(digest(r))
 """
 
 
+@pytest.mark.e2e  # two new processes, each importing everything and driving an episode
 def test_same_seed_same_arrays_in_fresh_processes():
     out = [subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, check=True).stdout
            for _ in range(2)]

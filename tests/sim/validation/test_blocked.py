@@ -13,6 +13,7 @@ import dataclasses
 import json
 
 import numpy as np
+import pytest
 
 import scenarios
 from sim import cli
@@ -44,6 +45,7 @@ def test_same_seed_same_blocks_and_the_block_stream_leaves_the_others_alone():
     assert c.summary["certified_max"] < sc.planning.eps_max
 
 
+@pytest.mark.e2e  # two real 4-run sweeps of the warehouse
 def test_validate_passes_with_a_fifth_of_lines_of_sight_blocked_and_fails_with_all(capsys, tmp_path):
     out = tmp_path / "q02"
     code, report = _validate(capsys, ["warehouse-reflectors", "--runs", "4", "--workers", "2", "--out", str(out)])
@@ -65,6 +67,7 @@ def test_validate_passes_with_a_fifth_of_lines_of_sight_blocked_and_fails_with_a
     assert code == 1 and status["plan"] == "FAIL", status
 
 
+@pytest.mark.e2e  # a placement and a real 20-run sweep
 def test_a_redundancy_0_layout_fails_the_single_failure_test(capsys, tmp_path):
     # The same candidate sites placed for redundancy 0 (26 reflectors against 49): at q = 0.2 a
     # fifth of the fixes lose a marker that has no fallback, and the certified bound breaks
