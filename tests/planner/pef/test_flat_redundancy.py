@@ -1,7 +1,9 @@
 """Flat reflectors and redundancy against an independent, slow evaluator of the same definitions.
 
 The evaluator below is plain Python with shapely: line of sight by intersecting the segment with
-the obstacle polygon shrunk a little, the incidence angle by ``atan2``, the parallelogram diagonal
+the obstacle polygon shrunk a little, and with it grown by the sight rule's margin unless the
+marker is mounted on it (:mod:`planner.pef.sight`), the incidence angle by ``atan2``, the mount
+faces' wedges by their definition, the parallelogram diagonal
 by the paper's eq. 12, and tau_1 by brute force over *every* visible marker removed (not only the
 best subset's members, which is the shortcut the kernels take). Cells whose answer depends on a
 rounding (a segment grazing a corner, an angle within 1e-9 rad of the limit) are left out of the
@@ -19,6 +21,7 @@ from shapely.geometry import LineString, Point, box
 
 import scenarios
 from planner.pef.map import PEF
+from planner.pef.sight import sight_rule
 from planner.pef.visibility import scenario_visible_grid, scenario_visible_points
 
 TOML = """
@@ -70,6 +73,12 @@ redundancy = REDUNDANCY
 
 OBSTACLE = box(4.5, 3.5, 7.5, 4.5)
 RES = 0.25
+RULE = sight_rule(0.05)   # the scenario's eps_max
+# every face with its outward normal (the obstacle's) or inward one (the workspace's sides)
+FACES = [(LineString([(4.5, 3.5), (7.5, 3.5)]), (0.0, -1.0)), (LineString([(7.5, 3.5), (7.5, 4.5)]), (1.0, 0.0)),
+         (LineString([(7.5, 4.5), (4.5, 4.5)]), (0.0, 1.0)), (LineString([(4.5, 4.5), (4.5, 3.5)]), (-1.0, 0.0)),
+         (LineString([(0.0, 0.0), (12.0, 0.0)]), (0.0, 1.0)), (LineString([(12.0, 0.0), (12.0, 8.0)]), (-1.0, 0.0)),
+         (LineString([(12.0, 8.0), (0.0, 8.0)]), (0.0, -1.0)), (LineString([(0.0, 8.0), (0.0, 0.0)]), (1.0, 0.0))]
 
 
 def _scenario(redundancy: int = 0, text: str = TOML) -> scenarios.Scenario:
@@ -89,10 +98,19 @@ def _visibility(sc, p, flat: bool = True):
             out.append(False)
             continue
         seg = LineString([p, m.position])
-        tight = seg.intersects(OBSTACLE.buffer(-1e-7, join_style=2))
-        loose = seg.intersects(OBSTACLE.buffer(-1e-4, join_style=2))
+        mounted = OBSTACLE.buffer(RULE.grow, join_style=2).intersects(Point(m.position))
+        grow = 0.0 if mounted else RULE.grow
+        tight = seg.intersects(OBSTACLE.buffer(grow - 1e-7, join_style=2))
+        loose = seg.intersects(OBSTACLE.buffer(grow - 1e-4, join_style=2))
         ambiguous |= tight != loose
         ok = not tight
+        for line, (nx, ny) in FACES:
+            on_obstacle = line.within(OBSTACLE.boundary)
+            if line.distance(Point(m.position)) <= RULE.radius and (mounted or not on_obstacle):
+                # the mount wedge: p at least offset + slope r in front of the face
+                slack = dx * nx + dy * ny - RULE.offset - RULE.slope * math.hypot(dx, dy)
+                ambiguous |= abs(slack) < 1e-9
+                ok = ok and slack >= 0.0
         if ok and flat and m.kind is scenarios.MarkerKind.FLAT:
             ang = abs(math.degrees(math.atan2(dx * math.sin(m.facing) - dy * math.cos(m.facing),
                                               dx * math.cos(m.facing) + dy * math.sin(m.facing))))
