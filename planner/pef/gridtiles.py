@@ -34,7 +34,6 @@ import math
 import numpy as np
 
 from estimators import compiled
-from planner.pef.convex import shadow_halfplanes
 from planner.pef.pairs import BLOCK, MARGIN, TILE_COLS, TILE_ROWS, _block, _scratch
 from planner.pef.pointblocks import blocks_points_local  # noqa: F401 (re-exported)
 from planner.pef.sight import SightRule
@@ -43,37 +42,12 @@ from planner.pef.visibility import (
     _first_above,
     _first_at_or_above,
     _free_grid_kernel,
+    _range,
     prepare_sight,
     shadow_row,
+    shadow_table,
     wedges_ok,
 )
-
-
-@compiled.njit(cache=True,
-               aot=("Tuple((float64[:, :, :, ::1], int64[:, ::1], boolean[::1]))(float64[::1], float64[::1], "
-                    "float64[:, :, ::1], float64[:, :, ::1], float64[:, :, :, ::1], int64[::1], boolean[:, ::1], "
-                    "float64[:, :, ::1], float64)"))
-def _shadows(mx, my, planes, sight, shrunk, count, blocks, bbox, max_range):
-    """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
-
-    A piece farther than ``max_range`` from a marker gets no half-planes: its shadow, beyond
-    the piece, is out of range. ``sight``, ``shrunk``, ``blocks`` and ``bbox`` are each
-    marker's (:class:`planner.pef.visibility.SightArrays`: its mount shrunk, the rest grown).
-    """
-    nm, npc = mx.size, count.size
-    hp = np.zeros((nm, npc, planes.shape[1] + 2, 3))
-    nhp = np.zeros((nm, npc), dtype=np.int64)
-    hidden = np.zeros(nm, dtype=np.bool_)
-    for m in range(nm):
-        for p in range(npc):
-            if blocks[m, p]:
-                dx = max(bbox[m, p, 0] - mx[m], mx[m] - bbox[m, p, 2], 0.0)
-                dy = max(bbox[m, p, 1] - my[m], my[m] - bbox[m, p, 3], 0.0)
-                n = shadow_halfplanes(mx[m], my[m], planes, sight[m], shrunk[m], count, p, hp[m, p])
-                if n < 0:
-                    hidden[m] = True
-                nhp[m, p] = n if dx * dx + dy * dy <= max_range * max_range * 1.0000001 else 0
-    return hp, nhp, hidden
 
 
 @compiled.njit(cache=True)
@@ -356,8 +330,9 @@ def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstac
         tau_plain.fill(np.inf)
         best.fill(-1)
         return tau, best, free, tau_plain
-    hp, nhp, hidden = _shadows(mx, my, pa.planes, sa.sight, sa.shrunk, pa.count, sa.blocks, sa.sight_bbox,
-                               float(max_range))
+    max_range = _range(max_range, rule)
+    hp, nhp, hidden = shadow_table(mx, my, pa.planes, sa.sight, sa.shrunk, pa.count, sa.blocks, sa.widen,
+                                   sa.sight_bbox, max_range)
     nbands = -(-y.size // TILE_ROWS)
     run_ranges(bands_parallelogram, nbands,
                (x, y, mx, my, sa.wedge, float(max_range), hp, nhp,

@@ -140,13 +140,57 @@ def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
     return False
 
 
+@compiled.njit(cache=True)
+def in_shadow(px, py, hp, n):
+    """Tell whether point (px, py) meets all ``n`` half-planes ``a x + b y + c < 0`` of ``hp`` (False if n <= 0)."""
+    if n <= 0:
+        return False
+    for h in range(n):
+        if not hp[h, 0] * px + hp[h, 1] * py + hp[h, 2] < 0.0:
+            return False
+    return True
+
+
+@compiled.njit(cache=True)
+def shadow_table(mx, my, planes, sight, shrunk, count, blocks, widen, bbox, max_range):
+    """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
+
+    Marker m's pieces are ``sight[m]``, ``shrunk[m]``, ``blocks[m]``, ``bbox[m]``
+    (:class:`SightArrays`). A shadow widened by ``widen[m, p]`` [m] takes in the points within
+    that distance of it (every half-plane moved out by it, mitred: a superset): the points from
+    which some position within ``widen`` looks at the marker through the piece. A piece farther
+    than ``max_range`` (plus its widening) from a marker gets no half-planes: its shadow, beyond
+    the piece, is out of range. ``hidden[m]``: the marker lies in one of its pieces.
+    """
+    nm, npc = mx.size, count.size
+    hp = np.zeros((nm, npc, planes.shape[1] + 2, 3))
+    nhp = np.zeros((nm, npc), dtype=np.int64)
+    hidden = np.zeros(nm, dtype=np.bool_)
+    for m in range(nm):
+        for p in range(npc):
+            if blocks[m, p]:
+                dx = max(bbox[m, p, 0] - mx[m], mx[m] - bbox[m, p, 2], 0.0)
+                dy = max(bbox[m, p, 1] - my[m], my[m] - bbox[m, p, 3], 0.0)
+                n = shadow_halfplanes(mx[m], my[m], planes, sight[m], shrunk[m], count, p, hp[m, p])
+                if n < 0:
+                    hidden[m] = True
+                    continue
+                w = widen[m, p]
+                if w > 0.0:
+                    for h in range(n):
+                        hp[m, p, h, 2] -= w * math.sqrt(hp[m, p, h, 0] ** 2 + hp[m, p, h, 1] ** 2)
+                reach = max_range + w
+                nhp[m, p] = n if dx * dx + dy * dy <= reach * reach * 1.0000001 else 0
+    return hp, nhp, hidden
+
+
 @compiled.njit(cache=True, nogil=True,
                aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
                     "float64[:, :, ::1], float64, float64, float64, float64, float64, "
                     "float64[:, :, ::1], float64[:, :, ::1], int64[::1], float64[:, ::1], float64[:, :, ::1], "
-                    "boolean[:, ::1], boolean[:, ::1], boolean[::1])"))
+                    "boolean[:, ::1], float64[:, :, :, ::1], int64[:, ::1], boolean[:, ::1], boolean[::1])"))
 def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, y1, planes,
-                          sight, count, bbox, sight_bbox, blocks, vis, free):
+                          sight, count, bbox, sight_bbox, blocks, hp, nhp, vis, free):
     r2max = max_range * max_range
     for n in range(lo, hi):
         f = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
@@ -158,6 +202,11 @@ def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, 
                 ok = dx * dx + dy * dy <= r2max and wedges_ok(dx, dy, wedge, m)
             if ok:
                 ok = not _blocked(px[n], py[n], mx[m], my[m], planes, sight[m], count, sight_bbox[m], blocks[m])
+            if ok:
+                for p in range(nhp.shape[1]):
+                    if in_shadow(px[n], py[n], hp[m, p], nhp[m, p]):
+                        ok = False
+                        break
             vis[m, n] = ok
 
 
@@ -169,7 +218,7 @@ class SightArrays:
     ----------
     sight : ndarray, shape (M, P, V)
         Edge offsets of the pieces marker m's line of sight must not enter [m]: its mount's
-        shrunk ones (``PieceArrays.sight``), every other piece's grown by ``SightRule.grow``.
+        shrunk ones (``PieceArrays.sight``), every other piece's grown by ``SightRule.reach``.
     shrunk : ndarray, shape (M, P, V, 2)
         The corners of those pieces [m].
     sight_bbox : ndarray, shape (M, P, 4)
@@ -182,6 +231,8 @@ class SightArrays:
         reflector's radius of the marker: two in a corner), ``n = (0, 0)`` where unused.
     mount : ndarray of bool, shape (M, P)
         Piece p is marker m's mount (not grown for it).
+    widen : ndarray, shape (M, P)
+        How far piece p's shadow is widened for marker m [m]: the rule's margin, 0 on its mount.
     """
 
     sight: np.ndarray
@@ -190,6 +241,7 @@ class SightArrays:
     blocks: np.ndarray
     wedge: np.ndarray
     mount: np.ndarray
+    widen: np.ndarray
 
 
 def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, float, float],
@@ -228,14 +280,17 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
                                np.ascontiguousarray(np.broadcast_to(pa.shrunk, (m_n, *pa.shrunk.shape))),
                                np.ascontiguousarray(np.broadcast_to(pa.sight_bbox, (m_n, *pa.sight_bbox.shape))),
                                np.ascontiguousarray(np.broadcast_to(pa.blocks, (m_n, *pa.blocks.shape))),
-                               wedge, mount)
+                               wedge, mount, np.zeros(mount.shape))
+    flat = np.any(fn != 0.0, axis=1)
+    wedge[flat, 0, 3] = rule.wedge_offset(math.cos(max_incidence))   # the incidence limit within the margin too
     pieces = _pieces(obstacles)
-    grown = piece_arrays(pieces, BOX_SHRINK, rule.grow)
+    grown = piece_arrays(pieces, BOX_SHRINK, rule.reach)
+    swallow = piece_arrays(pieces, BOX_SHRINK, rule.grow)
     nrm, c = pa.planes[:, :, :2], pa.planes[:, :, 2]
     # (M, P, V): how far each marker lies outside each edge's line [m]
     out = np.einsum("pvk,mk->mpv", nrm, mk) - c[None]
     used = np.arange(pa.planes.shape[1])[None, :] < pa.count[:, None]          # (P, V)
-    mount = np.all((out <= (grown.sight - c)[None]) | ~used[None], axis=2)    # inside the grown piece
+    mount = np.all((out <= (swallow.sight - c)[None]) | ~used[None], axis=2)  # inside the piece grown by grow
     sight = np.where(mount[:, :, None], pa.sight[None], grown.sight[None])
     shrunk = np.where(mount[:, :, None, None], pa.shrunk[None], grown.shrunk[None])
     sight_bbox = np.where(mount[:, :, None], pa.sight_bbox[None], grown.sight_bbox[None])
@@ -244,11 +299,17 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
         for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m], rule.radius, bounds), start=1):
             wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
     return pa, SightArrays(np.ascontiguousarray(sight), np.ascontiguousarray(shrunk),
-                           np.ascontiguousarray(sight_bbox), np.ascontiguousarray(blocks), wedge, mount)
+                           np.ascontiguousarray(sight_bbox), np.ascontiguousarray(blocks), wedge, mount,
+                           np.where(mount, 0.0, rule.margin))
 
 
 #: Wedges per marker: a flat marker's incidence wedge and up to two mount faces (a corner).
 _MAX_WEDGES = 3
+
+
+def _range(max_range: float, rule: SightRule | None) -> float:
+    """The range limit the kernels apply [m]: the sensor's, or the rule's usable range."""
+    return float(max_range) if rule is None else rule.usable_range(max_range)
 
 
 def _pieces(obstacles) -> ConvexPieces:
@@ -320,8 +381,8 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     max_incidence : float
         Largest angle between ``p - M`` and a flat marker's normal [rad], in (0, pi/2].
     rule : SightRule, optional
-        The margins of a usable line of sight (:mod:`planner.pef.sight`); None: the margin-free
-        test.
+        The margins of a usable line of sight (:mod:`planner.pef.sight`: obstacles grown, mount
+        and incidence wedges, the range shortened by the margin); None: the margin-free test.
 
     Returns
     -------
@@ -337,10 +398,16 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     x0, y0, x1, y1 = (float(v) for v in bounds)
     vis = np.empty((mk.shape[0], p.shape[0]), dtype=np.bool_)
     free = np.empty(p.shape[0], dtype=np.bool_)
+    # widened pieces by their (grid path's) shadows, the others by clipping the segment
+    widened = sa.widen > 0.0
+    hp, nhp, _ = shadow_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), pa.planes, sa.sight,
+                              sa.shrunk, pa.count, sa.blocks & widened, sa.widen, sa.sight_bbox,
+                              _range(max_range, rule))
     run_ranges(_visible_points_range, p.shape[0],
                (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
                 np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
-                sa.wedge, float(max_range), x0, y0, x1, y1, pa.planes, sa.sight, pa.count, pa.bbox, sa.sight_bbox, sa.blocks, vis, free),
+                sa.wedge, _range(max_range, rule), x0, y0, x1, y1, pa.planes, sa.sight, pa.count, pa.bbox,
+                sa.sight_bbox, np.ascontiguousarray(sa.blocks & ~widened), hp, nhp, vis, free),
                min_chunk=2048)
     return vis, free
 
@@ -454,18 +521,11 @@ def shadow_row(hp, n, yy, x):
 
 
 @compiled.njit(cache=True)
-def _visible_grid_marker(m, x, y, mx, my, wedge, max_range, planes, sight, shrunk, count, blocks, free, vis):
-    """Fill ``vis[m]``: free, in range and in the incidence wedge, then clear each piece's shadow row by row."""
+def _visible_grid_marker(m, x, y, mx, my, wedge, max_range, hp, nhp, hidden_all, free, vis):
+    """Fill ``vis[m]``: free, in range and in the wedges, then clear each piece's shadow row by row."""
     r2max = max_range * max_range
-    npc = count.size
-    hp = np.empty((npc, planes.shape[1] + 2, 3))
-    nhp = np.zeros(npc, dtype=np.int64)
-    hidden = False
-    for p in range(npc):
-        if blocks[m, p]:
-            nhp[p] = shadow_halfplanes(mx[m], my[m], planes, sight[m], shrunk[m], count, p, hp[p])
-            if nhp[p] < 0:
-                hidden = True
+    npc = nhp.shape[1]
+    hidden = hidden_all[m]
     for iy in range(y.size):
         yy = y[iy]
         dy = yy - my[m]
@@ -476,18 +536,18 @@ def _visible_grid_marker(m, x, y, mx, my, wedge, max_range, planes, sight, shrun
         if hidden:
             continue
         for p in range(npc):
-            i0, i1 = shadow_row(hp[p], nhp[p], yy, x)
+            i0, i1 = shadow_row(hp[m, p], nhp[m, p], yy, x)
             for ix in range(i0, i1):
                 vis[m, iy, ix] = False
 
 
 @compiled.njit(cache=True, nogil=True,
                aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-                    "float64[:, :, ::1], float64, float64[:, :, ::1], float64[:, :, ::1], "
-                    "float64[:, :, :, ::1], int64[::1], boolean[:, ::1], boolean[:, ::1], boolean[:, :, ::1])"))
-def _visible_grid_markers(m0, m1, x, y, mx, my, wedge, max_range, planes, sight, shrunk, count, blocks, free, vis):
+                    "float64[:, :, ::1], float64, float64[:, :, :, ::1], int64[:, ::1], boolean[::1], "
+                    "boolean[:, ::1], boolean[:, :, ::1])"))
+def _visible_grid_markers(m0, m1, x, y, mx, my, wedge, max_range, hp, nhp, hidden, free, vis):
     for m in range(m0, m1):
-        _visible_grid_marker(m, x, y, mx, my, wedge, max_range, planes, sight, shrunk, count, blocks, free, vis)
+        _visible_grid_marker(m, x, y, mx, my, wedge, max_range, hp, nhp, hidden, free, vis)
 
 
 def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
@@ -519,9 +579,11 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
     free = np.empty((y.size, x.size), dtype=np.bool_)
     _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
     vis = np.empty((mk.shape[0], y.size, x.size), dtype=np.bool_)
+    mx, my = np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1])
+    hp, nhp, hidden = shadow_table(mx, my, pa.planes, sa.sight, sa.shrunk, pa.count, sa.blocks, sa.widen,
+                                   sa.sight_bbox, _range(max_range, rule))
     run_ranges(_visible_grid_markers, mk.shape[0],
-               (x, y, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), sa.wedge, float(max_range),
-                pa.planes, sa.sight, sa.shrunk, pa.count, sa.blocks, free, vis))
+               (x, y, mx, my, sa.wedge, _range(max_range, rule), hp, nhp, hidden, free, vis))
     return vis, free
 
 

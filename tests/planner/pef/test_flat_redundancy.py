@@ -2,8 +2,8 @@
 
 The evaluator below is plain Python with shapely: line of sight by intersecting the segment with
 the obstacle polygon shrunk a little, and with it grown by the sight rule's margin unless the
-marker is mounted on it (:mod:`planner.pef.sight`), the incidence angle by ``atan2``, the mount
-faces' wedges by their definition, the parallelogram diagonal
+marker is mounted on it (:mod:`planner.pef.sight`), the incidence and mount wedges by their
+definition, the parallelogram diagonal
 by the paper's eq. 12, and tau_1 by brute force over *every* visible marker removed (not only the
 best subset's members, which is the shortcut the kernels take). Cells whose answer depends on a
 rounding (a segment grazing a corner, an angle within 1e-9 rad of the limit) are left out of the
@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 import pytest
-from shapely.geometry import LineString, Point, box
+from shapely.geometry import LineString, MultiPoint, Point, box
 
 import scenarios
 from planner.pef.map import PEF
@@ -94,14 +94,25 @@ def _visibility(sc, p, flat: bool = True):
     for m in sc.markers:
         mx, my = m.position
         dx, dy = p[0] - mx, p[1] - my
-        if math.hypot(dx, dy) > sc.sensor.max_range:
+        if math.hypot(dx, dy) > sc.sensor.max_range - RULE.margin:
             out.append(False)
             continue
         seg = LineString([p, m.position])
         mounted = OBSTACLE.buffer(RULE.grow, join_style=2).intersects(Point(m.position))
-        grow = 0.0 if mounted else RULE.grow
-        tight = seg.intersects(OBSTACLE.buffer(grow - 1e-7, join_style=2))
-        loose = seg.intersects(OBSTACLE.buffer(grow - 1e-4, join_style=2))
+        if mounted:
+            tight = seg.intersects(OBSTACLE.buffer(-1e-7, join_style=2))
+            loose = seg.intersects(OBSTACLE.buffer(-1e-4, join_style=2))
+        else:
+            # some position within the margin sees the marker through the obstacle grown by the
+            # reach: the fan from the marker over the disc of the margin meets it (the kernels
+            # widen the shadow's half-planes, a mitred superset: cells where the two may differ,
+            # near the shadow's corners, are ambiguous)
+            grown = OBSTACLE.buffer(RULE.reach, join_style=2)
+            tight = Point(p).buffer(RULE.margin).union(Point(m.position)).convex_hull.intersects(grown)
+            mk = np.asarray(m.position)
+            far = [mk + (np.asarray(v) - mk) * 100.0 for v in grown.exterior.coords]
+            shadow = MultiPoint(list(grown.exterior.coords) + far).convex_hull
+            loose = shadow.buffer(RULE.margin, join_style=2, mitre_limit=1e6).contains(Point(p))
         ambiguous |= tight != loose
         ok = not tight
         for line, (nx, ny) in FACES:
@@ -112,10 +123,12 @@ def _visibility(sc, p, flat: bool = True):
                 ambiguous |= abs(slack) < 1e-9
                 ok = ok and slack >= 0.0
         if ok and flat and m.kind is scenarios.MarkerKind.FLAT:
-            ang = abs(math.degrees(math.atan2(dx * math.sin(m.facing) - dy * math.cos(m.facing),
-                                              dx * math.cos(m.facing) + dy * math.sin(m.facing))))
-            ambiguous |= abs(ang - lim) < 1e-7
-            ok = ang <= lim
+            # the incidence wedge, at every point within the margin
+            cos_lim = math.cos(math.radians(lim))
+            slack = (dx * math.cos(m.facing) + dy * math.sin(m.facing) - RULE.margin * (1.0 + cos_lim)
+                     - cos_lim * math.hypot(dx, dy))
+            ambiguous |= abs(slack) < 1e-9
+            ok = ok and slack >= 0.0
         out.append(ok)
     return out, ambiguous
 
