@@ -218,7 +218,7 @@ class PEF:
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
                                      sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
-                                     scenario_sight_rule(sc))
+                                     scenario_sight_rule(sc), bodies=self.markers)
         local = np.arange(self.k, dtype=np.int64)
         out = np.empty((sub.shape[0], pts.shape[0]))
         px, py = pts[:, 0].copy(), pts[:, 1].copy()

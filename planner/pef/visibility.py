@@ -187,10 +187,11 @@ def shadow_table(mx, my, planes, sight, shrunk, count, blocks, widen, bbox, max_
 @compiled.njit(cache=True, nogil=True,
                aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
                     "float64[:, :, ::1], float64, float64, float64, float64, float64, "
-                    "float64[:, :, ::1], float64[:, :, ::1], int64[::1], float64[:, ::1], float64[:, :, ::1], "
-                    "boolean[:, ::1], float64[:, :, :, ::1], int64[:, ::1], boolean[:, ::1], boolean[::1])"))
-def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, y1, planes,
-                          sight, count, bbox, sight_bbox, blocks, hp, nhp, vis, free):
+                    "float64[:, :, ::1], int64[::1], float64[:, ::1], float64[:, :, ::1], int64[::1], "
+                    "float64[:, :, ::1], float64[:, :, ::1], boolean[:, ::1], float64[:, :, :, ::1], int64[:, ::1], "
+                    "boolean[:, ::1], boolean[::1])"))
+def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, y1, planes, count, bbox,
+                          splanes, scount, sight, sight_bbox, blocks, hp, nhp, vis, free):
     r2max = max_range * max_range
     for n in range(lo, hi):
         f = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
@@ -201,7 +202,7 @@ def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, 
                 dx, dy = px[n] - mx[m], py[n] - my[m]
                 ok = dx * dx + dy * dy <= r2max and wedges_ok(dx, dy, wedge, m)
             if ok:
-                ok = not _blocked(px[n], py[n], mx[m], my[m], planes, sight[m], count, sight_bbox[m], blocks[m])
+                ok = not _blocked(px[n], py[n], mx[m], my[m], splanes, sight[m], scount, sight_bbox[m], blocks[m])
             if ok:
                 for p in range(nhp.shape[1]):
                     if in_shadow(px[n], py[n], hp[m, p], nhp[m, p]):
@@ -233,6 +234,11 @@ class SightArrays:
         Piece p is marker m's mount (not grown for it).
     widen : ndarray, shape (M, P)
         How far piece p's shadow is widened for marker m [m]: the rule's margin, 0 on its mount.
+    planes : ndarray, shape (P, V, 3)
+        The pieces' edges (``PieceArrays.planes``): the obstacles', then, with a rule, each
+        marker's body (an octagon around it; not a piece of its own line of sight).
+    count : ndarray of int64, shape (P,)
+        Their edge counts.
     """
 
     sight: np.ndarray
@@ -242,11 +248,13 @@ class SightArrays:
     wedge: np.ndarray
     mount: np.ndarray
     widen: np.ndarray
+    planes: np.ndarray
+    count: np.ndarray
 
 
 def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, float, float],
                   normals: np.ndarray | None = None, max_incidence: float = math.pi / 2,
-                  rule: SightRule | None = None) -> tuple[PieceArrays, SightArrays]:
+                  rule: SightRule | None = None, bodies: np.ndarray | None = None) -> tuple[PieceArrays, SightArrays]:
     """Prepare the obstacles and each marker's line-of-sight pieces and wedge.
 
     Parameters
@@ -262,6 +270,9 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
     rule : SightRule, optional
         The margins of a usable line of sight (:mod:`planner.pef.sight`); None: the margin-free
         test (segment against the shrunk pieces, the flat wedge only).
+    bodies : ndarray, shape (B, 2), optional
+        Where the reflectors' bodies stand [m] (every marker of the world, when ``markers`` are
+        some of them); default ``markers``. A body at a marker's own position is its own.
 
     Returns
     -------
@@ -280,27 +291,54 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
                                np.ascontiguousarray(np.broadcast_to(pa.shrunk, (m_n, *pa.shrunk.shape))),
                                np.ascontiguousarray(np.broadcast_to(pa.sight_bbox, (m_n, *pa.sight_bbox.shape))),
                                np.ascontiguousarray(np.broadcast_to(pa.blocks, (m_n, *pa.blocks.shape))),
-                               wedge, mount, np.zeros(mount.shape))
+                               wedge, mount, np.zeros(mount.shape), pa.planes, pa.count)
     flat = np.any(fn != 0.0, axis=1)
     wedge[flat, 0, 3] = rule.wedge_offset(math.cos(max_incidence))   # the incidence limit within the margin too
     pieces = _pieces(obstacles)
-    grown = piece_arrays(pieces, BOX_SHRINK, rule.reach)
-    swallow = piece_arrays(pieces, BOX_SHRINK, rule.grow)
-    nrm, c = pa.planes[:, :, :2], pa.planes[:, :, 2]
+    n_ob = len(pieces.count)
+    # the obstacles' pieces, then every marker's body (it blocks the others' lines of sight)
+    at = mk if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
+    both = _with_bodies(pieces, at, rule.radius)
+    base = piece_arrays(both, BOX_SHRINK)
+    grown = piece_arrays(both, BOX_SHRINK, rule.reach)
+    swallow = piece_arrays(both, BOX_SHRINK, rule.grow)
+    nrm, c = base.planes[:, :, :2], base.planes[:, :, 2]
     # (M, P, V): how far each marker lies outside each edge's line [m]
     out = np.einsum("pvk,mk->mpv", nrm, mk) - c[None]
-    used = np.arange(pa.planes.shape[1])[None, :] < pa.count[:, None]          # (P, V)
+    used = np.arange(base.planes.shape[1])[None, :] < base.count[:, None]      # (P, V)
     mount = np.all((out <= (swallow.sight - c)[None]) | ~used[None], axis=2)  # inside the piece grown by grow
-    sight = np.where(mount[:, :, None], pa.sight[None], grown.sight[None])
-    shrunk = np.where(mount[:, :, None, None], pa.shrunk[None], grown.shrunk[None])
-    sight_bbox = np.where(mount[:, :, None], pa.sight_bbox[None], grown.sight_bbox[None])
-    blocks = np.where(mount, pa.blocks[None], grown.blocks[None])
+    sight = np.where(mount[:, :, None], base.sight[None], grown.sight[None])
+    shrunk = np.where(mount[:, :, None, None], base.shrunk[None], grown.shrunk[None])
+    sight_bbox = np.where(mount[:, :, None], base.sight_bbox[None], grown.sight_bbox[None])
+    blocks = np.where(mount, base.blocks[None], grown.blocks[None])
+    # a marker's own body (the one at its position, as the laser matches its post) is what the ray must meet
+    own = np.all(at[None, :, :] == mk[:, None, :], axis=2)
+    blocks[:, n_ob:] &= ~own
     for m in range(m_n):
-        for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m], rule.radius, bounds), start=1):
+        for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m, :n_ob], rule.radius, bounds), start=1):
             wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
     return pa, SightArrays(np.ascontiguousarray(sight), np.ascontiguousarray(shrunk),
                            np.ascontiguousarray(sight_bbox), np.ascontiguousarray(blocks), wedge, mount,
-                           np.where(mount, 0.0, rule.margin))
+                           np.where(mount, 0.0, rule.margin), base.planes, base.count)
+
+
+def _with_bodies(pieces: ConvexPieces, mk: np.ndarray, radius: float) -> ConvexPieces:
+    """``pieces`` followed by one octagon per body ``mk`` (B, 2), circumscribing it (radius ``radius``) [m]."""
+    ang = np.pi / 8.0 + np.arange(8) * np.pi / 4.0
+    octagon = (radius / math.cos(np.pi / 8.0)) * np.column_stack([np.cos(ang), np.sin(ang)])
+    nv = max(pieces.vertices.shape[1], 8)
+    n_ob, m_n = len(pieces.count), mk.shape[0]
+    verts = np.zeros((n_ob + m_n, nv, 2))
+    verts[:n_ob, :pieces.vertices.shape[1]] = pieces.vertices
+    verts[:n_ob, pieces.vertices.shape[1]:] = pieces.vertices[:, -1:]
+    verts[n_ob:, :8] = mk[:, None, :] + octagon[None]
+    verts[n_ob:, 8:] = verts[n_ob:, 7:8]
+    inner = np.zeros((n_ob + m_n, nv), dtype=np.bool_)
+    inner[:n_ob, :pieces.inner.shape[1]] = pieces.inner
+    inset = np.zeros((n_ob + m_n, nv))
+    inset[:n_ob, :pieces.inset.shape[1]] = pieces.inset
+    return ConvexPieces(verts, np.concatenate([pieces.count, np.full(m_n, 8, dtype=np.int64)]),
+                        np.concatenate([pieces.owner, -1 - np.arange(m_n, dtype=np.int64)]), inner, inset)
 
 
 #: Wedges per marker: a flat marker's incidence wedge and up to two mount faces (a corner).
@@ -360,7 +398,8 @@ def _mount_faces(pa: PieceArrays, pieces: ConvexPieces, mk: np.ndarray, mount: n
 
 def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
                    bounds: tuple[float, float, float, float], normals: np.ndarray | None = None,
-                   max_incidence: float = math.pi / 2, rule: SightRule | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   max_incidence: float = math.pi / 2, rule: SightRule | None = None,
+                   bodies: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Visibility of markers from arbitrary points.
 
     Parameters
@@ -383,6 +422,9 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     rule : SightRule, optional
         The margins of a usable line of sight (:mod:`planner.pef.sight`: obstacles grown, mount
         and incidence wedges, the range shortened by the margin); None: the margin-free test.
+    bodies : ndarray, shape (B, 2), optional
+        Every reflector body in the world [m], when ``markers`` are some of them (the rule only;
+        :func:`prepare_sight`).
 
     Returns
     -------
@@ -394,20 +436,20 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     """
     p = np.ascontiguousarray(np.asarray(points, float).reshape(-1, 2))
     mk = np.asarray(markers, float).reshape(-1, 2)
-    pa, sa = prepare_sight(obstacles, mk, bounds, normals, max_incidence, rule)
+    pa, sa = prepare_sight(obstacles, mk, bounds, normals, max_incidence, rule, bodies)
     x0, y0, x1, y1 = (float(v) for v in bounds)
     vis = np.empty((mk.shape[0], p.shape[0]), dtype=np.bool_)
     free = np.empty(p.shape[0], dtype=np.bool_)
     # widened pieces by their (grid path's) shadows, the others by clipping the segment
     widened = sa.widen > 0.0
-    hp, nhp, _ = shadow_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), pa.planes, sa.sight,
-                              sa.shrunk, pa.count, sa.blocks & widened, sa.widen, sa.sight_bbox,
+    hp, nhp, _ = shadow_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), sa.planes, sa.sight,
+                              sa.shrunk, sa.count, sa.blocks & widened, sa.widen, sa.sight_bbox,
                               _range(max_range, rule))
     run_ranges(_visible_points_range, p.shape[0],
                (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
                 np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
-                sa.wedge, _range(max_range, rule), x0, y0, x1, y1, pa.planes, sa.sight, pa.count, pa.bbox,
-                sa.sight_bbox, np.ascontiguousarray(sa.blocks & ~widened), hp, nhp, vis, free),
+                sa.wedge, _range(max_range, rule), x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, sa.planes, sa.count,
+                sa.sight, sa.sight_bbox, np.ascontiguousarray(sa.blocks & ~widened), hp, nhp, vis, free),
                min_chunk=2048)
     return vis, free
 
@@ -580,7 +622,7 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
     _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
     vis = np.empty((mk.shape[0], y.size, x.size), dtype=np.bool_)
     mx, my = np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1])
-    hp, nhp, hidden = shadow_table(mx, my, pa.planes, sa.sight, sa.shrunk, pa.count, sa.blocks, sa.widen,
+    hp, nhp, hidden = shadow_table(mx, my, sa.planes, sa.sight, sa.shrunk, sa.count, sa.blocks, sa.widen,
                                    sa.sight_bbox, _range(max_range, rule))
     run_ranges(_visible_grid_markers, mk.shape[0],
                (x, y, mx, my, sa.wedge, _range(max_range, rule), hp, nhp, hidden, free, vis))

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 import pytest
-from shapely.geometry import LineString, MultiPoint, Point, box
+from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
 import scenarios
 from planner.pef.map import PEF
@@ -85,6 +85,34 @@ def _scenario(redundancy: int = 0, text: str = TOML) -> scenarios.Scenario:
     return scenarios.loads(text.replace("REDUNDANCY", str(redundancy)), "flat-test.toml")
 
 
+def _body(at) -> Polygon:
+    """A marker's body as the kernels see it: the octagon circumscribing its radius."""
+    ang = math.pi / 8.0 + np.arange(8) * math.pi / 4.0
+    r = RULE.radius / math.cos(math.pi / 8.0)
+    return Polygon(np.asarray(at) + r * np.column_stack([np.cos(ang), np.sin(ang)]))
+
+
+def _blocks(body: Polygon, p, at) -> tuple[bool, bool]:
+    """Whether ``body`` blocks the line of sight from p to a marker at ``at``, and whether that is unsure."""
+    if body.buffer(RULE.grow, join_style=2).intersects(Point(at)):
+        # the marker's mount: the segment must not enter it
+        seg = LineString([p, at])
+        tight = seg.intersects(body.buffer(-1e-7, join_style=2))
+        loose = seg.intersects(body.buffer(-1e-4, join_style=2))
+        return tight, tight != loose
+    # some position within the margin sees the marker through the body grown by the reach: the
+    # fan from the marker over the disc of the margin meets it (the kernels widen the shadow's
+    # half-planes, a mitred superset: cells where the two differ, near the shadow's corners, are
+    # unsure)
+    grown = body.buffer(RULE.reach, join_style=2)
+    tight = Point(p).buffer(RULE.margin).union(Point(at)).convex_hull.intersects(grown)
+    mk = np.asarray(at)
+    far = [mk + (np.asarray(v) - mk) * 100.0 for v in grown.exterior.coords]
+    shadow = MultiPoint(list(grown.exterior.coords) + far).convex_hull
+    loose = shadow.buffer(RULE.margin, join_style=2, mitre_limit=1e6).contains(Point(p))
+    return tight, tight != loose
+
+
 def _visibility(sc, p, flat: bool = True):
     """Slow visibility of every marker from point p: (bool (M,), ambiguous (bool))."""
     out, ambiguous = [], False
@@ -97,24 +125,13 @@ def _visibility(sc, p, flat: bool = True):
         if math.hypot(dx, dy) > sc.sensor.max_range - RULE.margin:
             out.append(False)
             continue
-        seg = LineString([p, m.position])
         mounted = OBSTACLE.buffer(RULE.grow, join_style=2).intersects(Point(m.position))
-        if mounted:
-            tight = seg.intersects(OBSTACLE.buffer(-1e-7, join_style=2))
-            loose = seg.intersects(OBSTACLE.buffer(-1e-4, join_style=2))
-        else:
-            # some position within the margin sees the marker through the obstacle grown by the
-            # reach: the fan from the marker over the disc of the margin meets it (the kernels
-            # widen the shadow's half-planes, a mitred superset: cells where the two may differ,
-            # near the shadow's corners, are ambiguous)
-            grown = OBSTACLE.buffer(RULE.reach, join_style=2)
-            tight = Point(p).buffer(RULE.margin).union(Point(m.position)).convex_hull.intersects(grown)
-            mk = np.asarray(m.position)
-            far = [mk + (np.asarray(v) - mk) * 100.0 for v in grown.exterior.coords]
-            shadow = MultiPoint(list(grown.exterior.coords) + far).convex_hull
-            loose = shadow.buffer(RULE.margin, join_style=2, mitre_limit=1e6).contains(Point(p))
-        ambiguous |= tight != loose
-        ok = not tight
+        ok = True
+        # the obstacle, and the other markers' bodies (octagons around them)
+        for body in [OBSTACLE] + [_body(o.position) for o in sc.markers if o is not m]:
+            blocked, unsure = _blocks(body, p, m.position)
+            ok &= not blocked
+            ambiguous |= unsure
         for line, (nx, ny) in FACES:
             on_obstacle = line.within(OBSTACLE.boundary)
             if line.distance(Point(m.position)) <= RULE.radius and (mounted or not on_obstacle):
