@@ -17,6 +17,13 @@ passes through it does. Where two pieces of one obstacle meet, their cut is move
 much, so the pieces overlap and even a segment running along the cut is blocked: the split is
 invisible. Free space uses the pieces at full size.
 
+That is the margin-free geometry (``rule=None``). What a plan counts on is stricter, the rule of
+:mod:`planner.pef.sight` (``rule=SightRule``, what :func:`scenario_visible_points` and
+:func:`scenario_visible_grid` apply): every piece but a marker's mount grown by the physics ray's
+reach and its shadow widened by the robot's margin (:func:`shadow_table`, the same half-planes
+for points and grid rows), the reflectors' bodies as pieces of the others' lines of sight, a
+wedge in front of each mount face, and the range and incidence limits held within the margin.
+
 Two paths give the same answer (a test checks it):
 
 - :func:`visible_points`: arbitrary points, a Cyrus-Beck segment/piece clip for every point,
