@@ -49,7 +49,7 @@ from estimators.fault.linearized import chi2_2dof_ppf
 from planner.pef import kernels as pef_kernels
 from planner.pef.gridtiles import parallelogram_grid
 from planner.pef.result import PefMap, PefResult, grid_centres
-from planner.pef.visibility import scenario_visible_grid, scenario_visible_points, visible_points
+from planner.pef.visibility import scenario_sight_rule, scenario_visible_grid, scenario_visible_points, visible_points
 from scenarios.errors import PlanningError
 from scenarios.schema import PefModel, Scenario
 
@@ -168,7 +168,7 @@ class PEF:
             tau, best, free, tau_plain = parallelogram_grid(
                 x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range, sc.workspace.bounds,
                 float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
-                sc.marker_normals(), self.sensor.max_incidence)
+                sc.marker_normals(), self.sensor.max_incidence, scenario_sight_rule(sc))
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
                           cell_size=(size[0] / x.size, size[1] / y.size), redundancy=self.redundancy,
                           tau_plain=tau_plain)
@@ -217,7 +217,8 @@ class PEF:
         sc = self.scenario
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
-                                     sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence)
+                                     sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
+                                     scenario_sight_rule(sc), bodies=self.markers)
         local = np.arange(self.k, dtype=np.int64)
         out = np.empty((sub.shape[0], pts.shape[0]))
         px, py = pts[:, 0].copy(), pts[:, 1].copy()

@@ -44,6 +44,7 @@ class _Pending:
     slots: list[int] = field(default_factory=list)
     fallback: int = -1   # the blocked slot whose fallback this fix measures, -1 for none
     beyond: bool = False
+    unplanned: bool = False  # started on a subset the plan named neither as the fix's nor as its fallback
 
 
 class FixRecorder:
@@ -76,6 +77,7 @@ class FixRecorder:
         self.blocked_markers = 0
         self._fallback_next = -1
         self._beyond_next = False
+        self._unplanned_next = False
         self._rows: list[dict] = []
         self._finished: list[tuple] = []  # fixes whose rows log() completes
         self._polygons: list[np.ndarray] = []
@@ -89,9 +91,9 @@ class FixRecorder:
         unseen and the schedule's fix (``fix``, a ``ScheduledFix``) names a fallback for it
         that the laser sees, that fallback (the fix is logged as a fallback fix); else the best
         visible subset by the PEF at the *estimated* position (the robot does not know the
-        truth); None if fewer than k markers are visible.
+        truth), logged as ``unplanned``; None if fewer than k markers are visible.
         """
-        self._fallback_next, self._beyond_next = -1, False
+        self._fallback_next, self._beyond_next, self._unplanned_next = -1, False, False
         if self.laser.sees_all(scheduled):  # the usual case: two rays, not M
             return list(scheduled)
         seen_sched = self.laser.visible_all(scheduled)
@@ -112,6 +114,8 @@ class FixRecorder:
             tau = float(self.pef.tau_subset(est_xy[None, :], np.array(sub))[0])
             if tau < best_tau:
                 best, best_tau = list(sub), tau
+        # a substitute: the plan named neither this subset for the fix nor a fallback of it
+        self._unplanned_next = True
         return best if best is not None else list(seen[: self.k])
 
     def start(self, subset: list[int], t: float, scheduled=None) -> None:
@@ -122,8 +126,9 @@ class FixRecorder:
         """
         mt = self.sensor.measurement_time
         self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))],
-                                scheduled=scheduled, fallback=self._fallback_next, beyond=self._beyond_next)
-        self._fallback_next, self._beyond_next = -1, False
+                                scheduled=scheduled, fallback=self._fallback_next, beyond=self._beyond_next,
+                                unplanned=self._unplanned_next)
+        self._fallback_next, self._beyond_next, self._unplanned_next = -1, False, False
 
     @property
     def next_due(self) -> float:
@@ -232,7 +237,7 @@ class FixRecorder:
             rho=rho.tolist() + [math.nan] * pad, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted,
-            predicted_tau=self._promise(p), fallback=p.fallback >= 0, beyond=p.beyond))
+            predicted_tau=self._promise(p), fallback=p.fallback >= 0, beyond=p.beyond, unplanned=p.unplanned))
         self._polygons.append(fa.ring)
 
     def _promise(self, p: _Pending) -> float:
@@ -291,4 +296,4 @@ class FixRecorder:
             contained=col("contained", (), bool), predicted_tau=col("predicted_tau", ()),
             static_tau=self._static(markers, truth),
             nis=col("nis", ()), n_accepted=col("n_accepted", (), int), fallback=col("fallback", (), bool),
-            beyond_redundancy=col("beyond", (), bool))
+            beyond_redundancy=col("beyond", (), bool), unplanned=col("unplanned", (), bool))

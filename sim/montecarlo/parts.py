@@ -52,9 +52,10 @@ class DamagedPartError(OutputError):
         super().__init__(f"{path}: does not read back ({reason})")
 
 
-LATER_COLUMNS = frozenset({"lost_guarantee", "excused"})
+LATER_COLUMNS = frozenset({"lost_guarantee", "excused", "unplanned"})
 """Columns added after sweeps were first written: a part without one reads back with it null
-(the runs' ``lost_guarantee``: not tested; the steps' ``excused``: nothing excused)."""
+(the runs' ``lost_guarantee``: not tested; the steps' ``excused``: nothing excused; the fixes'
+``unplanned``: not recorded)."""
 
 
 def lean(schema: pa.Schema) -> pa.Schema:

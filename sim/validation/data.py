@@ -137,6 +137,9 @@ class FixTable:
     beyond : (F,) bool or None
         Improvised fixes: blocked lines of sight left neither the scheduled subset nor its
         fallback (the plan promised nothing for them).
+    unplanned : (F,) bool or None
+        Fixes that measured a subset the plan did not schedule; None where the sweep did not
+        record it (written before the column existed).
     """
 
     run: np.ndarray
@@ -153,6 +156,7 @@ class FixTable:
     markers: np.ndarray
     static_tau: np.ndarray | None = None
     beyond: np.ndarray | None = None
+    unplanned: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.run)
@@ -188,7 +192,7 @@ STEP_COLUMNS = ["run", "step", "nees"]
 """The columns of :data:`sim.montecarlo.rows.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
 FIX_COLUMNS = ["run", "fix", "true_x", "true_y", "snapshot_x", "snapshot_y", "snapshot_error",
                "snapshot_x_var", "snapshot_y_var", "snapshot_xy_cov", "fault_diameter", "predicted_tau",
-               "nis", "n_accepted", "contained", "markers", "beyond_redundancy"]
+               "nis", "n_accepted", "contained", "markers", "beyond_redundancy", "unplanned"]
 """The columns of :data:`sim.montecarlo.rows.FIX_SCHEMA` that the checks read."""
 
 
@@ -250,7 +254,9 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
         markers=flat.astype(np.int64).reshape(n, width),
         static_tau=col("static_tau") if "static_tau" in fixes.column_names else None,
         beyond=(col("beyond_redundancy", bool, False) if "beyond_redundancy" in fixes.column_names
-                else np.zeros(n, dtype=bool)))
+                else np.zeros(n, dtype=bool)),
+        unplanned=(None if "unplanned" not in fixes.column_names or fixes.column("unplanned").null_count == n
+                   else col("unplanned", bool, False)))
 
 
 def step_table(steps: pa.Table) -> StepTable:

@@ -1,7 +1,9 @@
 """Flat reflectors and redundancy against an independent, slow evaluator of the same definitions.
 
 The evaluator below is plain Python with shapely: line of sight by intersecting the segment with
-the obstacle polygon shrunk a little, the incidence angle by ``atan2``, the parallelogram diagonal
+the obstacle polygon shrunk a little, and with it grown by the sight rule's margin unless the
+marker is mounted on it (:mod:`planner.pef.sight`), the incidence and mount wedges by their
+definition, the parallelogram diagonal
 by the paper's eq. 12, and tau_1 by brute force over *every* visible marker removed (not only the
 best subset's members, which is the shortcut the kernels take). Cells whose answer depends on a
 rounding (a segment grazing a corner, an angle within 1e-9 rad of the limit) are left out of the
@@ -15,15 +17,50 @@ import math
 
 import numpy as np
 import pytest
-from shapely.geometry import LineString, Point, box
+from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
 import scenarios
 from planner.pef.map import PEF
+from planner.pef.sight import sight_rule
 from planner.pef.visibility import scenario_visible_grid, scenario_visible_points
 from tests.scenarios.worlds import FLAT_TOML, flat_scenario
 
 OBSTACLE = box(4.5, 3.5, 7.5, 4.5)
 RES = 0.25
+RULE = sight_rule(0.05)   # the scenario's eps_max
+# every face with its outward normal (the obstacle's) or inward one (the workspace's sides)
+FACES = [(LineString([(4.5, 3.5), (7.5, 3.5)]), (0.0, -1.0)), (LineString([(7.5, 3.5), (7.5, 4.5)]), (1.0, 0.0)),
+         (LineString([(7.5, 4.5), (4.5, 4.5)]), (0.0, 1.0)), (LineString([(4.5, 4.5), (4.5, 3.5)]), (-1.0, 0.0)),
+         (LineString([(0.0, 0.0), (12.0, 0.0)]), (0.0, 1.0)), (LineString([(12.0, 0.0), (12.0, 8.0)]), (-1.0, 0.0)),
+         (LineString([(12.0, 8.0), (0.0, 8.0)]), (0.0, -1.0)), (LineString([(0.0, 8.0), (0.0, 0.0)]), (1.0, 0.0))]
+
+
+def _body(at) -> Polygon:
+    """Return a marker's body as the kernels see it: the octagon circumscribing its radius."""
+    ang = math.pi / 8.0 + np.arange(8) * math.pi / 4.0
+    r = RULE.radius / math.cos(math.pi / 8.0)
+    return Polygon(np.asarray(at) + r * np.column_stack([np.cos(ang), np.sin(ang)]))
+
+
+def _blocks(body: Polygon, p, at) -> tuple[bool, bool]:
+    """Whether ``body`` blocks the line of sight from p to a marker at ``at``, and whether that is unsure."""
+    if body.buffer(RULE.grow, join_style=2).intersects(Point(at)):
+        # the marker's mount: the segment must not enter it
+        seg = LineString([p, at])
+        tight = seg.intersects(body.buffer(-1e-7, join_style=2))
+        loose = seg.intersects(body.buffer(-1e-4, join_style=2))
+        return tight, tight != loose
+    # some position within the margin sees the marker through the body grown by the reach: the
+    # fan from the marker over the disc of the margin meets it (the kernels widen the shadow's
+    # half-planes, a mitred superset: cells where the two differ, near the shadow's corners, are
+    # unsure)
+    grown = body.buffer(RULE.reach, join_style=2)
+    tight = Point(p).buffer(RULE.margin).union(Point(at)).convex_hull.intersects(grown)
+    mk = np.asarray(at)
+    far = [mk + (np.asarray(v) - mk) * 100.0 for v in grown.exterior.coords]
+    shadow = MultiPoint(list(grown.exterior.coords) + far).convex_hull
+    loose = shadow.buffer(RULE.margin, join_style=2, mitre_limit=1e6).contains(Point(p))
+    return tight, tight != loose
 
 
 def _visibility(sc, p, flat: bool = True):
@@ -35,19 +72,30 @@ def _visibility(sc, p, flat: bool = True):
     for m in sc.markers:
         mx, my = m.position
         dx, dy = p[0] - mx, p[1] - my
-        if math.hypot(dx, dy) > sc.sensor.max_range:
+        if math.hypot(dx, dy) > sc.sensor.max_range - RULE.margin:
             out.append(False)
             continue
-        seg = LineString([p, m.position])
-        tight = seg.intersects(OBSTACLE.buffer(-1e-7, join_style=2))
-        loose = seg.intersects(OBSTACLE.buffer(-1e-4, join_style=2))
-        ambiguous |= tight != loose
-        ok = not tight
+        mounted = OBSTACLE.buffer(RULE.grow, join_style=2).intersects(Point(m.position))
+        ok = True
+        # the obstacle, and the other markers' bodies (octagons around them)
+        for body in [OBSTACLE] + [_body(o.position) for o in sc.markers if o is not m]:
+            blocked, unsure = _blocks(body, p, m.position)
+            ok &= not blocked
+            ambiguous |= unsure
+        for line, (nx, ny) in FACES:
+            on_obstacle = line.within(OBSTACLE.boundary)
+            if line.distance(Point(m.position)) <= RULE.radius and (mounted or not on_obstacle):
+                # the mount wedge: p at least offset + slope r in front of the face
+                slack = dx * nx + dy * ny - RULE.offset - RULE.slope * math.hypot(dx, dy)
+                ambiguous |= abs(slack) < 1e-9
+                ok = ok and slack >= 0.0
         if ok and flat and m.kind is scenarios.MarkerKind.FLAT:
-            ang = abs(math.degrees(math.atan2(dx * math.sin(m.facing) - dy * math.cos(m.facing),
-                                              dx * math.cos(m.facing) + dy * math.sin(m.facing))))
-            ambiguous |= abs(ang - lim) < 1e-7
-            ok = ang <= lim
+            # the incidence wedge, at every point within the margin
+            cos_lim = math.cos(math.radians(lim))
+            slack = (dx * math.cos(m.facing) + dy * math.sin(m.facing) - RULE.margin * (1.0 + cos_lim)
+                     - cos_lim * math.hypot(dx, dy))
+            ambiguous |= abs(slack) < 1e-9
+            ok = ok and slack >= 0.0
         out.append(ok)
     return out, ambiguous
 

@@ -147,11 +147,14 @@ def test_parts_written_before_a_column_was_added_read_back_with_it_null(tmp_path
     layout.make_dirs()
     rec, _ = _record(scenario, 0)
     results.write_record(layout, rec)
-    for folder, name in ((layout.runs_dir, "lost_guarantee"), (layout.steps_dir, "excused")):
+    for folder, name in ((layout.runs_dir, "lost_guarantee"), (layout.steps_dir, "excused"),
+                         (layout.fixes_dir, "unplanned")):
         path = layout.part(folder, 0)
         pq.write_table(pq.read_table(path).drop_columns([name]), path)
     runs, steps = results.read_runs(tmp_path), results.read_steps(tmp_path)
     assert runs.column("lost_guarantee").null_count == 1 and steps.column("excused").null_count == steps.num_rows
+    fixes = results.read_fixes(tmp_path)
+    assert fixes.num_rows > 0 and fixes.column("unplanned").null_count == fixes.num_rows
     assert steps.column("certified").null_count == 0
     path = layout.part(layout.steps_dir, 0)
     pq.write_table(pq.read_table(path).drop_columns(["certified"]), path)

@@ -13,6 +13,7 @@ fails a given check with probability at most 0.002 per seed.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import json
 import math
@@ -31,6 +32,7 @@ from sim.montecarlo.rows import FIX_SCHEMA, RUN_SCHEMA, fix_columns, run_row
 from sim.validation import null
 from sim.validation import suite as validation
 from sim.validation.data import EPISODE_GATE_PROBABILITY
+from sim.validation.promise import promise
 from sim.validation.suite import CheckStatus
 from tests.sim.validation.synthetic_fixes import FIXES_PER_RUN, fix_log
 
@@ -158,6 +160,21 @@ def test_plan_fails_when_too_few_runs_stay_under_eps_max(tmp_path):
     assert plan.status is FAIL and plan.values["successes"] == 1
     upper = optimize.brentq(lambda p: stats.binom.cdf(1, 5, p) - report.alpha_per_check / 2, 0.01, 0.999999, xtol=1e-12)
     assert plan.values["ci"][1] == pytest.approx(upper)
+
+
+def test_a_fix_on_an_unplanned_subset_breaks_the_promise_and_an_old_sweep_is_not_judged_on_it(tmp_path):
+    # a substitute for a marker the laser did not see (no line of sight blocked) did not keep the
+    # plan, however small its realised area; a sweep written before the column reads it as null
+    data = write_sweep(tmp_path / "mc", _scenario(), seed=1)
+    assert data.fixes.unplanned is not None and not data.fixes.unplanned.any()
+    marked = np.zeros(len(data.fixes), dtype=bool)
+    marked[3] = True
+    judged = dataclasses.replace(data, fixes=dataclasses.replace(data.fixes, unplanned=marked))
+    res = promise(judged, 0.01, np.random.default_rng(0))
+    assert res.status is CheckStatus.FAIL and res.values["unplanned"] == 1 and res.values["broken"] == 1
+    old = dataclasses.replace(data, fixes=dataclasses.replace(data.fixes, unplanned=None))
+    res = promise(old, 0.01, np.random.default_rng(0))
+    assert res.status is CheckStatus.PASS and res.values["unplanned"] is None and "not recorded" in res.detail
 
 
 def test_empty_sweep_is_not_applicable_never_pass():
