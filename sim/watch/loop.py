@@ -86,7 +86,7 @@ def watch_files(scenario: str | Path, show: Callable[[int, View], None], *,
         if changed:
             t0 = time.perf_counter()
             try:
-                view = builder.build(load(path))
+                view = builder.build(load(scenario))  # errors name the file as given, as the CLI does
                 show(updates, view)
             except PefsimError as exc:
                 if on_error is not None:
