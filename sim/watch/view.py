@@ -92,8 +92,8 @@ class ViewBuilder:
         self._markers: list[tuple] = []
         self._map: PefMap | None = None
 
-    def _pef_map(self, sc: Scenario, pef: PEF) -> tuple[PefMap, str]:
-        key, rows = _map_key(sc), _marker_rows(sc)
+    def _pef_map(self, sc: Scenario, key: bytes, pef: PEF) -> tuple[PefMap, str]:
+        rows = _marker_rows(sc)
         old = self._map
         if old is None or key != self._key or [r[:2] for r in rows] != [r[:2] for r in self._markers]:
             return pef.grid(), "computed"
@@ -139,8 +139,9 @@ class ViewBuilder:
         from planner.plan import plan_task
         from planner.routes.edges import segment_reports
 
-        pef_map, work = self._pef_map(sc, PEF(sc))
-        self._key, self._markers, self._map = _map_key(sc), _marker_rows(sc), pef_map
+        key = _map_key(sc)  # before any work: computing fills caches of the obstacles that pickle too
+        pef_map, work = self._pef_map(sc, key, PEF(sc))
+        self._key, self._markers, self._map = key, _marker_rows(sc), pef_map
         pef = _GridOnce(sc, pef_map)
         reports = segment_reports(sc, pef) if sc.routes is not None else []
         plans, unplanned = [], {}
