@@ -11,7 +11,6 @@ computes the whole map; an edit that changes nothing the map depends on reuses i
 
 from __future__ import annotations
 
-import pickle
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -73,11 +72,10 @@ class View:
         return f"{m} marker{'s' if m != 1 else ''}, {tasks}"
 
 
-def _map_key(sc: Scenario) -> bytes:
-    """Everything but the markers that the PEF map depends on, as comparable bytes."""
+def _map_key(sc: Scenario) -> tuple:
+    """Everything but the markers that the PEF map depends on (frozen dataclasses: equal by their fields)."""
     p = sc.planning
-    return pickle.dumps((sc.workspace, sc.obstacles, sc.sensor, p.pef_model, p.resolution, p.redundancy,
-                         p.gdop_level))
+    return (sc.workspace, sc.obstacles, sc.sensor, p.pef_model, p.resolution, p.redundancy, p.gdop_level)
 
 
 def _marker_rows(sc: Scenario) -> list[tuple]:
@@ -88,11 +86,11 @@ class ViewBuilder:
     """Compute :class:`View` s one after another, reusing the last PEF map where it still holds."""
 
     def __init__(self):
-        self._key: bytes | None = None
+        self._key: tuple | None = None
         self._markers: list[tuple] = []
         self._map: PefMap | None = None
 
-    def _pef_map(self, sc: Scenario, key: bytes, pef: PEF) -> tuple[PefMap, str]:
+    def _pef_map(self, sc: Scenario, key: tuple, pef: PEF) -> tuple[PefMap, str]:
         rows = _marker_rows(sc)
         old = self._map
         if old is None or key != self._key or [r[:2] for r in rows] != [r[:2] for r in self._markers]:
@@ -139,7 +137,7 @@ class ViewBuilder:
         from planner.plan import plan_task
         from planner.routes.edges import segment_reports
 
-        key = _map_key(sc)  # before any work: computing fills caches of the obstacles that pickle too
+        key = _map_key(sc)
         pef_map, work = self._pef_map(sc, key, PEF(sc))
         self._key, self._markers, self._map = key, _marker_rows(sc), pef_map
         pef = _GridOnce(sc, pef_map)

@@ -1,0 +1,74 @@
+"""The live view's content: the PEF map of a moved marker recomputed in a window equals a whole map."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from planner.pef.map import PEF
+from scenarios import load
+from scenarios.schema import Marker
+from sim.watch.files import FileSet
+from sim.watch.view import ViewBuilder
+
+
+def _moved(sc, index: int, position: tuple[float, float], **sensor):
+    markers = list(sc.markers)
+    markers[index] = dataclasses.replace(markers[index], position=position)
+    sc = dataclasses.replace(sc, markers=tuple(markers))
+    if sensor:
+        sc = dataclasses.replace(sc, sensor=dataclasses.replace(sc.sensor, **sensor))
+    return sc
+
+
+@pytest.mark.parametrize("name", ["warehouse", "hall"])
+def test_moved_marker_window_equals_whole_map(name):
+    """max_range shorter than the floor, so the window is a part of it: equal to the whole map, bit for bit."""
+    sc = load(name)
+    sc = dataclasses.replace(sc, sensor=dataclasses.replace(sc.sensor, max_range=min(sc.workspace.size) / 3))
+    builder = ViewBuilder()
+    first = builder.build(sc)
+    assert first.map_work == "computed"
+    x0, y0 = sc.markers[0].position
+    moved = _moved(sc, 0, (x0 + 0.7, y0) if x0 + 0.7 < sc.workspace.size[0] else (x0 - 0.7, y0))
+    view = builder.build(moved)
+    assert view.map_work == "window"
+    whole = PEF(moved).grid()
+    assert np.array_equal(view.pef_map.tau, whole.tau)
+    assert np.array_equal(view.pef_map.best, whole.best)
+    # negative control: the old map is not the new one (reusing it unchanged would fail the check above)
+    assert not np.array_equal(first.pef_map.tau, whole.tau)
+    assert builder.build(moved).map_work == "reused"  # the same markers again: nothing to compute
+
+
+def test_other_changes_compute_the_whole_map():
+    sc = load("warehouse")
+    builder = ViewBuilder()
+    builder.build(sc)
+    fewer = dataclasses.replace(sc, markers=sc.markers[:-1])
+    assert builder.build(fewer).map_work == "computed"
+    wider = dataclasses.replace(fewer, sensor=dataclasses.replace(fewer.sensor, max_range=fewer.sensor.max_range + 1))
+    assert builder.build(wider).map_work == "computed"
+
+
+def test_summary_counts_unplanned_tasks():
+    sc = load("warehouse")
+    view = ViewBuilder().build(dataclasses.replace(sc, markers=(Marker("only", sc.markers[0].position),)))
+    assert view.summary() == f"1 marker, 0 of {len(sc.tasks)} tasks planned"
+    assert set(view.unplanned) == set(range(len(sc.tasks)))
+
+
+def test_file_set_sees_content_not_touches(tmp_path):
+    a, b = tmp_path / "a.toml", tmp_path / "b.dxf"
+    a.write_text("x = 1\n")
+    files = FileSet([a, b])                  # b does not exist yet
+    assert files.changed() == []
+    a.write_text("x = 1\n")                  # saved without a change
+    assert files.changed() == []
+    a.write_text("x = 2\n")
+    b.write_text("drawing")
+    assert files.changed() == [a, b]
+    b.unlink()
+    assert files.changed() == [b]
