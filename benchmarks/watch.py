@@ -47,7 +47,7 @@ def main() -> None:
     from scenarios import load
     from sim.recording import close
     from sim.recording.live import log_view, open_live
-    from sim.watch.view import ViewBuilder, _GridOnce
+    from sim.watch.view import ViewBuilder, _Reuse
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "hall.toml"
@@ -79,7 +79,7 @@ def main() -> None:
             phases["map+reports+plan"].append(t2 - t1)
             phases["log"].append(t3 - t2)
             assert view.map_work == "window", view.map_work
-            pef = _GridOnce(sc, view.pef_map)
+            pef = _Reuse(sc, view.pef_map)
             t4 = time.perf_counter()
             segment_reports(sc, pef)
             t5 = time.perf_counter()
