@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import time
+
 import numpy as np
 
 from planner.pef.map import PEF
@@ -119,6 +121,8 @@ class View:
         Why a task has no plan.
     map_work : str
         ``"reused"``, ``"window"`` (the part around moved markers) or ``"computed"``.
+    seconds : dict of str to float
+        Wall time of each part [s].
     """
 
     scenario: Scenario
@@ -127,6 +131,8 @@ class View:
     plans: list = field(default_factory=list)
     unplanned: dict[int, str] = field(default_factory=dict)
     map_work: str = "computed"
+    seconds: dict[str, float] = field(default_factory=dict)
+    """Wall time of each part [s]: ``map``, ``routes`` (segment τ), ``plans``."""
 
     def summary(self) -> str:
         """``"14 markers, 3 tasks planned"`` (``"2 of 3 tasks planned"`` when some have no route)."""
@@ -205,8 +211,10 @@ class ViewBuilder:
         from planner.plan import plan_task
         from planner.routes.edges import segment_reports
 
+        t0 = time.perf_counter()
         key, rows = _map_key(sc), _marker_rows(sc)
         pef_map, work = self._pef_map(sc, key, PEF(sc))
+        t1 = time.perf_counter()
         memo, moved = None, None
         if work != "computed":  # same markers but for positions and facings: values away from them hold
             memo = self._memo
@@ -214,6 +222,7 @@ class ViewBuilder:
         self._key, self._markers, self._map = key, rows, pef_map
         pef = _Reuse(sc, pef_map, memo, np.array(moved, dtype=float).reshape(-1, 2) if moved else None)
         reports = segment_reports(sc, pef) if sc.routes is not None else []
+        t2 = time.perf_counter()
         plans, unplanned = [], {}
         for i in range(len(sc.tasks)):
             if len(sc.markers) < sc.sensor.markers_per_fix:
@@ -226,4 +235,5 @@ class ViewBuilder:
                 plans.append(None)
                 unplanned[i] = str(exc)
         self._memo = pef.memo
-        return View(sc, pef_map, reports, plans, unplanned, work)
+        seconds = {"map": t1 - t0, "routes": t2 - t1, "plans": time.perf_counter() - t2}
+        return View(sc, pef_map, reports, plans, unplanned, work, seconds)
