@@ -61,9 +61,9 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement", "Plan",
-           "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper", "pef_map", "place",
-           "plan", "run_episode", "sweep", "validate", "watch"]
+__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
+           "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
+           "pef_map", "place", "plan", "run_episode", "sweep", "validate", "watch"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}

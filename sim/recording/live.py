@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import uuid
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -68,11 +69,13 @@ def open_live(name: str, *, save: str | os.PathLike[str] | None = None, connect:
     Raises
     ------
     scenarios.errors.OutputError
-        Both ``save`` and ``connect``, a file that cannot be written, or a viewer that cannot be
-        reached or started.
+        Both ``save`` and ``connect``, a ``save`` not named ``.rrd``, a file that cannot be
+        written, or a viewer that cannot be reached or started.
     """
     if save is not None and connect is not None:
         raise OutputError("watch: give --save or --connect, not both")
+    if save is not None and Path(save).suffix.lower() != ".rrd":
+        raise OutputError(f"{save}: --save: expected a .rrd file, got {Path(save).suffix or 'no extension'!r}")
     path = check_writable(save) if save is not None else None
     rec = rr.RecordingStream(E.APPLICATION_ID, recording_id=str(uuid.uuid4()))
     bp = live_blueprint()

@@ -42,7 +42,7 @@ class Update:
     view: View
 
     def line(self) -> str:
-        """``"updated in 0.23 s: hall.toml: 14 markers, 3 tasks planned"``."""
+        """Return the line printed: ``"updated in 0.23 s: hall.toml: 14 markers, 3 tasks planned"``."""
         names = ", ".join(p.name for p in self.changed)
         return f"updated in {self.seconds:.2f} s: {names}: {self.view.summary()}"
 

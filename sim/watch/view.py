@@ -11,9 +11,8 @@ computes the whole map; an edit that changes nothing the map depends on reuses i
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 

@@ -80,7 +80,8 @@ def test_edit_error_edit(tmp_path):
     rrd = tmp_path / "live.rrd"
     child = Child([scenario.name, "--save", rrd.name, "--interval", "0.05", "--max-updates", "3"], tmp_path)
     first = child.next()
-    assert first[0] == "out" and first[1].startswith("updated in ") and "docks.toml: 6 markers, 1 task planned" in first[1]
+    assert first[0] == "out" and first[1].startswith("updated in ")
+    assert first[1].endswith("docks.toml: 6 markers, 1 task planned"), first
 
     scenario.write_text(moved)
     second = child.next()
@@ -131,3 +132,17 @@ def test_first_version_bad_then_fixed(tmp_path):
     assert child.next()[1].startswith("updated in ")
     assert child.p.wait(timeout=WAIT) == 0
     _verify(rrd)
+
+
+def test_refused_before_watching(tmp_path, capsys):
+    """An unknown scenario, a recording that cannot be written or is not .rrd: one line, exit 2, nothing written."""
+    from sim.cli import main
+
+    scenario = _copy(tmp_path)
+    for args, said in (([str(tmp_path / "nope.toml"), "--save", str(tmp_path / "a.rrd")], "nope.toml"),
+                       ([str(scenario), "--save", str(tmp_path / "no" / "a.rrd")], "does not exist"),
+                       ([str(scenario), "--save", str(tmp_path / "a.txt")], "expected a .rrd file")):
+        assert main(["watch", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("pefsim: error: ") and said in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["docks.toml"]
