@@ -46,6 +46,11 @@ class FileSet:
         new = [Path(p) for p in paths]
         self.stamps = {p: self.stamps[p] if p in self.stamps else _stamp(p, None) for p in new}
 
+    def digest(self, path: Path) -> bytes | None:
+        """Return the content hash of ``path`` as last seen (None: missing or unreadable)."""
+        stamp = self.stamps.get(Path(path))
+        return None if stamp is None else stamp[2]
+
     def changed(self) -> list[Path]:
         """Return the files whose content differs from the last call's (or from :meth:`follow`'s), in order."""
         out = []

@@ -21,6 +21,9 @@ from sim.watch.view import View, ViewBuilder
 
 POLL_INTERVAL = 0.2
 """Seconds between two looks at the files' modification times and sizes."""
+SETTLE = 0.05
+"""Seconds a changed file must stay unchanged before it is read: a save is often a truncation and
+a write (or several writes), and the half-written file in between is not what was saved."""
 
 
 @dataclass(frozen=True)
@@ -82,18 +85,27 @@ def watch_files(scenario: str | Path, show: Callable[[int, View], None], *,
     builder = ViewBuilder()
     updates = 0
     changed: list[Path] = [path]
+    read: dict[Path, bytes | None] | None = None  # the content of each file at the last attempt
     while True:
+        if changed:
+            while more := files.changed():  # until the writes have settled
+                changed = list(dict.fromkeys([*changed, *more]))
+                time.sleep(SETTLE)
+            if read is not None:  # a change back to what was read is none
+                changed = [p for p in changed if files.digest(p) != read.get(p)]
         if changed:
             t0 = time.perf_counter()
             try:
                 view = builder.build(load(scenario))  # errors name the file as given, as the CLI does
                 show(updates, view)
             except PefsimError as exc:
+                read = {p: files.digest(p) for p in files.stamps}
                 if on_error is not None:
                     on_error(exc)
             else:
                 updates += 1
                 files.follow(dict.fromkeys([path, *view.scenario.files]))
+                read = {p: files.digest(p) for p in files.stamps}
                 if on_update is not None:
                     on_update(Update(time.perf_counter() - t0, tuple(changed), view))
                 if max_updates is not None and updates >= max_updates:

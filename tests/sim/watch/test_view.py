@@ -93,3 +93,63 @@ def test_reused_values_plan_as_from_scratch():
             assert a.chosen == b.chosen and np.array_equal(a.path, b.path)
             assert [(f.position, f.markers, f.tau) for f in a.schedule.fixes] == \
                    [(f.position, f.markers, f.tau) for f in b.schedule.fixes]
+
+
+def test_scenario_lists_every_file_it_read(tmp_path):
+    """Scenario.files: what ``pefsim watch`` follows (the TOML, a DXF, a ROS map and its image, a graph file)."""
+    from tests.scenarios import drawings as dr
+    from tests.scenarios import graphfiles as gf
+    from tests.scenarios.worlds import scenario_text
+
+    hall = load("hall")
+    assert [p.name for p in hall.files] == ["hall.toml", "hall.dxf"] and all(p.is_absolute() for p in hall.files)
+
+    yaml_path = dr.write_map(tmp_path, dr.map_image(h=200, w=200))  # 10 x 10 m: the markers of REST inside
+    ros = tmp_path / "ros.toml"
+    ros.write_text(scenario_text(f'file = "{yaml_path.name}"'))
+    assert [p.name for p in load(ros).files] == ["ros.toml", yaml_path.name, "map.pgm"]
+
+    gf.write(tmp_path / "g.geojson", gf.nav2_graph())
+    graph = tmp_path / "graph.toml"
+    graph.write_text(gf.scenario_text('file = "g.geojson"'))
+    assert load(graph).files == (graph.resolve(), (tmp_path / "g.geojson").resolve())
+    assert load("warehouse").files[0].name == "warehouse.toml" and len(load("warehouse").files) == 1
+
+
+def test_saving_a_file_the_scenario_reads_updates(tmp_path):
+    """The route graph file is followed too: saving it (changed) updates, naming it; saving it unchanged does not."""
+    import json
+    import threading
+    import time
+
+    from sim.watch.loop import watch_files
+    from tests.scenarios import graphfiles as gf
+
+    graph_file = gf.write(tmp_path / "g.geojson", gf.nav2_graph())
+    scenario = tmp_path / "graph.toml"
+    scenario.write_text(gf.scenario_text('file = "g.geojson"'))
+    updates, errors, shown, stop = [], [], [], threading.Event()
+    thread = threading.Thread(target=watch_files, args=(scenario, lambda step, view: shown.append(step)),
+                              kwargs={"on_update": updates.append, "on_error": errors.append, "interval": 0.02,
+                                      "stop": stop})
+    thread.start()
+
+    def wait_for(n: int) -> None:
+        deadline = time.monotonic() + 60.0
+        while len(updates) + len(errors) < n and time.monotonic() < deadline:
+            time.sleep(0.02)
+
+    try:
+        wait_for(1)
+        graph_file.write_text(graph_file.read_text())        # saved, same bytes
+        doc = json.loads(graph_file.read_text())
+        doc["features"][0]["geometry"]["coordinates"][0] += 0.5
+        graph_file.write_text(json.dumps(doc))
+        wait_for(2)
+    finally:
+        stop.set()
+        thread.join(timeout=60.0)
+    assert not errors and shown == [0, 1]
+    assert [[p.name for p in u.changed] for u in updates] == [["graph.toml"], ["g.geojson"]]
+    assert updates[1].line().startswith("updated in ") and ": g.geojson: 4 markers, " in updates[1].line()
+    assert updates[1].view.scenario.routes.nodes != updates[0].view.scenario.routes.nodes
