@@ -202,6 +202,6 @@ def log_view(rec: rr.RecordingStream, step: int, scenario: Scenario, pef_map: An
     log_network(rec, scenario, reports)
     for i, plan in enumerate(plans):
         if plan is not None:
-            log_plan(rec, plan, scenario, static=False, task=i)
+            log_plan(rec, plan, scenario, static=False, task=i, candidates=scenario.routes is None)
     rec.log(E.VIEW_TEXT, rr.TextDocument(view_markdown(scenario, summary, plans, unplanned),
                                          media_type="text/markdown"))

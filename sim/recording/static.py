@@ -157,7 +157,7 @@ def plan_markdown(plan: Any) -> str:
 
 
 def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario, *, static: bool = True,
-             task: int | None = None) -> None:
+             task: int | None = None, candidates: bool = True) -> None:
     """Log candidate routes, the chosen route, the reference path and the fix schedule.
 
     Parameters
@@ -176,15 +176,19 @@ def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario, *, static: 
     task : int, optional
         Log under the task's own entities (:func:`sim.recording.entities.of_task`), so that the
         plans of several tasks sit side by side; default the recording's single plan.
+    candidates : bool
+        Draw every candidate route (a live view of a route network leaves them out: the network
+        itself is drawn, coloured by τ, and the candidates' labels would pile up on it).
     """
     at = (lambda entity: entity) if task is None else (lambda entity: E.of_task(entity, task))
     cands = list(plan.candidates or [])
-    rec.log(at(E.CANDIDATES),
-            rr.LineStrips2D([np.asarray(c.polyline, float) for c in cands],
-                            colors=[E.CANDIDATE_OK if c.admissible else E.CANDIDATE_BAD for c in cands],
-                            labels=[f"{c.id}{'' if c.admissible else ' (inadmissible)'}" for c in cands],
-                            radii=_ui(E.LINE_PT)),
-            static=static)
+    if candidates:
+        rec.log(at(E.CANDIDATES),
+                rr.LineStrips2D([np.asarray(c.polyline, float) for c in cands],
+                                colors=[E.CANDIDATE_OK if c.admissible else E.CANDIDATE_BAD for c in cands],
+                                labels=[f"{c.id}{'' if c.admissible else ' (inadmissible)'}" for c in cands],
+                                radii=_ui(E.LINE_PT)),
+                static=static)
     if plan.chosen is not None:
         chosen = cands[plan.chosen]
         rec.log(at(E.CHOSEN), rr.LineStrips2D([np.asarray(chosen.polyline, float)], colors=[E.CHOSEN_ROUTE],

@@ -101,6 +101,9 @@ def test_edit_error_edit(tmp_path):
     assert rest == [("out", f"wrote {rrd.name}")], rest  # no second error line, no traceback
 
     _verify(rrd)
+    back = Readback(rrd)
+    for entity in (E.PEF, E.REGION, E.NETWORK_OK, E.of_task(E.CHOSEN, 0), E.of_task(E.SCHEDULE, 0), E.VIEW_TEXT):
+        assert back.chunks[entity], entity
     views = _marker_positions(rrd)
     assert len(views) == 3  # one per update; the refused version logged nothing
     assert np.allclose(views[0][0], [6.0, 12.0]) and np.allclose(views[1][0], [7.5, 12.0])
@@ -146,3 +149,12 @@ def test_refused_before_watching(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and err.startswith("pefsim: error: ") and said in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["docks.toml"]
+
+
+def test_route_colours_keep_no_fix_apart():
+    """τ = ∞ is not the colour of the worst finite τ; the ramp runs green, yellow, red up to ε_max."""
+    from sim.recording.live import tau_colors
+
+    c = tau_colors(np.array([0.0, 0.015, 0.03, 0.09, np.inf]), 0.03)
+    assert [tuple(x) for x in c] == [E.TAU_GOOD, E.TAU_MID, E.TAU_LIMIT, E.TAU_LIMIT, E.NO_FIX]
+    assert E.NO_FIX not in (E.TAU_GOOD, E.TAU_MID, E.TAU_LIMIT)
