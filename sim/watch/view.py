@@ -22,7 +22,7 @@ from scenarios import PlanningError
 from scenarios.schema import Scenario
 
 WINDOW_FRACTION = 0.6
-"""A window larger than this share of the map's cells is computed as a whole map (cheaper)."""
+"""A window larger than this share of the map's cells is computed as a whole map (little is saved there)."""
 
 
 class _Reuse(PEF):
