@@ -13,6 +13,7 @@ file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s
     sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # SweepSummary of the finished sweep
     rep = pefsim.validate(sw)                            # ValidationReport
     page = pefsim.paper("paper-report", quick=True)      # PaperPage: the paper's claims, one page
+    pefsim.watch("hall.toml", save="hall.rrd")           # live view, updated on every save (Ctrl-C ends)
 
 Every command of the ``pefsim`` program is these functions plus argument parsing and printing.
 Units are metres, seconds and radians throughout. Bad input raises :class:`PefsimError` (its
@@ -29,6 +30,9 @@ from typing import TYPE_CHECKING, Any
 from scenarios import PefsimError, Scenario
 
 if TYPE_CHECKING:
+    import threading
+    from collections.abc import Callable
+
     from planner.pef.result import PefMap
     from planner.placement.placement import PlacementResult as Placement
     from planner.plan import Plan
@@ -59,7 +63,7 @@ def __getattr__(name: str) -> Any:
 
 __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
            "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
-           "pef_map", "place", "plan", "run_episode", "sweep", "validate"]
+           "pef_map", "place", "plan", "run_episode", "sweep", "validate", "watch"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}
@@ -541,6 +545,68 @@ def paper(out: str | Path = "paper-report", *, quick: bool = False, runs: int | 
     from sim.paper.page import reproduce_page
 
     return reproduce_page(out, Options(quick=quick, runs=runs, workers=workers), only=claims, sections=sections)
+
+
+def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str | None = None,
+          on_update: Callable[..., None] | None = None, on_error: Callable[[PefsimError], None] | None = None,
+          interval: float | None = None, max_updates: int | None = None, stop: threading.Event | None = None) -> int:
+    """Show a scenario live in rerun and update the view whenever its files are saved.
+
+    The view: the PEF map and the navigation region (τ < ε_max), the markers (flat ones with
+    their facing), the route network coloured by each segment's worst τ (τ = ∞ and inadmissible
+    segments apart), every task's chosen route and its fix schedule. The files followed are
+    the scenario file and every file it reads (floor plan, map image, route graph). A version
+    that does not load or plan is reported through ``on_error`` and the last good view stays.
+
+    Parameters
+    ----------
+    scenario : str or path
+        Scenario file (a built-in name follows the library's file).
+    save : str or path, optional
+        Write the recording to this ``.rrd`` file instead of showing it.
+    connect : str, optional
+        Stream to a running viewer at this gRPC URL (``""``: rerun's default).
+        Neither: a viewer is started (``rerun`` must be on the ``PATH``).
+    on_update : callable (sim.watch.loop.Update), optional
+        Called after each update (``.line()`` is ``"updated in 0.23 s: hall.toml: ..."``).
+    on_error : callable (PefsimError), optional
+        Called with the error of a refused version of the files.
+    interval : float, optional
+        Polling period [s]; default :data:`sim.watch.loop.POLL_INTERVAL`.
+    max_updates : int, optional
+        Return after this many updates (the first view included); default run until ``stop``
+        is set or the process is interrupted (Ctrl-C: the recording is finished either way).
+    stop : threading.Event, optional
+        Return once it is set.
+
+    Returns
+    -------
+    int
+        Number of updates shown.
+
+    Raises
+    ------
+    PefsimError
+        An unknown scenario, both ``save`` and ``connect``, or an output that cannot be written
+        (before anything is watched).
+    """
+    from scenarios.load import resolve
+    from sim.recording import close
+    from sim.recording.live import log_view, open_live
+    from sim.watch.loop import POLL_INTERVAL, watch_files
+
+    path = resolve(scenario)
+    rec = open_live(path.name, save=save, connect=connect)
+
+    def show(step, view) -> None:
+        log_view(rec, step, view.scenario, view.pef_map, view.reports, view.plans, view.unplanned, view.summary())
+
+    try:
+        return watch_files(path, show, on_update=on_update, on_error=on_error,
+                           interval=POLL_INTERVAL if interval is None else interval,
+                           max_updates=max_updates, stop=stop)
+    finally:
+        close(rec)
 
 
 def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None = None,

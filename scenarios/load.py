@@ -91,7 +91,8 @@ def load(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
     # Errors name the file as the user gave it; a built-in one by its file name alone.
     shown = path.name if path.parent == LIBRARY else str(name_or_path)
-    return loads(text, source=shown, base=path.parent)
+    sc = loads(text, source=shown, base=path.parent)
+    return replace(sc, files=(path.resolve(), *sc.files))
 
 
 def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scenario:
@@ -357,6 +358,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
         docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
         placement=placement, source=source, floorplan=plan,
+        files=(*(plan.files if plan is not None else ()),
+               *((routes.file,) if routes is not None and routes.file is not None else ())),
     )
 
 

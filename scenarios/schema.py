@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
@@ -344,6 +345,9 @@ class Scenario:
     """The TOML text it was loaded from (Monte-Carlo keeps it beside the results)."""
     floorplan: FloorPlan | None = None
     """The drawing or map its obstacles and markers were read from (``[floorplan]``), if any."""
+    files: tuple[Path, ...] = field(default=(), compare=False)
+    """Every file it was read from, absolute: the scenario TOML (when loaded from a file), the floor
+    plan's files and the route graph file; ``pefsim watch`` follows them."""
 
     def marker_positions(self) -> np.ndarray:
         """Marker positions, shape (M, 2) [m], in file order."""

@@ -161,6 +161,31 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
+        return self.cells(x, y, cell_size=(size[0] / x.size, size[1] / y.size))
+
+    def cells(self, x: np.ndarray, y: np.ndarray, cell_size: tuple[float, float] | None = None) -> PefMap:
+        """Evaluate the PEF on the grid of cell centres ``x`` x ``y`` (a window of :meth:`grid`'s).
+
+        Every cell's value depends on its centre alone, so a window of a grid's centres gives
+        the grid's values there (``pefsim watch`` recomputes only where a moved marker is seen).
+
+        Parameters
+        ----------
+        x : ndarray, shape (nx,)
+            Cell-centre x coordinates [m], increasing.
+        y : ndarray, shape (ny,)
+            Cell-centre y coordinates [m], increasing.
+        cell_size : (float, float), optional
+            Recorded in the result [m]; default the spacing of ``x`` and ``y``.
+
+        Returns
+        -------
+        PefMap
+        """
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        if cell_size is None:
+            dx = float(x[1] - x[0]) if x.size > 1 else 0.0
+            cell_size = (dx, float(y[1] - y[0]) if y.size > 1 else dx)
         if self.model is PefModel.PARALLELOGRAM and self.redundancy <= 1:
             # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles), with
             # tau_1 in the same pass; r >= 2 and the other models take the general path below
@@ -170,8 +195,7 @@ class PEF:
                 float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
                 sc.marker_normals(), self.sensor.max_incidence, scenario_sight_rule(sc))
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                          cell_size=(size[0] / x.size, size[1] / y.size), redundancy=self.redundancy,
-                          tau_plain=tau_plain)
+                          cell_size=cell_size, redundancy=self.redundancy, tau_plain=tau_plain)
         vis, free = scenario_visible_grid(self.scenario, x, y)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
@@ -181,10 +205,9 @@ class PEF:
                 t, b = self._kernel_grid(x, y, v.reshape(v.shape[0], y.size, x.size))
                 return PefResult(tau=t.ravel(), best=b.reshape(y.size * x.size, self.k))
         r = self._redundant(evaluate, vis.reshape(vis.shape[0], y.size * x.size))
-        size = self.scenario.workspace.size
         shape = (y.size, x.size)
         return PefMap(x=x, y=y, tau=r.tau.reshape(shape), best=r.best.reshape(*shape, self.k), free=free,
-                      model=self.model, cell_size=(size[0] / x.size, size[1] / y.size),
+                      model=self.model, cell_size=cell_size,
                       redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape))
 
     def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:

@@ -85,7 +85,7 @@ def read(t: Table, base: Path | None) -> tuple[FloorPlan, FloorPlanData]:
                         wall_thickness=wall, simplify=simplify, where=where, shown=shown)
     plan = FloorPlan(file=path, kind=kind, units=data.units, unit_factor=data.unit_factor,
                      obstacle_layers=layers, marker_layer=marker_layer, wall_thickness=wall,
-                     simplify=data.simplify, extent=data.extent)
+                     simplify=data.simplify, extent=data.extent, files=(path, *data.images))
     return plan, data
 
 

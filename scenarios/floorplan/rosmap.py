@@ -274,4 +274,4 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     if not all(math.isfinite(v) for v in extent):
         t.fail(t.key("origin"), "expected a finite map extent", list(origin))
     return FloorPlanData(obstacles=obstacles, markers=[], extent=extent, unit_factor=1.0, units="m",
-                        simplify=tol)
+                        simplify=tol, images=(image_path.resolve(),))

@@ -79,7 +79,7 @@ def _from_file(t: Table, workspace, obstacles, radius, base_dir) -> RouteNetwork
                                               layout_key=t.key("layout"))
     net = build_network(nodes, edges, str(path), workspace=workspace, obstacles=obstacles, radius=radius,
                         known_elsewhere=elsewhere.__contains__)
-    return replace(net, layout=layout or "")
+    return replace(net, layout=layout or "", file=path.resolve())
 
 
 def _hand_written(t: Table, workspace, obstacles, radius, docks, free_point) -> RouteNetwork:
