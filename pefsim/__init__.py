@@ -11,6 +11,7 @@ file unless told where (``out=``, ``rrd=``, ``tum=``)::
     r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
     sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # a finished sweep directory
     rep = pefsim.validate(sw)                            # ValidationReport
+    ws = pefsim.worlds(3, seed=1, out="worlds")          # random honest worlds (PlannedWorld)
 
 Units are metres, seconds and radians throughout. Bad input raises :class:`PefsimError` (its
 subclasses ``ScenarioError``, ``PlanningError``, ``SimulationError``, ``OutputError``) with a
@@ -29,7 +30,7 @@ from sim.episode.types import EpisodeResult
 from sim.validation.suite import ValidationReport
 
 __all__ = ["EpisodeResult", "PefMap", "PefsimError", "Placement", "Plan", "Scenario", "ValidationReport",
-           "load", "pef_map", "place", "plan", "run_episode", "sweep", "validate"]
+           "load", "pef_map", "place", "plan", "run_episode", "sweep", "validate", "worlds"]
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -266,3 +267,54 @@ def validate(sweep_dir: str | Path, *, alpha: float = 0.01) -> ValidationReport:
     from sim.validation.suite import validate as _validate
 
     return _validate(load_sweep(sweep_dir), alpha=alpha)
+
+
+def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0) -> list:
+    """Draw random honest worlds that plan (declared sensor and robot = the simulated ones).
+
+    World i draws from ``SeedSequence(seed, spawn_key=(i,))`` alone: the same ``seed`` gives
+    the same files byte for byte, and world i does not depend on ``count``. A draw that does not
+    plan is redrawn (:mod:`planner.worlds`; what is drawn: :mod:`scenarios.worlds`).
+
+    Parameters
+    ----------
+    count : int
+        Number of worlds (>= 1).
+    seed : int
+        Root seed (>= 0).
+    out : str or path, optional
+        Write ``<name>.toml`` for each world into this directory (created if missing); nothing
+        is written without it.
+    first : int
+        Index of the first world (worlds ``first .. first + count - 1``).
+
+    Returns
+    -------
+    list of planner.worlds.PlannedWorld
+        Each with ``name``, ``text`` (the TOML with its header comment), ``scenario``,
+        ``attempts`` and ``summary``; with ``out``, ``path`` is where it was written.
+    """
+    from dataclasses import replace
+
+    from planner.worlds import plannable_world
+    from scenarios import ScenarioError
+    from scenarios.errors import output_errors
+
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ScenarioError(f"count: expected a whole number of worlds >= 1, got {count!r}")
+    for key, value in (("seed", seed), ("first", first)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ScenarioError(f"{key}: expected a whole number >= 0, got {value!r}")
+    drawn = [plannable_world(seed, i) for i in range(first, first + count)]
+    if out is None:
+        return drawn
+    folder = Path(out)
+    with output_errors(folder, "create the output directory"):
+        folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for w in drawn:
+        path = folder / f"{w.name}.toml"
+        with output_errors(path, "write the world"):
+            path.write_text(w.text, encoding="utf-8")
+        written.append(replace(w, path=path))
+    return written

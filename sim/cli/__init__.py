@@ -18,7 +18,7 @@ from typing import Any
 
 from scenarios import PefsimError, PlanningError
 
-COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "compile")
+COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "compile", "worlds")
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
