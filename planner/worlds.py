@@ -17,8 +17,8 @@ no finite error at all, the world is redrawn from the same generator.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import tomli_w
