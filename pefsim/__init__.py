@@ -14,6 +14,7 @@ file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s
     rep = pefsim.validate(sw)                            # ValidationReport
     page = pefsim.paper("paper-report", quick=True)      # PaperPage: the paper's claims, one page
     pefsim.watch("hall.toml", save="hall.rrd")           # live view, updated on every save (Ctrl-C ends)
+    ws = pefsim.worlds(3, seed=1, out="worlds")          # random honest worlds (PlannedWorld)
 
 Every command of the ``pefsim`` program is these functions plus argument parsing and printing.
 Units are metres, seconds and radians throughout. Bad input raises :class:`PefsimError` (its
@@ -63,7 +64,7 @@ def __getattr__(name: str) -> Any:
 
 __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
            "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
-           "pef_map", "place", "plan", "run_episode", "sweep", "validate", "watch"]
+           "pef_map", "place", "plan", "run_episode", "sweep", "validate", "watch", "worlds"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}
@@ -624,3 +625,54 @@ def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None =
         from sim.export.tum import make_folder
 
         make_folder(folder)
+
+
+def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0) -> list:
+    """Draw random honest worlds that plan (declared sensor and robot = the simulated ones).
+
+    World i draws from ``SeedSequence(seed, spawn_key=(i,))`` alone: the same ``seed`` gives
+    the same files byte for byte, and world i does not depend on ``count``. A draw that does not
+    plan is redrawn (:mod:`planner.worlds`; what is drawn: :mod:`scenarios.worlds`).
+
+    Parameters
+    ----------
+    count : int
+        Number of worlds (>= 1).
+    seed : int
+        Root seed (>= 0).
+    out : str or path, optional
+        Write ``<name>.toml`` for each world into this directory (created if missing); nothing
+        is written without it.
+    first : int
+        Index of the first world (worlds ``first .. first + count - 1``).
+
+    Returns
+    -------
+    list of planner.worlds.PlannedWorld
+        Each with ``name``, ``text`` (the TOML with its header comment), ``scenario``,
+        ``attempts`` and ``summary``; with ``out``, ``path`` is where it was written.
+    """
+    from dataclasses import replace
+
+    from planner.worlds import plannable_world
+    from scenarios import ScenarioError
+    from scenarios.errors import output_errors
+
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ScenarioError(f"count: expected a whole number of worlds >= 1, got {count!r}")
+    for key, value in (("seed", seed), ("first", first)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ScenarioError(f"{key}: expected a whole number >= 0, got {value!r}")
+    if out is None:
+        return [plannable_world(seed, i) for i in range(first, first + count)]
+    folder = Path(out)
+    with output_errors(folder, "create the output directory"):  # before the drawing, which takes seconds a world
+        folder.mkdir(parents=True, exist_ok=True)
+    drawn = [plannable_world(seed, i) for i in range(first, first + count)]
+    written = []
+    for w in drawn:
+        path = folder / f"{w.name}.toml"
+        with output_errors(path, "write the world"):
+            path.write_text(w.text, encoding="utf-8")
+        written.append(replace(w, path=path))
+    return written

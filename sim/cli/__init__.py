@@ -20,7 +20,7 @@ from typing import Any
 from jit import compiled
 from scenarios import PefsimError, PlanningError
 
-COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "watch")
+COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "watch", "worlds")
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
