@@ -94,7 +94,8 @@ def turn_bound(robot: RobotSpec, travelled, turned, reads=None) -> np.ndarray:
     A bearing taken earlier in a fix is turned into the frame of the last one by the
     odometry's heading change ``turned`` since; its error is ``(e_right - e_left) / b`` with
     ``e_w`` each wheel's travel error. Per wheel: less than one tick of quantisation (both
-    readings are floors), the declared systematic radius error ``|wheel_radius_error| |d_w|``,
+    readings are floors), the declared systematic radius error ``|wheel_radius_error|`` times
+    the wheel's true travel (at most its reported travel ``|d_w|`` plus a tick),
     and the random slip (std ``odometry_noise |increment|`` per read, taken as ``K_SIGMA``
     times the std of the sum over ``reads`` equal increments, like :func:`shift_bound`'s). The
     wheels' travels are ``d_w = s +- b turned / 2`` over the midpoint's path ``s``, taken as
@@ -127,7 +128,8 @@ def turn_bound(robot: RobotSpec, travelled, turned, reads=None) -> np.ndarray:
         path = max(dj, 0.0) * (h / math.sin(h) if 0.0 < h < 0.5 * math.pi else 1.0)
         x = 0.5 * b * abs(tj)                  # the wheels' travels are path +- x
         slip = K_SIGMA * robot.odometry_noise * math.sqrt((2.0 * path * path + 2.0 * x * x) / max(nj, 1.0))
-        out.append((2.0 * tick + abs(robot.wheel_radius_error) * 2.0 * max(path, x) + slip) / b)
+        e = abs(robot.wheel_radius_error)
+        out.append((2.0 * tick * (1.0 + e) + e * 2.0 * max(path, x) + slip) / b)
     return np.array(out).reshape(np.shape(travelled))
 
 
