@@ -217,7 +217,9 @@ class FixRecorder:
             turned = np.array([float(dr_end[2]) - float(d[2]) for d in p.dr_at])
             bearings = np.array(p.bearings) - turned
             # An earlier bearing is off by the odometry's turn error, and by the angle its
-            # marker's shift error subtends at the range (>= r - rho) it was taken at.
+            # marker's shift error subtends at the range (>= r - rho) it was taken at. (The
+            # shift is turned into the world frame with the filter's heading, as the ranges'
+            # are: its 3-sigma part of shift_bound is ~ d 3 sigma / r rad, ~1e-5 against xi.)
             reach = ranges - rho
             subtends = np.full(len(idx), 0.5 * math.pi)    # a shift beyond the range: no bound
             ok = reach > shift
