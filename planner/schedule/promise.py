@@ -34,6 +34,18 @@ Start lag
     realised area by more than the tolerance (a fallback fix of ``warehouse-reflectors``
     realised 1.037x its promise at the planned poses). :func:`predict` therefore promises the
     largest fault area over starts :data:`START_LAGS` after the planned one.
+
+Bearings
+    The promise counts ranges only. A fix that also measures bearings realises the same
+    annuli intersected with the heading-free regions of its bearings' pairwise differences
+    (:mod:`estimators.fault.exact`, "Robot-frame bearings"): a subset, so its diameter is at most
+    the ranges-only realised one's (up to the polygonisation: it lies in the ranges-only exact
+    set of ``rho + tolerance``; tested in ``tests/estimators/fault/test_heading_free.py``).
+    Bearings therefore never make a fix break a promise its ranges keep. What does *not* hold:
+    the heading-free set is the union over all headings of the heading-given wedges'
+    intersections, so it is larger than the intersection at a known heading (the planner's
+    ``exact``/``strips`` PEF with bearings, which assume the heading known); with two or more
+    ranges the annuli bound the fix, so the range-only promise stays the right one to keep.
 """
 
 from __future__ import annotations

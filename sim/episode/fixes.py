@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_var
+from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_var, turn_bound
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
 from sim.episode.types import FixLog
@@ -213,22 +213,29 @@ class FixRecorder:
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (the set-membership view of docs/design.md §1, applied to motion), and
         # the least-squares weights add its variance.
-        bearings, heading_margin = None, 0.0
+        shift = np.where(carried, shift_bound(self.robot, travelled, math.sqrt(heading_var)), 0.0)
+        bearings, bearing_margin = None, None
         if p.bearings:
             # Each bearing was taken at its own heading: turn it into the frame of the last one
             # by the dead-reckoned turn since, so that one heading serves all (the snapshot
-            # estimates it; the fault area's wedges take the filter's).
+            # estimates it; the fault area needs none, only the bearings' differences).
             turned = np.array([float(dr_end[2]) - float(d[2]) for d in p.dr_at])
             bearings = np.array(p.bearings) - turned
-            # the filter's heading is not exact: widen the wedges by its 3-sigma bound
-            heading_margin = 3.0 * math.sqrt(max(heading_var_now, 0.0))
+            # An earlier bearing is off by the odometry's turn error, and by the angle its
+            # marker's shift error subtends at the range (>= r - rho) it was taken at. (The
+            # shift is turned into the world frame with the filter's heading, as the ranges'
+            # are: its 3-sigma part of shift_bound is ~ d 3 sigma / r rad, ~1e-5 against xi.)
+            reach = ranges - rho
+            subtends = np.full(len(idx), 0.5 * math.pi)    # a shift beyond the range: no bound
+            ok = reach > shift
+            subtends[ok] = np.arcsin(shift[ok] / reach[ok])
+            bearing_margin = np.where(carried, turn_bound(self.robot, travelled, turned, reads_over) + subtends, 0.0)
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=self.sensor.bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
-                            heading_margin=heading_margin,
+                            bearing_margin=bearing_margin,
                             extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos),
-                            fault_margin=np.where(carried, shift_bound(self.robot, travelled, math.sqrt(heading_var)),
-                                                  0.0))
+                            fault_margin=shift)
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty

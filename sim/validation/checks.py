@@ -72,17 +72,21 @@ def containment(data: SweepData, alpha: float, rng: np.random.Generator) -> Chec
     """Check that the true position lies in the realised exact fault area at every fix.
 
     The area intersects the annuli ``|r - r_i| <= rho_i + shift bound`` (the odometry bound of
-    carrying earlier ranges to the fix time), polygonised outwards within
-    ``1e-3 * min(rho)`` (:mod:`estimators.fault.exact`). Under the bounded model a miss is
-    impossible: any miss fails (false-alarm probability 0). An empty area (inconsistent
-    measurements) counts as a miss.
+    carrying earlier ranges to the fix time) and, with bearings, the heading-free regions of
+    the robot-frame bearings' pairwise differences (bound ``xi`` each, plus for an earlier
+    bearing the odometry's turn bound and the angle its shift bound subtends; no filter
+    heading enters), polygonised outwards within ``1e-3 * min(rho)``
+    (:mod:`estimators.fault.exact`). Under the bounded model a miss is impossible: any miss
+    fails (false-alarm probability 0). An empty area (inconsistent measurements) counts as a
+    miss.
     """
     fx = data.fixes
     n = len(fx)
     miss = ~fx.contained
     k = int(miss.sum())
     empty = int(np.sum(miss & ~np.isfinite(fx.fault_diameter)))
-    detail = (f"truth inside the realised exact fault area (rho + odometry shift bound, polygon "
+    bearings = ", heading-free bearing pairs" if data.scenario.sensor.uses_bearing else ""
+    detail = (f"truth inside the realised exact fault area (rho + odometry shift bound{bearings}, polygon "
               f"tolerance {DEFAULT_TOLERANCE_FRACTION:g}*min rho); a miss is impossible under bounded noise")
     if k:
         first = int(np.flatnonzero(miss)[0])
@@ -116,7 +120,10 @@ def bound(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResul
 
     tau is the model's fault-area diameter at the true position; the least-squares point of
     two ranges lies in the (centrally symmetric) linearised area, so its error is at most
-    tau / 2 (:mod:`sim.validation.null`; the model's worst case per fix is reported).
+    tau / 2 (:mod:`sim.validation.null`; the model's worst case per fix is reported). With
+    bearings the least-squares fix estimates the heading with the position and has more rows
+    than unknowns, so it need not lie in the area: the null model's worst case (reported)
+    states how far it may go.
     """
     use, ratio = _ratios(data)
     over = int(np.sum(ratio > 1.0))

@@ -27,8 +27,11 @@ What tau means per model, and why ``error <= tau`` follows:
   like the others but not a bound (not used here).
 
 The real fix also carries each earlier range to the fix time by odometry; that shift error
-is not in this null model. It only makes observed errors larger, so it cannot make the
-tightness check fail, and the ``bound`` check states it.
+is not in this null model, nor is the odometry's error in turning an earlier bearing into the
+last one's frame. They only make observed errors larger, so they cannot make the tightness
+check fail, and the ``bound`` check states it. (The realised fault area of a fix with
+bearings uses no heading at all, :mod:`estimators.fault.exact`; this model is of the
+least-squares point, which estimates the heading.)
 """
 
 from __future__ import annotations
