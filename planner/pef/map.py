@@ -77,11 +77,16 @@ class PEF:
         Candidate factor of the ``exact`` model (see the module docstring).
     redundancy : int, optional
         r, markers that may be blocked (tau_r); default ``scenario.planning.redundancy``.
+    sight : bool
+        Count a marker only where the plan's line-of-sight rule does (:mod:`planner.pef.sight`,
+        the default); False gives the margin-free geometry of the scenario's shapes alone.
     """
 
     def __init__(self, scenario: Scenario, model: PefModel | str | None = None, k: int | None = None,
-                 exact_margin: float = EXACT_MARGIN, redundancy: int | None = None):
+                 exact_margin: float = EXACT_MARGIN, redundancy: int | None = None, sight: bool = True):
         self.scenario = scenario
+        self.sight = bool(sight)
+        self.rule = scenario_sight_rule(scenario) if self.sight else None
         self.sensor = scenario.sensor
         try:
             self.model = PefModel(model) if model is not None else scenario.planning.pef_model
@@ -121,7 +126,7 @@ class PEF:
         points : ndarray, shape (N, 2)
             Points [m]; rows all False where a point is not free.
         """
-        vis, _ = scenario_visible_points(self.scenario, _points(points))
+        vis, _ = scenario_visible_points(self.scenario, _points(points), self.sight)
         return vis.T
 
     # --- evaluation ---------------------------------------------------------------------------
@@ -141,7 +146,7 @@ class PEF:
             fallback subsets.
         """
         pts = _points(points)
-        vis, _ = scenario_visible_points(self.scenario, pts)
+        vis, _ = scenario_visible_points(self.scenario, pts, self.sight)
         px, py = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
         return self._redundant(lambda v: self._evaluate(px, py, v), vis)
 
@@ -193,10 +198,10 @@ class PEF:
             tau, best, free, tau_plain = parallelogram_grid(
                 x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range, sc.workspace.bounds,
                 float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
-                sc.marker_normals(), self.sensor.max_incidence, scenario_sight_rule(sc))
+                sc.marker_normals(), self.sensor.max_incidence, self.rule)
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
                           cell_size=cell_size, redundancy=self.redundancy, tau_plain=tau_plain)
-        vis, free = scenario_visible_grid(self.scenario, x, y)
+        vis, free = scenario_visible_grid(self.scenario, x, y, self.sight)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
             evaluate = lambda v: self._evaluate(px, py, v)  # noqa: E731
@@ -241,7 +246,7 @@ class PEF:
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
                                      sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
-                                     scenario_sight_rule(sc), bodies=self.markers)
+                                     self.rule, bodies=self.markers)
         local = np.arange(self.k, dtype=np.int64)
         out = np.empty((sub.shape[0], pts.shape[0]))
         px, py = pts[:, 0].copy(), pts[:, 1].copy()

@@ -626,24 +626,29 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
     return vis, free
 
 
-def scenario_visible_points(scenario: Scenario, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def scenario_visible_points(scenario: Scenario, points: np.ndarray,
+                            sight: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """:func:`visible_points` for a scenario's markers (their kinds too), obstacles and declared sensor.
 
-    Returns ``vis`` (M, N) and ``free`` (N,).
+    With ``sight`` False the margin-free geometry (no :func:`scenario_sight_rule`): what the
+    drawing alone says. Returns ``vis`` (M, N) and ``free`` (N,).
     """
     return visible_points(points, scenario.marker_positions(), scenario.obstacle_pieces(),
                           scenario.sensor.max_range, scenario.workspace.bounds, scenario.marker_normals(),
-                          scenario.sensor.max_incidence, scenario_sight_rule(scenario))
+                          scenario.sensor.max_incidence, scenario_sight_rule(scenario) if sight else None)
 
 
-def scenario_visible_grid(scenario: Scenario, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def scenario_visible_grid(scenario: Scenario, x: np.ndarray, y: np.ndarray,
+                          sight: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """:func:`visible_grid` for a scenario's markers (their kinds too), obstacles and declared sensor.
+
+    ``sight`` as in :func:`scenario_visible_points`.
 
     Returns ``vis`` (M, ny, nx) and ``free`` (ny, nx).
     """
     return visible_grid(x, y, scenario.marker_positions(), scenario.obstacle_pieces(),
                         scenario.sensor.max_range, scenario.workspace.bounds, scenario.marker_normals(),
-                        scenario.sensor.max_incidence, scenario_sight_rule(scenario))
+                        scenario.sensor.max_incidence, scenario_sight_rule(scenario) if sight else None)
 
 
 def scenario_sight_rule(scenario: Scenario) -> SightRule:

@@ -70,9 +70,13 @@ class Sure:
 
 
 def planner_view(sc):
-    """Return the PEF map and the planner's visibility on its grid, vis (M, ny, nx)."""
-    pm = PEF(sc).grid()
-    vis, free = scenario_visible_grid(sc, pm.x, pm.y)
+    """Return the PEF map and the planner's visibility on its grid, vis (M, ny, nx).
+
+    Without the plan's line-of-sight margin (``sight=False``): the geometry read from the
+    drawing or map is what is compared with the raw file.
+    """
+    pm = PEF(sc, sight=False).grid()
+    vis, free = scenario_visible_grid(sc, pm.x, pm.y, sight=False)
     assert np.array_equal(free, pm.free)
     return pm, vis
 

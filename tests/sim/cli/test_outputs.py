@@ -114,17 +114,26 @@ def test_validate_from_a_sweep_being_written_says_so(capsys, tmp_path):
 @pytest.fixture(scope="module")
 def hall_plan() -> str:
     """``pefsim plan hall``'s text (a module-scoped fixture cannot use capsys)."""
+    return _plan_text("hall")
+
+
+def _plan_text(name: str) -> str:
     import contextlib
     import io
 
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        assert cli.main(["plan", "hall"]) == 0
+        assert cli.main(["plan", name]) == 0
     return buf.getvalue()
 
 
-def test_plan_counts_every_fix_it_slows_down(hall_plan):
-    """On hall no fix is slowed for its own promise, but a stretch is (1.6 s): its fixes count."""
+def test_plan_counts_every_fix_it_slows_down():
+    """The fixes slowed down and their time are those of the chosen route's slow column.
+
+    ``paper-two-markers`` slows its route down (the hall, where whole stretches were slowed,
+    no longer is under the line-of-sight rule).
+    """
+    hall_plan = _plan_text("paper-two-markers")
     chosen = next(line for line in hall_plan.splitlines() if "CHOSEN" in line)
     slow_column = float(chosen.split()[6])
     m = re.search(r"; (\d+) fixes slowed down \(\+([\d.]+) s\)", hall_plan)

@@ -124,4 +124,4 @@ def test_cli_prints_what_the_library_returns(capsys):
     code, out, _ = run_cli(capsys, "place", "paper-two-markers", "--json", "--time-limit", "20")
     res = pefsim.place("paper-two-markers", time_limit=20.0)
     assert code == 0 and json.loads(out) == json.loads(json.dumps(res.summary()))
-    assert res.target == scenarios.load("paper-two-markers").planning.eps_max and res.unplanned == ()
+    assert res.target <= scenarios.load("paper-two-markers").planning.eps_max and res.unplanned == ()
