@@ -70,10 +70,8 @@ FIX_TABLE_DEFECT = pytest.mark.xfail(strict=True, reason=(
     "corridor-gaussian 129 of 131)"))
 PROMISE_DEFECT = pytest.mark.xfail(strict=True, reason=(
     "issue 23 item 2 (branch promise): the promise is computed at the planned poses with an untuned "
-    "PROMISE_TOLERANCE = 2 %; fixes through the U-turn's and the comb's 90-degree corners realise up to "
-    "1.04 x it"))
-PROMISE_WORLDS = [pytest.param(0, id=KINDS[0], marks=PROMISE_DEFECT), WORLDS[1],
-                  pytest.param(2, id=KINDS[2], marks=PROMISE_DEFECT)]
+    "PROMISE_TOLERANCE = 2 %; fixes through the comb's 90-degree corners realise more than it"))
+PROMISE_WORLDS = [WORLDS[0], WORLDS[1], pytest.param(2, id=KINDS[2], marks=PROMISE_DEFECT)]
 
 
 def _results(drawn, episodes, i):
