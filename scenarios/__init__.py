@@ -15,6 +15,7 @@ from scenarios.obstacles import ConvexPieces
 from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.schema import (
     Dock,
+    FleetRobot,
     Marker,
     MarkerKind,
     MonteCarloSpec,
@@ -32,7 +33,7 @@ from scenarios.schema import (
 )
 
 __all__ = [
-    "ConvexPieces", "Dock", "Marker", "MarkerKind", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError",
+    "ConvexPieces", "Dock", "FleetRobot", "Marker", "MarkerKind", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError",
     "PefModel",
     "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteEdge", "RouteNetwork",
     "Scenario", "ScenarioError", "SensorSpec", "SimulationError", "Task", "Weights", "Workspace",

@@ -70,3 +70,12 @@ def nesting_depth(text: str) -> int:
     step[(codes == ord("]")) | (codes == ord("}"))] = -1
     return int(np.cumsum(step).max(initial=0))
 
+
+MAX_HEIGHT = 20.0
+"""Tallest robot (``robot.height``) and highest reflector (``[[markers]] height``) [m]: a hall's
+roof; anything higher is a unit mistake (millimetres)."""
+MAX_ROBOTS = 64
+"""Most robots of a fleet (``[[robots]]``): every physics step steps each of them, and zone
+control checks each robot's path against every other's (quadratic in the count)."""
+MAX_ROBOT_TASKS = 1000
+"""Most tasks one robot of a fleet drives (``[[robots]] tasks``): each is planned on its own."""

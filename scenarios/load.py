@@ -17,9 +17,12 @@ from scenarios.errors import ScenarioError
 from scenarios.fields import Table, show_path
 from scenarios.limits import (
     MAX_GRID_CELLS,
+    MAX_HEIGHT,
     MAX_NESTING,
     MAX_PATH_SAMPLES,
     MAX_PEF_PASSES,
+    MAX_ROBOT_TASKS,
+    MAX_ROBOTS,
     MAX_RUNS,
     MIN_GRID_CELLS,
     SAMPLES_PER_FIX,
@@ -29,6 +32,7 @@ from scenarios.obstacle_table import read_obstacle
 from scenarios.routegraph import place_node_docks, portable_routes_text, read_node_dock, read_routes
 from scenarios.schema import (
     Dock,
+    FleetRobot,
     Marker,
     MarkerKind,
     MonteCarloSpec,
@@ -154,8 +158,65 @@ def _robot(t: Table, base: RobotSpec) -> RobotSpec:
         turn_slip=t.number("turn_slip", base.turn_slip, low=-0.5, high=0.5),
         mass=t.number("mass", base.mass, high=1e6, **pos),
         max_wheel_torque=t.number("max_wheel_torque", base.max_wheel_torque, high=1e6, **pos),
+        height=t.number("height", base.height, high=MAX_HEIGHT, **pos),
     )
+    # The laser sits on top of the body: below the wheels' top it would look through them.
+    wheels = 2.0 * spec.wheel_radius * (1.0 + abs(spec.wheel_radius_error))
+    if spec.height <= wheels:
+        t.fail(t.key("height"), f"expected a body taller than its wheels ({wheels:.3g} m: the laser sits on top)",
+               spec.height)
     return spec
+
+
+#: Keys of a ``[[robots]]`` table besides the robot keys it may override.
+_FLEET_KEYS = ("name", "tasks", "start_time", "actual")
+
+
+def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[Task], workspace: Workspace,
+            fix_rate_hz: float) -> tuple[FleetRobot, ...]:
+    """Read the ``[[robots]]`` tables: a fleet in one world (empty: one robot, as without them).
+
+    Each table names the robot, the tasks it drives in order (indices into ``[[tasks]]``, each
+    starting at the dock the previous one ended at), its start time, and overrides any key of
+    ``[robot]`` (and, in its ``actual`` table, of the simulated robot).
+    """
+    tables = root.array_of_tables("robots")
+    if len(tables) > MAX_ROBOTS:
+        root.fail(root.key("robots"), f"expected at most {MAX_ROBOTS} robots", f"{len(tables)} tables")
+    fleet: list[FleetRobot] = []
+    for t in tables:
+        name = t.string("name")
+        if not name:
+            t.fail(t.key("name"), "expected a non-empty robot name", name)
+        if any(f.name == name for f in fleet):
+            t.fail(t.key("name"), "expected a unique robot name", name)
+        idx = t.raw("tasks")
+        if (not isinstance(idx, list) or not idx or len(idx) > MAX_ROBOT_TASKS
+                or any(isinstance(i, bool) or not isinstance(i, int) for i in idx)):
+            t.fail(t.key("tasks"), f"expected a non-empty list of at most {MAX_ROBOT_TASKS} task indices", idx)
+        for j, i in enumerate(idx):
+            if not 0 <= i < len(tasks):
+                t.fail(f"{t.key('tasks')}[{j}]", f"expected a task index in 0..{len(tasks) - 1} "
+                       f"(the scenario has {len(tasks)} [[tasks]])", i)
+            if j and tasks[i].start != tasks[idx[j - 1]].goal:
+                t.fail(f"{t.key('tasks')}[{j}]", f"expected a task starting at dock {tasks[idx[j - 1]].goal!r} "
+                       f"where task {idx[j - 1]} ends (task {i} starts at {tasks[i].start!r})", i)
+        start_time = t.number("start_time", 0.0, low=0.0, high=1e6)
+        declared = _robot(t, robot)
+        actual = _robot(t, robot_actual)
+        if t.has("actual"):
+            a_t = t.table("actual")
+            actual = _robot(a_t, actual)
+            a_t.done()
+            _check_path_samples(a_t, actual, workspace, fix_rate_hz)
+        _check_path_samples(t, declared, workspace, fix_rate_hz)
+        for key in t.data:
+            if key not in _FLEET_KEYS and key not in t.used:
+                t.fail(t.key(key), "unknown key (a [[robots]] table takes name, tasks, start_time, actual "
+                       "and [robot] keys)", t.data[key])
+        t.done()
+        fleet.append(FleetRobot(name, tuple(int(i) for i in idx), start_time, declared, actual))
+    return tuple(fleet)
 
 
 def _planning(t: Table) -> PlanningSpec:
@@ -255,7 +316,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         kind = MarkerKind(t.string("kind", MarkerKind.POST.value, choices=tuple(k.value for k in MarkerKind)))
         if kind is MarkerKind.FLAT and facing is None:
             t.fail(t.key("facing_deg"), "expected the normal's direction in degrees for a flat marker (missing)")
-        markers.append(Marker(mid, pos, None if facing is None else math.radians(facing), kind))
+        height = t.number("height", None, low=0.0, low_open=True, high=MAX_HEIGHT) if t.has("height") else None
+        markers.append(Marker(mid, pos, None if facing is None else math.radians(facing), kind, height))
         t.done()
 
     s_t = root.table("sensor")
@@ -326,6 +388,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         tasks.append(Task(a, b))
         t.done()
 
+    robots = _robots(root, robot, robot_actual, tasks, workspace, sensor.fix_rate_hz)
+
     mc_t = root.table("montecarlo", {})
     montecarlo = MonteCarloSpec(
         runs=mc_t.integer("runs", MonteCarloSpec().runs, low=1, high=MAX_RUNS),
@@ -357,7 +421,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         obstacles=tuple(obstacles), markers=tuple(markers), sensor=sensor,
         sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
         docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
-        placement=placement, source=source, floorplan=plan,
+        placement=placement, source=source, floorplan=plan, robots=robots,
         files=(*(plan.files if plan is not None else ()),
                *((routes.file,) if routes is not None and routes.file is not None else ())),
     )

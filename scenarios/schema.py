@@ -108,6 +108,10 @@ class Marker:
     position: tuple[float, float]
     facing: float | None = None
     kind: MarkerKind = MarkerKind.POST
+    height: float | None = None
+    """Height of the reflector's centre above the floor [m]; None: above every robot, so that
+    no robot ever hides it (a fleet's robots block only the lines of sight to reflectors mounted
+    lower than they are tall, see :attr:`RobotSpec.height`)."""
 
     @property
     def normal(self) -> tuple[float, float]:
@@ -215,6 +219,12 @@ class RobotSpec:
         Chassis mass [kg].
     max_wheel_torque : float
         Torque limit of each wheel motor [N m].
+    height : float
+        Height of the robot's body above the floor [m]; its laser sits on top. 0.5 m is the
+        height the laser had in every episode before robots had a height (and a usual height of
+        an AGV's top-mounted reflector laser, which must look over loads and people's legs).
+        In a fleet a robot's body (a cylinder of ``radius`` and ``height``) blocks the other
+        robots' lines of sight to reflectors mounted below its top.
     """
 
     wheel_radius: float = 0.1
@@ -228,6 +238,7 @@ class RobotSpec:
     turn_slip: float = 0.0
     mass: float = 20.0
     max_wheel_torque: float = 20.0
+    height: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -292,6 +303,34 @@ class Task:
 
 
 @dataclass(frozen=True)
+class FleetRobot:
+    """One robot of a fleet (a ``[[robots]]`` table).
+
+    Attributes
+    ----------
+    name : str
+        Unique name of the robot.
+    tasks : tuple of int
+        Indices into ``Scenario.tasks`` driven one after another; each task starts at the dock
+        the previous one ended at.
+    start_time : float
+        When the robot leaves its first dock [s]; it stands on that dock until then.
+    robot : RobotSpec
+        The declared robot: the scenario's ``[robot]`` with this robot's overrides applied
+        (planner and filter use it).
+    robot_actual : RobotSpec
+        The simulated robot: the scenario's ``[robot.actual]`` with this robot's overrides, then
+        its own ``actual`` overrides, applied.
+    """
+
+    name: str
+    tasks: tuple[int, ...]
+    start_time: float
+    robot: RobotSpec
+    robot_actual: RobotSpec
+
+
+@dataclass(frozen=True)
 class PlacementSpec:
     """Marker placement inputs: explicit candidate sites, or sampling along walls/obstacles."""
 
@@ -348,6 +387,18 @@ class Scenario:
     files: tuple[Path, ...] = field(default=(), compare=False)
     """Every file it was read from, absolute: the scenario TOML (when loaded from a file), the floor
     plan's files and the route graph file; ``pefsim watch`` follows them."""
+    robots: tuple[FleetRobot, ...] = ()
+    """The fleet (``[[robots]]``), empty for a scenario of one robot (``robot``, driving the tasks
+    one episode at a time, as without a fleet)."""
+
+    @property
+    def is_fleet(self) -> bool:
+        """Tell whether the scenario has ``[[robots]]`` (a fleet in one world)."""
+        return bool(self.robots)
+
+    def marker_heights(self) -> np.ndarray:
+        """Reflector centre heights [m], shape (M,), NaN where a marker has none (above every robot)."""
+        return np.array([math.nan if m.height is None else m.height for m in self.markers], dtype=float)
 
     def marker_positions(self) -> np.ndarray:
         """Marker positions, shape (M, 2) [m], in file order."""

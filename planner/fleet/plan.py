@@ -1,0 +1,144 @@
+"""Planning a fleet: each robot's tasks with the single-robot planner, chained, and the zone timeline.
+
+:func:`plan_fleet` plans every task of every robot of a scenario's ``[[robots]]`` with
+:func:`planner.plan.plan_task` (the robot's own declared spec, so a robot that overrides
+``radius`` or ``max_speed`` gets its own clearance and speeds), chains each robot's plans into
+one path (task i+1 starts at the dock task i ended at, checked by the loader) and predicts,
+through zone control (:mod:`planner.fleet.zones`), when each robot is where, waits included.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from planner.fleet.zones import Timeline, ZoneControl, predict_timeline
+from planner.plan import Plan, plan_task
+from planner.schedule.pathtime import Kinematics
+from scenarios.errors import PlanningError
+from scenarios.schema import RobotSpec, Scenario
+
+
+@dataclass
+class FleetRobotPlan:
+    """One robot's plans.
+
+    Attributes
+    ----------
+    name : str
+    plans : list of Plan
+        One per task, in driving order.
+    start_time : float
+        When it leaves its first dock [s].
+    robot : RobotSpec
+        Its declared spec (what it was planned with).
+    offsets : ndarray, shape (len(plans),)
+        Arc length along the whole path where each task's plan begins [m].
+    path : ndarray, shape (N, 2)
+        The whole path: the plans' paths chained (each junction dock once) [m].
+    s : ndarray, shape (N,)
+        Arc length along ``path`` [m].
+    speed : ndarray, shape (N,)
+        Planned speed along ``path`` [m/s] (0 at each task's goal).
+    timeline : Timeline
+        Predicted drive in space and time under zone control.
+    """
+
+    name: str
+    plans: list[Plan]
+    start_time: float
+    robot: RobotSpec
+    offsets: np.ndarray
+    path: np.ndarray
+    s: np.ndarray
+    speed: np.ndarray
+    timeline: Timeline | None = None
+
+
+@dataclass
+class FleetPlan:
+    """A fleet's plans: ``robots[i]`` for ``scenario.robots[i]``; ``traffic``: the flag it was planned with."""
+
+    robots: list[FleetRobotPlan]
+    traffic: bool
+
+
+def chain(plans: list[Plan]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Chain plans driven one after another into one path.
+
+    Returns
+    -------
+    path : ndarray, shape (N, 2)
+    s : ndarray, shape (N,)
+    speed : ndarray, shape (N,)
+    offsets : ndarray, shape (len(plans),)
+        Arc length where each plan begins [m].
+    """
+    pts, spd, offsets = [], [], []
+    total = 0.0
+    for j, p in enumerate(plans):
+        offsets.append(total)
+        first = 0 if j == 0 else 1      # the junction dock is the previous plan's last point
+        pts.append(np.asarray(p.path, float)[first:])
+        spd.append(np.asarray(p.speed, float)[first:])
+        total += float(p.s[-1])
+    path = np.concatenate(pts)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    return path, s, np.concatenate(spd), np.array(offsets)
+
+
+def zones_of(fleet: list[FleetRobotPlan]) -> ZoneControl:
+    """Fresh zone control of the fleet's whole paths."""
+    return ZoneControl([r.path for r in fleet], [r.robot.radius for r in fleet], [r.name for r in fleet])
+
+
+def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPlan:
+    """Plan every robot of ``scenario.robots``: its tasks in order, and the fleet's timeline.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A fleet scenario (``[[robots]]``).
+    traffic : bool
+        Plan with the other robots in mind (the traffic-aware measurement schedule, predicted
+        blocking); False plans each robot as if it drove alone. At present both plan each robot
+        alone: the traffic-aware schedule is to come, and this flag is its switch.
+    pef : planner.pef.map.PEF, optional
+        The PEF of the scenario (default built once here); robots whose declared spec differs
+        from ``scenario.robot`` get their own.
+
+    Returns
+    -------
+    FleetPlan
+
+    Raises
+    ------
+    PlanningError
+        Not a fleet scenario, a task without an admissible route, or docks that zone control
+        refuses (a robot's start or final dock on another robot's path).
+    """
+    if not scenario.robots:
+        raise PlanningError(f"scenario {scenario.name!r} has no [[robots]]: plan its tasks one by one")
+    from planner.pef.map import PEF
+    if pef is None:
+        pef = PEF(scenario)
+    pefs = {scenario.robot: pef}
+    fleet = []
+    for fr in scenario.robots:
+        own = replace(scenario, robot=fr.robot, robot_actual=fr.robot_actual)
+        if fr.robot not in pefs:
+            pefs[fr.robot] = PEF(own)
+        plans = []
+        for i in fr.tasks:
+            try:
+                plans.append(plan_task(own, i, pef=pefs[fr.robot]))
+            except PlanningError as exc:
+                raise PlanningError(f"robot {fr.name!r}, task {i}: {exc}") from None
+        path, s, speed, offsets = chain(plans)
+        fleet.append(FleetRobotPlan(fr.name, plans, fr.start_time, fr.robot, offsets, path, s, speed))
+    timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
+                                 [r.start_time for r in fleet])
+    for r, tl in zip(fleet, timelines, strict=True):
+        r.timeline = tl
+    return FleetPlan(robots=fleet, traffic=traffic)

@@ -1,0 +1,387 @@
+"""Zone control of a fleet: robots reserve the floor ahead of them and wait where they block nobody.
+
+What AGV master controls do on a route network (reserve the nodes and segments ahead, wait at a
+node while the next one is held), for any planned path, on or off a network. Pure logic: no
+physics. The planner runs it offline to predict when each robot is where
+(:func:`predict_timeline`); the simulation asks it every control step whether a robot may go on
+(:meth:`ZoneControl.request`) and tells it what the robot has left behind
+(:meth:`ZoneControl.release`).
+
+**Zones.** The floor is cut into square cells (the zones) of side ``cell``. A robot standing at a
+sample of its path occupies every cell that meets the disc of radius ``radius + margin`` around
+the sample (its *footprint*). Two robots whose footprints share no cell are apart by at least
+``r_1 + r_2 + 2 margin`` (centre to centre): with the robots within ``margin`` of their path
+samples (tracking error, the spacing of the samples, overshoot where they stop), their bodies
+do not touch. A cell is held by at most one robot.
+
+**Reservations.** Robot i holds the cells of its path samples ``lo_i .. end_i``: from where it is
+to where it may drive. It releases the cells of the samples it has passed (a cell stays held
+while a later held sample still covers it). It may drive up to sample ``end_i``; to go further
+it reserves the stretch ``end_i + 1 .. k`` where k is its next *stop*, atomically: all its cells
+or none. A stop is the path's last sample (its final dock) or a *safe* sample: one whose
+footprint meets no cell of any other robot's *remaining* path (samples ``lo_j ..`` to the end,
+the cells robot j will still need). On a route network the stops are where a robot's path
+leaves the shared stretches: before a junction or an aisle another robot will use, the "wait at
+a node" of AGV practice, with the node being the last point of the robot's path clear of the
+others.
+
+**The rule cannot deadlock.** Each robot's first and last samples (its start and final docks)
+must meet no cell of any other robot's path (:class:`ZoneControl` refuses otherwise: a robot
+parked on another's path blocks it forever, whatever the rule). Then:
+
+1. A robot only ever waits at the end of its reservation, which is a stop: its start, its
+   final dock, or a sample that was safe when it was reserved. Other robots' remaining paths only
+   shrink as they advance, so a safe sample stays safe: a waiting robot holds only cells no
+   other robot will ever need again. **A waiting robot blocks nobody.**
+2. A robot that is not waiting holds every cell up to its next stop, so it reaches that stop
+   without needing anything else, in finite time (it drives).
+3. So a refused request waits only for cells held by driving robots, which release them when
+   they pass (they stop, by 1, where they do not hold any of them). A cycle of robots each
+   waiting for the next cannot form, since the robots a waiting robot waits for are driving.
+   Each grant moves a robot to a later stop, and each path has finitely many: every robot
+   reaches its final dock (no livelock either: the robot refused for a cell gets it once its
+   holder has passed, unless another robot got it first, which can happen only finitely often).
+
+The adversarial cases (head-on on one segment, three robots in a cycle, a crossing) are in
+``tests/planner/fleet/test_zones.py``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.schedule.pathtime import Kinematics
+from scenarios.errors import PlanningError
+
+#: Clearance each robot keeps beyond its radius [m]: the tracking error of the path follower
+#: (a few cm), half the path's sample spacing (5 cm at 0.1 m) and the overshoot of a stop; two
+#: robots on disjoint zones are apart by at least twice this between their bodies.
+DEFAULT_MARGIN = 0.15
+#: Side of a zone cell [m]: fine against the footprint (a 0.55 m disc covers ~25 cells), so the
+#: zones hold little floor beyond the footprints.
+DEFAULT_CELL = 0.25
+#: Most cells of a zone grid: a grid over a very large floor gets coarser cells instead.
+MAX_CELLS = 4_000_000
+
+
+@dataclass(frozen=True)
+class ZoneGrid:
+    """The square cells the floor is cut into: lower-left corner ``origin`` [m], side ``cell`` [m], ``shape`` (nx, ny)."""
+
+    origin: tuple[float, float]
+    cell: float
+    shape: tuple[int, int]
+
+    @property
+    def size(self) -> int:
+        return self.shape[0] * self.shape[1]
+
+    def boxes(self, ids: np.ndarray) -> np.ndarray:
+        """Cells ``ids`` (flat indices) as boxes (x0, y0, x1, y1) [m], shape (n, 4)."""
+        ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+        ix, iy = np.divmod(ids, self.shape[1])
+        x0 = self.origin[0] + ix * self.cell
+        y0 = self.origin[1] + iy * self.cell
+        return np.stack([x0, y0, x0 + self.cell, y0 + self.cell], axis=1)
+
+
+def make_grid(paths: Sequence[np.ndarray], reach: float, cell: float = DEFAULT_CELL) -> ZoneGrid:
+    """A grid covering every path point widened by ``reach`` [m] (cells at least ``cell`` [m])."""
+    pts = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in paths])
+    lo = pts.min(axis=0) - reach - cell
+    hi = pts.max(axis=0) + reach + cell
+    extent = hi - lo
+    cell = max(cell, math.sqrt(float(extent[0] * extent[1]) / MAX_CELLS))
+    shape = tuple(int(n) for n in np.ceil(extent / cell).astype(int) + 1)
+    return ZoneGrid((float(lo[0]), float(lo[1])), float(cell), (shape[0], shape[1]))
+
+
+def footprints(grid: ZoneGrid, xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """The cells meeting the disc of radius ``reach`` [m] around each point of ``xy`` (N, 2).
+
+    Returns
+    -------
+    indptr : ndarray of int, shape (N + 1,)
+    ids : ndarray of int
+        Point n's cells (flat indices) are ``ids[indptr[n]:indptr[n + 1]]``; never empty.
+    """
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    c = grid.cell
+    base = np.floor((xy - np.asarray(grid.origin)) / c).astype(np.int64)      # (N, 2)
+    w = int(math.ceil(reach / c)) + 1
+    d = np.arange(-w, w + 1)
+    dx, dy = (a.reshape(-1) for a in np.meshgrid(d, d, indexing="ij"))         # (K,)
+    ix = base[:, :1] + dx                                                       # (N, K)
+    iy = base[:, 1:] + dy
+    x0 = grid.origin[0] + ix * c
+    y0 = grid.origin[1] + iy * c
+    # distance from the point to each cell's square
+    ex = np.maximum(np.maximum(x0 - xy[:, :1], xy[:, :1] - (x0 + c)), 0.0)
+    ey = np.maximum(np.maximum(y0 - xy[:, 1:], xy[:, 1:] - (y0 + c)), 0.0)
+    meet = (ex * ex + ey * ey <= reach * reach) & (ix >= 0) & (iy >= 0) & (ix < grid.shape[0]) & (iy < grid.shape[1])
+    ids = (ix * grid.shape[1] + iy)[meet]
+    indptr = np.concatenate([[0], np.cumsum(meet.sum(axis=1))])
+    return indptr, ids
+
+
+class ZoneControl:
+    """Reservations of a fleet's paths (module docstring: zones, the rule, why it cannot deadlock).
+
+    Parameters
+    ----------
+    paths : sequence of ndarray, shape (N_i, 2)
+        Each robot's whole path (all its tasks, in order), points at most a few cm apart [m].
+    radii : sequence of float
+        Each robot's footprint radius [m].
+    names : sequence of str, optional
+        Robot names for messages (default ``robot 0``, ...).
+    margin : float
+        Clearance each robot keeps beyond its radius [m].
+    cell : float
+        Side of a zone cell [m].
+
+    Raises
+    ------
+    PlanningError
+        A robot's start or final dock lies within the clearance of another robot's path.
+    """
+
+    def __init__(self, paths: Sequence[np.ndarray], radii: Sequence[float], names: Sequence[str] | None = None,
+                 *, margin: float = DEFAULT_MARGIN, cell: float = DEFAULT_CELL) -> None:
+        self.paths = [np.asarray(p, float).reshape(-1, 2) for p in paths]
+        n = len(self.paths)
+        if len(radii) != n or any(len(p) == 0 for p in self.paths):
+            raise PlanningError(f"zone control: expected one non-empty path and one radius per robot "
+                                f"({n} paths, {len(radii)} radii)")
+        self.names = list(names) if names is not None else [f"robot {i}" for i in range(n)]
+        self.s = [np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))]) for p in self.paths]
+        self.reach = [float(r) + margin for r in radii]
+        self.grid = make_grid(self.paths, max(self.reach), cell)
+        self._feet = [footprints(self.grid, p, r) for p, r in zip(self.paths, self.reach, strict=True)]
+        g = self.grid.size
+        # last[j][c]: the last sample of robot j whose footprint covers cell c (-1: none)
+        self._last = []
+        for (indptr, ids), p in zip(self._feet, self.paths, strict=True):
+            last = np.full(g, -1, dtype=np.int64)
+            sample = np.repeat(np.arange(len(p)), np.diff(indptr))
+            np.maximum.at(last, ids, sample)
+            self._last.append(last)
+        # need[i][j, k]: the last sample of robot j that shares a cell with robot i's sample k
+        self._need = []
+        for i, (indptr, ids) in enumerate(self._feet):
+            rows = np.full((n, len(self.paths[i])), -1, dtype=np.int64)
+            for j in range(n):
+                if j != i:
+                    rows[j] = np.maximum.reduceat(self._last[j][ids], indptr[:-1])
+            self._need.append(rows)
+        self._check_docks()
+        self.owner = np.full(g, -1, dtype=np.int64)
+        self._count = [np.zeros(g, dtype=np.int32) for _ in range(n)]
+        self.lo = [0] * n
+        self.end = [0] * n
+        for i in range(n):
+            self._take(i, 0, 1)
+
+    # -- the rule ---------------------------------------------------------------------------
+
+    def _check_docks(self) -> None:
+        for i, need in enumerate(self._need):
+            for k, what in ((0, "start"), (len(self.paths[i]) - 1, "final dock")):
+                j = int(np.argmax(need[:, k]))
+                if need[j, k] >= 0:
+                    x, y = self.paths[i][k]
+                    raise PlanningError(
+                        f"zone control: {self.names[i]}'s {what} ({x:.2f}, {y:.2f}) lies within "
+                        f"{self.reach[i] + self.reach[j]:.2f} m of {self.names[j]}'s path: a robot standing there "
+                        f"would block the other for ever (give it a dock off the others' paths)")
+
+    def _cells(self, i: int, a: int, b: int) -> np.ndarray:
+        """Cells of robot i's samples a .. b-1."""
+        indptr, ids = self._feet[i]
+        return ids[indptr[a]:indptr[b]]
+
+    def _take(self, i: int, a: int, b: int) -> None:
+        cells = self._cells(i, a, b)
+        np.add.at(self._count[i], cells, 1)
+        self.owner[cells] = i
+
+    def safe(self, i: int, k: int | np.ndarray) -> np.ndarray | bool:
+        """Tell whether robot i's sample(s) ``k`` meet no cell of another robot's remaining path."""
+        lo = np.asarray(self.lo)
+        need = self._need[i][:, k]
+        return np.all(need < (lo[:, None] if np.ndim(k) else lo), axis=0)
+
+    def next_stop(self, i: int) -> int:
+        """Robot i's next stop after its reservation end: a safe sample, or its last one."""
+        e, last = self.end[i], len(self.paths[i]) - 1
+        if e >= last:
+            return last
+        ks = np.arange(e + 1, last)
+        ok = np.flatnonzero(self.safe(i, ks)) if len(ks) else ks
+        return int(ks[ok[0]]) if len(ok) else last
+
+    def request(self, i: int, s: float) -> bool:
+        """Extend robot i's reservation to arc length ``s`` [m] (on its path); tell whether it reaches it.
+
+        Reserves stop by stop, each stretch all or nothing; on a refusal the reservation ends
+        at the last stop granted (:meth:`reserved_to`), where the robot must wait.
+        """
+        n = len(self.paths[i])
+        target = min(int(np.searchsorted(self.s[i], s, side="left")), n - 1)
+        while self.end[i] < target:
+            k = self.next_stop(i)
+            cells = self._cells(i, self.end[i] + 1, k + 1)
+            held = self.owner[cells]
+            if np.any((held >= 0) & (held != i)):
+                return False
+            self._take(i, self.end[i] + 1, k + 1)
+            self.end[i] = k
+        return True
+
+    def release(self, i: int, s: float) -> None:
+        """Robot i is at arc length ``s`` [m]: free the cells only its passed samples cover."""
+        k = int(np.searchsorted(self.s[i], s, side="right")) - 1
+        k = min(max(k, self.lo[i]), self.end[i])
+        if k <= self.lo[i]:
+            return
+        cells = self._cells(i, self.lo[i], k)
+        np.subtract.at(self._count[i], cells, 1)
+        free = cells[self._count[i][cells] == 0]
+        self.owner[free] = -1
+        self.lo[i] = k
+
+    # -- reading ------------------------------------------------------------------------------
+
+    def reserved_to(self, i: int) -> float:
+        """Arc length up to which robot i may drive [m] (its reservation's end)."""
+        return float(self.s[i][self.end[i]])
+
+    def length(self, i: int) -> float:
+        """Length of robot i's path [m]."""
+        return float(self.s[i][-1])
+
+    def held(self, i: int) -> np.ndarray:
+        """Flat indices of the cells robot i holds, sorted."""
+        return np.flatnonzero(self.owner == i)
+
+    def point(self, i: int, s: np.ndarray | float) -> np.ndarray:
+        """Position on robot i's path at arc length(s) ``s`` [m], shape (..., 2)."""
+        p = self.paths[i]
+        return np.stack([np.interp(s, self.s[i], p[:, 0]), np.interp(s, self.s[i], p[:, 1])], axis=-1)
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """One robot's predicted drive in space and time (T samples).
+
+    Attributes
+    ----------
+    t : ndarray, shape (T,)
+        Time [s] (the fleet's clock: 0 when the first robot may start).
+    s : ndarray, shape (T,)
+        Arc length along the robot's whole path [m].
+    xy : ndarray, shape (T, 2)
+        Position [m].
+    waiting : ndarray of bool, shape (T,)
+        The robot stood waiting for a zone during the step ending at this sample.
+    wait_time : float
+        Time spent waiting for zones [s] (not counting the wait for its start time).
+    end_time : float
+        When it reaches its final dock [s].
+    """
+
+    t: np.ndarray
+    s: np.ndarray
+    xy: np.ndarray
+    waiting: np.ndarray
+    wait_time: float
+    end_time: float
+
+
+def predict_timeline(zones: ZoneControl, kinematics: Sequence[Kinematics], start_times: Sequence[float],
+                     dt: float = 0.1, max_time: float | None = None) -> list[Timeline]:
+    """Drive the fleet through ``zones`` at its planned speeds: who is where when, waits included.
+
+    Each robot follows its own clock along its planned time profile (``kinematics[i]``, arc
+    length of ``zones.paths[i]`` against time) from ``start_times[i]``, asks for the zones up to
+    where the next step takes it and, refused, drives to its reservation's end and waits there
+    (its clock stands still). Robots ask in index order each step. ``zones`` is consumed.
+
+    Parameters
+    ----------
+    zones : ZoneControl
+        Fresh zone control of the fleet's paths.
+    kinematics : sequence of Kinematics
+        Arc length against time of each robot's undisturbed drive.
+    start_times : sequence of float
+        When each robot leaves its first dock [s].
+    dt : float
+        Time step [s].
+    max_time : float, optional
+        Give up after this long [s]; default 10 x (the latest start + the longest drive) + 60 s.
+
+    Returns
+    -------
+    list of Timeline
+
+    Raises
+    ------
+    PlanningError
+        No robot could move while some had not arrived (cannot happen under the rule, see the
+        module docstring), or the fleet had not arrived by ``max_time``.
+    """
+    n = len(zones.paths)
+    total = [float(k.t_v[-1]) if len(k.t_v) else 0.0 for k in kinematics]
+    if max_time is None:
+        max_time = 10.0 * (max(start_times) + max(total)) + 60.0
+    clock = [0.0] * n
+    s_now = [0.0] * n
+    done = [zones.length(i) <= 0.0 for i in range(n)]
+    rows: list[list[tuple[float, float, bool]]] = [[(0.0, 0.0, False)] for _ in range(n)]
+    waited = [0.0] * n
+    end_time = [0.0 if done[i] else math.nan for i in range(n)]
+    t = 0.0
+    while not all(done):
+        if t > max_time:
+            late = ", ".join(zones.names[i] for i in range(n) if not done[i])
+            raise PlanningError(f"zone control: {late} had not arrived after {max_time:.0f} s")
+        t_next = t + dt
+        moved = False
+        for i in range(n):
+            if done[i]:
+                continue
+            if t_next <= start_times[i]:
+                rows[i].append((t_next, 0.0, False))
+                moved = True   # waiting for its start time is progress of the clock, not a jam
+                continue
+            step = min(dt, t_next - start_times[i])
+            goal_s = float(kinematics[i].s_at(clock[i] + step))
+            if zones.request(i, goal_s):
+                s_new, c_new, wait = goal_s, clock[i] + step, 0.0
+            else:
+                s_new = max(s_now[i], min(goal_s, zones.reserved_to(i)))
+                c_new = min(clock[i] + step, max(clock[i], float(kinematics[i].t_at(s_new))))
+                wait = step - (c_new - clock[i])
+            waited[i] += wait
+            moved |= s_new > s_now[i] or c_new > clock[i]
+            s_now[i], clock[i] = s_new, c_new
+            zones.release(i, s_new)
+            rows[i].append((t_next, s_new, wait > 1e-9))
+            if c_new >= total[i] or s_new >= zones.length(i):
+                done[i] = True
+                end_time[i] = t_next - max(0.0, c_new - total[i])
+        if not moved:
+            stuck = ", ".join(f"{zones.names[i]} at s = {s_now[i]:.2f} m" for i in range(n) if not done[i])
+            raise PlanningError(f"zone control: no robot can move ({stuck})")
+        t = t_next
+    out = []
+    for i in range(n):
+        arr = np.array([(a, b) for a, b, _ in rows[i]], dtype=float).reshape(-1, 2)
+        out.append(Timeline(t=arr[:, 0], s=arr[:, 1], xy=zones.point(i, arr[:, 1]),
+                            waiting=np.array([w for _, _, w in rows[i]], dtype=bool),
+                            wait_time=float(waited[i]), end_time=float(end_time[i])))
+    return out

@@ -1,0 +1,62 @@
+"""plan_fleet: every robot's tasks planned, chained, and a timeline in which nobody meets."""
+
+from __future__ import annotations
+
+import itertools
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from planner.fleet.plan import chain, plan_fleet
+from planner.fleet.zones import DEFAULT_MARGIN
+from scenarios import PlanningError, load
+
+
+@pytest.fixture(scope="module")
+def fleet():
+    return load("warehouse-fleet"), plan_fleet(load("warehouse-fleet"))
+
+
+def test_each_robot_drives_its_tasks_from_dock_to_dock(fleet):
+    sc, fp = fleet
+    assert [r.name for r in fp.robots] == [r.name for r in sc.robots] and fp.traffic
+    for fr, rp in zip(sc.robots, fp.robots, strict=True):
+        assert [(p.start, p.goal) for p in rp.plans] == [(sc.tasks[i].start, sc.tasks[i].goal) for i in fr.tasks]
+        tl = rp.timeline
+        assert np.allclose(tl.xy[0], sc.dock(rp.plans[0].start).position)
+        assert np.allclose(tl.xy[-1], sc.dock(rp.plans[-1].goal).position, atol=1e-6)
+        assert tl.s[-1] == pytest.approx(rp.s[-1])
+        assert np.all(tl.s[tl.t <= fr.start_time] == 0.0)
+        assert np.all(np.diff(tl.s) >= 0.0)
+
+
+def test_the_predicted_fleet_keeps_its_clearance(fleet):
+    sc, fp = fleet
+    spacing = max(float(np.diff(r.s).max()) for r in fp.robots)
+    for a, b in itertools.combinations(fp.robots, 2):
+        n = max(len(a.timeline.t), len(b.timeline.t))
+        pa = np.concatenate([a.timeline.xy, np.repeat(a.timeline.xy[-1:], n - len(a.timeline.t), axis=0)])
+        pb = np.concatenate([b.timeline.xy, np.repeat(b.timeline.xy[-1:], n - len(b.timeline.t), axis=0)])
+        # disjoint footprints (radius + margin), each robot within half a sample of a held sample
+        bound = a.robot.radius + b.robot.radius + 2 * DEFAULT_MARGIN - spacing
+        assert np.hypot(*(pa - pb).T).min() >= bound
+
+
+def test_crossing_routes_make_someone_wait(fleet):
+    _, fp = fleet
+    assert max(r.timeline.wait_time for r in fp.robots) > 1.0
+
+
+def test_not_a_fleet_is_refused():
+    with pytest.raises(PlanningError, match="has no \\[\\[robots\\]\\]"):
+        plan_fleet(load("warehouse"))
+
+
+def test_chain_joins_at_the_dock_once():
+    a = SimpleNamespace(path=np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]), s=np.array([0.0, 1.0, 2.0]),
+                        speed=np.array([1.0, 1.0, 0.0]))
+    b = SimpleNamespace(path=np.array([[2.0, 0.0], [2.0, 1.0]]), s=np.array([0.0, 1.0]), speed=np.array([1.0, 0.0]))
+    path, s, speed, offsets = chain([a, b])
+    assert path.tolist() == [[0, 0], [1, 0], [2, 0], [2, 1]]
+    assert s.tolist() == [0, 1, 2, 3] and speed.tolist() == [1, 1, 0, 0] and offsets.tolist() == [0, 2]

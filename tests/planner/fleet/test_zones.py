@@ -1,0 +1,148 @@
+"""Zone control: no two robots' zones overlap, nobody deadlocks on the adversarial layouts, waits happen."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from planner.fleet.zones import DEFAULT_MARGIN, ZoneControl, predict_timeline
+from planner.schedule.pathtime import Kinematics
+from scenarios.errors import PlanningError
+
+SPACING = 0.05   # sample spacing of the test paths [m]
+RADIUS = 0.4
+
+
+def polyline(*pts: tuple[float, float]) -> np.ndarray:
+    """Points along the polyline through ``pts``, at most SPACING apart, shape (N, 2)."""
+    out = [np.asarray(pts[0], float)[None]]
+    for a, b in itertools.pairwise(np.asarray(pts, float)):
+        n = max(1, int(np.ceil(np.hypot(*(b - a)) / SPACING)))
+        out.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
+    return np.concatenate(out)
+
+
+def kinematics(path: np.ndarray, speed: float = 1.0) -> Kinematics:
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    v = np.full(len(s), speed)
+    v[-1] = 0.0
+    return Kinematics(s, v)
+
+
+def drive(paths, starts=None, cls=ZoneControl):
+    zc = cls(paths, [RADIUS] * len(paths))
+    tls = predict_timeline(zc, [kinematics(p) for p in paths], starts or [0.0] * len(paths), dt=0.05)
+    return zc, tls
+
+
+def min_distance(tls) -> float:
+    """Closest approach of any two robots over the common time samples [m]."""
+    best = np.inf
+    for a, b in itertools.combinations(tls, 2):
+        n = min(len(a.t), len(b.t))
+        d = np.hypot(*(a.xy[:n] - b.xy[:n]).T)
+        # after one arrives it stands on its final dock
+        tail = np.hypot(*((a.xy[n:] if len(a.t) > n else b.xy[n:]) - (b.xy[-1] if len(a.t) > n else a.xy[-1])).T)
+        best = min(best, d.min(), tail.min() if len(tail) else np.inf)
+    return float(best)
+
+
+# Held samples' footprints (radius + margin) are disjoint; each robot is within half a sample
+# spacing of a held sample: centres stay 2 (radius + margin) - spacing apart.
+BOUND = 2 * (RADIUS + DEFAULT_MARGIN) - SPACING
+
+# Layouts whose docks are clear of the other robots' paths; every one needs a wait.
+HEAD_ON = [polyline((0, 0), (2, 5), (18, 5), (20, 10)), polyline((20, 0), (18, 5), (2, 5), (0, 10))]
+CROSSING = [polyline((0, 5), (20, 5)), polyline((10, -5), (10, 15))]
+_T = [np.array([0.0, 0.0]), np.array([12.0, 0.0]), np.array([6.0, 10.0])]
+
+
+def _rot(v: np.ndarray, deg: float) -> np.ndarray:
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def cycle_paths() -> list[np.ndarray]:
+    """Three robots around a triangle, robot i along T_i -> T_i+1 -> T_i+2: each side is driven by
+    two robots and each robot's way is the next one's, a cycle of who-is-in-whose-way. Docks sit on
+    spurs outside the corners (start spurs turned +40 deg, final ones -40 deg from the outward
+    direction: a start and a final dock at one corner are 2.5 m x 2 sin 40 deg = 3.2 m apart)."""
+    c = np.mean(_T, axis=0)
+    paths = []
+    for i in range(3):
+        a, b, d = _T[i], _T[(i + 1) % 3], _T[(i + 2) % 3]
+        out_a, out_d = (a - c) / np.hypot(*(a - c)), (d - c) / np.hypot(*(d - c))
+        start, end = a + 2.5 * _rot(out_a, 40.0), d + 2.5 * _rot(out_d, -40.0)
+        paths.append(polyline(tuple(start), tuple(a), tuple(b), tuple(d), tuple(end)))
+    return paths
+
+
+@pytest.mark.parametrize("name,paths", [("head-on", HEAD_ON), ("crossing", CROSSING)])
+def test_two_robots_never_meet_and_one_waits(name, paths):
+    zc, tls = drive(paths)
+    assert all(tl.s[-1] == pytest.approx(zc.length(i)) for i, tl in enumerate(tls))
+    assert min_distance(tls) >= BOUND
+    assert sum(tl.wait_time for tl in tls) > 0.5, "the layouts force a wait"
+
+
+def test_three_robots_in_a_cycle_all_arrive():
+    paths = cycle_paths()
+    zc, tls = drive(paths)
+    assert all(tl.s[-1] == pytest.approx(zc.length(i)) for i, tl in enumerate(tls))
+    assert min_distance(tls) >= BOUND
+    assert sum(tl.wait_time for tl in tls) > 0.5
+
+
+def test_head_on_waits_where_it_blocks_nobody():
+    zc, tls = drive(HEAD_ON)
+    # one robot waits on its start spur (which one is a tie the time step's rounding breaks),
+    # clear of the other's path, until the other has passed the 16 m corridor at 1 m/s
+    waiter = int(np.argmax([tl.wait_time for tl in tls]))
+    assert tls[waiter].wait_time > 16.0 and tls[1 - waiter].wait_time == 0.0
+    # where it waits is clear of what the other robot still has to drive (its remaining path)
+    other = HEAD_ON[1 - waiter]
+    s_other = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(other, axis=0).T))])
+    for n in np.flatnonzero(tls[waiter].waiting):
+        rest = other[s_other >= tls[1 - waiter].s[min(n, len(tls[1 - waiter].s) - 1)] - SPACING]
+        if len(rest):
+            assert np.hypot(*(rest - tls[waiter].xy[n]).T).min() >= BOUND
+
+
+def test_zones_are_exclusive_at_every_step():
+    zc = ZoneControl(CROSSING, [RADIUS, RADIUS])
+    kins = [kinematics(p) for p in CROSSING]
+    clock = [0.0, 0.0]
+    for _ in range(600):
+        for i in (0, 1):
+            s = float(kins[i].s_at(clock[i] + 0.05))
+            if zc.request(i, s):
+                clock[i] += 0.05
+                zc.release(i, s)
+        held = [set(zc.held(i).tolist()) for i in (0, 1)]
+        assert not held[0] & held[1]
+
+
+class Greedy(ZoneControl):
+    """Negative control: reserve one sample at a time, no stops (what the rule forbids)."""
+
+    def next_stop(self, i):
+        return min(self.end[i] + 1, len(self.paths[i]) - 1)
+
+
+def test_greedy_reservation_deadlocks_head_on():
+    with pytest.raises(PlanningError, match="no robot can move"):
+        drive(HEAD_ON, cls=Greedy)
+
+
+def test_dock_on_another_path_is_refused():
+    paths = [polyline((0, 5), (20, 5)), polyline((10, 5.3), (10, 15))]
+    with pytest.raises(PlanningError, match="robot 1's start .* robot 0's path"):
+        ZoneControl(paths, [RADIUS, RADIUS])
+
+
+def test_start_times_delay_and_record():
+    zc, tls = drive(CROSSING, starts=[0.0, 30.0])
+    assert tls[1].s[tls[1].t <= 30.0].max() == 0.0
+    assert tls[0].wait_time == 0.0 and tls[1].wait_time == 0.0   # robot 0 is long gone
