@@ -64,7 +64,7 @@ def __getattr__(name: str) -> Any:
 
 __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
            "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
-           "pef_map", "place", "plan", "run_episode", "sweep", "validate", "watch", "worlds"]
+           "pef_map", "place", "plan", "run_episode", "run_fleet", "sweep", "validate", "watch", "worlds"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}
@@ -414,6 +414,35 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
 
         write_episode_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
     return result
+
+
+def run_fleet(scenario: Scenario | str | Path, seed: int | None = None):
+    """Drive a fleet scenario's robots (``[[robots]]``) together once, under zone control.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or path
+        A scenario with ``[[robots]]``.
+    seed : int, optional
+        Root of the episode's random streams; default the scenario's.
+
+    Returns
+    -------
+    sim.episode.fleet.FleetResult
+        Per robot its :class:`EpisodeResult` over all its tasks (summary keys as
+        :func:`run_episode`'s plus ``robot``, ``wait_time`` [s], ``robot_blocked`` and
+        ``collisions``), and the fleet's collisions and duration.
+    """
+    from scenarios import SimulationError
+    from sim.episode.fleet import prepare_fleet, run_fleet_episode
+
+    sc = _scenario(scenario)
+    if not sc.is_fleet:
+        raise SimulationError(f"{sc.source}: robots: not a fleet scenario (no [[robots]]): use run_episode")
+    seed = sc.seed if seed is None else seed
+    if seed < 0:
+        raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
+    return run_fleet_episode(sc, seed=seed, prepared=prepare_fleet(sc))
 
 
 def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, runs: int | None = None,

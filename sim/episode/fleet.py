@@ -11,6 +11,10 @@ robots share the physics steps and the control ticks. At each control tick a rob
   footprint);
 * starts its scheduled fixes as a single robot does; before a fix it checks which scheduled
   markers another robot's body hides (the fix's note: ``FixLog.notes``, marker index -> robot).
+  Those lines of sight count as blocked for the fix, as ``sensor.block_probability``'s do: the
+  robot measures the schedule's fallback, or improvises beyond what the plan promised
+  (``beyond_redundancy``), and the single-failure test (runs column ``lost_guarantee``) judges
+  the robot's certified bound wherever a fix lost at most one of them.
 
 Robot bodies are cylinders of each robot's radius and height that only rays see
 (:meth:`sim.physics.world.PhysicsWorld.place_bodies`); the bodies are moved to the robots before
@@ -196,17 +200,21 @@ class _Robot:
         f = bisect.bisect_right(fix_s, s_now) - 1
         self.counts["merged"] += f - self.next_fix
         sched = self.plan.schedule.fixes[f]
+        drawn: frozenset[int] = frozenset()
         if self.q_block > 0.0:
-            laser.blocked = frozenset(np.flatnonzero(self.rng_block.random(self.n_markers) < self.q_block).tolist())
-            fixes.blocked_markers += len(laser.blocked & set(sched.markers))
-            lost = lost_markers(laser.blocked, sched.markers, sched.fallbacks)
-            self.attempts.append((t, lost > 1))
-        # which scheduled lines of sight another robot's body hides now
+            drawn = frozenset(np.flatnonzero(self.rng_block.random(self.n_markers) < self.q_block).tolist())
+            fixes.blocked_markers += len(drawn & set(sched.markers))
+        # which scheduled lines of sight another robot's body hides now: blocked for this fix, as
+        # a passer-by's are (the fallback, or an improvised fix the plan promised nothing for)
+        laser.blocked = drawn
         hidden = {}
         for m in sched.markers:
-            if m not in laser.blocked and not laser.visible(m) and m in laser.blocked_by:
+            if m not in drawn and not laser.visible(m) and m in laser.blocked_by:
                 hidden[int(m)] = laser.blocked_by[m]
         self.robot_blocked += len(hidden)
+        laser.blocked = drawn | frozenset(hidden)
+        # the single-failure test counts every line of sight lost at the fix, whoever blocked it
+        self.attempts.append((t, lost_markers(laser.blocked, sched.markers, sched.fallbacks) > 1))
         subset = fixes.choose_subset(sched.markers, self.loc.x[:2], sched)
         if subset is None:
             fixes.skipped += 1
@@ -291,7 +299,7 @@ class _Robot:
                                     fix_log.predicted_tau, k * sc.sensor.measurement_time)
         steps.certified = certified
         lost_guarantee = 0
-        if self.q_block > 0.0:
+        if self.q_block > 0.0 or self.robot_blocked > 0:
             at = np.array(self.attempts, dtype=float).reshape(-1, 2)
             planned = ~np.asarray(fix_log.beyond_redundancy, bool) & np.isfinite(fix_log.predicted_tau)
             excused = single_failure_excused(steps.t, at[:, 0], at[:, 1] > 0.5, fix_log.t, planned,

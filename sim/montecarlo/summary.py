@@ -50,14 +50,17 @@ def succeeded(runs: pa.Table) -> np.ndarray:
     With lines of sight blocked (``sensor.block_probability`` > 0) a run must also pass the
     single-failure test: its certified bound stayed under ε_max wherever no more lines of sight
     were lost at a fix than one (column ``lost_guarantee``,
-    :func:`sim.episode.certify.single_failure_excused`; 0 without blocking).
+    :func:`sim.episode.certify.single_failure_excused`; 0 without blocking). A fleet's robot
+    (a row with column ``collisions``) must also not have touched another robot.
     """
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)
     reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
     violations = np.asarray(runs.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
     lost = (np.asarray(runs.column("lost_guarantee").fill_null(0).to_numpy(zero_copy_only=False))
             if "lost_guarantee" in runs.column_names else np.zeros(len(status), dtype=np.int64))
-    return (status == "ok") & reached & (violations == 0) & (lost == 0)
+    hit = (np.asarray(runs.column("collisions").fill_null(0).to_numpy(zero_copy_only=False))
+           if "collisions" in runs.column_names else np.zeros(len(status), dtype=np.int64))
+    return (status == "ok") & reached & (violations == 0) & (lost == 0) & (hit == 0)
 
 
 def summarize(out: str | Path, success_target: float, executed: int = 0,
