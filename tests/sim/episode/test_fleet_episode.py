@@ -1,0 +1,102 @@
+"""A fleet episode: two robots whose paths cross drive together, one waits, nobody touches anybody."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scenarios import loads
+from sim.episode.drive import prepare, run_episode
+from sim.episode.fleet import prepare_fleet, run_fleet_episode
+
+CROSS = """
+name = "cross"
+seed = 3
+[workspace]
+size = [12.0, 12.0]
+[[markers]]
+id = "SW"
+position = [0.0, 0.0]
+height = 0.3
+[[markers]]
+id = "SE"
+position = [12.0, 0.0]
+height = 0.3
+[[markers]]
+id = "NE"
+position = [12.0, 12.0]
+height = 0.3
+[[markers]]
+id = "NW"
+position = [0.0, 12.0]
+height = 0.3
+[sensor]
+[robot]
+[planning]
+eps_max = 0.05
+resolution = 0.2
+[[docks]]
+name = "A"
+pose = [1.0, 6.0, 0.0]
+[[docks]]
+name = "B"
+pose = [11.0, 6.0, 0.0]
+[[docks]]
+name = "C"
+pose = [6.0, 1.0, 90.0]
+[[docks]]
+name = "D"
+pose = [6.0, 11.0, 90.0]
+[[tasks]]
+from = "A"
+to = "B"
+[[tasks]]
+from = "C"
+to = "D"
+[[robots]]
+name = "east"
+tasks = [0]
+[[robots]]
+name = "north"
+tasks = [1]
+"""
+
+
+@pytest.fixture(scope="module")
+def crossing():
+    sc = loads(CROSS, source="cross.toml")
+    prepared = prepare_fleet(sc)
+    return sc, prepared, run_fleet_episode(sc, seed=5, prepared=prepared)
+
+
+def test_both_arrive_without_touching_and_one_waits(crossing):
+    sc, prepared, res = crossing
+    assert res.collisions == 0
+    assert [r.name for r in res.robots] == ["east", "north"]
+    for r in res.robots:
+        s = r.result.summary
+        assert s["reached"] and s["collisions"] == 0 and s["robot"] == r.name
+        assert s["violations"] == 0
+    assert max(r.wait_time for r in res.robots) > 0.5, "the crossing makes one of them wait"
+    # the closest the two got, over the control steps they shared
+    a, b = (r.result.steps.true_pose[:, :2] for r in res.robots)
+    n = min(len(a), len(b))
+    assert np.hypot(*(a[:n] - b[:n]).T).min() > 2 * sc.robot.radius
+
+
+def test_robot_zero_draws_what_a_single_robot_draws(crossing):
+    sc, prepared, res = crossing
+    single = run_episode(sc, 0, seed=5, prepared=prepare(sc, 0, pef=prepared.pef), time_limit=0.5)
+    assert np.array_equal(res.robots[0].result.steps.true_pose[0], single.steps.true_pose[0])
+    assert not np.array_equal(res.robots[1].result.steps.true_pose[0] - sc.dock("C").pose,
+                              res.robots[0].result.steps.true_pose[0] - sc.dock("A").pose)
+
+
+def test_fix_notes_name_the_robot_that_hid_a_marker(crossing):
+    sc, _, res = crossing
+    for j, r in enumerate(res.robots):
+        notes = r.result.fixes.notes
+        assert len(notes) == len(r.result.fixes.t)
+        for note in notes:
+            assert all(0 <= m < len(sc.markers) and other == 1 - j for m, other in note.items())
+        assert r.result.summary["robot_blocked"] >= sum(len(n) for n in notes)
