@@ -416,7 +416,7 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
     return result
 
 
-def run_fleet(scenario: Scenario | str | Path, seed: int | None = None):
+def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: str | Path | None = None):
     """Drive a fleet scenario's robots (``[[robots]]``) together once, under zone control.
 
     Parameters
@@ -425,6 +425,8 @@ def run_fleet(scenario: Scenario | str | Path, seed: int | None = None):
         A scenario with ``[[robots]]``.
     seed : int, optional
         Root of the episode's random streams; default the scenario's.
+    rrd : str or path, optional
+        Write a rerun recording of the fleet here (:mod:`sim.recording.fleet`).
 
     Returns
     -------
@@ -442,7 +444,14 @@ def run_fleet(scenario: Scenario | str | Path, seed: int | None = None):
     seed = sc.seed if seed is None else seed
     if seed < 0:
         raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
-    return run_fleet_episode(sc, seed=seed, prepared=prepare_fleet(sc))
+    _check_outputs(rrd=rrd)
+    prepared = prepare_fleet(sc)
+    result = run_fleet_episode(sc, seed=seed, prepared=prepared)
+    if rrd is not None:
+        from sim.recording.fleet import write_fleet_rrd
+
+        write_fleet_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
+    return result
 
 
 def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, runs: int | None = None,

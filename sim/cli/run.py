@@ -50,10 +50,9 @@ def _run_fleet(args: argparse.Namespace, scenario) -> int:
     from sim.cli import print_json
     from sim.jsonable import json_number
 
-    for flag in ("tum", "rrd"):
-        if getattr(args, flag):
-            raise ScenarioError(f"--{flag}: not yet for a fleet scenario ({scenario.source} has [[robots]])")
-    result = pefsim.run_fleet(scenario, args.seed)
+    if args.tum:
+        raise ScenarioError(f"--tum: not yet for a fleet scenario ({scenario.source} has [[robots]])")
+    result = pefsim.run_fleet(scenario, args.seed, rrd=args.rrd)
     if args.json:
         print_json({"collisions": result.collisions, "duration": result.duration,
                     "robots": [{k: json_number(v) for k, v in r.result.summary.items()} for r in result.robots]})
@@ -68,6 +67,8 @@ def _run_fleet(args: argparse.Namespace, scenario) -> int:
               f"sight hidden by robots, {s['fallback_fixes']} fallback, {s['failed_fixes']} failed; "
               f"max error {s['max_error'] * mm:.2f} mm (eps_max {s['eps_max'] * mm:.1f} mm), "
               f"{s['violations']} samples over")
+    if args.rrd:
+        print(f"wrote {args.rrd}")
     return 0
 
 

@@ -90,13 +90,11 @@ def fleet_api() -> EpisodeApi:
     return EpisodeApi(prepare, run, partial(PhysicsWorld, fleet=True), preload)
 
 
-def default_api(scenario: Scenario | None = None) -> EpisodeApi:
+def default_api() -> EpisodeApi:
     """Return the real episode API: ``sim.episode.drive`` in a ``sim.physics.world.PhysicsWorld``.
 
-    For a fleet ``scenario`` (``[[robots]]``), :func:`fleet_api`.
+    A fleet scenario (``[[robots]]``) runs :func:`fleet_api` instead.
     """
-    if scenario is not None and scenario.is_fleet:
-        return fleet_api()
     from sim.episode import drive as episode
     from sim.physics.world import PhysicsWorld
 
@@ -385,7 +383,7 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
              api: EpisodeApi | None, progress: bool | None, on_warning: Callable[[str], None] | None,
              warnings: list[Callable[[str], None]]) -> tuple[int, float]:
     """Plan the tasks, run ``todo`` and write each record as it comes; returns (runs executed, wall seconds)."""
-    api = api if api is not None else default_api(scenario)
+    api = api if api is not None else (fleet_api() if scenario.is_fleet else default_api())
     # Planning once here catches bad input (no route) before any worker starts.
     prepared = {t: api.prepare(scenario, t) for t in sorted({s.task for s in todo})}
     if settings:

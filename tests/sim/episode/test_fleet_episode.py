@@ -100,3 +100,18 @@ def test_fix_notes_name_the_robot_that_hid_a_marker(crossing):
         for note in notes:
             assert all(0 <= m < len(sc.markers) and other == 1 - j for m, other in note.items())
         assert r.result.summary["robot_blocked"] >= sum(len(n) for n in notes)
+
+
+def test_the_recording_holds_every_robot_and_the_hidden_lines_of_sight(crossing, tmp_path):
+    from rerun.chunk import RrdReader
+
+    from sim.recording.fleet import write_fleet_rrd
+
+    sc, _, res = crossing
+    path = write_fleet_rrd(tmp_path / "fleet.rrd", sc, res)
+    entities = {str(ch.entity_path) for ch in RrdReader(str(path)).store().stream().to_chunks()}
+    for name in ("east", "north"):
+        assert {f"/world/robots/{name}/true", f"/world/robots/{name}/estimate", f"/world/robots/{name}/fix/rays",
+                f"/world/robots/{name}/fix/fault_area", f"/metrics/{name}/error"} <= entities
+    hidden = sum(r.result.summary["robot_blocked"] for r in res.robots)
+    assert ("/world/blocked" in entities) == (hidden > 0)
