@@ -99,11 +99,18 @@ class RobotResult:
         marker index -> index of the robot that hid it at the fix start).
     wait_time : float
         Time it stood at the end of its reservation waiting for zones [s].
+    reserved : ndarray, shape (R, 3)
+        Its reservation at each control tick it drove: time [s], and the stretch of its whole
+        path it held, from and to (arc lengths [m]).
+    path : ndarray, shape (N, 2)
+        Its whole path (all its tasks chained) [m], the arc lengths of ``reserved`` are along it.
     """
 
     name: str
     result: EpisodeResult
     wait_time: float
+    reserved: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 @dataclass
@@ -153,6 +160,7 @@ class _Robot:
         self.counts = {"merged": 0, "reads": 0}
         self.scheduled = 0
         self.robot_blocked = 0
+        self.reserved: list[tuple[float, float, float]] = []
         self._FixRecorder, self._WheelOdometry = FixRecorder, WheelOdometry
 
     def begin(self, dt_ctrl: float) -> None:
@@ -253,6 +261,7 @@ class _Robot:
                 self.finished = True
             return
         v, omega = self._zone_limit(v, omega)
+        self.reserved.append((t, self.offset + self.s_now, self.zones.reserved_to(self.i)))
         self.start_fix(self.s_now, t)
         body.set_wheel_speeds(*wheel_speeds(v, omega, self.sc.robot.wheel_radius, self.sc.robot.wheel_base))
 
@@ -319,7 +328,8 @@ class _Robot:
         res = EpisodeResult(scenario_name=scenario.name, task_index=int(scenario.robots[self.i].tasks[0]),
                             seed=_seed_repr(self.ss), eps_max=sc.planning.eps_max, steps=steps, fixes=fix_log,
                             plan=self.rp.plans[0], summary=summary)
-        return RobotResult(self.name, res, self.waited)
+        return RobotResult(self.name, res, self.waited, np.array(self.reserved, dtype=float).reshape(-1, 3),
+                           self.rp.path)
 
 
 def run_fleet_episode(scenario: Scenario, seed: int | np.random.SeedSequence = 0, world=None,

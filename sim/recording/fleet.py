@@ -5,6 +5,8 @@ Each robot's episode goes under its own entities (:func:`sim.recording.entities.
 ``world/robots/<name>/fix/blocked_rays`` holds, at each fix, the lines of sight to scheduled
 markers that another robot's body hid (labelled ``<marker> hidden by <robot>``), and
 ``world/blocked`` all of them at once (static): the map of where robots hid reflectors.
+``world/robots/<name>/reserved`` is the stretch of its path the robot held (zone control), at
+:data:`RESERVATION_HZ`.
 """
 
 from __future__ import annotations
@@ -24,6 +26,26 @@ from sim.recording.episode import _index, _ui, log_result
 
 BLOCKED = (255, 60, 60)
 """Colour of a line of sight another robot hid."""
+RESERVED = (120, 255, 120)
+"""Colour of a robot's reservation."""
+RESERVATION_HZ = 5.0
+"""Rate at which reservations are drawn [Hz] (each is a stretch of path: at the control rate a
+long episode's would be tens of megabytes)."""
+
+
+def reservation_strips(reserved: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The reserved stretches of ``path`` (N, 2) at :data:`RESERVATION_HZ`: times (R',) [s] and strips (n_i, 2) [m]."""
+    reserved = np.asarray(reserved, float).reshape(-1, 3)
+    if not len(reserved) or len(path) < 2:
+        return np.zeros(0), []
+    keep = np.flatnonzero(np.diff(np.floor(reserved[:, 0] * RESERVATION_HZ), prepend=-1.0) > 0)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    strips = []
+    for t, a, b in reserved[keep]:
+        inside = (s > a) & (s < b)
+        ends = [np.array([np.interp(v, s, path[:, 0]), np.interp(v, s, path[:, 1])]) for v in (a, max(a, b))]
+        strips.append(np.vstack([ends[0], path[inside], ends[1]]))
+    return reserved[keep, 0], strips
 
 
 def blueprint(names: list[str]) -> rrb.Blueprint:
@@ -76,6 +98,11 @@ def log_fleet(rec: rr.RecordingStream, fleet: Any, scenario: Scenario) -> None:
             cols = rr.LineStrips2D.columns(strips=[s for ray in rays for s in ray], labels=labels)
             rec.send_columns(ent.BLOCKED_RAYS, _index(t), cols.partition([len(ray) for ray in rays]))
         every += [s for ray in rays for s in ray]
+        t_res, strips = reservation_strips(r.reserved, r.path)
+        if len(t_res):
+            rec.log(ent.RESERVED, rr.LineStrips2D.from_fields(colors=[RESERVED], radii=_ui(E.THICK_LINE_PT)),
+                    static=True)
+            rec.send_columns(ent.RESERVED, _index(t_res), rr.LineStrips2D.columns(strips=strips))
     if every:
         rec.log(E.BLOCKED_MAP, rr.LineStrips2D(every, colors=[BLOCKED], radii=_ui(E.LINE_PT)), static=True)
 

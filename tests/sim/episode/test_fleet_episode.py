@@ -92,6 +92,15 @@ def test_robot_zero_draws_what_a_single_robot_draws(crossing):
                               res.robots[0].result.steps.true_pose[0] - sc.dock("A").pose)
 
 
+def test_reservations_run_ahead_of_the_robot(crossing):
+    _, _, res = crossing
+    for r in res.robots:
+        t, a, b = r.reserved.T
+        assert len(t) > 100 and np.all(np.diff(t) > 0)
+        assert np.all(b >= a - 0.2)   # held up to where it may drive, from just behind itself
+        assert np.all(np.diff(b) >= -1e-9)   # a reservation only grows at its front
+
+
 def test_fix_notes_name_the_robot_that_hid_a_marker(crossing):
     sc, _, res = crossing
     for j, r in enumerate(res.robots):
@@ -112,6 +121,7 @@ def test_the_recording_holds_every_robot_and_the_hidden_lines_of_sight(crossing,
     entities = {str(ch.entity_path) for ch in RrdReader(str(path)).store().stream().to_chunks()}
     for name in ("east", "north"):
         assert {f"/world/robots/{name}/true", f"/world/robots/{name}/estimate", f"/world/robots/{name}/fix/rays",
-                f"/world/robots/{name}/fix/fault_area", f"/metrics/{name}/error"} <= entities
+                f"/world/robots/{name}/fix/fault_area", f"/world/robots/{name}/reserved",
+                f"/metrics/{name}/error"} <= entities
     hidden = sum(r.result.summary["robot_blocked"] for r in res.robots)
     assert ("/world/blocked" in entities) == (hidden > 0)
