@@ -518,7 +518,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
 
     summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
                      resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
-                     api=scaled_api(q_scale) if q_scale != 1.0 else None, then=then)
+                     api=scaled_api(q_scale, sc.is_fleet) if q_scale != 1.0 else None, then=then)
     return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
 

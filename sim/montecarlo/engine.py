@@ -83,8 +83,8 @@ def fleet_api() -> EpisodeApi:
     def prepare(scenario, task_index=0):
         return fleet.prepare_fleet(scenario)
 
-    def run(scenario, task_index=0, seed=0, world=None, prepared=None):
-        return fleet.run_fleet_episode(scenario, seed=seed, world=world, prepared=prepared)
+    def run(scenario, task_index=0, seed=0, world=None, prepared=None, q_scale=1.0):
+        return fleet.run_fleet_episode(scenario, seed=seed, world=world, prepared=prepared, q_scale=q_scale)
 
     preload = ("sim.episode.fleet", "sim.physics.world", "estimators.ekf", "sim.episode.fixes", "planner.pef.map")
     return EpisodeApi(prepare, run, partial(PhysicsWorld, fleet=True), preload)
