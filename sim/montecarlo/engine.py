@@ -187,7 +187,7 @@ class RunContext:
         return record
 
     def _fleet_record(self, spec: RunSpec, result: Any, wall: float, cpu: float) -> RunRecord:
-        """A fleet run's record: a row per robot (each with the whole run's wall and CPU time)."""
+        """Build a fleet run's record: a row per robot (each with the whole run's wall and CPU time)."""
         p = self.payload
         ids = p.scenario.marker_ids()
         names = [r.name for r in result.robots]

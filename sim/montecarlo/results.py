@@ -172,7 +172,7 @@ def write_record(layout: SweepLayout, record: RunRecord, fleet: bool = False) ->
 
 
 def sweep_schemas(root: str | Path) -> Schemas:
-    """The schemas of the sweep in ``root``: a fleet's when its ``sweep.json`` says ``"fleet": true``."""
+    """Return the schemas of the sweep in ``root``: a fleet's when its ``sweep.json`` says ``"fleet": true``."""
     try:
         settings = json.loads((Path(root) / "sweep.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):

@@ -109,7 +109,7 @@ FLEET = Schemas(FLEET_RUN_SCHEMA, FLEET_STEP_SCHEMA, FLEET_STEP_STORAGE, FLEET_F
 
 
 def schemas(fleet: bool) -> Schemas:
-    """The schemas of a fleet sweep (``fleet``) or of a single robot's."""
+    """Return the schemas of a fleet sweep (``fleet``) or of a single robot's."""
     return FLEET if fleet else SINGLE
 
 

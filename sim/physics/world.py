@@ -29,18 +29,17 @@ from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced
 from sim.physics.robot import DiffDriveRobot
 
-
 #: Lowest collision-group bit of the robots' bodies (Bullet's own filters use the low bits).
 _FIRST_ROBOT_BIT = 4
 
 
 def robot_group(i: int) -> int:
-    """The collision group of robot i's body: one bit of its own."""
+    """Return the collision group of robot i's body: one bit of its own."""
     return 1 << (_FIRST_ROBOT_BIT + i)
 
 
 def robots_group(n: int) -> int:
-    """The collision groups of n robots' bodies together."""
+    """Return the collision groups of n robots' bodies together."""
     return ((1 << n) - 1) << _FIRST_ROBOT_BIT
 
 
@@ -235,7 +234,8 @@ class PhysicsWorld:
         """Put robot i at ``poses[i]`` (x [m], y [m], theta [rad]) at rest, the clock at 0 (fleet worlds)."""
         poses = np.asarray(poses, dtype=float)
         if poses.shape != (len(self.robots), 3) or not np.all(np.isfinite(poses)):
-            raise SimulationError(f"reset poses: expected {len(self.robots)} finite (x, y, theta), got {poses.tolist()}")
+            raise SimulationError(f"reset poses: expected {len(self.robots)} finite (x, y, theta), "
+                                  f"got {poses.tolist()}")
         pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
         for r, pose in zip(self.robots, poses, strict=True):
             r.reset(pose)

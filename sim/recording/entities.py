@@ -72,7 +72,7 @@ def of_task(entity: str, task: int) -> str:
     return f"{entity}/{task}"
 
 def of_robot(name: str) -> SimpleNamespace:
-    """The episode entities of a fleet's robot ``name``: ``world/robots/<name>/...``, ``metrics/<name>/...``.
+    """Return the episode entities of a fleet's robot ``name``: ``world/robots/<name>/...``, ``metrics/<name>/...``.
 
     Attributes are named as this module's episode entities (:data:`EPISODE_ENTITIES`), plus
     ``BLOCKED_RAYS`` (the lines of sight other robots hid at its fixes) and ``RESERVED`` (the

@@ -34,14 +34,17 @@ long episode's would be tens of megabytes)."""
 
 
 def reservation_strips(reserved: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-    """The reserved stretches of ``path`` (N, 2) at :data:`RESERVATION_HZ`: times (R',) [s] and strips (n_i, 2) [m]."""
+    """Return the reserved stretches of ``path`` (N, 2) at :data:`RESERVATION_HZ`.
+
+    Returns their times, shape (R',) [s], and the strips, each shape (n_i, 2) [m].
+    """
     reserved = np.asarray(reserved, float).reshape(-1, 3)
     if not len(reserved) or len(path) < 2:
         return np.zeros(0), []
     keep = np.flatnonzero(np.diff(np.floor(reserved[:, 0] * RESERVATION_HZ), prepend=-1.0) > 0)
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
     strips = []
-    for t, a, b in reserved[keep]:
+    for _, a, b in reserved[keep]:
         inside = (s > a) & (s < b)
         ends = [np.array([np.interp(v, s, path[:, 0]), np.interp(v, s, path[:, 1])]) for v in (a, max(a, b))]
         strips.append(np.vstack([ends[0], path[inside], ends[1]]))
@@ -49,7 +52,7 @@ def reservation_strips(reserved: np.ndarray, path: np.ndarray) -> tuple[np.ndarr
 
 
 def blueprint(names: list[str]) -> rrb.Blueprint:
-    """The map on the left; per robot its error plot and its fixes' events on the right."""
+    """Lay out the map on the left; per robot its error plot and its fixes' events on the right."""
     map_view = rrb.Spatial2DView(name="Fleet (workspace, metres)", origin="/", contents=[f"/{E.WORLD}/**"])
     plots = [rrb.TimeSeriesView(name=f"{n}: error vs predicted bound", origin=f"/{E.METRICS}/{n}") for n in names]
     events = [rrb.TextLogView(name=f"{n}: fixes", origin=f"/{E.EVENTS}/{n}") for n in names]
@@ -61,7 +64,7 @@ def blueprint(names: list[str]) -> rrb.Blueprint:
 
 
 def hidden_rays(result: Any, scenario: Scenario, names: list[str]) -> tuple[np.ndarray, list[np.ndarray], list[str]]:
-    """The lines of sight other robots hid at one robot's fixes.
+    """Return the lines of sight other robots hid at one robot's fixes.
 
     Returns
     -------

@@ -121,7 +121,8 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
     if scenario.is_fleet:
         fx = results.read_fixes(root, columns=["true_x", "true_y", "blocked_by_robot", "blocking_robots"])
         fig = figs.robot_blocked_map(scenario, col(fx, "true_x"), col(fx, "true_y"),
-                                     fx.column("blocked_by_robot").to_pylist(), fx.column("blocking_robots").to_pylist())
+                                     fx.column("blocked_by_robot").to_pylist(),
+                                     fx.column("blocking_robots").to_pylist())
         out.append(Figure("robot_blocked_map", "Where robots hid reflectors from each other",
                           "Red: each line of sight to a scheduled reflector that another robot's body hid at a "
                           "fix start (the reflector below the robot's top, the robot on the line), drawn from "

@@ -266,7 +266,7 @@ def step_table(steps: pa.Table) -> StepTable:
 
 
 def fleet_units(scenario: Scenario, table: pa.Table) -> pa.Table:
-    """A fleet's table with ``run`` replaced by the robot's unit: ``run * n_robots + robot index``.
+    """Return a fleet's table with ``run`` replaced by the robot's unit: ``run * n_robots + robot index``.
 
     The checks group by run (a run's steps and fixes, N-run averages over runs): in a fleet each
     robot of each run is such a unit, with its own filter and its own fixes. A row without a
@@ -345,6 +345,6 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     # the others' step rows are not read at all.
     fleet = ["robot"] if stored.is_fleet else []
     steps = results.read_steps(layout.root, columns=STEP_COLUMNS + fleet) if mode is StepsMode.ALL else None
-    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet), source=str(directory),
-                       q_scale=q_scale, steps=steps)
+    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet),
+                       source=str(directory), q_scale=q_scale, steps=steps)
     return replace(data, steps_mode=mode.value)
