@@ -125,3 +125,15 @@ def test_the_recording_holds_every_robot_and_the_hidden_lines_of_sight(crossing,
                 f"/metrics/{name}/error"} <= entities
     hidden = sum(r.result.summary["robot_blocked"] for r in res.robots)
     assert ("/world/blocked" in entities) == (hidden > 0)
+
+
+@pytest.mark.e2e
+def test_the_built_in_fleet_drives_without_a_collision():
+    from scenarios import load
+
+    sc = load("warehouse-fleet")
+    res = run_fleet_episode(sc, seed=np.random.SeedSequence(sc.seed, spawn_key=(0,)))
+    assert res.collisions == 0
+    assert all(r.result.summary["reached"] for r in res.robots)
+    assert sum(r.result.summary["robot_blocked"] for r in res.robots) > 0, "the robots hide reflectors"
+    assert max(r.wait_time for r in res.robots) > 1.0, "the routes cross"
