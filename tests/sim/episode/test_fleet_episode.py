@@ -127,6 +127,25 @@ def test_the_recording_holds_every_robot_and_the_hidden_lines_of_sight(crossing,
     assert ("/world/blocked" in entities) == (hidden > 0)
 
 
+def test_a_robot_drives_its_tasks_one_after_another():
+    text = CROSS.replace('[[robots]]\nname = "east"\ntasks = [0]', '[[robots]]\nname = "east"\ntasks = [0, 2]')
+    text = text.replace('[[tasks]]\nfrom = "A"', '[[docks]]\nname = "E"\npose = [10.5, 10.5, 90.0]\n'
+                        '[[tasks]]\nfrom = "A"', 1)
+    text = text.replace("[[robots]]", '[[tasks]]\nfrom = "B"\nto = "E"\n[[robots]]', 1)
+    sc = loads(text, source="chain.toml")
+    prepared = prepare_fleet(sc)
+    east = prepared.plan.robots[0]
+    assert [(p.start, p.goal) for p in east.plans] == [("A", "B"), ("B", "E")]
+    res = run_fleet_episode(sc, seed=5, prepared=prepared)
+    assert res.collisions == 0
+    s = res.robots[0].result.summary
+    assert s["reached"] and s["violations"] == 0
+    assert np.hypot(*(res.robots[0].result.steps.true_pose[-1, :2] - sc.dock("E").position)) < 0.1
+    # fixes of both tasks, in time order
+    t = res.robots[0].result.fixes.t
+    assert np.all(np.diff(t) > 0) and s["scheduled_fixes"] == sum(len(p.schedule.fixes) for p in east.plans)
+
+
 @pytest.mark.e2e
 def test_the_built_in_fleet_drives_without_a_collision():
     from scenarios import load
