@@ -62,7 +62,8 @@ def _run_fleet(args: argparse.Namespace, scenario) -> int:
           f"{result.duration:.1f} s, collisions {result.collisions}")
     for r in result.robots:
         s = r.result.summary
-        print(f"  {r.name}: {'reached' if s['reached'] else 'NOT reached'} after {s['duration']:.1f} s, "
+        arrived = f"reached its dock at {s['arrival']:.1f} s" if s["reached"] else "NOT reached"
+        print(f"  {r.name}: {arrived}, "
               f"waited {s['wait_time']:.1f} s; {s['fixes']} fixes, {s['robot_blocked']} scheduled lines of "
               f"sight hidden by robots, {s['fallback_fixes']} fallback, {s['failed_fixes']} failed; "
               f"max error {s['max_error'] * mm:.2f} mm (eps_max {s['eps_max'] * mm:.1f} mm), "

@@ -175,6 +175,7 @@ class _Robot:
         self.min_gap = 1.0 / self.sc.sensor.fix_rate_hz - dt_ctrl
         self.task = -1
         self.finished = False
+        self.arrival = math.nan
         self._next_task()
 
     def _next_task(self) -> None:
@@ -258,7 +259,7 @@ class _Robot:
             if self.task + 1 < len(self.rp.plans):
                 self._next_task()
             else:
-                self.finished = True
+                self.finished, self.arrival = True, t
             return
         v, omega = self._zone_limit(v, omega)
         self.reserved.append((t, self.offset + self.s_now, self.zones.reserved_to(self.i)))
@@ -323,7 +324,8 @@ class _Robot:
                    "scheduled_fixes": self.scheduled, "blocked_markers": self.fixes.blocked_markers,
                    "fallback_fixes": int(np.sum(fix_log.fallback)), "failed_fixes": self.fixes.skipped,
                    "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee,
-                   "robot": self.name, "wait_time": self.waited, "robot_blocked": self.robot_blocked,
+                   "robot": self.name, "arrival": self.arrival, "wait_time": self.waited,
+                   "robot_blocked": self.robot_blocked,
                    "collisions": collisions}
         res = EpisodeResult(scenario_name=scenario.name, task_index=int(scenario.robots[self.i].tasks[0]),
                             seed=_seed_repr(self.ss), eps_max=sc.planning.eps_max, steps=steps, fixes=fix_log,

@@ -79,10 +79,12 @@ FIX_SCHEMA = pa.schema([
 
 
 FLEET_RUN_SCHEMA = pa.schema([*RUN_SCHEMA, pa.field("robot", pa.string()),
+                              pa.field("arrival", pa.float64()),     # [s] when it reached its final dock
                               pa.field("wait_time", pa.float64()),   # [s] waiting for zones
                               pa.field("robot_blocked", pa.int64()),  # scheduled lines of sight robots hid
                               pa.field("collisions", pa.int64())])   # contacts of its body with another's
-"""A fleet sweep's runs table: :data:`RUN_SCHEMA` plus the robot, one row per robot per run."""
+"""A fleet sweep's runs table: :data:`RUN_SCHEMA` plus the robot, one row per robot per run (its
+``duration`` is the fleet's episode, ``arrival`` the robot's own end; NaN if it never arrived)."""
 FLEET_STEP_SCHEMA = pa.schema([*STEP_SCHEMA, pa.field("robot", pa.string())])
 """A fleet sweep's steps table: :data:`STEP_SCHEMA` plus the robot."""
 FLEET_STEP_STORAGE = parts.lean(FLEET_STEP_SCHEMA)

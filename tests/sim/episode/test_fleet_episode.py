@@ -76,7 +76,7 @@ def test_both_arrive_without_touching_and_one_waits(crossing):
     for r in res.robots:
         s = r.result.summary
         assert s["reached"] and s["collisions"] == 0 and s["robot"] == r.name
-        assert s["violations"] == 0
+        assert s["violations"] == 0 and 0.0 < s["arrival"] <= s["duration"] == res.duration
     assert max(r.wait_time for r in res.robots) > 0.5, "the crossing makes one of them wait"
     # the closest the two got, over the control steps they shared
     a, b = (r.result.steps.true_pose[:, :2] for r in res.robots)
@@ -156,3 +156,18 @@ def test_the_built_in_fleet_drives_without_a_collision():
     assert all(r.result.summary["reached"] for r in res.robots)
     assert sum(r.result.summary["robot_blocked"] for r in res.robots) > 0, "the robots hide reflectors"
     assert max(r.wait_time for r in res.robots) > 1.0, "the routes cross"
+
+
+def test_pefsim_run_prints_every_robot(tmp_path, capsys):
+    import json
+
+    from sim import cli
+
+    path = tmp_path / "cross.toml"
+    path.write_text(CROSS)
+    assert cli.main(["run", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["collisions"] == 0 and [r["robot"] for r in out["robots"]] == ["east", "north"]
+    assert all(r["reached"] for r in out["robots"])
+    assert cli.main(["run", str(path), "--tum", str(tmp_path / "tum")]) == 2
+    assert "--tum: not yet for a fleet scenario" in capsys.readouterr().err
