@@ -171,3 +171,25 @@ def test_pefsim_run_prints_every_robot(tmp_path, capsys):
     assert all(r["reached"] for r in out["robots"])
     assert cli.main(["run", str(path), "--tum", str(tmp_path / "tum")]) == 2
     assert "--tum: not yet for a fleet scenario" in capsys.readouterr().err
+
+
+@pytest.mark.e2e   # a sweep, its report's figures and the validation: ~40 s
+def test_mc_and_validate_a_fleet(tmp_path, capsys):
+    import json
+
+    from sim import cli
+    from sim.montecarlo import results
+
+    path = tmp_path / "cross.toml"
+    path.write_text(CROSS)
+    out = tmp_path / "mc"
+    assert cli.main(["mc", str(path), "--runs", "1", "--workers", "1", "--out", str(out), "--rrd-every", "1",
+                     "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary["runs"], summary["robots"], summary["collisions"]) == (2, 2, 0)
+    runs = results.read_runs(out)
+    assert runs.column("robot").to_pylist() == ["east", "north"]
+    assert (out / "recordings" / "run-000000.rrd").stat().st_size > 0
+    code = cli.main(["validate", "--from", str(out), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code in (0, 1) and {c["name"] for c in report["checks"]} >= {"containment", "promise", "plan"}
