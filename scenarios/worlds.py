@@ -13,8 +13,8 @@ of the world. :func:`draw_world` spans what users run (DESIGN §8):
 - every PEF model (``parallelogram`` only with k = 2), uniform and gaussian noise, bearings on
   or off, Re log-uniform in [1e-5, 2e-3], ρ0 log-uniform in [0.5, 5] mm;
 - the robot: speed 0.3-1.5 m/s, 512-4096 encoder ticks, wheel slip (``robot.odometry_noise``)
-  0-2 %; ``robot.turn_slip`` is the simulated robot's own, :data:`TURN_SLIP` (the default 0 is
-  not: declared, it leaves the filter overconfident in turns, which is a dishonest world);
+  0-2 %; ``robot.turn_slip`` is the simulated robot's own, :data:`TURN_SLIP`, written out (0 would
+  leave the filter overconfident in turns, which is a dishonest world);
 - the workspace origin at 0 or up to 900 km away (``workspace.origin``);
 - redundancy 0, or 1 with ``sensor.block_probability`` in [0.05, 0.25].
 
