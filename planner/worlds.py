@@ -148,7 +148,8 @@ def plannable_world(seed: int, index: int, *, max_size: float | None = None, bou
                 summary = (*drawn.summary,
                            f"eps_max {eps * 1000:g} mm = {factor:.3g} x {tau * 1000:.3g} mm, the achievable "
                            "error (largest tau or fix promise at cruising speed) along the chosen routes")
-                knobs = (f" --max-size {max_size:g}" if max_size is not None else "") + (" --bounded" if bounded else "")
+                knobs = ((f" --max-size {max_size:g}" if max_size is not None else "")
+                         + (" --bounded" if bounded else ""))
                 header = [f"# pefsim worlds --seed {seed}{knobs}: world {index}, drawn from numpy "
                           f"SeedSequence({seed}, spawn_key=({index},)), draw {attempt} (the ones before "
                           "did not plan)"] + [f"#   {line}" for line in summary]

@@ -129,7 +129,7 @@ def _u(rng: np.random.Generator, lo: float, hi: float, nd: int = 2) -> float:
 
 
 def _side(rng: np.random.Generator, lo: float, hi: float, cap: float | None) -> float:
-    """A floor side [m]: uniform in [lo, hi], or under ``cap`` in [min(lo, SMALL_SIDE top), top], top = min(hi, cap)."""
+    """Draw a floor side [m]: uniform in [lo, hi]; under ``cap``, in [min(lo, SMALL_SIDE t), t], t = min(hi, cap)."""
     if cap is None:
         return _u(rng, lo, hi)
     top = min(hi, cap)
