@@ -181,31 +181,65 @@ def solve_position(markers: np.ndarray, meas_ranges: np.ndarray, std: np.ndarray
 
 def _gauss_newton(markers, meas_ranges, w, p, world_bearings, max_iter, step_tol):
     """Run the numpy Gauss-Newton of :func:`solve_position` (any measurements; ``w = 1/std``)."""
-    res, jac = _stack(p, markers, meas_ranges, world_bearings)
+    p, res, jac, it, converged = _iterate(lambda q: _stack(q, markers, meas_ranges, world_bearings), _normal_step,
+                                          p, w, max_iter, step_tol)
+    return LsqSolution(position=p, jacobian=jac, residuals=res, iterations=it, converged=converged)
+
+
+def _lstsq_step(jw, rw):
+    """Gauss-Newton step from the weighted Jacobian (n, m) and residuals (n,), by least squares."""
+    step, *_ = np.linalg.lstsq(jw, rw, rcond=None)
+    return step
+
+
+def _iterate(stack, solve_step, x, w, max_iter, step_tol):
+    """Run the weighted Gauss-Newton iteration of :func:`solve_position` and :func:`solve_pose`.
+
+    Parameters
+    ----------
+    stack : callable
+        ``stack(x)`` returns the residuals (n,) and Jacobian (n, m) at the unknowns ``x`` (m,).
+    solve_step : callable
+        ``solve_step(jw, rw)`` returns the step (m,) from the weighted Jacobian and residuals.
+    x : ndarray, shape (m,)
+        Starting point; its first two entries are a position [m].
+    w : ndarray, shape (n,)
+        Weights, 1 / the measurements' standard deviations.
+    max_iter : int
+        Iteration limit.
+    step_tol : float
+        Convergence when a step's position part is shorter than this [m].
+
+    Returns
+    -------
+    tuple
+        (x (m,), residuals (n,), jacobian (n, m), iterations, converged) at the solution.
+    """
+    res, jac = stack(x)
     cost = float(np.sum((res * w) ** 2))
     converged = False
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 -- the count is reported
-        step = _normal_step(jac * w[:, None], res * w)
+        step = solve_step(jac * w[:, None], res * w)
         if math.hypot(step[0], step[1]) < step_tol:
-            p = p + step
-            res, jac = _stack(p, markers, meas_ranges, world_bearings)
+            x = x + step
+            res, jac = stack(x)
             converged = True
             break
         # Backtrack when a full step overshoots (far priors, near-singular geometry): plain
         # Gauss-Newton can jump across the marker line to the mirror solution.
         for _ in range(30):
-            q = p + step
-            res_q, jac_q = _stack(q, markers, meas_ranges, world_bearings)
+            q = x + step
+            res_q, jac_q = stack(q)
             cost_q = float(np.sum((res_q * w) ** 2))
             if cost_q <= cost * (1.0 + 1e-12):     # within rounding counts as no increase
                 break
             step = 0.5 * step
-        else:               # no decrease along the step: p is a minimum to rounding
+        else:               # no decrease along the step: x is a minimum to rounding
             converged = True
             break
-        p, res, jac, cost = q, res_q, jac_q, cost_q
-    return LsqSolution(position=p, jacobian=jac, residuals=res, iterations=it, converged=converged)
+        x, res, jac, cost = q, res_q, jac_q, cost_q
+    return x, res, jac, it, converged
 
 
 def _stack_pose(q, markers, meas_ranges, robot_bearings):
@@ -258,28 +292,8 @@ def solve_pose(markers: np.ndarray, meas_ranges: np.ndarray, robot_bearings: np.
     robot_bearings = np.asarray(robot_bearings, dtype=float)
     w = 1.0 / np.asarray(std, dtype=float)
     q = np.array(prior, dtype=float)
-    res, jac = _stack_pose(q, markers, meas_ranges, robot_bearings)
-    cost = float(np.sum((res * w) ** 2))
-    converged = False
-    it = 0
-    for it in range(1, max_iter + 1):  # noqa: B007 -- the count is reported
-        step, *_ = np.linalg.lstsq(jac * w[:, None], res * w, rcond=None)
-        if math.hypot(step[0], step[1]) < step_tol:
-            q = q + step
-            res, jac = _stack_pose(q, markers, meas_ranges, robot_bearings)
-            converged = True
-            break
-        for _ in range(30):
-            trial = q + step
-            res_t, jac_t = _stack_pose(trial, markers, meas_ranges, robot_bearings)
-            cost_t = float(np.sum((res_t * w) ** 2))
-            if cost_t <= cost * (1.0 + 1e-12):
-                break
-            step = 0.5 * step
-        else:
-            converged = True
-            break
-        q, res, jac, cost = trial, res_t, jac_t, cost_t
+    q, res, jac, it, converged = _iterate(lambda x: _stack_pose(x, markers, meas_ranges, robot_bearings), _lstsq_step,
+                                          q, w, max_iter, step_tol)
     return LsqSolution(position=q[:2].copy(), jacobian=jac, residuals=res, iterations=it, converged=converged,
                        heading=float(wrap_angle(q[2])))
 

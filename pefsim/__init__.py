@@ -25,6 +25,7 @@ one-line message naming the file, key and value.
 from __future__ import annotations
 
 import importlib
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -665,7 +666,8 @@ def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None =
         make_folder(folder)
 
 
-def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0) -> list:
+def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0,
+           max_size: float | None = None, bounded: bool = False) -> list:
     """Draw random honest worlds that plan (declared sensor and robot = the simulated ones).
 
     World i draws from ``SeedSequence(seed, spawn_key=(i,))`` alone: the same ``seed`` gives
@@ -683,6 +685,12 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
         is written without it.
     first : int
         Index of the first world (worlds ``first .. first + count - 1``).
+    max_size : float, optional
+        Cap on the floors' sides [m] (>= ``scenarios.worlds.SMALLEST_MAX_SIZE``): small floors,
+        short tasks. None: the full ranges.
+    bounded : bool
+        Only uniform noise and set-membership PEF models, where containment and the promise are
+        deterministic claims (no ``gdop``, no gaussian noise).
 
     Returns
     -------
@@ -695,18 +703,23 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
     from planner.worlds import plannable_world
     from scenarios import ScenarioError
     from scenarios.errors import output_errors
+    from scenarios.worlds import SMALLEST_MAX_SIZE
 
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise ScenarioError(f"count: expected a whole number of worlds >= 1, got {count!r}")
     for key, value in (("seed", seed), ("first", first)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ScenarioError(f"{key}: expected a whole number >= 0, got {value!r}")
+    if max_size is not None and (isinstance(max_size, bool) or not isinstance(max_size, (int, float))
+                                 or not max_size >= SMALLEST_MAX_SIZE or not math.isfinite(max_size)):
+        raise ScenarioError(f"max_size: expected a floor side of at least {SMALLEST_MAX_SIZE:g} m, got {max_size!r}")
+    knobs = {"max_size": None if max_size is None else float(max_size), "bounded": bool(bounded)}
     if out is None:
-        return [plannable_world(seed, i) for i in range(first, first + count)]
+        return [plannable_world(seed, i, **knobs) for i in range(first, first + count)]
     folder = Path(out)
     with output_errors(folder, "create the output directory"):  # before the drawing, which takes seconds a world
         folder.mkdir(parents=True, exist_ok=True)
-    drawn = [plannable_world(seed, i) for i in range(first, first + count)]
+    drawn = [plannable_world(seed, i, **knobs) for i in range(first, first + count)]
     written = []
     for w in drawn:
         path = folder / f"{w.name}.toml"

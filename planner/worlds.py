@@ -105,7 +105,7 @@ def _plans(sc: scenarios.Scenario) -> bool:
     return True
 
 
-def plannable_world(seed: int, index: int) -> PlannedWorld:
+def plannable_world(seed: int, index: int, *, max_size: float | None = None, bounded: bool = False) -> PlannedWorld:
     """Draw world ``index`` of root ``seed``, redrawing until every task plans.
 
     Parameters
@@ -114,6 +114,8 @@ def plannable_world(seed: int, index: int) -> PlannedWorld:
         Root seed (>= 0).
     index : int
         The world's number (>= 0).
+    max_size, bounded
+        The draw's knobs (:func:`scenarios.worlds.draw_world`); the file's header names them.
 
     Returns
     -------
@@ -128,7 +130,7 @@ def plannable_world(seed: int, index: int) -> PlannedWorld:
     name = f"random-{seed}-{index:03d}"
     source = f"{name}.toml"
     for attempt in range(1, MAX_ATTEMPTS + 1):
-        drawn = draw_world(rng, name)
+        drawn = draw_world(rng, name, max_size=max_size, bounded=bounded)
         try:
             tau = _achievable(drawn.data, source)
         except PlanningError:
@@ -146,7 +148,9 @@ def plannable_world(seed: int, index: int) -> PlannedWorld:
                 summary = (*drawn.summary,
                            f"eps_max {eps * 1000:g} mm = {factor:.3g} x {tau * 1000:.3g} mm, the achievable "
                            "error (largest tau or fix promise at cruising speed) along the chosen routes")
-                header = [f"# pefsim worlds --seed {seed}: world {index}, drawn from numpy "
+                knobs = ((f" --max-size {max_size:g}" if max_size is not None else "")
+                         + (" --bounded" if bounded else ""))
+                header = [f"# pefsim worlds --seed {seed}{knobs}: world {index}, drawn from numpy "
                           f"SeedSequence({seed}, spawn_key=({index},)), draw {attempt} (the ones before "
                           "did not plan)"] + [f"#   {line}" for line in summary]
                 text = "\n".join(header) + "\n" + tomli_w.dumps(drawn.data)

@@ -13,10 +13,16 @@ of the world. :func:`draw_world` spans what users run (DESIGN §8):
 - every PEF model (``parallelogram`` only with k = 2), uniform and gaussian noise, bearings on
   or off, Re log-uniform in [1e-5, 2e-3], ρ0 log-uniform in [0.5, 5] mm;
 - the robot: speed 0.3-1.5 m/s, 512-4096 encoder ticks, wheel slip (``robot.odometry_noise``)
-  0-2 %; ``robot.turn_slip`` is the simulated robot's own, :data:`TURN_SLIP` (the default 0 is
-  not: declared, it leaves the filter overconfident in turns, which is a dishonest world);
+  0-2 %; ``robot.turn_slip`` is the simulated robot's own, :data:`TURN_SLIP`, written out (0 would
+  leave the filter overconfident in turns, which is a dishonest world);
 - the workspace origin at 0 or up to 900 km away (``workspace.origin``);
 - redundancy 0, or 1 with ``sensor.block_probability`` in [0.05, 0.25].
+
+Two knobs narrow the draw (both off by default; off, the draw is the same as without them):
+``max_size`` caps the floor's sides (:data:`SMALLEST_MAX_SIZE` and up: small floors, short tasks,
+quick to plan and drive), and ``bounded`` makes every claim deterministic (uniform noise, and a
+set-membership PEF model: ``strips`` where ``gdop`` was drawn). Each knob changes only the values
+it names; the generator's stream is consumed as without it.
 
 Docks sit where routes between them turn corners (and in dead ends). ``planning.eps_max`` is
 left to the caller: choosing it needs the PEF along the route (a planner question), so the draw
@@ -62,6 +68,11 @@ cruising speed, :mod:`planner.worlds`): plannable, not trivially (a tight draw m
 slow down or fix more often)."""
 WALL_MARGIN = 0.3
 """Reflectors keep this far from a wall's ends [m] (off the corners)."""
+SMALLEST_MAX_SIZE = 12.0
+"""Smallest ``max_size`` [m]: a loop's island keeps 2.6 m between corridors 3.2 m wide, a comb two
+aisles 3 m wide."""
+SMALL_SIDE = 0.75
+"""Under ``max_size``, a side whose range starts above the cap is drawn from this fraction of the cap up."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +128,14 @@ def _u(rng: np.random.Generator, lo: float, hi: float, nd: int = 2) -> float:
     return round(float(rng.uniform(lo, hi)), nd)
 
 
+def _side(rng: np.random.Generator, lo: float, hi: float, cap: float | None) -> float:
+    """Draw a floor side [m]: uniform in [lo, hi]; under ``cap``, in [min(lo, SMALL_SIDE t), t], t = min(hi, cap)."""
+    if cap is None:
+        return _u(rng, lo, hi)
+    top = min(hi, cap)
+    return _u(rng, min(lo, SMALL_SIDE * top), top)
+
+
 def _log_u(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
@@ -160,8 +179,8 @@ def _pillars(rng: np.random.Generator, walls: list[Wall], robot_radius: float,
     return out
 
 
-def _loop(rng: np.random.Generator, robot_radius: float) -> Layout:
-    w, h, c = _u(rng, 14, 26), _u(rng, 9, 15), _u(rng, 2.2, 3.2)
+def _loop(rng: np.random.Generator, robot_radius: float, cap: float | None) -> Layout:
+    w, h, c = _side(rng, 14, 26, cap), _side(rng, 9, 15, cap), _u(rng, 2.2, 3.2)
     variant = ("box", "polygon", "ring")[int(rng.integers(3))]
     x0, y0, x1, y1 = c, c, w - c, h - c
     ch = 0.0
@@ -187,8 +206,8 @@ def _loop(rng: np.random.Generator, robot_radius: float) -> Layout:
                   [f"{variant} island", "90° corners"])
 
 
-def _u_turn(rng: np.random.Generator, robot_radius: float) -> Layout:
-    w, c, t = _u(rng, 16, 26), _u(rng, 2.2, 3.2), _u(rng, 0.2, 0.8)
+def _u_turn(rng: np.random.Generator, robot_radius: float, cap: float | None) -> Layout:
+    w, c, t = _side(rng, 16, 26, cap), _u(rng, 2.2, 3.2), _u(rng, 0.2, 0.8)
     h = round(2 * c + t, 4)
     tip = w - c
     if rng.random() < 0.5:
@@ -213,11 +232,17 @@ def _u_turn(rng: np.random.Generator, robot_radius: float) -> Layout:
                   [variant, "U-turn", "dead ends"])
 
 
-def _comb(rng: np.random.Generator, robot_radius: float) -> Layout:
-    n = int(rng.integers(2, 4))
-    c = _u(rng, 2.2, 3.0)
-    w = _u(rng, max(16.0, (n + 1) * (c + 1.0)), 26)
-    h = _u(rng, 9, 14)
+def _comb(rng: np.random.Generator, robot_radius: float, cap: float | None) -> Layout:
+    if cap is None:
+        n = int(rng.integers(2, 4))
+        c = _u(rng, 2.2, 3.0)
+        w = _u(rng, max(16.0, (n + 1) * (c + 1.0)), 26)
+    else:  # n aisles 2.2 m wide or more, each with 1 m of rack beside it, fit in the cap
+        n = int(rng.integers(2, min(4, int((cap - 0.04) / 3.2))))
+        c = _u(rng, 2.2, min(3.0, cap / (n + 1) - 1.0 - 0.01))   # 0.01: _u rounds to centimetres
+        top = min(26.0, cap)
+        w = _u(rng, min(max(16.0, SMALL_SIDE * top, (n + 1) * (c + 1.0)), top), top)
+    h = _side(rng, 9, 14, cap)
     xs = [round(w * (i + 1) / (n + 1), 2) for i in range(n)]
     polygon_racks = rng.random() < 0.5
     obstacles: list[dict[str, Any]] = []
@@ -247,8 +272,8 @@ def _comb(rng: np.random.Generator, robot_radius: float) -> Layout:
                   [f"{n} dead-end aisles", "polygon racks" if polygon_racks else "box racks", "90° corners"])
 
 
-def _l_hall(rng: np.random.Generator, robot_radius: float) -> Layout:
-    w, h = _u(rng, 14, 24), _u(rng, 10, 18)
+def _l_hall(rng: np.random.Generator, robot_radius: float, cap: float | None) -> Layout:
+    w, h = _side(rng, 14, 24, cap), _side(rng, 10, 18, cap)
     c1, c2 = _u(rng, 2.5, 4.5), _u(rng, 2.5, 4.5)
     ch = _u(rng, 0.3, 1.5)
     filler = {"polygon": [[c2, round(c1 + ch, 4)], [round(c2 + ch, 4), c1], [w, c1], [w, h], [c2, h]]}
@@ -313,7 +338,8 @@ def _shift_obstacle(ob: dict[str, Any], origin: tuple[float, float]) -> dict[str
     return out
 
 
-def draw_world(rng: np.random.Generator, name: str) -> DrawnWorld:
+def draw_world(rng: np.random.Generator, name: str, *, max_size: float | None = None,
+               bounded: bool = False) -> DrawnWorld:
     """Draw one honest world.
 
     Parameters
@@ -322,6 +348,11 @@ def draw_world(rng: np.random.Generator, name: str) -> DrawnWorld:
         The world's own stream; the same state gives the same world.
     name : str
         The scenario's ``name``.
+    max_size : float, optional
+        Cap on the floor's sides [m], at least :data:`SMALLEST_MAX_SIZE` (the caller checks);
+        None: the full ranges.
+    bounded : bool
+        Uniform noise and a set-membership PEF model (``gdop`` drawn becomes ``strips``).
 
     Returns
     -------
@@ -330,13 +361,15 @@ def draw_world(rng: np.random.Generator, name: str) -> DrawnWorld:
     """
     kind = KINDS[int(rng.integers(len(KINDS)))]
     robot_radius = _u(rng, 0.25, 0.4)
-    lay = _LAYOUTS[kind](rng, robot_radius)
+    lay = _LAYOUTS[kind](rng, robot_radius, max_size)
     k = int(rng.integers(2, 5))
     model = (MODELS_K2 if k == 2 else MODELS_K)[int(rng.integers(4 if k == 2 else 3))]
     # flat reflectors are seen only near their normal: k = 4 from them needs more than MAX_MARKERS
     reflectors = ("post", "flat", "mixed")[int(rng.integers(3 if k < 4 else 1))]
     markers = _markers(rng, lay.walls, reflectors, k)
     noise = "uniform" if rng.random() < 0.5 else "gaussian"
+    if bounded:
+        noise, model = "uniform", "strips" if model == "gdop" else model
     bearing = _sig(_log_u(rng, 0.05, 0.5), 2) if rng.random() < 0.4 else 0.0
     redundancy = 1 if rng.random() < 0.3 else 0
     block = _u(rng, *BLOCK_RANGE) if redundancy else 0.0

@@ -18,6 +18,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--count", type=int, required=True, metavar="N", help="number of worlds")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="root seed (default 0)")
     p.add_argument("--out", required=True, metavar="DIR", help="directory to write <name>.toml into")
+    p.add_argument("--max-size", type=float, default=None, metavar="M",
+                   help="cap on the floors' sides in metres (12 and up): small floors, short tasks")
+    p.add_argument("--bounded", action="store_true",
+                   help="only uniform noise and set-membership PEF models (gdop drawn becomes strips), where "
+                        "containment and the promise are deterministic claims")
     p.add_argument("--json", action="store_true", help="print name, path, attempts and summary per world")
     p.set_defaults(func=run)
 
@@ -26,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     import pefsim
     from sim.cli import print_json
 
-    drawn = pefsim.worlds(args.count, seed=args.seed, out=args.out)
+    drawn = pefsim.worlds(args.count, seed=args.seed, out=args.out, max_size=args.max_size, bounded=args.bounded)
     if args.json:
         print_json([{"name": w.name, "path": str(w.path), "attempts": w.attempts, "summary": list(w.summary)}
                     for w in drawn])

@@ -7,6 +7,12 @@ seed: the start pose, the laser noise, the odometry slip noise and the blocked l
 (``sensor.block_probability``: at each fix start every marker is blocked for that fix with
 that probability, independently; the laser reports a blocked marker unseen and the robot
 measures the schedule's fallback subset instead).
+
+Every scheduled fix is accounted for in the summary: taken (a row of the fix log), merged into a
+later one (``merged_fixes``: the laser was still busy when it fell due), failed (``failed_fixes``:
+too few markers seen, or one lost mid-fix) or unreached (``unreached_fixes``: the time limit ran
+out first). The follower is done within its goal tolerance of the path's end, short of the
+schedule's last fixes; the robot then holds at the goal and takes them there, one after another.
 """
 
 from __future__ import annotations
@@ -304,7 +310,16 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         v, omega, cmd_done, s_cmd = tick(wheel_angles(), true_pose(), t, n, s_now, not (holding or done))
         n += 1
         if done:
-            break
+            if fixes.pending is None and next_fix >= len(fix_s_list):
+                break
+            # Stopped at the goal short of the schedule's last fixes (they lie within a fix gap
+            # of it, where the follower is done): held there, the robot finishes the fix under
+            # way and takes each of them in turn, at the goal, as the laser's rate allows.
+            set_wheel_speeds(0.0, 0.0)
+            if next_fix < len(fix_s_list):
+                start_fix(fix_s_list[next_fix], t)
+            advance()
+            continue
         if holding:
             start_fix(0.0, t)
             holding = fixes.pending is not None
@@ -322,6 +337,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         set_wheel_speeds(*wheel_speeds(v, omega, radius, base))
         advance()
 
+    # the time limit ran out before these were taken (the one under way included)
+    unreached = len(fix_s_list) - next_fix + int(fixes.pending is not None)
     log = log[:n]
     steps = _step_log(log[:, LOG_T], log[:, LOG_TRUE], log[:, LOG_EST], log[:, LOG_COV].reshape(n, 3, 3),
                       log[:, LOG_S], schedule, pef)
@@ -346,7 +363,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         summary={**_summary(steps, fix_log, reached, scenario.planning.eps_max, ss, fixes.skipped,
                             counts["merged"]), "scheduled_fixes": len(fix_s),
                  "blocked_markers": fixes.blocked_markers, "fallback_fixes": int(np.sum(fix_log.fallback)),
-                 "failed_fixes": fixes.skipped,
+                 "failed_fixes": fixes.skipped, "unreached_fixes": unreached,
                  "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee})
 
 

@@ -14,7 +14,7 @@ from scenarios.errors import SimulationError
 from scenarios.schema import NoiseModel, RobotSpec, SensorSpec
 
 MARKERS = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]])
-ROBOT = RobotSpec()
+ROBOT = RobotSpec(turn_slip=0.0)  # the synthetic truth (motion.propagate) turns on the arc: no slip
 SENSOR = SensorSpec(noise=NoiseModel.GAUSSIAN, bearing_error=math.radians(0.5))
 P_PRIOR = np.array([[4e-4, 5e-5, 1e-5], [5e-5, 2e-4, -2e-5], [1e-5, -2e-5, 3e-4]])
 

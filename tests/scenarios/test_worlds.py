@@ -105,3 +105,36 @@ def test_flat_reflectors_face_into_the_open(draws):
             assert not inside or any(o.contains(q) for o in sc.obstacles), (sc.name, m.id)
             checked += 1
     assert checked > 0
+
+
+def test_max_size_caps_the_floor_and_every_capped_draw_loads():
+    """At the smallest cap and one above, every layout fits, loads and keeps its corridors."""
+    for cap in (W.SMALLEST_MAX_SIZE, 15.0):
+        kinds = set()
+        for i in range(60):
+            d = W.draw_world(_rng(i), f"w{i}", max_size=cap)
+            sc = scenarios.loads(tomli_w.dumps(d.data), source=f"w{i}.toml")
+            assert max(sc.workspace.size) <= cap, (cap, sc.workspace.size, d.summary[0])
+            kinds.add(d.summary[0].split()[1])
+        assert kinds == set(W.KINDS)
+    # negative control: uncapped, floors are larger
+    assert max(max(W.draw_world(_rng(i), "x").data["workspace"]["size"]) for i in range(60)) > 20.0
+
+
+def test_bounded_changes_only_the_noise_and_the_model():
+    changed = 0
+    for i in range(60):
+        a, b = W.draw_world(_rng(i), "x").data, W.draw_world(_rng(i), "x", bounded=True).data
+        assert b["sensor"]["noise"] == "uniform" and b["planning"]["pef_model"] != "gdop"
+        if a["planning"]["pef_model"] != "gdop":
+            assert b["planning"]["pef_model"] == a["planning"]["pef_model"]
+        changed += a != b
+        for d in (a, b):
+            d["sensor"].pop("noise"), d["planning"].pop("pef_model"), d.pop("description")
+        assert a == b, i   # the same layout, markers, robot and seed: the stream is consumed as without it
+    assert changed > 0   # some draw had gaussian noise or gdop
+
+
+def test_the_knobs_off_are_the_default_draw():
+    for i in range(10):
+        assert W.draw_world(_rng(i), "x", max_size=None, bounded=False) == W.draw_world(_rng(i), "x")

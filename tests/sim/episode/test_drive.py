@@ -191,4 +191,26 @@ def test_bearings_taken_while_turning_keep_the_truth_in_the_fault_area():
     assert r.summary["reached"] and r.summary["fixes"] > 50
     assert r.fixes.contained.all(), np.flatnonzero(~r.fixes.contained)
     done = r.summary["fixes"] + r.summary["skipped_fixes"] + r.summary["merged_fixes"]
-    assert done <= r.summary["scheduled_fixes"]
+    assert done == r.summary["scheduled_fixes"] and r.summary["unreached_fixes"] == 0
+
+
+def test_fixes_the_follower_stops_short_of_are_taken_at_the_goal(prepared):
+    """The follower is done 5 cm before the path's end; the schedule's fixes beyond are taken at the goal."""
+    s, p = prepared("paper-two-markers", 0)
+    r = run_episode(s, 0, seed=5, prepared=p)
+    sched = p.plan.schedule.fixes
+    beyond = sum(f.s > p.plan.s[-1] - 0.05 for f in sched)  # 0.05 m: PurePursuit.goal_tolerance
+    assert beyond > 0  # else this test tests nothing
+    assert r.summary["fixes"] == len(sched) and r.summary["merged_fixes"] == r.summary["skipped_fixes"] == 0
+    goal = np.array(s.dock(s.tasks[0].goal).position)
+    held = np.hypot(*(r.fixes.true_position[-beyond:] - goal).T)
+    assert np.all(held < 0.05 + s.planning.eps_max), held
+    assert r.fixes.t[-1] <= r.steps.t[-1]   # the episode ends after its last fix
+
+
+def test_fixes_after_the_time_limit_are_counted_unreached(prepared):
+    s, p = prepared("paper-two-markers", 0)
+    r = run_episode(s, 0, seed=5, prepared=p, time_limit=3.0)
+    sm = r.summary
+    assert not sm["reached"] and sm["unreached_fixes"] > 0
+    assert sm["fixes"] + sm["merged_fixes"] + sm["skipped_fixes"] + sm["unreached_fixes"] == sm["scheduled_fixes"]
