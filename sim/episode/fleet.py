@@ -203,7 +203,7 @@ class _Robot:
         self.scheduled += len(self.fix_s)
         self.next_fix, self.last_fix_start = 0, -math.inf
         self.holding = len(self.fix_s) > 0 and self.fix_s[0] <= 1e-9
-        self.s_now, self.done = 0.0, False
+        self.s_now, self.done, self.at_goal = 0.0, False, False
         self.task_rows.append(self.n)
 
     # -- fixes ------------------------------------------------------------------------------
@@ -250,12 +250,15 @@ class _Robot:
         """Read, predict, log, and command the wheels for the next control period."""
         body = self.body
         waiting_start = t < self.start_time - 1e-9
-        steer = not (self.holding or self.done or self.finished or waiting_start)
+        steer = not (self.holding or self.done or self.at_goal or self.finished or waiting_start)
         v, omega, cmd_done, s_cmd = self.tick(body.wheel_angle_pair(), body.true_pose_tuple(), t, self.n,
                                               self.s_now, steer)
         self.n += 1
         if self.finished or waiting_start:
             body.set_wheel_speeds(0.0, 0.0)
+            return
+        if self.at_goal:
+            self._hold_at_goal(t)
             return
         if self.holding:
             self.start_fix(0.0, t)
@@ -267,16 +270,37 @@ class _Robot:
             self.log[self.n - 1, LOG_S] = s_cmd
         self.s_now, self.done = s_cmd, cmd_done
         if self.done:
-            body.set_wheel_speeds(0.0, 0.0)
-            if self.task + 1 < len(self.rp.plans):
-                self._next_task()
-            else:
-                self.finished, self.arrival = True, t
+            self.at_goal = True
+            self._hold_at_goal(t)
             return
         v, omega = self._zone_limit(v, omega)
         self.reserved.append((t, self.offset + self.s_now, self.zones.reserved_to(self.i)))
         self.start_fix(self.s_now, t)
         body.set_wheel_speeds(*wheel_speeds(v, omega, self.sc.robot.wheel_radius, self.sc.robot.wheel_base))
+
+    def _hold_at_goal(self, t: float) -> None:
+        """Hold at the task's goal until the schedule's last fixes are taken, then go on.
+
+        As a lone robot does (:mod:`sim.episode.drive`): the follower is done within its goal
+        tolerance of the path's end, short of fixes the schedule puts within a fix gap of it; the
+        robot finishes the fix under way and takes each of them in turn, at the goal.
+        """
+        self.body.set_wheel_speeds(0.0, 0.0)
+        if self.fixes.pending is not None or self.next_fix < len(self.fix_s):
+            if self.next_fix < len(self.fix_s):
+                self.start_fix(self.fix_s[self.next_fix], t)
+            return
+        if self.task + 1 < len(self.rp.plans):
+            self._next_task()
+        else:
+            self.finished, self.arrival = True, t
+
+    def unreached(self) -> int:
+        """Scheduled fixes the time limit left untaken (the one under way included)."""
+        if self.finished:
+            return 0
+        later = sum(len(p.schedule.fixes) for p in self.rp.plans[self.task + 1:])
+        return len(self.fix_s) - self.next_fix + int(self.fixes.pending is not None) + later
 
     def _zone_limit(self, v: float, omega: float) -> tuple[float, float]:
         """Cap the command so that the robot stops at the end of its reservation; count the wait."""
@@ -335,6 +359,7 @@ class _Robot:
                               self.counts["merged"]),
                    "scheduled_fixes": self.scheduled, "blocked_markers": self.fixes.blocked_markers,
                    "fallback_fixes": int(np.sum(fix_log.fallback)), "failed_fixes": self.fixes.skipped,
+                   "unreached_fixes": self.unreached(),
                    "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee,
                    "robot": self.name, "arrival": self.arrival, "wait_time": self.waited,
                    "robot_blocked": self.robot_blocked,
