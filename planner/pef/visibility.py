@@ -350,7 +350,7 @@ class SightArrays:
     wedge: np.ndarray
 
     def kernel_args(self) -> tuple:
-        """``(planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob, margin)`` as the kernels take them."""
+        """Return the fields the kernels take, in their order (``wedge`` aside)."""
         return (self.planes, self.count, self.sight, self.shrunk, self.sight_bbox, self.blocks, self.swallow,
                 self.bodies, self.n_ob, self.margin)
 
