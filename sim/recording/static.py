@@ -101,8 +101,36 @@ def pef_image_transform(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.nd
     return translation, np.array([dx, dy, 1.0])
 
 
+NO_FIX_ORDER = -9.0
+"""Draw order of the τ = ∞ layer: above the heatmap (rerun draws images at -10 unless told)."""
+
+
+def no_fix_layer(tau: np.ndarray) -> np.ndarray:
+    """Return the RGBA layer drawn over the heatmap: :data:`~sim.recording.entities.NO_FIX_CELL` where τ = ∞.
+
+    The heatmap caps τ at the top of its colormap, the colour of "bad"; a cell with no fix
+    (inside a rack, or seeing no usable subset) is not that, so this layer paints it apart.
+
+    Parameters
+    ----------
+    tau : (ny, nx) float
+        The map [m], inf where no subset is usable.
+
+    Returns
+    -------
+    (ny, nx, 4) uint8
+        RGBA: the no-fix colour where τ is not finite, fully transparent elsewhere.
+    """
+    tau = np.asarray(tau, dtype=float)
+    out = np.zeros((*tau.shape, 4), dtype=np.uint8)
+    out[~np.isfinite(tau)] = E.NO_FIX_CELL
+    return out
+
+
 def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float, *, static: bool = True) -> None:
-    """Log the τ heatmap (``world/pef``) and the ε_max contour (``world/region``).
+    """Log the τ heatmap (``world/pef``), its τ = ∞ cells over it (``world/pef/no_fix``), the ε_max contour.
+
+    The contour is ``world/region``.
 
     Parameters
     ----------
@@ -123,9 +151,11 @@ def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float, *, static
     shown = np.where(np.isfinite(tau), np.minimum(tau, cap), cap).astype(np.float32)
     translation, scale = pef_image_transform(x, y)
     rec.log(E.PEF,
-            rr.DepthImage(shown, meter=1.0, colormap="viridis", depth_range=(0.0, cap)),
+            rr.DepthImage(shown, meter=1.0, colormap="viridis", depth_range=(0.0, cap),
+                          draw_order=NO_FIX_ORDER - 1.0),
             rr.Transform3D(translation=translation, scale=scale),
             static=static)
+    rec.log(E.PEF_NO_FIX, rr.Image(no_fix_layer(tau), draw_order=NO_FIX_ORDER), static=static)
     lines = level_contours(x, y, tau, eps_max)
     rec.log(E.REGION, rr.LineStrips2D(lines, colors=[E.REGION_LINE] * len(lines),
                                       radii=_ui(E.THICK_LINE_PT)), static=static)

@@ -223,6 +223,27 @@ def test_heatmap_pixel_lands_on_its_cell(readback, pef_map, warehouse):
     assert np.all(image[:5, :5] == np.float32(cap))  # tau = inf shows as the cap
 
 
+def test_no_fix_cells_are_drawn_apart_from_bad(readback, pef_map):
+    """τ = ∞ cells (racks, cells seeing no usable subset) get their own colour over the heatmap, not its "bad" end."""
+    (row,) = readback.column(E.PEF_NO_FIX, "Image:buffer", timeline=None)[1]
+    (fmt,) = readback.column(E.PEF_NO_FIX, "Image:format", timeline=None)[1]
+    width, height = fmt[0]["width"], fmt[0]["height"]
+    layer = np.frombuffer(bytes(row[0]), dtype=np.uint8).reshape(height, width, 4)
+    inf = ~np.isfinite(pef_map.tau)
+    assert inf.any() and (~inf).any()
+    assert np.all(layer[inf] == np.array(E.NO_FIX_CELL, dtype=np.uint8))
+    assert np.all(layer[~inf, 3] == 0)  # cells with a fix show the heatmap through
+    # the heatmap's top colour (viridis at the cap, where finite bad tau ends up) is far from it
+    from matplotlib import colormaps
+
+    top = np.array(colormaps["viridis"](1.0)[:3]) * 255.0
+    assert np.abs(top - np.array(E.NO_FIX_CELL[:3])).max() > 100
+    # negative control: a layer from finite tau paints nothing
+    from sim.recording.static import no_fix_layer
+
+    assert not no_fix_layer(np.where(inf, 1.0, pef_map.tau))[..., 3].any()
+
+
 def test_world_is_flipped_once_for_the_y_down_2d_view(readback):
     (sc,) = readback.column(E.WORLD, "Transform3D:scale", timeline=None)[1]
     assert sc[0] == [1.0, -1.0, 1.0]
