@@ -384,6 +384,29 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
     """
     mk = np.asarray(markers, float).reshape(-1, 2)
     fn = _normals(normals, mk.shape[0])
+    if rule is None or not isinstance(obstacles, ConvexPieces):
+        return _prepare_sight(obstacles, mk, bounds, fn, max_incidence, rule, bodies)
+    # a planner asks this of the same scenario's markers many times (map, segments, plan, schedule)
+    at = None if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
+    key = (mk.tobytes(), fn.tobytes(), tuple(float(b) for b in bounds), float(max_incidence), rule,
+           None if at is None else at.tobytes())
+    memo = _SIGHT.setdefault(obstacles, {})
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = _prepare_sight(obstacles, mk, bounds, fn, max_incidence, rule, at)
+        while len(memo) > _SIGHT_KEPT:
+            memo.pop(next(iter(memo)))
+    return got
+
+
+#: Sight arrays kept per set of obstacles (:func:`prepare_sight`), by markers and rule.
+_SIGHT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_SIGHT_KEPT = 4
+
+
+def _prepare_sight(obstacles, mk: np.ndarray, bounds, fn: np.ndarray, max_incidence: float, rule: SightRule | None,
+                   bodies: np.ndarray | None) -> tuple[PieceArrays, SightArrays]:
+    """:func:`prepare_sight` computed (``fn`` the markers' normals, (M, 2))."""
     pa = prepare(obstacles)
     m_n = mk.shape[0]
     wedge = np.zeros((m_n, 1 if rule is None else _MAX_WEDGES, 4))

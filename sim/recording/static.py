@@ -122,12 +122,15 @@ def no_fix_layer(tau: np.ndarray) -> np.ndarray:
         RGBA: the no-fix colour where τ is not finite, fully transparent elsewhere.
     """
     tau = np.asarray(tau, dtype=float)
-    out = np.zeros((*tau.shape, 4), dtype=np.uint8)
-    out[~np.isfinite(tau)] = E.NO_FIX_CELL
-    return out
+    # one pass: each cell's four bytes as one little-endian uint32 (the 3.84 M cells of the hall
+    # at 5 cm in ~20 ms, where a masked assignment of RGBA rows took 0.1 s)
+    r, g, b, a = (int(c) for c in E.NO_FIX_CELL)
+    packed = np.where(np.isfinite(tau), np.uint32(0), np.uint32(r | g << 8 | b << 16 | a << 24))
+    return packed.astype("<u4", copy=False).view(np.uint8).reshape(*tau.shape, 4)
 
 
-def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float, *, static: bool = True) -> None:
+def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float, *, static: bool = True,
+                contours: dict | None = None) -> None:
     """Log the τ heatmap (``world/pef``), its τ = ∞ cells over it (``world/pef/no_fix``), the ε_max contour.
 
     The contour is ``world/region``.
@@ -143,12 +146,15 @@ def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float, *, static
         Allowed error [m]; the navigation region is ``{tau < eps_max}``.
     static : bool
         As in :func:`log_scene`.
+    contours : dict, optional
+        The contour's tile cache (:func:`~sim.recording.geometry.level_contours`), kept from
+        one call to the next by a live view.
     """
     x = np.asarray(pef_map.x, dtype=float)
     y = np.asarray(pef_map.y, dtype=float)
     tau = np.asarray(pef_map.tau, dtype=float)
     cap = TAU_DISPLAY_CAP * eps_max
-    shown = np.where(np.isfinite(tau), np.minimum(tau, cap), cap).astype(np.float32)
+    shown = np.fmin(tau, cap).astype(np.float32)  # inf (and NaN) to the cap, in one pass
     translation, scale = pef_image_transform(x, y)
     rec.log(E.PEF,
             rr.DepthImage(shown, meter=1.0, colormap="viridis", depth_range=(0.0, cap),
@@ -156,7 +162,7 @@ def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float, *, static
             rr.Transform3D(translation=translation, scale=scale),
             static=static)
     rec.log(E.PEF_NO_FIX, rr.Image(no_fix_layer(tau), draw_order=NO_FIX_ORDER), static=static)
-    lines = level_contours(x, y, tau, eps_max)
+    lines = level_contours(x, y, tau, eps_max, cache=contours)
     rec.log(E.REGION, rr.LineStrips2D(lines, colors=[E.REGION_LINE] * len(lines),
                                       radii=_ui(E.THICK_LINE_PT)), static=static)
 

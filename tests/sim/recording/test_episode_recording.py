@@ -382,6 +382,35 @@ def test_local_strip_polygons_agree_with_estimators_linearized():
         assert area == pytest.approx(ref.area, rel=1e-9)
 
 
+def test_level_contours_in_tiles_trace_the_same_lines_and_reuse_unchanged_tiles(monkeypatch):
+    """With a cache the grid is traced in tiles: the same lines (broken at tile borders); an edit re-traces its tile."""
+    from sim.recording import geometry
+
+    monkeypatch.setattr(geometry, "CONTOUR_TILE", 16)
+    x = np.linspace(-5, 5, 101)
+    X, Y = np.meshgrid(x, x)
+    z = np.hypot(X, Y)
+    z[0, 0] = np.inf
+
+    def length(lines):
+        return sum(float(np.hypot(*np.diff(line, axis=0).T).sum()) for line in lines)
+
+    cache: dict = {}
+    (whole,) = level_contours(x, x, z, 3.0)
+    tiled = level_contours(x, x, z, 3.0, cache=cache)
+    assert len(tiled) > 1 and len(cache) == 49  # 7 x 7 tiles of 16 cells (17 with the shared border)
+    assert length(tiled) == pytest.approx(length([whole]), rel=1e-12)
+    np.testing.assert_allclose(np.hypot(*np.vstack(tiled).T), 3.0, atol=5e-3)
+    before = dict(cache)
+    z2 = z.copy()
+    z2[50:54, 76:79] = 10.0  # a bump just inside the circle's right, in tile (48, 64) only (cols 64..80)
+    again = level_contours(x, x, z2, 3.0, cache=cache)
+    changed = [k for k in cache if cache[k] is not before[k]]
+    assert changed == [(48, 64)]
+    assert length(again) != pytest.approx(length(tiled), rel=1e-6)  # the changed tile was traced anew
+    assert length(again) == pytest.approx(length(level_contours(x, x, z2, 3.0)), rel=1e-12)
+
+
 def test_level_contours_trace_a_known_circle():
     x = np.linspace(-5, 5, 101)
     X, Y = np.meshgrid(x, x)
