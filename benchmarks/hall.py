@@ -9,10 +9,11 @@ cache warm; ``benchmarks/commands.py`` has the cold start); ``place`` from the e
 <= 1.5 GB with at most 1.2 x its lower bound. The machine may be shared: compare CPU times,
 and the baselines measured in this same run:
 
-- map: a vectorised numpy PEF (Liang-Barsky line of sight against the racks, every visible pair
-  scored) on a random subsample of free cells, as cells per second against the map's cells per
-  second (the subprocess's wall time, all of it: imports, loading, the grid, the summary), and
-  the largest relative difference of tau on the subsample;
+- map: a vectorised numpy PEF (the plan's line-of-sight rule of planner.pef.sight written out for
+  boxes and the reflectors' bodies, every visible pair scored) on a random subsample of free
+  cells, as cells per second against the map's cells per second (the subprocess's wall time,
+  all of it: imports, loading, the grid, the summary), the largest relative difference of tau
+  on the subsample, and whether the two agree on which cells have no fix (tau = inf);
 - place: the greedy cover against the improved solver (LP rounding and local search) on the
   same cover problem (the cover target the command reports), in process; for the default flat
   reflectors and for posts (``--skip-post`` leaves the posts out).
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -65,41 +67,137 @@ def measured(args: list[str], cwd: Path, **env_extra: str) -> dict:
                 "code": p.returncode, "stdout": fo.read(), "stderr": fe.read()}
 
 
+def _shadow_rows(m: np.ndarray, poly: np.ndarray, widen: float) -> np.ndarray | None:
+    """Half-planes ``a x + b y + c < 0`` (rows) of convex ``poly``'s (V, 2, CCW) shadow from ``m``, widened.
+
+    The shadow: the points beyond every edge turned to ``m``, inside the cone from ``m`` over the
+    polygon's silhouette; every line moved out by ``widen`` [m] (mitred), as planner.pef.sight
+    states it. None when ``m`` is inside.
+    """
+    e = np.roll(poly, -1, axis=0) - poly
+    n = np.column_stack([e[:, 1], -e[:, 0]]) / np.hypot(e[:, 0], e[:, 1])[:, None]
+    c = (n * poly).sum(1)
+    facing = n @ m - c > 0.0
+    if not facing.any():
+        return None
+    k = len(poly)
+    first = next(i for i in range(k) if facing[i] and not facing[i - 1])
+    last = next((i + 1) % k for i in range(k) if facing[i] and not facing[(i + 1) % k])
+    rows = [np.array([n[i, 0], n[i, 1], -c[i]]) for i in np.flatnonzero(facing)]
+    a, b = poly[first] - m, poly[last] - m
+    rows.append(np.array([-a[1], a[0], a[1] * m[0] - a[0] * m[1]]))     # left of the first silhouette ray
+    rows.append(np.array([b[1], -b[0], -(b[1] * m[0] - b[0] * m[1])]))  # right of the last
+    rows = np.array(rows)
+    rows[:, 2] -= widen * np.hypot(rows[:, 0], rows[:, 1])
+    return rows
+
+
+def _grown(poly: np.ndarray, by: float) -> np.ndarray:
+    """Convex ``poly`` (V, 2, CCW) with every edge moved out by ``by`` [m] (corners where the moved lines meet)."""
+    e = np.roll(poly, -1, axis=0) - poly
+    n = np.column_stack([e[:, 1], -e[:, 0]]) / np.hypot(e[:, 0], e[:, 1])[:, None]
+    c = (n * poly).sum(1) + by
+    pn, pc = np.roll(n, 1, axis=0), np.roll(c, 1)
+    det = pn[:, 0] * n[:, 1] - pn[:, 1] * n[:, 0]
+    return np.column_stack([(pc * n[:, 1] - c * pn[:, 1]) / det, (c * pn[:, 0] - pc * n[:, 0]) / det])
+
+
 def numpy_reference(sc, points: np.ndarray) -> np.ndarray:
-    """Parallelogram tau at ``points`` (N, 2) [m], vectorised numpy (axis-aligned box obstacles only)."""
+    """Parallelogram tau at ``points`` (N, 2) [m], vectorised numpy, under the plan's line-of-sight rule.
+
+    Axis-aligned box obstacles only. The rule of planner.pef.sight, written out here for boxes
+    and the reflectors' round bodies (each its circumscribed octagon): range within
+    ``max_range - margin``; a flat marker's incidence wedge and its mount face's wedge held
+    within the margin; the segment clear of the marker's mount (Liang-Barsky against the box
+    shrunk by BOX_SHRINK); every other box and every other body, grown by the physics ray's
+    reach, outside the segment for every position within the margin (their shadows widened by
+    the margin).
+    """
+    from planner.pef.sight import sight_rule
     from planner.pef.visibility import BOX_SHRINK
 
+    rule = sight_rule(sc.planning.eps_max)
     mk = sc.marker_positions()
+    normals = sc.marker_normals()
     boxes = np.array([[o.center[0] - o.size[0] / 2, o.center[1] - o.size[1] / 2,
                        o.center[0] + o.size[0] / 2, o.center[1] + o.size[1] / 2] for o in sc.obstacles])
     s = sc.sensor
+    cos_inc = math.cos(s.max_incidence)
+    x0, y0, x1, y1 = sc.workspace.bounds
+    ang = np.pi / 8.0 + np.arange(8) * np.pi / 4.0
+    octagon = rule.radius / math.cos(np.pi / 8.0) * np.column_stack([np.cos(ang), np.sin(ang)])
+    reach = rule.reach - BOX_SHRINK
+    # per marker: its mount boxes (within grow), its wedges (d.n >= off + |d| b), the shadows of the rest
+    mounts, wedges, shadows = [], [], []
+    for i, m in enumerate(mk):
+        g = rule.grow - BOX_SHRINK
+        on = ((m[0] >= boxes[:, 0] - g) & (m[0] <= boxes[:, 2] + g)
+              & (m[1] >= boxes[:, 1] - g) & (m[1] <= boxes[:, 3] + g))
+        w = []
+        if np.any(normals[i]):
+            w.append((normals[i], rule.wedge_offset(cos_inc), cos_inc))
+        faces = []
+        for bx in boxes[on]:
+            for d, n in ((bx[0] - m[0], (-1.0, 0.0)), (m[0] - bx[2], (1.0, 0.0)),
+                         (bx[1] - m[1], (0.0, -1.0)), (m[1] - bx[3], (0.0, 1.0))):
+                along = (bx[1], bx[3], m[1]) if n[1] == 0.0 else (bx[0], bx[2], m[0])
+                if abs(d) <= rule.radius and along[0] - rule.radius <= along[2] <= along[1] + rule.radius:
+                    faces.append((abs(d), n))
+        for d, n in ((m[0] - x0, (1.0, 0.0)), (x1 - m[0], (-1.0, 0.0)),
+                     (m[1] - y0, (0.0, 1.0)), (y1 - m[1], (0.0, -1.0))):  # the border walls
+            if abs(d) <= rule.radius:
+                faces.append((abs(d), n))
+        seen = []
+        for _, n in sorted(faces):
+            if n not in seen:
+                seen.append(n)
+        w += [(np.array(n), rule.offset, rule.slope) for n in seen[:2]]
+        rows = []
+        for bx in boxes[~on]:
+            box = np.array([[bx[0], bx[1]], [bx[2], bx[1]], [bx[2], bx[3]], [bx[0], bx[3]]])
+            if np.hypot(*np.maximum(0.0, np.maximum(bx[:2] - m, m - bx[2:]))) <= s.max_range + rule.margin:
+                rows.append(_shadow_rows(m, _grown(box, reach), rule.margin))
+        for j, other in enumerate(mk):
+            if j != i and np.hypot(*(other - m)) <= s.max_range + rule.margin + rule.radius:
+                rows.append(_shadow_rows(m, _grown(other + octagon, reach), rule.margin))
+        mounts.append(boxes[on] - np.array([-BOX_SHRINK, -BOX_SHRINK, BOX_SHRINK, BOX_SHRINK]))
+        wedges.append(w)
+        shadows.append([r for r in rows if r is not None])
     out = np.full(len(points), np.inf)
+    rho_of = lambda r: s.relative_error * r + s.absolute_error  # noqa: E731
+    i_pair, j_pair = np.triu_indices(len(mk), 1)
     for lo in range(0, len(points), 100):
         p = points[lo:lo + 100]
         d = p[:, None, :] - mk[None, :, :]                     # (n, M, 2) marker -> point
         r = np.hypot(d[..., 0], d[..., 1])
-        vis = (r <= s.max_range) & (r > 0)
-        # Liang-Barsky: the segment marker + t d, t in [0, 1], against each shrunk box (open)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for b in boxes - np.array([-BOX_SHRINK, -BOX_SHRINK, BOX_SHRINK, BOX_SHRINK]):
-                t0, t1 = np.zeros(r.shape), np.ones(r.shape)
-                for axis, (bmin, bmax) in enumerate(((b[0], b[2]), (b[1], b[3]))):
-                    o, v = mk[None, :, axis], d[..., axis]
-                    ta, tb = (bmin - o) / v, (bmax - o) / v
-                    lo_t, hi_t = np.minimum(ta, tb), np.maximum(ta, tb)
-                    inside = (o > bmin) & (o < bmax)
-                    lo_t = np.where(v == 0, np.where(inside, -np.inf, np.inf), lo_t)
-                    hi_t = np.where(v == 0, np.where(inside, np.inf, -np.inf), hi_t)
-                    t0, t1 = np.maximum(t0, lo_t), np.minimum(t1, hi_t)
-                vis &= ~(t0 < t1)
+        vis = r <= rule.usable_range(s.max_range)
+        for i in range(len(mk)):
+            di = d[:, i]
+            for n, off, b in wedges[i]:
+                dot = di @ n - off
+                vis[:, i] &= (dot >= 0.0) & (dot * dot >= (di ** 2).sum(1) * b * b)
+            # Liang-Barsky: the segment marker + t d, t in [0, 1], against each mount box (open)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                for bx in mounts[i]:
+                    t0, t1 = np.zeros(len(p)), np.ones(len(p))
+                    for axis, (bmin, bmax) in enumerate(((bx[0], bx[2]), (bx[1], bx[3]))):
+                        o, v = mk[i, axis], di[:, axis]
+                        ta, tb = (bmin - o) / v, (bmax - o) / v
+                        lo_t, hi_t = np.minimum(ta, tb), np.maximum(ta, tb)
+                        inside = bmin < o < bmax
+                        lo_t = np.where(v == 0, -np.inf if inside else np.inf, lo_t)
+                        hi_t = np.where(v == 0, np.inf if inside else -np.inf, hi_t)
+                        t0, t1 = np.maximum(t0, lo_t), np.minimum(t1, hi_t)
+                    vis[:, i] &= ~(t0 < t1)
+            for rows in shadows[i]:
+                vis[:, i] &= ~np.all(p @ rows[:, :2].T + rows[:, 2] < 0.0, axis=1)
         u = d / np.where(r > 0, r, 1.0)[..., None]
-        rho = s.relative_error * r + s.absolute_error
-        i, j = np.triu_indices(len(mk), 1)
+        rho = rho_of(r)
         for c in range(len(p)):
-            ok = vis[c, i] & vis[c, j]
+            ok = vis[c, i_pair] & vis[c, j_pair]
             if not ok.any():
                 continue
-            a, b = i[ok], j[ok]
+            a, b = i_pair[ok], j_pair[ok]
             cos = np.clip((u[c, a] * u[c, b]).sum(-1), -1.0, 1.0)
             sin = np.abs(u[c, a, 0] * u[c, b, 1] - u[c, a, 1] * u[c, b, 0])
             r1, r2 = rho[c, a], rho[c, b]

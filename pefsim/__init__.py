@@ -608,7 +608,8 @@ def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str 
         Stream to a running viewer at this gRPC URL (``""``: rerun's default).
         Neither: a viewer is started (``rerun`` must be on the ``PATH``).
     on_update : callable (sim.watch.loop.Update), optional
-        Called after each update (``.line()`` is ``"updated in 0.23 s: hall.toml: ..."``).
+        Called after each update (``.line()`` is ``"updated in 0.23 s, planned in 0.51 s:
+        hall.toml: ..."``: the map and the route network are shown first, the plans follow).
     on_error : callable (PefsimError), optional
         Called with the error of a refused version of the files.
     interval : float, optional
@@ -632,17 +633,22 @@ def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str 
     """
     from scenarios.load import resolve
     from sim.recording import close
-    from sim.recording.live import log_view, open_live
+    from sim.recording.live import log_plans, log_view, open_live
     from sim.watch.loop import POLL_INTERVAL, watch_files
 
     path = resolve(scenario)
     rec = open_live(path.name, save=save, connect=connect)
 
-    def show(step, view) -> None:
-        log_view(rec, step, view.scenario, view.pef_map, view.reports, view.plans, view.unplanned, view.summary())
+    contours: dict = {}  # the region's contour by tiles: an edit re-traces the tiles it changed
+
+    def show(step, view) -> None:  # the map first: the plans follow (seconds on the hall)
+        log_view(rec, step, view.scenario, view.pef_map, view.reports, None, {}, view.summary(), contours=contours)
+
+    def show_plans(step, view) -> None:
+        log_plans(rec, step, view.scenario, view.plans, view.unplanned, view.summary())
 
     try:
-        return watch_files(path, show, on_update=on_update, on_error=on_error,
+        return watch_files(path, show, show_plans=show_plans, on_update=on_update, on_error=on_error,
                            interval=POLL_INTERVAL if interval is None else interval,
                            max_updates=max_updates, stop=stop)
     finally:

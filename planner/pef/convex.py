@@ -95,35 +95,42 @@ def piece_arrays(pieces: ConvexPieces, shrink: float, grow: float = 0.0) -> Piec
     bbox = np.zeros((p_n, 4))
     sight_bbox = np.zeros((p_n, 4))
     blocks = np.zeros(p_n, dtype=np.bool_)
-    for p in range(p_n):
-        n = int(count[p])
-        q = v[p, :n]
-        e = np.roll(q, -1, axis=0) - q
-        length = np.hypot(e[:, 0], e[:, 1])
-        normal = np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]   # outward for CCW
-        planes[p, :n, :2] = normal
-        planes[p, :n, 2] = np.einsum("ij,ij->i", normal, q)
-        shift = np.where(pieces.inner[p, :n], shrink, -shrink - pieces.inset[p, :n]) + grow
-        sight[p, :n] = planes[p, :n, 2] + shift
+    inner = np.asarray(pieces.inner, dtype=bool)
+    inset = np.asarray(pieces.inset, dtype=float)
+    # the pieces with n edges at once (thousands of reflector bodies are octagons), axis 1 the edges
+    for n in np.unique(count):
+        n = int(n)
+        at = np.flatnonzero(count == n)
+        q = v[at, :n]
+        e = np.roll(q, -1, axis=1) - q
+        length = np.hypot(e[..., 0], e[..., 1])
+        normal = np.stack([e[..., 1], -e[..., 0]], axis=-1) / length[..., None]   # outward for CCW
+        planes[at, :n, :2] = normal
+        c = np.einsum("gij,gij->gi", normal, q)
+        planes[at, :n, 2] = c
+        shift = np.where(inner[at, :n], shrink, -shrink - inset[at, :n]) + grow
+        sight[at, :n] = c + shift
         # Corner k joins edges k-1 and k; with their lines moved by d_{k-1} and d_k along the
         # normals it moves by the delta solving n_{k-1}.delta = d_{k-1}, n_k.delta = d_k.
-        prev_n, prev_d = np.roll(normal, 1, axis=0), np.roll(shift, 1)
-        det = prev_n[:, 0] * normal[:, 1] - prev_n[:, 1] * normal[:, 0]   # sin of the turn, > 0
-        dx = (prev_d * normal[:, 1] - shift * prev_n[:, 1]) / det
-        dy = (shift * prev_n[:, 0] - prev_d * normal[:, 0]) / det
-        shrunk[p, :n] = q + np.column_stack([dx, dy])
+        prev_n, prev_d = np.roll(normal, 1, axis=1), np.roll(shift, 1, axis=1)
+        det = prev_n[..., 0] * normal[..., 1] - prev_n[..., 1] * normal[..., 0]   # sin of the turn, > 0
+        dx = (prev_d * normal[..., 1] - shift * prev_n[..., 1]) / det
+        dy = (shift * prev_n[..., 0] - prev_d * normal[..., 0]) / det
+        corners = q + np.stack([dx, dy], axis=-1)
         # The moved piece is a piece when every moved edge still runs the way its edge does.
-        se = np.roll(shrunk[p, :n], -1, axis=0) - shrunk[p, :n]
-        blocks[p] = bool(np.all(np.einsum("ij,ij->i", se, e) > 0.0))
-        if not blocks[p] or np.min(np.abs(det)) < _STRAIGHT:
+        se = np.roll(corners, -1, axis=1) - corners
+        ok = np.all(np.einsum("gij,gij->gi", se, e) > 0.0, axis=1)
+        shrunk[at, :n] = corners
+        blocks[at] = ok
+        for i in np.flatnonzero(~ok | (np.min(np.abs(det), axis=1) < _STRAIGHT)):
             # A straight corner (a cut continuing a face, a redundant vertex) has no corner of
             # its two moved lines, or one far off; when they move apart an edge vanishes. Take
             # the corners of the half-planes' intersection instead.
-            shrunk[p, :n], blocks[p] = _clipped_corners(normal, sight[p, :n], q)
-        shrunk[p, n:] = shrunk[p, n - 1]
-        sight[p, n:] = sight[p, n - 1]
-        bbox[p] = (*q.min(axis=0), *q.max(axis=0))
-        sight_bbox[p] = (*shrunk[p, :n].min(axis=0), *shrunk[p, :n].max(axis=0))
+            shrunk[at[i], :n], blocks[at[i]] = _clipped_corners(normal[i], sight[at[i], :n], q[i])
+        shrunk[at, n:] = shrunk[at, n - 1:n]
+        sight[at, n:] = sight[at, n - 1:n]
+        bbox[at] = np.concatenate([q.min(axis=1), q.max(axis=1)], axis=1)
+        sight_bbox[at] = np.concatenate([shrunk[at, :n].min(axis=1), shrunk[at, :n].max(axis=1)], axis=1)
     return PieceArrays(np.ascontiguousarray(v), planes, sight, shrunk, count, bbox, sight_bbox, blocks,
                        float(shrink))
 

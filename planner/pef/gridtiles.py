@@ -326,8 +326,7 @@ def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstac
         best.fill(-1)
         return tau, best, free, tau_plain
     max_range = _range(max_range, rule)
-    hp, nhp, hidden = shadow_table(mx, my, sa.planes, sa.sight, sa.shrunk, sa.count, sa.blocks, sa.widen,
-                                   sa.sight_bbox, max_range)
+    hp, nhp, hidden = shadow_table(mx, my, *sa.kernel_args(), max_range)
     nbands = -(-y.size // TILE_ROWS)
     run_ranges(bands_parallelogram, nbands,
                (x, y, mx, my, sa.wedge, float(max_range), hp, nhp,

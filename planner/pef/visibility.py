@@ -159,55 +159,138 @@ def in_shadow(px, py, hp, n):
 
 
 @compiled.njit(cache=True)
-def shadow_table(mx, my, planes, sight, shrunk, count, blocks, widen, bbox, max_range):
-    """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
+def _on_mount(mx, my, planes, swallow, count, p):
+    """Tell whether (mx, my) lies in piece ``p`` grown to the offsets ``swallow`` (its mount, :mod:`.sight`)."""
+    for k in range(count[p]):
+        c = planes[p, k, 2]
+        if not planes[p, k, 0] * mx + planes[p, k, 1] * my - c <= swallow[p, k] - c:
+            return False
+    return True
 
-    Marker m's pieces are ``sight[m]``, ``shrunk[m]``, ``blocks[m]``, ``bbox[m]``
-    (:class:`SightArrays`). A shadow widened by ``widen[m, p]`` [m] takes in the points within
-    that distance of it (every half-plane moved out by it, mitred: a superset): the points from
-    which some position within ``widen`` looks at the marker through the piece. A piece farther
-    than ``max_range`` (plus its widening) from a marker gets no half-planes: its shadow, beyond
-    the piece, is out of range. ``hidden[m]``: the marker lies in one of its pieces.
+
+@compiled.njit(cache=True)
+def marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob, margin,
+                  max_range, split, hp, nhp, clip):
+    """Marker m's blocking pieces within reach: their shadows and, with ``split``, the pieces to clip.
+
+    The arrays are :class:`SightArrays`' (``sight`` (2, P, V) etc.: index 0 the pieces as a
+    mount sees them, 1 grown by the physics ray's reach). A piece is marker m's mount when m
+    lies in it grown to ``swallow``; its own body (a body piece ``p >= n_ob`` at m's position)
+    does not block. A piece's shadow is widened by ``margin`` [m] except on the mount (every
+    half-plane moved out by it, mitred: a superset of the points within ``margin`` of the
+    shadow). A piece whose bounding box is farther than ``max_range`` plus its widening from m
+    is left out: a point within ``max_range`` of m never looks at m through it.
+
+    With ``split`` (the points path) the pieces not widened go to ``clip`` (rows ``(p, 0 or 1)``,
+    tested by clipping the segment) instead of getting a shadow. Scratch: ``hp`` (>= P, V + 2,
+    3), ``nhp`` (>= P,), ``clip`` (>= P, 2).
+
+    Returns
+    -------
+    (int, int, bool)
+        Shadows written (``hp[:n]``, ``nhp[:n]``), clip rows written, and whether m lies in one
+        of its pieces (it is hidden everywhere).
+    """
+    x, y = mx[m], my[m]
+    ns, nc = 0, 0
+    hidden = False
+    for p in range(count.size):
+        mount = _on_mount(x, y, planes, swallow, count, p)
+        g = 0 if mount else 1
+        if not blocks[g, p]:
+            continue
+        if p >= n_ob and bodies[p - n_ob, 0] == x and bodies[p - n_ob, 1] == y:
+            continue  # its own body: what the ray must meet
+        w = 0.0 if mount else margin
+        dx = max(sight_bbox[g, p, 0] - x, x - sight_bbox[g, p, 2], 0.0)
+        dy = max(sight_bbox[g, p, 1] - y, y - sight_bbox[g, p, 3], 0.0)
+        reach = max_range + w
+        if not dx * dx + dy * dy <= reach * reach * 1.0000001:
+            continue  # its shadow, beyond it, is out of range (and m is not inside it)
+        if split and not w > 0.0:
+            clip[nc, 0], clip[nc, 1] = p, g
+            nc += 1
+            continue
+        n = shadow_halfplanes(x, y, planes, sight[g], shrunk[g], count, p, hp[ns])
+        if n < 0:
+            hidden = True
+            continue
+        if w > 0.0:
+            for h in range(n):
+                hp[ns, h, 2] -= w * math.sqrt(hp[ns, h, 0] ** 2 + hp[ns, h, 1] ** 2)
+        nhp[ns] = n
+        ns += 1
+    return ns, nc, hidden
+
+
+@compiled.njit(cache=True)
+def shadow_table(mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob, margin, max_range):
+    """Shadow half-planes of each marker's pieces within reach, their counts, and the markers hidden everywhere.
+
+    The arguments are :class:`SightArrays`' and :func:`marker_pieces`'. Marker m's shadows are
+    ``hp[m, :K_m]`` with ``nhp[m, :K_m]`` half-planes each (``nhp`` 0 past ``K_m``): shapes
+    (M, K, V + 2, 3) and (M, K) with K the largest ``K_m``, the pieces in reach of some marker
+    rather than all of them. ``hidden[m]``: the marker lies in one of its pieces.
     """
     nm, npc = mx.size, count.size
-    hp = np.zeros((nm, npc, planes.shape[1] + 2, 3))
-    nhp = np.zeros((nm, npc), dtype=np.int64)
+    hp1 = np.zeros((max(npc, 1), planes.shape[1] + 2, 3))
+    nhp1 = np.zeros(max(npc, 1), dtype=np.int64)
+    clip = np.zeros((1, 2), dtype=np.int64)
+    kept = np.zeros(nm, dtype=np.int64)
     hidden = np.zeros(nm, dtype=np.bool_)
     for m in range(nm):
-        for p in range(npc):
-            if blocks[m, p]:
-                dx = max(bbox[m, p, 0] - mx[m], mx[m] - bbox[m, p, 2], 0.0)
-                dy = max(bbox[m, p, 1] - my[m], my[m] - bbox[m, p, 3], 0.0)
-                n = shadow_halfplanes(mx[m], my[m], planes, sight[m], shrunk[m], count, p, hp[m, p])
-                if n < 0:
-                    hidden[m] = True
-                    continue
-                w = widen[m, p]
-                if w > 0.0:
-                    for h in range(n):
-                        hp[m, p, h, 2] -= w * math.sqrt(hp[m, p, h, 0] ** 2 + hp[m, p, h, 1] ** 2)
-                reach = max_range + w
-                nhp[m, p] = n if dx * dx + dy * dy <= reach * reach * 1.0000001 else 0
+        kept[m], _, hidden[m] = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow,
+                                              bodies, n_ob, margin, max_range, False, hp1, nhp1, clip)
+    k = max(1, kept.max()) if nm else 1
+    hp = np.zeros((nm, k, planes.shape[1] + 2, 3))
+    nhp = np.zeros((nm, k), dtype=np.int64)
+    for m in range(nm):  # again, into the table sized by the first pass (cheap next to its use)
+        n, _, _ = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob,
+                                margin, max_range, False, hp1, nhp1, clip)
+        hp[m, :n] = hp1[:n]
+        nhp[m, :n] = nhp1[:n]
     return hp, nhp, hidden
 
 
 @compiled.njit(cache=True, nogil=True)
-def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, y1, planes, count, bbox,
-                          splanes, scount, sight, sight_bbox, blocks, hp, nhp, vis, free):
-    r2max = max_range * max_range
+def _free_points_range(lo, hi, px, py, x0, y0, x1, y1, planes, count, bbox, free):
     for n in range(lo, hi):
-        f = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
-        free[n] = f
-        for m in range(mx.size):
-            ok = f
+        free[n] = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
+
+
+@compiled.njit(cache=True, nogil=True)
+def _visible_points_markers(m0, m1, px, py, free, mx, my, wedge, max_range, planes, count, sight, shrunk,
+                            sight_bbox, blocks, swallow, bodies, n_ob, margin, vis):
+    """Markers ``m0 <= m < m1``: each one's pieces once (:func:`marker_pieces`), then every point."""
+    npc = max(count.size, 1)
+    hp = np.zeros((npc, planes.shape[1] + 2, 3))
+    nhp = np.zeros(npc, dtype=np.int64)
+    clip = np.zeros((npc, 2), dtype=np.int64)
+    r2max = max_range * max_range
+    for m in range(m0, m1):
+        ns, nc, _ = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies,
+                                  n_ob, margin, max_range, True, hp, nhp, clip)
+        bx, by = mx[m], my[m]
+        for n in range(px.size):
+            ok = free[n]
+            ax, ay = px[n], py[n]
             if ok:
-                dx, dy = px[n] - mx[m], py[n] - my[m]
+                dx, dy = ax - bx, ay - by
                 ok = dx * dx + dy * dy <= r2max and wedges_ok(dx, dy, wedge, m)
             if ok:
-                ok = not _blocked(px[n], py[n], mx[m], my[m], splanes, sight[m], scount, sight_bbox[m], blocks[m])
+                lox, hix = min(ax, bx), max(ax, bx)
+                loy, hiy = min(ay, by), max(ay, by)
+                for i in range(nc):
+                    p, g = clip[i, 0], clip[i, 1]
+                    if (sight_bbox[g, p, 0] >= hix or sight_bbox[g, p, 2] <= lox or sight_bbox[g, p, 1] >= hiy
+                            or sight_bbox[g, p, 3] <= loy):
+                        continue
+                    if segment_enters(ax, ay, bx, by, planes, sight[g], count, p):
+                        ok = False
+                        break
             if ok:
-                for p in range(nhp.shape[1]):
-                    if in_shadow(px[n], py[n], hp[m, p], nhp[m, p]):
+                for s in range(ns):
+                    if in_shadow(ax, ay, hp[s], nhp[s]):
                         ok = False
                         break
             vis[m, n] = ok
@@ -215,49 +298,67 @@ def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, 
 
 @dataclass(frozen=True)
 class SightArrays:
-    """Each marker's line-of-sight pieces and wedge, as the kernels read them (:func:`prepare_sight`).
+    """The pieces every marker's line of sight is tested on, and each marker's wedges (:func:`prepare_sight`).
+
+    The pieces are shared: the obstacles' and, with a rule, every reflector's body (an octagon
+    around it). What differs from marker to marker (which pieces are its mount, which body is
+    its own, which are in reach) :func:`marker_pieces` decides for one marker at a time, so
+    nothing of size (markers x pieces) is kept: placement asks this of thousands of candidate
+    sites, each a body too.
 
     Attributes
     ----------
-    sight : ndarray, shape (M, P, V)
-        Edge offsets of the pieces marker m's line of sight must not enter [m]: its mount's
-        shrunk ones (``PieceArrays.sight``), every other piece's grown by ``SightRule.reach``.
-    shrunk : ndarray, shape (M, P, V, 2)
+    planes : ndarray, shape (P, V, 3)
+        The pieces' edges (``PieceArrays.planes``): the obstacles', then each body's.
+    count : ndarray of int64, shape (P,)
+        Their edge counts.
+    sight : ndarray, shape (2, P, V)
+        Edge offsets for line of sight [m]: ``[0]`` as a marker on the piece (its mount) sees
+        it, shrunk (``PieceArrays.sight``); ``[1]`` as the others do, grown by
+        ``SightRule.reach`` (the same as ``[0]`` without a rule).
+    shrunk : ndarray, shape (2, P, V, 2)
         The corners of those pieces [m].
-    sight_bbox : ndarray, shape (M, P, 4)
+    sight_bbox : ndarray, shape (2, P, 4)
         Their bounding boxes [m].
-    blocks : ndarray of bool, shape (M, P)
+    blocks : ndarray of bool, shape (2, P)
         Whether they block (``PieceArrays.blocks``).
+    swallow : ndarray, shape (P, V)
+        Edge offsets of the pieces grown by ``SightRule.grow`` [m]: a marker inside one is on
+        its mount (-inf without a rule: no mounts).
+    bodies : ndarray, shape (B, 2)
+        Where the bodies stand [m] (pieces ``n_ob ..``); a body at a marker's position is its own.
+    n_ob : int
+        Number of obstacle pieces.
+    margin : float
+        How far the shadow of a piece that is not the marker's mount is widened [m] (0 without a rule).
     wedge : ndarray, shape (M, W, 4)
         Each marker's wedges ``(nx, ny, cos_inc, offset)`` (:func:`wedges_ok`): a flat marker's
         incidence wedge, and one per mount face (a face whose line passes within the
         reflector's radius of the marker: two in a corner), ``n = (0, 0)`` where unused.
-    mount : ndarray of bool, shape (M, P)
-        Piece p is marker m's mount (not grown for it).
-    widen : ndarray, shape (M, P)
-        How far piece p's shadow is widened for marker m [m]: the rule's margin, 0 on its mount.
-    planes : ndarray, shape (P, V, 3)
-        The pieces' edges (``PieceArrays.planes``): the obstacles', then, with a rule, each
-        marker's body (an octagon around it; not a piece of its own line of sight).
-    count : ndarray of int64, shape (P,)
-        Their edge counts.
     """
 
+    planes: np.ndarray
+    count: np.ndarray
     sight: np.ndarray
     shrunk: np.ndarray
     sight_bbox: np.ndarray
     blocks: np.ndarray
+    swallow: np.ndarray
+    bodies: np.ndarray
+    n_ob: int
+    margin: float
     wedge: np.ndarray
-    mount: np.ndarray
-    widen: np.ndarray
-    planes: np.ndarray
-    count: np.ndarray
+
+    def kernel_args(self) -> tuple:
+        """Return the fields the kernels take, in their order (``wedge`` aside)."""
+        return (self.planes, self.count, self.sight, self.shrunk, self.sight_bbox, self.blocks, self.swallow,
+                self.bodies, self.n_ob, self.margin)
 
 
 def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, float, float],
                   normals: np.ndarray | None = None, max_incidence: float = math.pi / 2,
                   rule: SightRule | None = None, bodies: np.ndarray | None = None) -> tuple[PieceArrays, SightArrays]:
-    """Prepare the obstacles and each marker's line-of-sight pieces and wedge.
+    """Prepare the obstacles, the pieces of the markers' lines of sight and each marker's wedges.
 
     Parameters
     ----------
@@ -279,21 +380,43 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
     Returns
     -------
     (PieceArrays, SightArrays)
+        The obstacles (free space), and the line of sight's pieces.
     """
     mk = np.asarray(markers, float).reshape(-1, 2)
     fn = _normals(normals, mk.shape[0])
+    if rule is None or not isinstance(obstacles, ConvexPieces):
+        return _prepare_sight(obstacles, mk, bounds, fn, max_incidence, rule, bodies)
+    # a planner asks this of the same scenario's markers many times (map, segments, plan, schedule)
+    at = None if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
+    key = (mk.tobytes(), fn.tobytes(), tuple(float(b) for b in bounds), float(max_incidence), rule,
+           None if at is None else at.tobytes())
+    memo = _SIGHT.setdefault(obstacles, {})
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = _prepare_sight(obstacles, mk, bounds, fn, max_incidence, rule, at)
+        while len(memo) > _SIGHT_KEPT:
+            memo.pop(next(iter(memo)))
+    return got
+
+
+#: Sight arrays kept per set of obstacles (:func:`prepare_sight`), by markers and rule.
+_SIGHT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_SIGHT_KEPT = 4
+
+
+def _prepare_sight(obstacles, mk: np.ndarray, bounds, fn: np.ndarray, max_incidence: float, rule: SightRule | None,
+                   bodies: np.ndarray | None) -> tuple[PieceArrays, SightArrays]:
+    """:func:`prepare_sight` computed (``fn`` the markers' normals, (M, 2))."""
     pa = prepare(obstacles)
     m_n = mk.shape[0]
     wedge = np.zeros((m_n, 1 if rule is None else _MAX_WEDGES, 4))
     wedge[:, 0, :2] = fn
     wedge[:, 0, 2] = math.cos(max_incidence)
     if rule is None:
-        mount = np.zeros((m_n, pa.count.size), dtype=np.bool_)
-        return pa, SightArrays(np.ascontiguousarray(np.broadcast_to(pa.sight, (m_n, *pa.sight.shape))),
-                               np.ascontiguousarray(np.broadcast_to(pa.shrunk, (m_n, *pa.shrunk.shape))),
-                               np.ascontiguousarray(np.broadcast_to(pa.sight_bbox, (m_n, *pa.sight_bbox.shape))),
-                               np.ascontiguousarray(np.broadcast_to(pa.blocks, (m_n, *pa.blocks.shape))),
-                               wedge, mount, np.zeros(mount.shape), pa.planes, pa.count)
+        twice = lambda a: np.ascontiguousarray(np.stack([a, a]))  # noqa: E731
+        return pa, SightArrays(pa.planes, pa.count, twice(pa.sight), twice(pa.shrunk), twice(pa.sight_bbox),
+                               twice(pa.blocks), np.full(pa.sight.shape, -np.inf), np.zeros((0, 2)),
+                               int(pa.count.size), 0.0, wedge)
     flat = np.any(fn != 0.0, axis=1)
     wedge[flat, 0, 3] = rule.wedge_offset(math.cos(max_incidence))   # the incidence limit within the margin too
     pieces = _pieces(obstacles)
@@ -303,25 +426,26 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
     both = _with_bodies(pieces, at, rule.radius)
     base = piece_arrays(both, BOX_SHRINK)
     grown = piece_arrays(both, BOX_SHRINK, rule.reach)
-    swallow = piece_arrays(both, BOX_SHRINK, rule.grow)
-    nrm, c = base.planes[:, :, :2], base.planes[:, :, 2]
-    # (M, P, V): how far each marker lies outside each edge's line [m]
-    out = np.einsum("pvk,mk->mpv", nrm, mk) - c[None]
-    used = np.arange(base.planes.shape[1])[None, :] < base.count[:, None]      # (P, V)
-    mount = np.all((out <= (swallow.sight - c)[None]) | ~used[None], axis=2)  # inside the piece grown by grow
-    sight = np.where(mount[:, :, None], base.sight[None], grown.sight[None])
-    shrunk = np.where(mount[:, :, None, None], base.shrunk[None], grown.shrunk[None])
-    sight_bbox = np.where(mount[:, :, None], base.sight_bbox[None], grown.sight_bbox[None])
-    blocks = np.where(mount, base.blocks[None], grown.blocks[None])
-    # a marker's own body (the one at its position, as the laser matches its post) is what the ray must meet
-    own = np.all(at[None, :, :] == mk[:, None, :], axis=2)
-    blocks[:, n_ob:] &= ~own
+    swallow = piece_arrays(both, BOX_SHRINK, rule.grow).sight
+    mount = _mount_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), base.planes, swallow,
+                         base.count, n_ob)
     for m in range(m_n):
-        for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m, :n_ob], rule.radius, bounds), start=1):
+        for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m], rule.radius, bounds), start=1):
             wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
-    return pa, SightArrays(np.ascontiguousarray(sight), np.ascontiguousarray(shrunk),
-                           np.ascontiguousarray(sight_bbox), np.ascontiguousarray(blocks), wedge, mount,
-                           np.where(mount, 0.0, rule.margin), base.planes, base.count)
+    pair = lambda a, b: np.ascontiguousarray(np.stack([a, b]))  # noqa: E731
+    return pa, SightArrays(base.planes, base.count, pair(base.sight, grown.sight), pair(base.shrunk, grown.shrunk),
+                           pair(base.sight_bbox, grown.sight_bbox), pair(base.blocks, grown.blocks), swallow,
+                           np.ascontiguousarray(at), n_ob, float(rule.margin), wedge)
+
+
+@compiled.njit(cache=True)
+def _mount_table(mx, my, planes, swallow, count, n):
+    """``mount[m, p]``: piece ``p < n`` is marker m's mount (:func:`_on_mount`); shape (M, n)."""
+    out = np.zeros((mx.size, n), dtype=np.bool_)
+    for m in range(mx.size):
+        for p in range(n):
+            out[m, p] = _on_mount(mx[m], my[m], planes, swallow, count, p)
+    return out
 
 
 def _with_bodies(pieces: ConvexPieces, mk: np.ndarray, radius: float) -> ConvexPieces:
@@ -442,17 +566,14 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     x0, y0, x1, y1 = (float(v) for v in bounds)
     vis = np.empty((mk.shape[0], p.shape[0]), dtype=np.bool_)
     free = np.empty(p.shape[0], dtype=np.bool_)
-    # widened pieces by their (grid path's) shadows, the others by clipping the segment
-    widened = sa.widen > 0.0
-    hp, nhp, _ = shadow_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), sa.planes, sa.sight,
-                              sa.shrunk, sa.count, sa.blocks & widened, sa.widen, sa.sight_bbox,
-                              _range(max_range, rule))
-    run_ranges(_visible_points_range, p.shape[0],
-               (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
-                sa.wedge, _range(max_range, rule), x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, sa.planes, sa.count,
-                sa.sight, sa.sight_bbox, np.ascontiguousarray(sa.blocks & ~widened), hp, nhp, vis, free),
+    px, py = np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1])
+    run_ranges(_free_points_range, p.shape[0], (px, py, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free),
                min_chunk=2048)
+    # marker by marker: each one's pieces in reach once, then every point (widened pieces by
+    # their shadows, the grid path's half-planes; the others by clipping the segment)
+    run_ranges(_visible_points_markers, mk.shape[0],
+               (px, py, free, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), sa.wedge,
+                _range(max_range, rule), *sa.kernel_args(), vis), min_chunk=8)
     return vis, free
 
 
@@ -619,8 +740,7 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
     _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
     vis = np.empty((mk.shape[0], y.size, x.size), dtype=np.bool_)
     mx, my = np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1])
-    hp, nhp, hidden = shadow_table(mx, my, sa.planes, sa.sight, sa.shrunk, sa.count, sa.blocks, sa.widen,
-                                   sa.sight_bbox, _range(max_range, rule))
+    hp, nhp, hidden = shadow_table(mx, my, *sa.kernel_args(), _range(max_range, rule))
     run_ranges(_visible_grid_markers, mk.shape[0],
                (x, y, mx, my, sa.wedge, _range(max_range, rule), hp, nhp, hidden, free, vis))
     return vis, free

@@ -18,20 +18,20 @@ from scenarios.schema import Marker, MarkerKind, Scenario
 ON_FACE = 1e-6
 
 
-def _edges(ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return ring, np.roll(ring, -1, axis=0)
-
-
-def _on_edge(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from point p (2,) to segments a-b (E, 2) [m], shape (E,)."""
+def _distances(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from points p (N, 2) to segments a-b (E, 2) [m], shape (N, E)."""
     d = b - a
     ll = np.maximum((d * d).sum(axis=1), 1e-300)
-    t = np.clip(((p - a) * d).sum(axis=1) / ll, 0.0, 1.0)
-    return np.hypot(*(a + t[:, None] * d - p).T)
+    t = np.clip(((p[:, None, :] - a) * d).sum(axis=2) / ll, 0.0, 1.0)
+    q = a + t[..., None] * d - p[:, None, :]
+    return np.hypot(q[..., 0], q[..., 1])
 
 
 def site_facings(scenario: Scenario, sites: np.ndarray) -> list[float | None]:
     """Facing [rad] of each candidate site, None for a post (see module doc).
+
+    A site takes the first ring (the workspace wall, then the obstacles' rings in order) that
+    has an edge within :data:`ON_FACE` of it, and that ring's nearest edge.
 
     Parameters
     ----------
@@ -52,23 +52,33 @@ def site_facings(scenario: Scenario, sites: np.ndarray) -> list[float | None]:
     wall = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])  # counter-clockwise: inward = left
     rings = [(wall, None)]
     rings += [(r, ob) for ob in scenario.obstacles for r in ob.rings()]
+    # every ring's edges in one array (ring by ring): the distances of a chunk of sites at once
+    a = np.vstack([r for r, _ in rings])
+    b = np.vstack([np.roll(r, -1, axis=0) for r, _ in rings])
+    start = np.cumsum([0] + [len(r) for r, _ in rings])
+    ring_of = np.repeat(np.arange(len(rings)), np.diff(start))
     out: list[float | None] = []
-    for p in sites:
-        facing = None
-        for ring, ob in rings:
-            a, b = _edges(ring)
-            dist = _on_edge(p, a, b)
-            e = int(np.argmin(dist))
-            if dist[e] > ON_FACE:
+    for lo in range(0, len(sites), _CHUNK):
+        dist = _distances(sites[lo:lo + _CHUNK], a, b)
+        on = dist <= ON_FACE
+        for i, p in enumerate(sites[lo:lo + _CHUNK]):
+            hit = np.flatnonzero(on[i])
+            if not hit.size:
+                out.append(None)
                 continue
+            k = int(ring_of[hit[0]])
+            ob = rings[k][1]
+            e = start[k] + int(np.argmin(dist[i, start[k]:start[k + 1]]))
             d = b[e] - a[e]
             n = np.array([-d[1], d[0]]) / math.hypot(*d)  # left normal
             if ob is not None and ob.contains(p + 1e-4 * n):
                 n = -n  # out of the obstacle, whichever way its ring runs
-            facing = math.atan2(n[1], n[0])
-            break
-        out.append(facing)
+            out.append(math.atan2(n[1], n[0]))
     return out
+
+
+#: Sites per chunk of :func:`site_facings` (a (chunk, edges) array of distances).
+_CHUNK = 256
 
 
 def site_marker(mid: str, site, facing: float | None) -> Marker:

@@ -1,6 +1,8 @@
 """``pefsim watch``: a live rerun view of a scenario, updated whenever its files are saved.
 
-Prints one line per update (``updated in 0.23 s: hall.toml: 14 markers, 3 tasks planned``) and
+Shows the map and the route network of each version first and its plans when they follow, then
+prints one line per update (``updated in 0.23 s, planned in 0.61 s: hall.toml: 14 markers, 3 tasks
+planned``: the times to the map shown and to the plans shown) and
 one ``pefsim: error: ...`` line on stderr for a version of the files that is refused (the last
 good view stays). Ctrl-C ends it with exit 0 and a finished recording.
 """

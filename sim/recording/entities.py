@@ -21,6 +21,8 @@ MARKER_FACING = "world/markers/facing"
 """Flat reflectors: the face (a short line across the normal) and the normal as an arrow."""
 DOCKS = "world/docks"
 PEF = "world/pef"
+PEF_NO_FIX = "world/pef/no_fix"
+"""Cells with τ = ∞ over the heatmap (a child of :data:`PEF`: its image transform applies)."""
 REGION = "world/region"
 CANDIDATES = "world/routes/candidates"
 CHOSEN = "world/routes/chosen"
@@ -123,6 +125,9 @@ FIX_POINT = (255, 160, 0)
 SWITCH_POINT = (255, 60, 200)
 NO_FIX = (170, 60, 255)
 """τ = ∞ (no fix possible): a colour off the finite τ ramp (green - yellow - red), not its worst end."""
+NO_FIX_CELL = (70, 70, 70, 255)
+"""RGBA of a map cell with τ = ∞ (inside a rack, or seeing no usable subset): dark grey, off the
+heatmap's colormap, whose top end is "bad but finite"; cells with a fix are transparent in that layer."""
 TAU_GOOD = (40, 200, 80)
 TAU_MID = (250, 210, 40)
 TAU_LIMIT = (230, 40, 40)

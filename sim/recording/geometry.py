@@ -158,36 +158,68 @@ def strip_polygons(positions: np.ndarray, marker_xy: np.ndarray, rho: np.ndarray
     return rings
 
 
-def level_contours(x: np.ndarray, y: np.ndarray, z: np.ndarray, level: float) -> list[np.ndarray]:
+#: Rows and columns of a tile of :func:`level_contours` with a cache.
+CONTOUR_TILE = 256
+
+
+def level_contours(x: np.ndarray, y: np.ndarray, z: np.ndarray, level: float,
+                   cache: dict | None = None) -> list[np.ndarray]:
     """Iso-lines ``z = level`` of a grid, for the boundary of the navigation region ``{tau < eps_max}``.
 
     Uses contourpy, matplotlib's contour generator. Non-finite values (tau = inf where
-    too few markers are visible) count as far above the level, so the region's boundary
-    is traced around them.
+    too few markers are visible) count as far above the level (``10 level + 1``), so the
+    region's boundary is traced around them.
 
     Parameters
     ----------
     x : (nx,) float
-        Cell-centre x coordinates [m], increasing.
+        Cell-centre x coordinates [m], increasing and uniformly spaced.
     y : (ny,) float
-        Cell-centre y coordinates [m], increasing.
+        Cell-centre y coordinates [m], increasing and uniformly spaced.
     z : (ny, nx) float
         Values on the grid (row = y index).
     level : float
         Iso-value.
+    cache : dict, optional
+        Given (empty at first, then passed again with each new ``z`` of the same grid): the grid
+        is traced in tiles of :data:`CONTOUR_TILE` cells that share their border rows, and a tile
+        whose values, level and coordinates equal the last call's reuses its lines (a live view
+        where one edit changes a window of the map). The lines then break at tile borders.
 
     Returns
     -------
     list of (n_i, 2) float arrays
-        Polylines [m]; closed ones repeat their first point.
+        Polylines [m]; closed ones repeat their first point (without a cache).
     """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    z = np.asarray(z, dtype=float)
+    ny, nx = z.shape
+    if cache is None:
+        return _contours(x, y, z, level)
+    out = []
+    for r0 in range(0, max(ny - 1, 1), CONTOUR_TILE):
+        for c0 in range(0, max(nx - 1, 1), CONTOUR_TILE):
+            rows, cols = slice(r0, min(r0 + CONTOUR_TILE + 1, ny)), slice(c0, min(c0 + CONTOUR_TILE + 1, nx))
+            key = (r0, c0)
+            tile, tx, ty = z[rows, cols], x[cols], y[rows]
+            hit = cache.get(key)
+            if (hit is None or hit[0] != level or not np.array_equal(hit[1], tx) or not np.array_equal(hit[2], ty)
+                    or not np.array_equal(hit[3], tile)):
+                hit = cache[key] = (level, tx.copy(), ty.copy(), tile.copy(), _contours(tx, ty, tile, level))
+            out.extend(hit[4])
+    return out
+
+
+def _contours(x: np.ndarray, y: np.ndarray, z: np.ndarray, level: float) -> list[np.ndarray]:
+    """:func:`level_contours` of one grid in one piece."""
     import contourpy  # a matplotlib dependency; imported here to keep `import sim` light
 
-    z = np.asarray(z, dtype=float)
-    finite = np.isfinite(z)
-    if not finite.any():
+    if min(z.shape) < 2 or not np.isfinite(z).any():
         return []
-    big = max(float(np.max(z[finite])), level) * 10.0 + 1.0
-    gen = contourpy.contour_generator(x=np.asarray(x, float), y=np.asarray(y, float),
-                                      z=np.where(finite, z, big))
-    return [np.asarray(line, dtype=float) for line in gen.lines(level) if len(line) >= 2]
+    # on cell indices, then scaled to metres (x, y uniform): contourpy given x and y would
+    # build their (ny, nx) mesh, most of its time on a big map
+    dx = (x[-1] - x[0]) / (x.size - 1)
+    dy = (y[-1] - y[0]) / (y.size - 1)
+    gen = contourpy.contour_generator(z=np.where(np.isfinite(z), z, 10.0 * level + 1.0))
+    origin, step = np.array([x[0], y[0]]), np.array([dx, dy])
+    return [origin + step * np.asarray(line, dtype=float) for line in gen.lines(level) if len(line) >= 2]

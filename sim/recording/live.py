@@ -172,7 +172,7 @@ def view_markdown(scenario: Scenario, summary: str, plans: list[Any], unplanned:
 
 
 def log_view(rec: rr.RecordingStream, step: int, scenario: Scenario, pef_map: Any, reports: list[Any],
-             plans: list[Any], unplanned: dict[int, str], summary: str) -> None:
+             plans: list[Any] | None, unplanned: dict[int, str], summary: str, contours: dict | None = None) -> None:
     """Log one update of the live view at step ``step`` of the ``edit`` timeline.
 
     Parameters
@@ -187,6 +187,41 @@ def log_view(rec: rr.RecordingStream, step: int, scenario: Scenario, pef_map: An
         ``x``, ``y`` [m], ``tau`` (ny, nx) [m]: the heatmap and the navigation region's border.
     reports : list of planner.routes.edges.SegmentReport
         The route network's segments (empty without a network).
+    plans : list of planner.plan.Plan or None, or None
+        One per task; None where the task has no admissible route. None as a whole: the plans
+        follow (:func:`log_plans` at the same step); until then the text says they are coming.
+    unplanned : dict of int to str
+        Why a task has no plan.
+    summary : str
+        One line on what this update read.
+    contours : dict, optional
+        A cache of the region's contour kept between updates (:func:`sim.recording.static.log_pef_map`):
+        only the tiles of the map that changed are traced again.
+    """
+    rec.set_time(EDIT_TIMELINE, sequence=step)
+    rec.log(E.WORLD, rr.Clear(recursive=True))
+    rec.log(E.PLAN_TEXT, rr.Clear(recursive=True))
+    log_scene(rec, scenario, static=False)
+    log_pef_map(rec, pef_map, scenario.planning.eps_max, static=False, contours=contours)
+    log_network(rec, scenario, reports)
+    if plans is None:
+        rec.log(E.VIEW_TEXT, rr.TextDocument(f"# {scenario.name}\n\n{summary}\n", media_type="text/markdown"))
+    else:
+        log_plans(rec, step, scenario, plans, unplanned, summary)
+
+
+def log_plans(rec: rr.RecordingStream, step: int, scenario: Scenario, plans: list[Any], unplanned: dict[int, str],
+              summary: str) -> None:
+    """Log the plans of an update whose map :func:`log_view` logged without them, at the same step.
+
+    Parameters
+    ----------
+    rec : rerun.RecordingStream
+        From :func:`open_live`.
+    step : int
+        The update's step.
+    scenario : scenarios.schema.Scenario
+        Its tasks and routes.
     plans : list of planner.plan.Plan or None
         One per task; None where the task has no admissible route.
     unplanned : dict of int to str
@@ -195,11 +230,6 @@ def log_view(rec: rr.RecordingStream, step: int, scenario: Scenario, pef_map: An
         One line on what this update read.
     """
     rec.set_time(EDIT_TIMELINE, sequence=step)
-    rec.log(E.WORLD, rr.Clear(recursive=True))
-    rec.log(E.PLAN_TEXT, rr.Clear(recursive=True))
-    log_scene(rec, scenario, static=False)
-    log_pef_map(rec, pef_map, scenario.planning.eps_max, static=False)
-    log_network(rec, scenario, reports)
     for i, plan in enumerate(plans):
         if plan is not None:
             log_plan(rec, plan, scenario, static=False, task=i, candidates=scenario.routes is None)

@@ -33,24 +33,33 @@ class Update:
     Attributes
     ----------
     seconds : float
-        Wall time from noticing the change to the view logged [s].
+        Wall time from noticing the change to the view logged [s] (with the plans shown after
+        the map, to the map logged).
     changed : tuple of Path
         The files that changed (the scenario file alone for the first view).
     view : View
         What is shown now.
+    planned_seconds : float, optional
+        Wall time from noticing the change to the plans logged [s], when they followed the map.
     """
 
     seconds: float
     changed: tuple[Path, ...]
     view: View
+    planned_seconds: float | None = None
 
     def line(self) -> str:
-        """Return the line printed: ``"updated in 0.23 s: hall.toml: 14 markers, 3 tasks planned"``."""
+        """Return the line printed: ``"updated in 0.23 s: hall.toml: 14 markers, 3 tasks planned"``.
+
+        With the plans after the map: ``"updated in 0.23 s, planned in 0.91 s: hall.toml: ..."``.
+        """
         names = ", ".join(p.name for p in self.changed)
-        return f"updated in {self.seconds:.2f} s: {names}: {self.view.summary()}"
+        planned = "" if self.planned_seconds is None else f", planned in {self.planned_seconds:.2f} s"
+        return f"updated in {self.seconds:.2f} s{planned}: {names}: {self.view.summary()}"
 
 
 def watch_files(scenario: str | Path, show: Callable[[int, View], None], *,
+                show_plans: Callable[[int, View], None] | None = None,
                 on_update: Callable[[Update], None] | None = None,
                 on_error: Callable[[PefsimError], None] | None = None,
                 interval: float = POLL_INTERVAL, max_updates: int | None = None,
@@ -63,6 +72,11 @@ def watch_files(scenario: str | Path, show: Callable[[int, View], None], *,
         Scenario file (a built-in name is followed as its file in the library).
     show : callable (step, View)
         Logs a view (:func:`sim.recording.live.log_view`); step counts the updates from 0.
+    show_plans : callable (step, View), optional
+        Given: ``show`` gets the map part of each update (:meth:`ViewBuilder.build_map`: map,
+        route segments; ``planned`` False) as soon as it is computed, and this the same view
+        with its plans (:func:`sim.recording.live.log_plans`) when they follow. None: ``show``
+        gets the whole view once.
     on_update : callable (Update), optional
         Called after each update is shown.
     on_error : callable (PefsimError), optional
@@ -96,18 +110,28 @@ def watch_files(scenario: str | Path, show: Callable[[int, View], None], *,
         if changed:
             t0 = time.perf_counter()
             try:
-                view = builder.build(load(scenario))  # errors name the file as given, as the CLI does
+                sc = load(scenario)  # errors name the file as given, as the CLI does
+                view = builder.build(sc) if show_plans is None else builder.build_map(sc)
                 show(updates, view)
             except PefsimError as exc:
                 read = {p: files.digest(p) for p in files.stamps}
                 if on_error is not None:
                     on_error(exc)
             else:
+                seconds, planned = time.perf_counter() - t0, None
+                if show_plans is not None:  # the map is on screen; the plans follow
+                    try:
+                        view = builder.plan(view)
+                        show_plans(updates, view)
+                        planned = time.perf_counter() - t0
+                    except PefsimError as exc:  # the map stays shown, without plans
+                        if on_error is not None:
+                            on_error(exc)
                 updates += 1
                 files.follow(dict.fromkeys([path, *view.scenario.files]))
                 read = {p: files.digest(p) for p in files.stamps}
                 if on_update is not None:
-                    on_update(Update(time.perf_counter() - t0, tuple(changed), view))
+                    on_update(Update(seconds, tuple(changed), view, planned))
                 if max_updates is not None and updates >= max_updates:
                     return updates
         if stop is not None and stop.wait(interval):

@@ -11,6 +11,7 @@ computes the whole map; an edit that changes nothing the map depends on reuses i
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -122,6 +123,9 @@ class View:
         ``"reused"``, ``"window"`` (the part around moved markers) or ``"computed"``.
     seconds : dict of str to float
         Wall time of each part [s].
+    planned : bool
+        False for the map part of an update (:meth:`ViewBuilder.build_map`): ``plans`` and
+        ``unplanned`` follow from :meth:`ViewBuilder.plan`.
     """
 
     scenario: Scenario
@@ -132,12 +136,18 @@ class View:
     map_work: str = "computed"
     seconds: dict[str, float] = field(default_factory=dict)
     """Wall time of each part [s]: ``map``, ``routes`` (segment τ), ``plans``."""
+    planned: bool = True
 
     def summary(self) -> str:
-        """``"14 markers, 3 tasks planned"`` (``"2 of 3 tasks planned"`` when some have no route)."""
+        """``"14 markers, 3 tasks planned"`` (``"2 of 3 tasks planned"`` when some have no route).
+
+        Before the plans (``planned`` False): ``"14 markers, planning 3 tasks"``.
+        """
         n = len(self.scenario.tasks)
         done = sum(p is not None for p in self.plans)
         tasks = f"{n} task{'s' if n != 1 else ''} planned" if done == n else f"{done} of {n} tasks planned"
+        if not self.planned:
+            tasks = f"planning {n} task{'s' if n != 1 else ''}"
         m = len(self.scenario.markers)
         return f"{m} marker{'s' if m != 1 else ''}, {tasks}"
 
@@ -164,6 +174,7 @@ class ViewBuilder:
         self._markers: list[tuple] = []
         self._map: PefMap | None = None
         self._memo: dict = {}
+        self._pef: _Reuse | None = None
 
     def _pef_map(self, sc: Scenario, key: tuple, pef: PEF) -> tuple[PefMap, str]:
         rows = _marker_rows(sc)
@@ -193,6 +204,8 @@ class ViewBuilder:
     def build(self, sc: Scenario) -> View:
         """Compute the view of ``sc``: PEF map, route segments' τ, every task's plan.
 
+        :meth:`build_map` then :meth:`plan`.
+
         Parameters
         ----------
         sc : Scenario
@@ -207,7 +220,28 @@ class ViewBuilder:
             What the planner refuses in the scenario as a whole (a task that has no admissible
             route is not an error: it is listed in ``unplanned``).
         """
-        from planner.plan import plan_task
+        return self.plan(self.build_map(sc))
+
+    def build_map(self, sc: Scenario) -> View:
+        """Compute what is shown before the plans: the PEF map and the route segments' τ.
+
+        The plans follow from :meth:`plan` (call it next, with the view returned here: the
+        values the planner reads are those of this map).
+
+        Parameters
+        ----------
+        sc : Scenario
+
+        Returns
+        -------
+        View
+            With ``planned`` False and no plans yet.
+
+        Raises
+        ------
+        PefsimError
+            What the planner refuses in the scenario as a whole.
+        """
         from planner.routes.edges import segment_reports
 
         t0 = time.perf_counter()
@@ -221,7 +255,29 @@ class ViewBuilder:
         self._key, self._markers, self._map = key, rows, pef_map
         pef = _Reuse(sc, pef_map, memo, np.array(moved, dtype=float).reshape(-1, 2) if moved else None)
         reports = segment_reports(sc, pef) if sc.routes is not None else []
-        t2 = time.perf_counter()
+        self._memo = pef.memo
+        self._pef = pef
+        seconds = {"map": t1 - t0, "routes": time.perf_counter() - t1}
+        return View(sc, pef_map, reports, [], {}, work, seconds, planned=False)
+
+    def plan(self, view: View) -> View:
+        """Plan every task of a view from :meth:`build_map` (the last one this builder made).
+
+        Parameters
+        ----------
+        view : View
+
+        Returns
+        -------
+        View
+            The same view with ``plans``, ``unplanned`` and ``seconds["plans"]``, ``planned`` True.
+        """
+        from planner.plan import plan_task
+
+        sc, pef = view.scenario, self._pef
+        if pef is None or pef.scenario is not sc:
+            raise ValueError("plan: expected the view of this builder's last build_map")
+        t0 = time.perf_counter()
         plans, unplanned = [], {}
         for i in range(len(sc.tasks)):
             if len(sc.markers) < sc.sensor.markers_per_fix:
@@ -234,5 +290,5 @@ class ViewBuilder:
                 plans.append(None)
                 unplanned[i] = str(exc)
         self._memo = pef.memo
-        seconds = {"map": t1 - t0, "routes": t2 - t1, "plans": time.perf_counter() - t2}
-        return View(sc, pef_map, reports, plans, unplanned, work, seconds)
+        return dataclasses.replace(view, plans=plans, unplanned=unplanned, planned=True,
+                                   seconds={**view.seconds, "plans": time.perf_counter() - t0})

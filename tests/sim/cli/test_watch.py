@@ -102,7 +102,8 @@ def test_edit_error_edit(tmp_path):
 
     _verify(rrd)
     back = Readback(rrd)
-    for entity in (E.PEF, E.REGION, E.NETWORK_OK, E.of_task(E.CHOSEN, 0), E.of_task(E.SCHEDULE, 0), E.VIEW_TEXT):
+    for entity in (E.PEF, E.PEF_NO_FIX, E.REGION, E.NETWORK_OK, E.of_task(E.CHOSEN, 0), E.of_task(E.SCHEDULE, 0),
+                   E.VIEW_TEXT):
         assert back.chunks[entity], entity
     views = _marker_positions(rrd)
     assert len(views) == 3  # one per update; the refused version logged nothing

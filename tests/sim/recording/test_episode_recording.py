@@ -223,6 +223,27 @@ def test_heatmap_pixel_lands_on_its_cell(readback, pef_map, warehouse):
     assert np.all(image[:5, :5] == np.float32(cap))  # tau = inf shows as the cap
 
 
+def test_no_fix_cells_are_drawn_apart_from_bad(readback, pef_map):
+    """τ = ∞ cells (racks, cells seeing no usable subset) get their own colour over the heatmap, not its "bad" end."""
+    (row,) = readback.column(E.PEF_NO_FIX, "Image:buffer", timeline=None)[1]
+    (fmt,) = readback.column(E.PEF_NO_FIX, "Image:format", timeline=None)[1]
+    width, height = fmt[0]["width"], fmt[0]["height"]
+    layer = np.frombuffer(bytes(row[0]), dtype=np.uint8).reshape(height, width, 4)
+    inf = ~np.isfinite(pef_map.tau)
+    assert inf.any() and (~inf).any()
+    assert np.all(layer[inf] == np.array(E.NO_FIX_CELL, dtype=np.uint8))
+    assert np.all(layer[~inf, 3] == 0)  # cells with a fix show the heatmap through
+    # the heatmap's top colour (viridis at the cap, where finite bad tau ends up) is far from it
+    from matplotlib import colormaps
+
+    top = np.array(colormaps["viridis"](1.0)[:3]) * 255.0
+    assert np.abs(top - np.array(E.NO_FIX_CELL[:3])).max() > 100
+    # negative control: a layer from finite tau paints nothing
+    from sim.recording.static import no_fix_layer
+
+    assert not no_fix_layer(np.where(inf, 1.0, pef_map.tau))[..., 3].any()
+
+
 def test_world_is_flipped_once_for_the_y_down_2d_view(readback):
     (sc,) = readback.column(E.WORLD, "Transform3D:scale", timeline=None)[1]
     assert sc[0] == [1.0, -1.0, 1.0]
@@ -359,6 +380,35 @@ def test_local_strip_polygons_agree_with_estimators_linearized():
         x, y = ring[:-1, 0], ring[:-1, 1]
         area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
         assert area == pytest.approx(ref.area, rel=1e-9)
+
+
+def test_level_contours_in_tiles_trace_the_same_lines_and_reuse_unchanged_tiles(monkeypatch):
+    """With a cache the grid is traced in tiles: the same lines (broken at tile borders); an edit re-traces its tile."""
+    from sim.recording import geometry
+
+    monkeypatch.setattr(geometry, "CONTOUR_TILE", 16)
+    x = np.linspace(-5, 5, 101)
+    X, Y = np.meshgrid(x, x)
+    z = np.hypot(X, Y)
+    z[0, 0] = np.inf
+
+    def length(lines):
+        return sum(float(np.hypot(*np.diff(line, axis=0).T).sum()) for line in lines)
+
+    cache: dict = {}
+    (whole,) = level_contours(x, x, z, 3.0)
+    tiled = level_contours(x, x, z, 3.0, cache=cache)
+    assert len(tiled) > 1 and len(cache) == 49  # 7 x 7 tiles of 16 cells (17 with the shared border)
+    assert length(tiled) == pytest.approx(length([whole]), rel=1e-12)
+    np.testing.assert_allclose(np.hypot(*np.vstack(tiled).T), 3.0, atol=5e-3)
+    before = dict(cache)
+    z2 = z.copy()
+    z2[50:54, 76:79] = 10.0  # a bump just inside the circle's right, in tile (48, 64) only (cols 64..80)
+    again = level_contours(x, x, z2, 3.0, cache=cache)
+    changed = [k for k in cache if cache[k] is not before[k]]
+    assert changed == [(48, 64)]
+    assert length(again) != pytest.approx(length(tiled), rel=1e-6)  # the changed tile was traced anew
+    assert length(again) == pytest.approx(length(level_contours(x, x, z2, 3.0)), rel=1e-12)
 
 
 def test_level_contours_trace_a_known_circle():

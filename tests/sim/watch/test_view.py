@@ -9,6 +9,7 @@ import pytest
 
 from planner.pef.map import PEF
 from scenarios import load
+from scenarios.load import LIBRARY
 from scenarios.schema import Marker
 from sim.watch.files import FileSet
 from sim.watch.view import ViewBuilder
@@ -52,6 +53,39 @@ def test_other_changes_compute_the_whole_map():
     assert builder.build(fewer).map_work == "computed"
     wider = dataclasses.replace(fewer, sensor=dataclasses.replace(fewer.sensor, max_range=fewer.sensor.max_range + 1))
     assert builder.build(wider).map_work == "computed"
+
+
+def test_map_first_then_plans():
+    """build_map shows the map and segments before the plans; plan() then gives what build() gives."""
+    sc = load("warehouse")
+    builder = ViewBuilder()
+    view = builder.build_map(sc)
+    assert not view.planned and view.plans == [] and "plans" not in view.seconds
+    assert view.summary() == f"{len(sc.markers)} markers, planning {len(sc.tasks)} tasks"
+    done = builder.plan(view)
+    assert done.planned and done.pef_map is view.pef_map and done.reports is view.reports
+    whole = ViewBuilder().build(sc)
+    assert [p.chosen for p in done.plans] == [p.chosen for p in whole.plans]
+    assert [p.candidates[p.chosen].max_tau for p in done.plans] == [p.candidates[p.chosen].max_tau for p in whole.plans]
+    with pytest.raises(ValueError):
+        ViewBuilder().plan(view)  # a view of another builder
+
+
+def test_watch_shows_the_map_then_the_plans(tmp_path):
+    """With show_plans the map part is shown first, the plans after; the line gives both times."""
+    from sim.watch.loop import watch_files
+
+    scenario = tmp_path / "wh.toml"
+    scenario.write_text((LIBRARY / "warehouse.toml").read_text())  # it reads no other file
+    events, updates = [], []
+    watch_files(scenario, lambda step, view: events.append(("map", step, view.planned)),
+                show_plans=lambda step, view: events.append(("plans", step, view.planned)),
+                on_update=updates.append, max_updates=1, interval=0.01)
+    assert events == [("map", 0, False), ("plans", 0, True)]
+    (u,) = updates
+    assert u.planned_seconds is not None and u.planned_seconds >= u.seconds
+    assert u.line().startswith(f"updated in {u.seconds:.2f} s, planned in {u.planned_seconds:.2f} s: wh.toml: ")
+    assert u.line().endswith("tasks planned")
 
 
 def test_summary_counts_unplanned_tasks():
