@@ -64,7 +64,7 @@ def __getattr__(name: str) -> Any:
 
 __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
            "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
-           "pef_map", "place", "plan", "run_episode", "sweep", "validate", "watch", "worlds"]
+           "pef_map", "place", "plan", "run_episode", "run_fleet", "sweep", "validate", "watch", "worlds"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}
@@ -416,6 +416,44 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
     return result
 
 
+def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: str | Path | None = None):
+    """Drive a fleet scenario's robots (``[[robots]]``) together once, under zone control.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or path
+        A scenario with ``[[robots]]``.
+    seed : int, optional
+        Root of the episode's random streams; default the scenario's.
+    rrd : str or path, optional
+        Write a rerun recording of the fleet here (:mod:`sim.recording.fleet`).
+
+    Returns
+    -------
+    sim.episode.fleet.FleetResult
+        Per robot its :class:`EpisodeResult` over all its tasks (summary keys as
+        :func:`run_episode`'s plus ``robot``, ``wait_time`` [s], ``robot_blocked`` and
+        ``collisions``), and the fleet's collisions and duration.
+    """
+    from scenarios import SimulationError
+    from sim.episode.fleet import prepare_fleet, run_fleet_episode
+
+    sc = _scenario(scenario)
+    if not sc.is_fleet:
+        raise SimulationError(f"{sc.source}: robots: not a fleet scenario (no [[robots]]): use run_episode")
+    seed = sc.seed if seed is None else seed
+    if seed < 0:
+        raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
+    _check_outputs(rrd=rrd)
+    prepared = prepare_fleet(sc)
+    result = run_fleet_episode(sc, seed=seed, prepared=prepared)
+    if rrd is not None:
+        from sim.recording.fleet import write_fleet_rrd
+
+        write_fleet_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
+    return result
+
+
 def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, runs: int | None = None,
           workers: int | None = None, task: int | None = None, executor: str = "local", address: str | None = None,
           resume: bool = False, rrd_every: int = 0, steps: str | None = None, q_scale: float = 1.0,
@@ -480,7 +518,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
 
     summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
                      resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
-                     api=scaled_api(q_scale) if q_scale != 1.0 else None, then=then)
+                     api=scaled_api(q_scale, sc.is_fleet) if q_scale != 1.0 else None, then=then)
     return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
 

@@ -33,7 +33,8 @@ from scenarios.schema import (
 )
 
 __all__ = [
-    "ConvexPieces", "Dock", "FleetRobot", "Marker", "MarkerKind", "MonteCarloSpec", "NoiseModel", "Obstacle", "OutputError",
+    "ConvexPieces", "Dock", "FleetRobot", "Marker", "MarkerKind", "MonteCarloSpec", "NoiseModel", "Obstacle",
+    "OutputError",
     "PefModel",
     "PefsimError", "PlacementSpec", "PlanningError", "PlanningSpec", "RobotSpec", "RouteEdge", "RouteNetwork",
     "Scenario", "ScenarioError", "SensorSpec", "SimulationError", "Task", "Weights", "Workspace",

@@ -74,8 +74,9 @@ def nesting_depth(text: str) -> int:
 MAX_HEIGHT = 20.0
 """Tallest robot (``robot.height``) and highest reflector (``[[markers]] height``) [m]: a hall's
 roof; anything higher is a unit mistake (millimetres)."""
-MAX_ROBOTS = 64
-"""Most robots of a fleet (``[[robots]]``): every physics step steps each of them, and zone
-control checks each robot's path against every other's (quadratic in the count)."""
+MAX_ROBOTS = 24
+"""Most robots of a fleet (``[[robots]]``): each robot's body needs a collision-filter bit of its
+own in the physics (so that its own laser looks through it), and Bullet's groups are 32-bit ints
+whose low bits it uses itself; zone control checks each path against every other's."""
 MAX_ROBOT_TASKS = 1000
 """Most tasks one robot of a fleet drives (``[[robots]] tasks``): each is planned on its own."""

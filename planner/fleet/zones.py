@@ -70,7 +70,10 @@ MAX_CELLS = 4_000_000
 
 @dataclass(frozen=True)
 class ZoneGrid:
-    """The square cells the floor is cut into: lower-left corner ``origin`` [m], side ``cell`` [m], ``shape`` (nx, ny)."""
+    """The square cells the floor is cut into.
+
+    Lower-left corner ``origin`` [m], side ``cell`` [m], ``shape`` (nx, ny) cells.
+    """
 
     origin: tuple[float, float]
     cell: float
@@ -90,7 +93,7 @@ class ZoneGrid:
 
 
 def make_grid(paths: Sequence[np.ndarray], reach: float, cell: float = DEFAULT_CELL) -> ZoneGrid:
-    """A grid covering every path point widened by ``reach`` [m] (cells at least ``cell`` [m])."""
+    """Return a grid covering every path point widened by ``reach`` [m] (cells at least ``cell`` [m])."""
     pts = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in paths])
     lo = pts.min(axis=0) - reach - cell
     hi = pts.max(axis=0) + reach + cell
@@ -101,7 +104,7 @@ def make_grid(paths: Sequence[np.ndarray], reach: float, cell: float = DEFAULT_C
 
 
 def footprints(grid: ZoneGrid, xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """The cells meeting the disc of radius ``reach`` [m] around each point of ``xy`` (N, 2).
+    """Return the cells meeting the disc of radius ``reach`` [m] around each point of ``xy`` (N, 2).
 
     Returns
     -------

@@ -26,6 +26,8 @@ def run(args: argparse.Namespace) -> int:
     from sim.jsonable import json_number
 
     scenario = pefsim.load(args.scenario)
+    if scenario.is_fleet:
+        return _run_fleet(args, scenario)
     result = pefsim.run_episode(scenario, args.seed, task=args.task, rrd=args.rrd, tum=args.tum)
     summary = dict(result.summary)
     if args.json:
@@ -37,6 +39,35 @@ def run(args: argparse.Namespace) -> int:
 
         for name in TUM_FILES:
             print(f"wrote {Path(args.tum) / name}")
+    if args.rrd:
+        print(f"wrote {args.rrd}")
+    return 0
+
+
+def _run_fleet(args: argparse.Namespace, scenario) -> int:
+    import pefsim
+    from scenarios import ScenarioError
+    from sim.cli import print_json
+    from sim.jsonable import json_number
+
+    if args.tum:
+        raise ScenarioError(f"--tum: not yet for a fleet scenario ({scenario.source} has [[robots]])")
+    result = pefsim.run_fleet(scenario, args.seed, rrd=args.rrd)
+    if args.json:
+        print_json({"collisions": result.collisions, "duration": result.duration,
+                    "robots": [{k: json_number(v) for k, v in r.result.summary.items()} for r in result.robots]})
+        return 0
+    mm = 1000.0
+    print(f"{scenario.name}: fleet of {len(result.robots)}, seed {result.robots[0].result.summary['seed']}, "
+          f"{result.duration:.1f} s, collisions {result.collisions}")
+    for r in result.robots:
+        s = r.result.summary
+        arrived = f"reached its dock at {s['arrival']:.1f} s" if s["reached"] else "NOT reached"
+        print(f"  {r.name}: {arrived}, "
+              f"waited {s['wait_time']:.1f} s; {s['fixes']} fixes, {s['robot_blocked']} scheduled lines of "
+              f"sight hidden by robots, {s['fallback_fixes']} fallback, {s['failed_fixes']} failed; "
+              f"max error {s['max_error'] * mm:.2f} mm (eps_max {s['eps_max'] * mm:.1f} mm), "
+              f"{s['violations']} samples over")
     if args.rrd:
         print(f"wrote {args.rrd}")
     return 0

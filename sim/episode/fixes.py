@@ -45,6 +45,7 @@ class _Pending:
     fallback: int = -1   # the blocked slot whose fallback this fix measures, -1 for none
     beyond: bool = False
     unplanned: bool = False  # started on a subset the plan named neither as the fix's nor as its fallback
+    note: object = None      # the caller's record of the fix (a fleet: the lines of sight robots blocked)
 
 
 class FixRecorder:
@@ -118,16 +119,17 @@ class FixRecorder:
         self._unplanned_next = True
         return best if best is not None else list(seen[: self.k])
 
-    def start(self, subset: list[int], t: float, scheduled=None) -> None:
+    def start(self, subset: list[int], t: float, scheduled=None, note=None) -> None:
         """Start a fix of ``subset`` (measured in that order) at time ``t`` [s].
 
         ``scheduled`` is the schedule's fix (``planner.schedule.schedule.ScheduledFix``) this one
-        takes; its promise becomes the fix's ``predicted_tau``.
+        takes; its promise becomes the fix's ``predicted_tau``. ``note`` is kept with the fix's
+        row (:attr:`FixLog.notes`).
         """
         mt = self.sensor.measurement_time
         self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))],
                                 scheduled=scheduled, fallback=self._fallback_next, beyond=self._beyond_next,
-                                unplanned=self._unplanned_next)
+                                unplanned=self._unplanned_next, note=note)
         self._fallback_next, self._beyond_next, self._unplanned_next = -1, False, False
 
     @property
@@ -244,7 +246,8 @@ class FixRecorder:
             rho=rho.tolist() + [math.nan] * pad, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted,
-            predicted_tau=self._promise(p), fallback=p.fallback >= 0, beyond=p.beyond, unplanned=p.unplanned))
+            predicted_tau=self._promise(p), fallback=p.fallback >= 0, beyond=p.beyond, unplanned=p.unplanned,
+            note=p.note))
         self._polygons.append(fa.ring)
 
     def _promise(self, p: _Pending) -> float:
@@ -303,4 +306,5 @@ class FixRecorder:
             contained=col("contained", (), bool), predicted_tau=col("predicted_tau", ()),
             static_tau=self._static(markers, truth),
             nis=col("nis", ()), n_accepted=col("n_accepted", (), int), fallback=col("fallback", (), bool),
-            beyond_redundancy=col("beyond", (), bool), unplanned=col("unplanned", (), bool))
+            beyond_redundancy=col("beyond", (), bool), unplanned=col("unplanned", (), bool),
+            notes=[r["note"] for r in rows])

@@ -106,6 +106,9 @@ class FixLog:
         fallback): a substitute, for blocked lines of sight (then ``beyond_redundancy`` too) or
         because the laser did not see a marker the plan counted on. ``predicted_tau`` is then
         the promise of what it measured, at the scheduled poses.
+    notes : list or None
+        What the episode noted with each fix (a fleet's episode: the scheduled markers whose
+        lines of sight other robots blocked, and by which robot); None where nothing was noted.
     """
 
     t: np.ndarray
@@ -125,6 +128,7 @@ class FixLog:
     fallback: np.ndarray | None = None
     beyond_redundancy: np.ndarray | None = None
     unplanned: np.ndarray | None = None
+    notes: list | None = None
 
 
 @dataclass

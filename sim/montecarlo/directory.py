@@ -23,7 +23,7 @@ from scenarios.errors import OutputError, output_errors
 from scenarios.schema import Scenario
 from sim.montecarlo import lock, parts, results
 from sim.montecarlo.results import SweepLayout
-from sim.montecarlo.rows import FIX_SCHEMA, RUN_SCHEMA, STEP_SCHEMA
+from sim.montecarlo.rows import schemas
 from sim.montecarlo.steps import StepsMode
 
 SWEEP_FORMAT = 2
@@ -100,8 +100,11 @@ def init_sweep_dir(layout: SweepLayout, scenario: Scenario, task: int | None, ru
     """Create the tree and write ``scenario.toml`` and ``sweep.json`` (keeping its recorded sizes)."""
     layout.make_dirs()
     results.write_atomic(layout.scenario_toml, scenario.text.encode("utf-8"))
-    write_settings(layout, {"format": SWEEP_FORMAT, "scenario": scenario.name, "task": task, "runs": runs,
-                            "steps": steps.value})
+    settings = {"format": SWEEP_FORMAT, "scenario": scenario.name, "task": task, "runs": runs,
+                "steps": steps.value}
+    if scenario.is_fleet:  # its tables have a row per robot (sim.montecarlo.rows.FLEET)
+        settings["fleet"] = True
+    write_settings(layout, settings)
 
 
 def write_settings(layout: SweepLayout, settings: dict[str, Any]) -> None:
@@ -150,17 +153,19 @@ def repair(layout: SweepLayout, steps: StepsMode, warn: Callable[[str], None]) -
     part and (unless ``steps`` is none) a steps part. Each damaged or missing part is one warning.
     """
     redo = []
+    sch = results.sweep_schemas(layout.root)
+    fleet = sch is schemas(True)
     for run, path in sorted(results.part_files(layout.runs_dir).items()):
         problems: list[tuple[Path, str]] = []
         try:
-            parts.check_part(path, RUN_SCHEMA, run, rows=1)
-            ran = parts.read_part(path, RUN_SCHEMA, ["status"]).column("status")[0].as_py() == "ok"
+            parts.check_part(path, sch.runs, run, rows=None if fleet else 1)   # a fleet's: a row per robot
+            ran = parts.read_part(path, sch.runs, ["status"]).column("status")[0].as_py() == "ok"
         except parts.DamagedPartError as exc:
             problems.append((path, exc.reason))
             ran = False
-        expected = [(layout.fixes_dir, FIX_SCHEMA)] if ran else []
+        expected = [(layout.fixes_dir, sch.fixes)] if ran else []
         if ran and steps is not StepsMode.NONE:
-            expected.append((layout.steps_dir, STEP_SCHEMA))
+            expected.append((layout.steps_dir, sch.steps))
         for folder, schema in expected:
             part = layout.part(folder, run)
             try:

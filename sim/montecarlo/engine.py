@@ -33,7 +33,14 @@ from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
 from sim.montecarlo.executors import ExecutorKind
 from sim.montecarlo.progress import progress_bar
 from sim.montecarlo.results import RunRecord, SweepLayout
-from sim.montecarlo.rows import fix_columns, run_row, step_columns
+from sim.montecarlo.rows import (
+    FLEET_RUN_SCHEMA,
+    concat_columns,
+    fix_columns,
+    fleet_fix_columns,
+    run_row,
+    step_columns,
+)
 from sim.montecarlo.steps import StepsMode, steps_mode
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
 
@@ -62,8 +69,32 @@ class EpisodeApi:
     """Modules worth importing once before workers start (see :mod:`sim.montecarlo.executors`)."""
 
 
+def fleet_api() -> EpisodeApi:
+    """Return the real episode API of a fleet scenario: ``sim.episode.fleet`` in a fleet world.
+
+    Its ``prepare`` plans the whole fleet (whatever the task index) and its ``run_episode``
+    returns a :class:`~sim.episode.fleet.FleetResult`.
+    """
+    from functools import partial
+
+    from sim.episode import fleet
+    from sim.physics.world import PhysicsWorld
+
+    def prepare(scenario, task_index=0):
+        return fleet.prepare_fleet(scenario)
+
+    def run(scenario, task_index=0, seed=0, world=None, prepared=None, q_scale=1.0):
+        return fleet.run_fleet_episode(scenario, seed=seed, world=world, prepared=prepared, q_scale=q_scale)
+
+    preload = ("sim.episode.fleet", "sim.physics.world", "estimators.ekf", "sim.episode.fixes", "planner.pef.map")
+    return EpisodeApi(prepare, run, partial(PhysicsWorld, fleet=True), preload)
+
+
 def default_api() -> EpisodeApi:
-    """Return the real episode API: ``sim.episode.drive`` in a ``sim.physics.world.PhysicsWorld``."""
+    """Return the real episode API: ``sim.episode.drive`` in a ``sim.physics.world.PhysicsWorld``.
+
+    A fleet scenario (``[[robots]]``) runs :func:`fleet_api` instead.
+    """
     from sim.episode import drive as episode
     from sim.physics.world import PhysicsWorld
 
@@ -93,6 +124,8 @@ class RunSpec:
 def plan_runs(scenario: Scenario, runs: int, task: int | None = None, rrd_every: int = 0) -> list[RunSpec]:
     """List the runs ``0 .. runs-1``: run ``i`` drives task ``i % n_tasks`` unless ``task`` is set."""
     n_tasks = len(scenario.tasks)
+    if scenario.is_fleet:   # every run drives the whole fleet: all its robots' tasks
+        n_tasks, task = 1, None
     return [RunSpec(i, task if task is not None else i % n_tasks, scenario.seed,
                     record=rrd_every > 0 and i % rrd_every == 0) for i in range(runs)]
 
@@ -144,12 +177,33 @@ class RunContext:
             self._drop_world()  # it may be left in any state
             return RunContext.died(spec, _one_line(exc), time.perf_counter() - start)
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+        if p.scenario.is_fleet:
+            return self._fleet_record(spec, result, wall, cpu)
         row = run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
         steps = step_columns(spec.run, result.steps, p.steps, result.fixes.t)
         record = RunRecord(spec.run, row, steps, fix_columns(spec.run, result.fixes))
         if spec.record:
             record.recording, record.warning = self._recording(result)
         return record
+
+    def _fleet_record(self, spec: RunSpec, result: Any, wall: float, cpu: float) -> RunRecord:
+        """Build a fleet run's record: a row per robot (each with the whole run's wall and CPU time)."""
+        p = self.payload
+        ids = p.scenario.marker_ids()
+        names = [r.name for r in result.robots]
+        rows, steps, fixes = [], [], []
+        for r in result.robots:
+            res = r.result
+            rows.append(run_row(spec.run, spec.seed_text, res.task_index, res.summary, wall, cpu_time=cpu,
+                                schema=FLEET_RUN_SCHEMA))
+            st = step_columns(spec.run, res.steps, p.steps, res.fixes.t)
+            if st is not None:
+                st["robot"] = np.array([r.name] * len(st["run"]), dtype=object)
+                steps.append(st)
+            fixes.append(fleet_fix_columns(spec.run, res.fixes, r.name, ids, names))
+        warning = "recordings of fleet runs are not written yet" if spec.record else None
+        return RunRecord(spec.run, rows, concat_columns(steps) if steps else None, concat_columns(fixes),
+                         warning=warning)
 
     @staticmethod
     def died(spec: RunSpec, reason: str, wall_time: float | None = None) -> RunRecord:
@@ -214,6 +268,9 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
     check_runs(runs)
     if not scenario.tasks:
         raise ScenarioError(f"{scenario.source}: tasks: expected at least one [[tasks]] entry to drive")
+    if task is not None and scenario.is_fleet:
+        raise ScenarioError(f"--task: {scenario.source} is a fleet ([[robots]]): every run drives all its robots' "
+                            f"tasks, got --task {task}")
     if task is not None and not 0 <= task < len(scenario.tasks):
         raise ScenarioError(f"--task: expected 0 .. {len(scenario.tasks) - 1} "
                             f"({len(scenario.tasks)} tasks in {scenario.source}), got {task}")
@@ -326,7 +383,7 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
              api: EpisodeApi | None, progress: bool | None, on_warning: Callable[[str], None] | None,
              warnings: list[Callable[[str], None]]) -> tuple[int, float]:
     """Plan the tasks, run ``todo`` and write each record as it comes; returns (runs executed, wall seconds)."""
-    api = api if api is not None else default_api()
+    api = api if api is not None else (fleet_api() if scenario.is_fleet else default_api())
     # Planning once here catches bad input (no route) before any worker starts.
     prepared = {t: api.prepare(scenario, t) for t in sorted({s.task for s in todo})}
     if settings:
@@ -343,7 +400,7 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
                 for record in stream:
                     if record.fatal is not None:
                         raise type(record.fatal)(f"run {record.run}: {record.fatal}") from None
-                    results.write_record(layout, record)
+                    results.write_record(layout, record, fleet=scenario.is_fleet)
                     executed += 1
                     if record.warning:
                         warnings[-1](f"pefsim: warning: run {record.run}: {record.warning}")

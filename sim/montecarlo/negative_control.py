@@ -14,7 +14,7 @@ from functools import partial
 from pathlib import Path
 
 from scenarios.errors import SimulationError
-from sim.montecarlo.engine import EpisodeApi, default_api
+from sim.montecarlo.engine import EpisodeApi, default_api, fleet_api
 from sim.montecarlo.results import write_atomic
 
 NEGATIVE_CONTROL_JSON = "negative-control.json"
@@ -28,26 +28,29 @@ def check_q_scale(q_scale: float) -> float:
     return float(q_scale)
 
 
-def scaled_api(q_scale: float) -> EpisodeApi:
+def scaled_api(q_scale: float, fleet: bool = False) -> EpisodeApi:
     """Return the real episode API with the filter's process noise times ``q_scale``.
 
     Parameters
     ----------
     q_scale : float
         Process-noise factor (> 0); 1 is the filter as declared.
+    fleet : bool
+        The API of a fleet scenario (:func:`~sim.montecarlo.engine.fleet_api`): every robot's filter.
 
     Returns
     -------
     EpisodeApi
-        :func:`~sim.montecarlo.engine.default_api` whose ``run_episode`` passes ``q_scale``.
+        :func:`~sim.montecarlo.engine.default_api` (or ``fleet_api``) whose ``run_episode`` passes ``q_scale``.
     """
     from sim.episode import drive as episode
 
-    api = default_api()
+    api = fleet_api() if fleet else default_api()
     q_scale = check_q_scale(q_scale)
     if q_scale == 1.0:
         return api
-    return EpisodeApi(api.prepare, partial(episode.run_episode, q_scale=q_scale), api.make_world, api.preload)
+    return EpisodeApi(api.prepare, partial(api.run_episode if fleet else episode.run_episode, q_scale=q_scale),
+                      api.make_world, api.preload)
 
 
 def mark(directory: str | Path, q_scale: float) -> None:

@@ -28,6 +28,7 @@ encoding (float32 steps, zstd) and what it gives up are in :mod:`sim.montecarlo.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 from dataclasses import dataclass
@@ -40,11 +41,10 @@ import pyarrow as pa
 from scenarios.errors import OutputError, output_errors
 from sim.montecarlo import parts
 from sim.montecarlo.rows import (
-    FIX_SCHEMA,
-    RUN_SCHEMA,
-    STEP_SCHEMA,
-    STEP_STORAGE,
+    SINGLE,
+    Schemas,
     _table,
+    schemas,
 )
 
 _PART = re.compile(r"^run-(\d+)\.parquet$")
@@ -124,7 +124,8 @@ class RunRecord:
     """
 
     run: int
-    row: dict[str, Any]
+    row: dict[str, Any] | list[dict[str, Any]]
+    """The run's row; a fleet's run has a list of rows, one per robot (:data:`~sim.montecarlo.rows.FLEET`)."""
     steps: dict[str, np.ndarray] | None = None
     fixes: dict[str, np.ndarray] | None = None
     recording: bytes | None = None
@@ -151,17 +152,32 @@ def write_atomic(path: Path, data: bytes | pa.Table) -> None:
         raise OutputError(f"{path}: cannot write: {exc.strerror or exc}") from None
 
 
-def write_record(layout: SweepLayout, record: RunRecord) -> None:
-    """Write one finished run: steps, fixes and recording first, its ``runs`` row last (the commit)."""
+def write_record(layout: SweepLayout, record: RunRecord, fleet: bool = False) -> None:
+    """Write one finished run: steps, fixes and recording first, its ``runs`` row(s) last (the commit).
+
+    ``fleet``: the sweep's tables are a fleet's (:data:`~sim.montecarlo.rows.FLEET`).
+    """
+    sch = schemas(fleet)
     if record.steps is not None:
-        write_atomic(layout.part(layout.steps_dir, record.run), _table(record.steps, STEP_STORAGE))
+        write_atomic(layout.part(layout.steps_dir, record.run), _table(record.steps, sch.step_storage))
     if record.fixes is not None:
-        write_atomic(layout.part(layout.fixes_dir, record.run), _table(record.fixes, FIX_SCHEMA))
+        write_atomic(layout.part(layout.fixes_dir, record.run), _table(record.fixes, sch.fixes))
     if record.recording is not None:
         layout.recordings_dir.mkdir(exist_ok=True)
         write_atomic(layout.part(layout.recordings_dir, record.run, ".rrd"), record.recording)
-    row = pa.Table.from_pylist([record.row], schema=RUN_SCHEMA)
-    write_atomic(layout.part(layout.runs_dir, record.run), row)
+    rows = record.row if isinstance(record.row, list) else [record.row]
+    if fleet:  # a crashed fleet run has one row, without robot
+        rows = [{**{n: None for n in sch.runs.names}, **r} for r in rows]
+    write_atomic(layout.part(layout.runs_dir, record.run), pa.Table.from_pylist(rows, schema=sch.runs))
+
+
+def sweep_schemas(root: str | Path) -> Schemas:
+    """Return the schemas of the sweep in ``root``: a fleet's when its ``sweep.json`` says ``"fleet": true``."""
+    try:
+        settings = json.loads((Path(root) / "sweep.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return SINGLE
+    return schemas(isinstance(settings, dict) and settings.get("fleet") is True)
 
 
 def finished_runs(layout: SweepLayout) -> set[int]:
@@ -210,17 +226,17 @@ def compact_runs(layout: SweepLayout) -> pa.Table:
 def read_runs(root: str | Path) -> pa.Table:
     """All finished runs of sweep directory ``root`` (from its parts), sorted by ``run``."""
     layout = SweepLayout(Path(root))
-    return _read(layout, [p for _, p in sorted(part_files(layout.runs_dir).items())], RUN_SCHEMA, None)
+    return _read(layout, [p for _, p in sorted(part_files(layout.runs_dir).items())], sweep_schemas(root).runs, None)
 
 
 def read_steps(root: str | Path, columns: list[str] | None = None) -> pa.Table:
     """Per-step rows of the finished runs of ``root``, ordered by run then step."""
-    return _read_per_run(Path(root), "steps_dir", STEP_SCHEMA, columns)
+    return _read_per_run(Path(root), "steps_dir", sweep_schemas(root).steps, columns)
 
 
 def read_fixes(root: str | Path, columns: list[str] | None = None) -> pa.Table:
     """Per-fix rows of the finished runs of ``root``, ordered by run then fix."""
-    return _read_per_run(Path(root), "fixes_dir", FIX_SCHEMA, columns)
+    return _read_per_run(Path(root), "fixes_dir", sweep_schemas(root).fixes, columns)
 
 
 def _read_per_run(root: Path, folder: str, schema: pa.Schema, columns: list[str] | None) -> pa.Table:

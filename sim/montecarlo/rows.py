@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -77,15 +78,52 @@ FIX_SCHEMA = pa.schema([
 """One row per fix: true and snapshot positions [m], realised and predicted bounds [m], NIS."""
 
 
+FLEET_RUN_SCHEMA = pa.schema([*RUN_SCHEMA, pa.field("robot", pa.string()),
+                              pa.field("arrival", pa.float64()),     # [s] when it reached its final dock
+                              pa.field("wait_time", pa.float64()),   # [s] waiting for zones
+                              pa.field("robot_blocked", pa.int64()),  # scheduled lines of sight robots hid
+                              pa.field("collisions", pa.int64())])   # contacts of its body with another's
+"""A fleet sweep's runs table: :data:`RUN_SCHEMA` plus the robot, one row per robot per run (its
+``duration`` is the fleet's episode, ``arrival`` the robot's own end; NaN if it never arrived)."""
+FLEET_STEP_SCHEMA = pa.schema([*STEP_SCHEMA, pa.field("robot", pa.string())])
+"""A fleet sweep's steps table: :data:`STEP_SCHEMA` plus the robot."""
+FLEET_STEP_STORAGE = parts.lean(FLEET_STEP_SCHEMA)
+FLEET_FIX_SCHEMA = pa.schema([*FIX_SCHEMA, pa.field("robot", pa.string()),
+                              pa.field("blocked_by_robot", pa.string()),       # scheduled marker ids robots hid
+                              pa.field("blocked_by_robot_count", pa.int32()),
+                              pa.field("blocking_robots", pa.string())])      # which robot hid each of them
+"""A fleet sweep's fixes table: :data:`FIX_SCHEMA` plus the robot and the lines of sight other robots
+hid at the fix start (comma-joined marker ids, and the robots that hid them, in the same order)."""
+
+
+@dataclass(frozen=True)
+class Schemas:
+    """The table schemas of a sweep: a single robot's or a fleet's."""
+
+    runs: pa.Schema
+    steps: pa.Schema
+    step_storage: pa.Schema
+    fixes: pa.Schema
+
+
+SINGLE = Schemas(RUN_SCHEMA, STEP_SCHEMA, STEP_STORAGE, FIX_SCHEMA)
+FLEET = Schemas(FLEET_RUN_SCHEMA, FLEET_STEP_SCHEMA, FLEET_STEP_STORAGE, FLEET_FIX_SCHEMA)
+
+
+def schemas(fleet: bool) -> Schemas:
+    """Return the schemas of a fleet sweep (``fleet``) or of a single robot's."""
+    return FLEET if fleet else SINGLE
+
+
 # -- building rows ------------------------------------------------------------------------
 
 def run_row(run: int, seed: str, task: int, summary: dict[str, Any] | None, wall_time: float | None,
-            status: str = "ok", cpu_time: float | None = None) -> dict[str, Any]:
+            status: str = "ok", cpu_time: float | None = None, schema: pa.Schema = RUN_SCHEMA) -> dict[str, Any]:
     """Build the ``runs`` row of one run from an episode summary (``None`` for a crashed run)."""
-    row: dict[str, Any] = {name: None for name in RUN_SCHEMA.names}
+    row: dict[str, Any] = {name: None for name in schema.names}
     row.update(run=run, seed=seed, task=task, status=status, wall_time=wall_time, cpu_time=cpu_time)
     if summary is not None:
-        for name in RUN_SCHEMA.names:
+        for name in schema.names:
             if name in summary and name not in ("run", "seed", "task", "status", *TIMING_COLUMNS):
                 row[name] = _scalar(summary[name])
     return row
@@ -166,6 +204,29 @@ def fix_columns(run: int, fixes: FixLog) -> dict[str, np.ndarray]:
         "unplanned": (np.zeros(n, dtype=bool) if fixes.unplanned is None
                       else np.asarray(fixes.unplanned, dtype=bool).reshape(n)),
     }
+
+
+def fleet_fix_columns(run: int, fixes: FixLog, robot: str, marker_ids: list[str],
+                      robot_names: list[str]) -> dict[str, np.ndarray]:
+    """Per-fix columns of :data:`FLEET_FIX_SCHEMA`: :func:`fix_columns` plus the robot and what robots hid.
+
+    ``fixes.notes[f]`` maps each scheduled marker another robot hid at fix f's start to that
+    robot's index (:mod:`sim.episode.fleet`).
+    """
+    cols = fix_columns(run, fixes)
+    n = len(fixes.t)
+    notes = fixes.notes if fixes.notes is not None else [None] * n
+    hidden = [sorted((note or {}).items()) for note in notes]
+    cols["robot"] = np.array([robot] * n, dtype=object)
+    cols["blocked_by_robot"] = np.array([",".join(marker_ids[m] for m, _ in h) for h in hidden], dtype=object)
+    cols["blocked_by_robot_count"] = np.array([len(h) for h in hidden], dtype=np.int32)
+    cols["blocking_robots"] = np.array([",".join(robot_names[j] for _, j in h) for h in hidden], dtype=object)
+    return cols
+
+
+def concat_columns(parts_: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Concatenate column dicts of the same keys (the robots of one fleet run)."""
+    return {k: np.concatenate([p[k] for p in parts_]) for k in parts_[0]}
 
 
 def _table(columns: dict[str, np.ndarray], schema: pa.Schema) -> pa.Table:

@@ -39,9 +39,17 @@ class SweepSummary:
     """Mean bytes per finished run of its ``runs``, ``steps`` and ``fixes`` parts, and ``total``."""
     report: str | None = None
     """The HTML report written into ``out`` (``pefsim mc``, :func:`pefsim.sweep`), None without one."""
+    robots: int = 0
+    """A fleet sweep's robots per run (its counts above are of robot rows, one per robot per run);
+    0 for a single robot."""
+    collisions: int = 0
+    """A fleet sweep's collisions, summed over its robot rows (each counts both robots)."""
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        d = asdict(self)
+        if not self.robots:   # a single robot's summary keeps the keys it always had
+            del d["robots"], d["collisions"]
+        return d
 
 
 def succeeded(runs: pa.Table) -> np.ndarray:
@@ -50,14 +58,17 @@ def succeeded(runs: pa.Table) -> np.ndarray:
     With lines of sight blocked (``sensor.block_probability`` > 0) a run must also pass the
     single-failure test: its certified bound stayed under ε_max wherever no more lines of sight
     were lost at a fix than one (column ``lost_guarantee``,
-    :func:`sim.episode.certify.single_failure_excused`; 0 without blocking).
+    :func:`sim.episode.certify.single_failure_excused`; 0 without blocking). A fleet's robot
+    (a row with column ``collisions``) must also not have touched another robot.
     """
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)
     reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
     violations = np.asarray(runs.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
     lost = (np.asarray(runs.column("lost_guarantee").fill_null(0).to_numpy(zero_copy_only=False))
             if "lost_guarantee" in runs.column_names else np.zeros(len(status), dtype=np.int64))
-    return (status == "ok") & reached & (violations == 0) & (lost == 0)
+    hit = (np.asarray(runs.column("collisions").fill_null(0).to_numpy(zero_copy_only=False))
+           if "collisions" in runs.column_names else np.zeros(len(status), dtype=np.int64))
+    return (status == "ok") & reached & (violations == 0) & (lost == 0) & (hit == 0)
 
 
 def summarize(out: str | Path, success_target: float, executed: int = 0,
@@ -82,4 +93,13 @@ def summarize(out: str | Path, success_target: float, executed: int = 0,
                         reached=int((reached & ok).sum()), violation_runs=int(np.sum(ok & (violations > 0))),
                         successes=k, success_fraction=fraction, success_ci=ci, success_target=success_target,
                         executed=executed, wall_time=wall_time, runs_per_minute=rate, steps=steps,
-                        bytes_per_run=dict(bytes_per_run or {}))
+                        bytes_per_run=dict(bytes_per_run or {}), **_fleet_counts(table))
+
+
+def _fleet_counts(table: pa.Table) -> dict[str, int]:
+    """Robots per run and collisions of a fleet's runs table (nothing for a single robot's)."""
+    if "robot" not in table.column_names or table.num_rows == 0:
+        return {}
+    names = {n for n in table.column("robot").to_pylist() if n is not None}
+    hits = table.column("collisions").fill_null(0).to_numpy(zero_copy_only=False)
+    return {"robots": len(names), "collisions": int(np.sum(hits))}

@@ -28,7 +28,7 @@ import numpy as np
 from scenarios.errors import SimulationError
 from scenarios.schema import NoiseModel, SensorSpec
 from sim.physics.quiet import pb
-from sim.physics.world import PhysicsWorld
+from sim.physics.world import PhysicsWorld, robot_group, robots_group
 
 
 @dataclass(frozen=True)
@@ -100,11 +100,23 @@ class LaserSensor:
     normals : (M, 2) array_like, optional
         Unit normals of flat markers, (0, 0) for posts (``Scenario.marker_normals``); default
         all posts.
+    robot : int
+        Which of the world's robots carries the laser (a fleet world's index; 0 otherwise).
+
+    In a fleet world (``world.fleet``) the laser sits on top of its robot (``RobotSpec.height``)
+    and each ray ends at its reflector's height (``Marker.height``; level with the laser for a
+    reflector above every robot). The ray looks through its own robot's body; another robot's
+    body blocks it (:attr:`blocked_by`), except on the way to a reflector above every robot,
+    whose rays look through all robots.
     """
 
     def __init__(self, world: PhysicsWorld, spec: SensorSpec, markers: np.ndarray,
-                 normals: np.ndarray | None = None) -> None:
+                 normals: np.ndarray | None = None, robot: int = 0) -> None:
         self.world = world
+        self.robot = world.robots[robot]
+        self.index = robot
+        #: Marker -> the index of the robot whose body blocked its last ray (fleet worlds).
+        self.blocked_by: dict[int, int] = {}
         self.spec = spec
         self.markers = np.asarray(markers, dtype=float).reshape(-1, 2)
         self.normals = (np.zeros_like(self.markers) if normals is None
@@ -123,15 +135,25 @@ class LaserSensor:
                 j = int(np.argmin(np.hypot(*(posts - m).T)))
                 if math.hypot(*(posts[j] - m)) < 1e-9:
                     self._own_post[i] = world.post_ids[j]
-        h = world.config.laser_height
+        h = self.robot.spec.height if world.fleet else world.config.laser_height
+        self.height = h
         # Ray ends in the physics world's local coordinates (user's frame - workspace origin).
         self._x0, self._y0 = (float(v) for v in world.origin)
-        self._targets = [[float(x) - self._x0, float(y) - self._y0, h] for x, y in self.markers]
+        heights = [None] * len(self.markers)
+        if world.fleet:
+            heights = [world.scenario.markers[i].height if i < len(world.scenario.markers) else None
+                       for i in range(len(self.markers))]
+        self._targets = [[float(x) - self._x0, float(y) - self._y0, h if z is None else float(z)]
+                         for (x, y), z in zip(self.markers, heights, strict=True)]
+        # Collision masks of the rays (fleet worlds): through its own body, or through every robot's.
+        self._bodies = {b: j for j, b in enumerate(world.body_ids)}
+        own, every = robot_group(robot), robots_group(len(world.body_ids))
+        self._masks = [-1 ^ (every if z is None else own) for z in heights] if world.fleet else None
 
     def origin(self) -> np.ndarray:
         """Laser position (x, y, z) [m], shape (3,): the robot centre at the laser height (user's frame)."""
-        x, y, _ = self.world.true_pose()
-        return np.array([x, y, self.world.config.laser_height])
+        x, y, _ = self.robot.true_pose()
+        return np.array([x, y, self.height])
 
     def _check_index(self, i: int) -> None:
         if not 0 <= i < len(self.markers):
@@ -140,7 +162,7 @@ class LaserSensor:
     def visible(self, i: int) -> bool:
         """Tell whether marker ``i`` is within max range and its line of sight is clear."""
         self._check_index(i)
-        return self._visible_from(i, self.world.true_pose())
+        return self._visible_from(i, self.robot.true_pose())
 
     def _facing(self, i: int, x: float, y: float) -> bool:
         """Tell whether local point (x, y) [m] is in marker i's incidence wedge (always, for a post)."""
@@ -157,7 +179,16 @@ class LaserSensor:
         tx, ty, h = self._targets[i]
         if i in self.blocked or math.hypot(tx - x, ty - y) > self.spec.max_range or not self._facing(i, x, y):
             return False
-        hit = pb.rayTest([x, y, h], self._targets[i], physicsClientId=self.world.client)[0]
+        if self._masks is None:
+            hit = pb.rayTest([x, y, h], self._targets[i], physicsClientId=self.world.client)[0]
+            return bool(hit[0] == -1 or hit[0] == self._own_post[i])
+        hit = pb.rayTest([x, y, self.height], self._targets[i], collisionFilterMask=self._masks[i],
+                         physicsClientId=self.world.client)[0]
+        other = self._bodies.get(hit[0])
+        if other is not None:
+            self.blocked_by[i] = other
+            return False
+        self.blocked_by.pop(i, None)
         return bool(hit[0] == -1 or hit[0] == self._own_post[i])
 
     def sees_all(self, indices) -> bool:
@@ -167,7 +198,7 @@ class LaserSensor:
         after physics steps the interpreter runs from cold caches, and the numpy calls of
         :meth:`visible_all` cost ~150 us there (a fifth of an episode's laser time).
         """
-        pose = self.world.robot.true_pose_tuple()
+        pose = self.robot.true_pose_tuple()
         for i in indices:
             self._check_index(int(i))
             if not self._visible_from(int(i), pose):
@@ -182,9 +213,10 @@ class LaserSensor:
         idx = np.arange(len(self.markers)) if indices is None else np.asarray(indices, dtype=int).reshape(-1)
         if idx.size == 0:
             return np.zeros(0, dtype=bool)
-        if idx.size <= 3:
-            # A ray costs ~5 us; a batch call and its numpy bookkeeping ~20 us more.
-            pose = self.world.true_pose()
+        if idx.size <= 3 or self._masks is not None:
+            # A ray costs ~5 us; a batch call and its numpy bookkeeping ~20 us more. (A fleet's
+            # rays have a mask each, which a batch cannot take.)
+            pose = self.robot.true_pose()
             return np.array([self._visible_from(int(i), pose) for i in idx])
         origin = self.origin()
         in_range = np.hypot(*(self.markers[idx] - origin[:2]).T) <= self.spec.max_range
@@ -213,7 +245,7 @@ class LaserSensor:
         """
         self._check_index(i)
         # plain floats: called between physics steps, where numpy's calls run from cold caches
-        px, py, pth = (float(v) for v in (self.world.robot.true_pose_tuple() if pose is None else pose))
+        px, py, pth = (float(v) for v in (self.robot.true_pose_tuple() if pose is None else pose))
         if not self._visible_from(i, (px, py)):
             raise SimulationError(f"laser: marker {i} at {self.markers[i].tolist()} is not visible "
                                   f"from {[round(px, 3), round(py, 3)]}")

@@ -29,6 +29,19 @@ from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced
 from sim.physics.robot import DiffDriveRobot
 
+#: Lowest collision-group bit of the robots' bodies (Bullet's own filters use the low bits).
+_FIRST_ROBOT_BIT = 4
+
+
+def robot_group(i: int) -> int:
+    """Return the collision group of robot i's body: one bit of its own."""
+    return 1 << (_FIRST_ROBOT_BIT + i)
+
+
+def robots_group(n: int) -> int:
+    """Return the collision groups of n robots' bodies together."""
+    return ((1 << n) - 1) << _FIRST_ROBOT_BIT
+
 
 class PhysicsWorld:
     """A built scenario in its own pybullet client.
@@ -42,6 +55,10 @@ class PhysicsWorld:
     pose : (3,) array_like, optional
         Initial robot pose (x [m], y [m], theta [rad]); default the first dock's pose, or the
         workspace centre when there are no docks.
+    fleet : bool
+        Build every robot of ``scenario.robots`` (each from its ``robot_actual``), each with a
+        *body*: a cylinder of its radius and height that the other robots' laser rays hit (and
+        nothing else: it takes no part in the dynamics). ``robot`` is then the first of them.
 
     Attributes
     ----------
@@ -53,13 +70,20 @@ class PhysicsWorld:
         pybullet body id of each marker's post, in marker order.
     blocker_ids : ndarray of int
         Body ids of the border walls and obstacles (several per polygon obstacle: its pieces).
+    robots : list of DiffDriveRobot
+        Every robot ([robot] without ``fleet``).
+    body_ids : list of int
+        With ``fleet``: each robot's body (the cylinder the others' rays hit); empty otherwise.
     origin : ndarray, shape (2,)
         The workspace origin [m]: local (physics) coordinates = user's frame - origin.
     """
 
     def __init__(self, scenario: Scenario, config: PhysicsConfig | None = None,
-                 pose: tuple[float, float, float] | np.ndarray | None = None) -> None:
+                 pose: tuple[float, float, float] | np.ndarray | None = None, fleet: bool = False) -> None:
         self.scenario = scenario
+        self.fleet = fleet
+        if fleet and not scenario.robots:
+            raise SimulationError(f"{scenario.source}: robots: a fleet world needs [[robots]]")
         self.config = config if config is not None else PhysicsConfig()
         self.origin = np.asarray(scenario.workspace.origin, dtype=float)
         self.client = -1
@@ -100,20 +124,67 @@ class PhysicsWorld:
         self.blocker_ids = np.array(blockers, dtype=int)
 
         # Posts are capsules (a cylinder with round ends, floor to post_height): Bullet ray-casts
-        # a capsule ~3x faster than a cylinder, and the laser only sees the straight part.
+        # a capsule ~3x faster than a cylinder, and the laser only sees the straight part. A post
+        # reaches above the lasers and the reflector mounted on it (heights of a fleet).
+        specs = [r.robot_actual for r in sc.robots] if self.fleet else [sc.robot_actual]
+        tallest = max([cfg.laser_height, *(r.height for r in specs),
+                       *(m.height for m in sc.markers if m.height is not None)])
+        post_height = max(cfg.post_height, tallest + 2.0 * cfg.post_radius + 0.1)
         post = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=cfg.post_radius,
-                                       height=cfg.post_height - 2.0 * cfg.post_radius, physicsClientId=cid)
+                                       height=post_height - 2.0 * cfg.post_radius, physicsClientId=cid)
         self.post_ids = np.array([
-            pb.createMultiBody(0.0, post, basePosition=[mx, my, 0.5 * cfg.post_height], physicsClientId=cid)
+            pb.createMultiBody(0.0, post, basePosition=[mx, my, 0.5 * post_height], physicsClientId=cid)
             for mx, my in sc.marker_positions() - self.origin], dtype=int)
 
-        self.robot = DiffDriveRobot(cid, sc.robot_actual, cfg, origin=self.origin)
-        if self.robot.geometry.top_height >= cfg.laser_height:
-            raise SimulationError(
-                f"PhysicsConfig.laser_height: expected above the robot's top "
-                f"({self.robot.geometry.top_height:.3f} m), got {cfg.laser_height}")
+        self.robots = [DiffDriveRobot(cid, spec, cfg, origin=self.origin) for spec in specs]
+        self.robot = self.robots[0]
+        for r in self.robots:
+            laser_at = r.spec.height if self.fleet else cfg.laser_height
+            if r.geometry.top_height >= laser_at:
+                raise SimulationError(
+                    f"{'robot.height' if self.fleet else 'PhysicsConfig.laser_height'}: expected above the "
+                    f"robot's top ({r.geometry.top_height:.3f} m), got {laser_at}")
+        self.body_ids = [self._robot_body(i) for i in range(len(self.robots))] if self.fleet else []
         self._built_state = pb.saveState(physicsClientId=cid)
         self._steps = 0
+
+    def _robot_body(self, i: int) -> int:
+        """Robot i's body for the others' rays: a static cylinder moved with the robot (:meth:`place_bodies`).
+
+        Its collision group is its own bit (:func:`robot_group`), so that robot i's laser looks
+        through it and a ray to a reflector above every robot through all of them; the dynamics
+        ignore it (pair filters against every robot link: static bodies never meet each other).
+        """
+        cid, spec = self.client, self.robots[i].spec
+        shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=spec.radius, height=spec.height, physicsClientId=cid)
+        body = pb.createMultiBody(0.0, shape, basePosition=[0.0, 0.0, 0.5 * spec.height], physicsClientId=cid)
+        pb.setCollisionFilterGroupMask(body, -1, robot_group(i), 1, physicsClientId=cid)
+        for r in self.robots:
+            for link in range(-1, pb.getNumJoints(r.body, physicsClientId=cid)):
+                pb.setCollisionFilterPair(body, r.body, -1, link, 0, physicsClientId=cid)
+        return body
+
+    def place_bodies(self) -> None:
+        """Move every robot's body (:attr:`body_ids`) to the robot's true position (fleet worlds)."""
+        cid = self.client
+        for r, body in zip(self.robots, self.body_ids, strict=True):
+            x, y, _ = r.true_pose_tuple()
+            pb.resetBasePositionAndOrientation(body, [x - float(self.origin[0]), y - float(self.origin[1]),
+                                                      0.5 * r.spec.height], [0.0, 0.0, 0.0, 1.0],
+                                               physicsClientId=cid)
+
+    def touching(self) -> list[tuple[int, int]]:
+        """Pairs (i, j), i < j, of robots whose bodies overlap now (pybullet's closest points below 0).
+
+        Call :meth:`place_bodies` first.
+        """
+        out = []
+        for i in range(len(self.body_ids)):
+            for j in range(i + 1, len(self.body_ids)):
+                pts = pb.getClosestPoints(self.body_ids[i], self.body_ids[j], 0.0, physicsClientId=self.client)
+                if any(p[8] < 0.0 for p in pts):
+                    out.append((i, j))
+        return out
 
     def _obstacle(self, ob: Obstacle, height: float) -> list[int]:
         """Build one obstacle in local coordinates; return its body ids."""
@@ -158,6 +229,18 @@ class PhysicsWorld:
         pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
         self.robot.reset(pose)
         self._steps = 0
+
+    def reset_fleet(self, poses) -> None:
+        """Put robot i at ``poses[i]`` (x [m], y [m], theta [rad]) at rest, the clock at 0 (fleet worlds)."""
+        poses = np.asarray(poses, dtype=float)
+        if poses.shape != (len(self.robots), 3) or not np.all(np.isfinite(poses)):
+            raise SimulationError(f"reset poses: expected {len(self.robots)} finite (x, y, theta), "
+                                  f"got {poses.tolist()}")
+        pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
+        for r, pose in zip(self.robots, poses, strict=True):
+            r.reset(pose)
+        self._steps = 0
+        self.place_bodies()
 
     def step(self, n: int = 1) -> None:
         """Advance the physics by ``n`` (>= 0) time steps."""

@@ -6,6 +6,8 @@ spatial data is in metres in the workspace frame (origin lower-left, x right, y 
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 APPLICATION_ID = "pefsim"
 TIMELINE = "sim_time"
 """Duration timeline: simulation time since the episode started [s]."""
@@ -68,6 +70,33 @@ def of_task(entity: str, task: int) -> str:
     if entity.startswith(f"{WORLD}/"):
         return f"{TASKS}/{task}/{entity[len(WORLD) + 1:]}"
     return f"{entity}/{task}"
+
+def of_robot(name: str) -> SimpleNamespace:
+    """Return the episode entities of a fleet's robot ``name``: ``world/robots/<name>/...``, ``metrics/<name>/...``.
+
+    Attributes are named as this module's episode entities (:data:`EPISODE_ENTITIES`), plus
+    ``BLOCKED_RAYS`` (the lines of sight other robots hid at its fixes) and ``RESERVED`` (the
+    zones it held).
+    """
+    out = {}
+    for key, value in globals().items():
+        if isinstance(value, str) and value in EPISODE_ENTITIES:
+            if value.startswith("world/robot/"):
+                out[key] = f"{ROBOTS}/{name}/{value[len('world/robot/'):]}"
+            elif value.startswith(f"{WORLD}/"):
+                out[key] = f"{ROBOTS}/{name}/{value[len(WORLD) + 1:]}"
+            else:
+                head, _, tail = value.partition("/")
+                out[key] = f"{head}/{name}/{tail}" if tail else f"{head}/{name}"
+    out["BLOCKED_RAYS"] = f"{ROBOTS}/{name}/fix/blocked_rays"
+    out["RESERVED"] = f"{ROBOTS}/{name}/reserved"
+    return SimpleNamespace(**out)
+
+
+ROBOTS = "world/robots"
+"""A fleet's robots, one subtree each (:func:`of_robot`)."""
+BLOCKED_MAP = "world/blocked"
+"""Where lines of sight were hidden by robots: the hidden rays of every robot's fixes."""
 
 STATIC_ENTITIES = (WORKSPACE, OBSTACLES, MARKERS, DOCKS)
 """Logged by :func:`sim.recording.log_static` for every scenario."""

@@ -53,7 +53,7 @@ def _log_scalar(rec: rr.RecordingStream, entity: str, t: np.ndarray, values: np.
     rec.send_columns(entity, _index(t), rr.Scalars.columns(scalars=np.asarray(values, dtype=float)))
 
 
-def log_steps(rec: rr.RecordingStream, steps: StepLog, scenario: Scenario, eps_max: float) -> None:
+def log_steps(rec: rr.RecordingStream, steps: StepLog, scenario: Scenario, eps_max: float, ent=E) -> None:
     """Log per-step poses, trails, covariance ellipses and metrics.
 
     Parameters
@@ -66,44 +66,47 @@ def log_steps(rec: rr.RecordingStream, steps: StepLog, scenario: Scenario, eps_m
         For the robot size (arrow length) and the ellipse probability (``gdop_level``).
     eps_max : float
         Allowed error [m], drawn as a constant series.
+    ent : module or namespace
+        Where the entities go: :mod:`sim.recording.entities`, or a fleet robot's
+        (:func:`sim.recording.entities.of_robot`).
     """
     t = np.asarray(steps.t, dtype=float)
     if len(t) == 0:
         return
     arrow = 1.5 * scenario.robot.radius
-    _log_pose(rec, E.ROBOT_TRUE, t, steps.true_pose, arrow, E.TRUE)
-    _log_pose(rec, E.ROBOT_ESTIMATE, t, steps.est_pose, arrow, E.ESTIMATE)
+    _log_pose(rec, ent.ROBOT_TRUE, t, steps.true_pose, arrow, E.TRUE)
+    _log_pose(rec, ent.ROBOT_ESTIMATE, t, steps.est_pose, arrow, E.ESTIMATE)
     # The trails are static full paths: the moving points show "now", the trails show the
     # whole run at once (a growing strip would cost O(T^2) points).
-    rec.log(E.TRUE_TRAIL, rr.LineStrips2D([steps.true_pose[:, :2]], colors=[E.TRUE], radii=_ui(E.LINE_PT)),
+    rec.log(ent.TRUE_TRAIL, rr.LineStrips2D([steps.true_pose[:, :2]], colors=[E.TRUE], radii=_ui(E.LINE_PT)),
             static=True)
-    rec.log(E.ESTIMATE_TRAIL, rr.LineStrips2D([steps.est_pose[:, :2]], colors=[E.ESTIMATE],
+    rec.log(ent.ESTIMATE_TRAIL, rr.LineStrips2D([steps.est_pose[:, :2]], colors=[E.ESTIMATE],
                                               radii=_ui(E.LINE_PT)), static=True)
     rings = covariance_ellipses(steps.est_pose[:, :2], steps.est_cov[:, :2, :2], scenario.planning.gdop_level)
-    rec.log(E.COVARIANCE, rr.LineStrips2D.from_fields(colors=[E.ESTIMATE], radii=_ui(E.LINE_PT)), static=True)
-    rec.send_columns(E.COVARIANCE, _index(t), rr.LineStrips2D.columns(strips=rings))
+    rec.log(ent.COVARIANCE, rr.LineStrips2D.from_fields(colors=[E.ESTIMATE], radii=_ui(E.LINE_PT)), static=True)
+    rec.send_columns(ent.COVARIANCE, _index(t), rr.LineStrips2D.columns(strips=rings))
 
-    _log_scalar(rec, E.ERROR, t, steps.error, "error |true - estimate|", E.TRUE)
-    _log_scalar(rec, E.PREDICTED_TAU, t, _finite_or_nan(steps.predicted_tau), "predicted τ (schedule)",
+    _log_scalar(rec, ent.ERROR, t, steps.error, "error |true - estimate|", E.TRUE)
+    _log_scalar(rec, ent.PREDICTED_TAU, t, _finite_or_nan(steps.predicted_tau), "predicted τ (schedule)",
                 E.CHOSEN_ROUTE)
-    _log_scalar(rec, E.PEF_TAU, t, _finite_or_nan(steps.pef_tau), "PEF τ (best subset)", E.GREY,
+    _log_scalar(rec, ent.PEF_TAU, t, _finite_or_nan(steps.pef_tau), "PEF τ (best subset)", E.GREY,
                 visible=False)
     ends = np.array([t[0], t[-1]])
-    _log_scalar(rec, E.EPS_MAX, ends, np.full(2, eps_max), "ε_max", E.EPS_LINE)
-    _log_scalar(rec, E.NEES, t, _finite_or_nan(steps.nees), "NEES (3 dof)", E.ESTIMATE)
-    _log_scalar(rec, E.NEES_UPPER, ends, np.full(2, CHI2_3DOF_975), "χ²₃ 97.5 %", E.EPS_LINE)
+    _log_scalar(rec, ent.EPS_MAX, ends, np.full(2, eps_max), "ε_max", E.EPS_LINE)
+    _log_scalar(rec, ent.NEES, t, _finite_or_nan(steps.nees), "NEES (3 dof)", E.ESTIMATE)
+    _log_scalar(rec, ent.NEES_UPPER, ends, np.full(2, CHI2_3DOF_975), "χ²₃ 97.5 %", E.EPS_LINE)
 
     exceed = np.asarray(steps.error, dtype=float) > eps_max
     starts = np.flatnonzero(exceed & ~np.concatenate([[False], exceed[:-1]]))
     if len(starts):
         err = np.asarray(steps.error, dtype=float)
-        rec.send_columns(E.EVENTS, _index(t[starts]), rr.TextLog.columns(
+        rec.send_columns(ent.EVENTS, _index(t[starts]), rr.TextLog.columns(
             text=[f"error {1000 * err[i]:.2f} mm exceeds ε_max {1000 * eps_max:.2f} mm" for i in starts],
             level=["WARN"] * len(starts)))
 
 
 def log_fixes(rec: rr.RecordingStream, fixes: FixLog, scenario: Scenario,
-              predicted_polygons: list[np.ndarray] | None = None) -> None:
+              predicted_polygons: list[np.ndarray] | None = None, ent=E) -> None:
     """Log per-fix rays, realised and predicted fault areas, snapshot fixes and fix metrics.
 
     Parameters
@@ -117,6 +120,8 @@ def log_fixes(rec: rr.RecordingStream, fixes: FixLog, scenario: Scenario,
     predicted_polygons : list of F (n, 2) arrays, optional
         Predicted fault areas at the true positions [m]. Default: the linearised strip
         polygon of each fix's markers and bounds ``rho`` at its true position.
+    ent : module or namespace
+        Where the entities go (see :func:`log_steps`).
     """
     t = np.asarray(fixes.t, dtype=float)
     n_fix = len(t)
@@ -130,32 +135,32 @@ def log_fixes(rec: rr.RecordingStream, fixes: FixLog, scenario: Scenario,
     idx = _index(t)
 
     rays = np.stack([np.repeat(true_xy, k, axis=0), marker_xy.reshape(-1, 2)], axis=1)  # (F*k, 2, 2)
-    rec.log(E.FIX_RAYS, rr.LineStrips2D.from_fields(colors=[E.RAY], radii=_ui(E.LINE_PT)), static=True)
+    rec.log(ent.FIX_RAYS, rr.LineStrips2D.from_fields(colors=[E.RAY], radii=_ui(E.LINE_PT)), static=True)
     ray_cols = rr.LineStrips2D.columns(strips=rays, labels=list(ids[markers.ravel()]))
-    rec.send_columns(E.FIX_RAYS, idx, ray_cols.partition([k] * n_fix))  # k rays per fix
+    rec.send_columns(ent.FIX_RAYS, idx, ray_cols.partition([k] * n_fix))  # k rays per fix
 
     contained = np.asarray(fixes.contained, dtype=bool)
-    rec.log(E.FIX_FAULT_AREA, rr.LineStrips2D.from_fields(radii=_ui(E.THICK_LINE_PT)), static=True)
-    rec.send_columns(E.FIX_FAULT_AREA, idx, rr.LineStrips2D.columns(
+    rec.log(ent.FIX_FAULT_AREA, rr.LineStrips2D.from_fields(radii=_ui(E.THICK_LINE_PT)), static=True)
+    rec.send_columns(ent.FIX_FAULT_AREA, idx, rr.LineStrips2D.columns(
         strips=[np.asarray(p, dtype=float).reshape(-1, 2) for p in fixes.fault_polygons],
         colors=[E.CONTAINED if c else E.NOT_CONTAINED for c in contained]))
 
     if predicted_polygons is None:
         predicted_polygons = strip_polygons(true_xy, marker_xy, np.asarray(fixes.rho, dtype=float))
-    rec.log(E.FIX_PREDICTED, rr.LineStrips2D.from_fields(colors=[E.PREDICTED], radii=_ui(E.LINE_PT)),
+    rec.log(ent.FIX_PREDICTED, rr.LineStrips2D.from_fields(colors=[E.PREDICTED], radii=_ui(E.LINE_PT)),
             static=True)
-    rec.send_columns(E.FIX_PREDICTED, idx, rr.LineStrips2D.columns(
+    rec.send_columns(ent.FIX_PREDICTED, idx, rr.LineStrips2D.columns(
         strips=[np.asarray(p, dtype=float).reshape(-1, 2) for p in predicted_polygons]))
 
-    for entity, xy, color in ((E.FIX_SNAPSHOT, fixes.snapshot, E.SNAPSHOT), (E.FIX_TRUE, true_xy, E.TRUE)):
+    for entity, xy, color in ((ent.FIX_SNAPSHOT, fixes.snapshot, E.SNAPSHOT), (ent.FIX_TRUE, true_xy, E.TRUE)):
         rec.log(entity, rr.Points2D.from_fields(colors=[color], radii=_ui(E.POINT_PT)), static=True)
         rec.send_columns(entity, idx, rr.Points2D.columns(positions=np.asarray(xy, dtype=float)))
 
-    _log_scalar(rec, E.FAULT_DIAMETER, t, _finite_or_nan(fixes.fault_diameter), "fault-area diameter (fix)",
+    _log_scalar(rec, ent.FAULT_DIAMETER, t, _finite_or_nan(fixes.fault_diameter), "fault-area diameter (fix)",
                 E.CONTAINED, points=True)
-    _log_scalar(rec, E.FIX_PREDICTED_TAU, t, _finite_or_nan(fixes.predicted_tau), "PEF τ of the fix's subset",
+    _log_scalar(rec, ent.FIX_PREDICTED_TAU, t, _finite_or_nan(fixes.predicted_tau), "PEF τ of the fix's subset",
                 E.PREDICTED, points=True)
-    _log_scalar(rec, E.NIS, t, _finite_or_nan(fixes.nis), "NIS (per fix)", E.NIS_POINT, points=True)
+    _log_scalar(rec, ent.NIS, t, _finite_or_nan(fixes.nis), "NIS (per fix)", E.NIS_POINT, points=True)
 
     diam, pred = np.asarray(fixes.fault_diameter, float), np.asarray(fixes.predicted_tau, float)
     ok = contained & (diam <= pred)
@@ -163,7 +168,7 @@ def log_fixes(rec: rr.RecordingStream, fixes: FixLog, scenario: Scenario,
             f"{1000 * pred[i]:.2f} mm, true position {'inside' if contained[i] else 'OUTSIDE'} the fault area"
             for i in range(n_fix)]
     levels = np.where(ok, "INFO", "WARN").tolist()
-    rec.send_columns(E.EVENTS, idx, rr.TextLog.columns(text=text, level=levels))
+    rec.send_columns(ent.EVENTS, idx, rr.TextLog.columns(text=text, level=levels))
 
 
 def summary_markdown(result: EpisodeResult) -> str:
@@ -177,9 +182,13 @@ def summary_markdown(result: EpisodeResult) -> str:
 
 
 def log_result(rec: rr.RecordingStream, result: EpisodeResult, scenario: Scenario,
-               predicted_polygons: list[np.ndarray] | None = None) -> None:
-    """Log a whole episode (steps, fixes, summary); see :func:`sim.recording.log_episode`."""
-    rec.send_recording_name(f"{result.scenario_name} task {result.task_index} seed {result.seed}")
-    log_steps(rec, result.steps, scenario, result.eps_max)
-    log_fixes(rec, result.fixes, scenario, predicted_polygons)
-    rec.log(E.SUMMARY, rr.TextDocument(summary_markdown(result), media_type="text/markdown"), static=True)
+               predicted_polygons: list[np.ndarray] | None = None, ent=E) -> None:
+    """Log a whole episode (steps, fixes, summary); see :func:`sim.recording.log_episode`.
+
+    ``ent``: where its entities go (:func:`log_steps`); a fleet's robot is not the recording's name.
+    """
+    if ent is E:
+        rec.send_recording_name(f"{result.scenario_name} task {result.task_index} seed {result.seed}")
+    log_steps(rec, result.steps, scenario, result.eps_max, ent)
+    log_fixes(rec, result.fixes, scenario, predicted_polygons, ent)
+    rec.log(ent.SUMMARY, rr.TextDocument(summary_markdown(result), media_type="text/markdown"), static=True)

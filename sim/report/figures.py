@@ -289,3 +289,43 @@ def fallback_map(scenario: Scenario, fix_x: np.ndarray, fix_y: np.ndarray, fallb
                  f"single-failure test failed at {100 * share:.2f} % of steps", fontsize=10)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8)
     return fig
+
+
+def robot_blocked_map(scenario: Scenario, fix_x: np.ndarray, fix_y: np.ndarray, hidden: list[str],
+                      blockers: list[str]) -> Figure:
+    """Draw where other robots hid reflectors from a fleet's robots: each hidden line of sight.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Workspace, obstacles, markers.
+    fix_x, fix_y : ndarray, shape (F,)
+        True position of every fix [m].
+    hidden : list of str, length F
+        Comma-joined ids of the scheduled markers another robot hid at the fix ("" for none).
+    blockers : list of str, length F
+        Comma-joined names of the robots that hid them, in the same order.
+    """
+    fig = Figure(figsize=(7.5, 7.5 * scenario.workspace.height / scenario.workspace.width + 1.0))
+    ax = fig.add_subplot()
+    draw_scene(ax, scenario, labels=True, docks=True)
+    where = dict(zip(scenario.marker_ids(), scenario.marker_positions().tolist(), strict=True))
+    segs, by = [], {}
+    for x, y, ids, who in zip(np.asarray(fix_x, float), np.asarray(fix_y, float), hidden, blockers, strict=True):
+        for m, r in zip([i for i in (ids or "").split(",") if i], [w for w in (who or "").split(",") if w],
+                        strict=True):
+            segs.append([(x, y), tuple(where[m])])
+            by[r] = by.get(r, 0) + 1
+    keep = _subsample(len(segs))
+    if segs:
+        from matplotlib.collections import LineCollection
+
+        ax.add_collection(LineCollection([segs[i] for i in keep], colors="tab:red", linewidths=0.6, alpha=0.3,
+                                         zorder=4, label="line of sight hidden by a robot"))
+        starts = np.array([segs[i][0] for i in keep])
+        ax.scatter(starts[:, 0], starts[:, 1], s=6, c="tab:red", zorder=5, label="fix that lost it")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8)
+    who = ", ".join(f"{r} {n}" for r, n in sorted(by.items()))
+    ax.set_title(f"Lines of sight hidden by robots: {len(segs)} at {np.size(fix_x)} fixes"
+                 + (f" (by {who})" if who else ""), fontsize=10)
+    return fig

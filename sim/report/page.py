@@ -118,6 +118,16 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                           "layout fails the single-failure test the plan check counts; grey: after fixes "
                           "that lost more, which no such layout promises.",
                           figs.png_bytes(fig)))
+    if scenario.is_fleet:
+        fx = results.read_fixes(root, columns=["true_x", "true_y", "blocked_by_robot", "blocking_robots"])
+        fig = figs.robot_blocked_map(scenario, col(fx, "true_x"), col(fx, "true_y"),
+                                     fx.column("blocked_by_robot").to_pylist(),
+                                     fx.column("blocking_robots").to_pylist())
+        out.append(Figure("robot_blocked_map", "Where robots hid reflectors from each other",
+                          "Red: each line of sight to a scheduled reflector that another robot's body hid at a "
+                          "fix start (the reflector below the robot's top, the robot on the line), drawn from "
+                          "where the fix was taken; such a fix measures the schedule's fallback or improvises.",
+                          figs.png_bytes(fig)))
     failed = ~succeeded(runs)
     n = np.arange(1, failed.size + 1)
     lower, upper = clopper_pearson(np.cumsum(failed), n, 1.0 - CONFIDENCE)
@@ -148,6 +158,25 @@ def _stats_rows(runs: pa.Table) -> list[list[str]]:
             continue
         q = np.quantile(v * scale, [0.0, 0.5, 0.95, 1.0])
         rows.append([label, f"{np.mean(v) * scale:.4g}"] + [f"{x:.4g}" for x in q])
+    return rows
+
+
+def _robot_rows(runs: pa.Table) -> list[list[str]]:
+    """Per robot of a fleet sweep: its rows' counts, waits, hidden lines of sight, collisions and worst error."""
+    names = runs.column("robot").to_pylist()
+    ok = succeeded(runs)
+
+    def num(name: str) -> np.ndarray:
+        return runs.column(name).to_numpy(zero_copy_only=False).astype(float)
+
+    reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), bool)
+    wait, hidden, hits, err = num("wait_time"), num("robot_blocked"), num("collisions"), num("max_error")
+    rows = []
+    for name in sorted({n for n in names if n is not None}):
+        sel = np.array([n == name for n in names])
+        rows.append([name, int(sel.sum()), int(ok[sel].sum()), int(reached[sel].sum()),
+                     f"{np.nanmean(wait[sel]):.2f}", f"{np.nanmax(wait[sel]):.2f}", f"{np.nanmean(hidden[sel]):.2f}",
+                     int(np.nansum(hits[sel])), f"{np.nanmax(err[sel]) * 1e3:.3f}"])
     return rows
 
 
@@ -194,6 +223,10 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
         data = base64.b64encode(f.png).decode("ascii")
         parts.append(f"<figure><h2>{html.escape(f.title)}</h2><img alt='{html.escape(f.name)}' "
                      f"src='data:image/png;base64,{data}'><figcaption>{html.escape(f.caption)}</figcaption></figure>")
+    if scenario.is_fleet and "robot" in runs.column_names:
+        parts.append("<h2>Per robot</h2>")
+        parts.append(_table(["robot", "runs", "succeeded", "reached", "wait mean [s]", "wait max [s]",
+                             "hidden lines of sight per run", "collisions", "max error [mm]"], _robot_rows(runs)))
     parts.append("<h2>Runs summary</h2>")
     parts.append(_table(["per run", "mean", "min", "median", "95 %", "max"], _stats_rows(runs)))
     rows = runs.select(["run", "task", "status", "max_error", "violations", "reached"]).to_pylist()

@@ -265,9 +265,31 @@ def step_table(steps: pa.Table) -> StepTable:
                      nees=_np(steps, "nees", float, math.nan))
 
 
+def fleet_units(scenario: Scenario, table: pa.Table) -> pa.Table:
+    """Return a fleet's table with ``run`` replaced by the robot's unit: ``run * n_robots + robot index``.
+
+    The checks group by run (a run's steps and fixes, N-run averages over runs): in a fleet each
+    robot of each run is such a unit, with its own filter and its own fixes. A row without a
+    robot (a crashed run) counts as the first robot's. Tables without a ``robot`` column are
+    returned as they are.
+    """
+    if "robot" not in table.column_names or not scenario.robots:
+        return table
+    index = {r.name: j for j, r in enumerate(scenario.robots)}
+    robot = np.array([index.get(name, 0) for name in table.column("robot").to_pylist()], dtype=np.int64)
+    run = _np(table, "run", np.int64, -1)
+    unit = np.where(run >= 0, run * len(scenario.robots) + robot, -1)
+    return table.set_column(table.column_names.index("run"), "run", pa.array(unit, type=pa.int64()))
+
+
 def from_tables(scenario: Scenario, runs: pa.Table, fixes: pa.Table, source: str = "<memory>",
                 q_scale: float = 1.0, steps: pa.Table | None = None) -> SweepData:
-    """Build :class:`SweepData` from Arrow tables of the :mod:`sim.montecarlo.results` schemas (``steps`` optional)."""
+    """Build :class:`SweepData` from Arrow tables of the :mod:`sim.montecarlo.results` schemas (``steps`` optional).
+
+    A fleet's tables (a ``robot`` column) are judged per robot and run (:func:`fleet_units`).
+    """
+    runs, fixes = fleet_units(scenario, runs), fleet_units(scenario, fixes)
+    steps = None if steps is None else fleet_units(scenario, steps)
     return SweepData(scenario=scenario, runs=run_table(runs),
                      fixes=fix_table(fixes, scenario.sensor.markers_per_fix), source=source, q_scale=q_scale,
                      steps=None if steps is None or steps.num_rows == 0 else step_table(steps))
@@ -321,7 +343,8 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     mode = stored_steps_mode(read_settings(layout.root) if layout.sweep_json.exists() else {})
     # Only a sweep of every step feeds the N-run NEES test (the only reader of steps here), so
     # the others' step rows are not read at all.
-    steps = results.read_steps(layout.root, columns=STEP_COLUMNS) if mode is StepsMode.ALL else None
-    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS), source=str(directory),
-                       q_scale=q_scale, steps=steps)
+    fleet = ["robot"] if stored.is_fleet else []
+    steps = results.read_steps(layout.root, columns=STEP_COLUMNS + fleet) if mode is StepsMode.ALL else None
+    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet),
+                       source=str(directory), q_scale=q_scale, steps=steps)
     return replace(data, steps_mode=mode.value)

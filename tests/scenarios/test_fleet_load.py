@@ -78,16 +78,20 @@ start_time = 4.5
 
 
 @pytest.mark.parametrize("robots,pattern", [
-    ('[[robots]]\nname = "r"\ntasks = [3]', r"f\.toml: robots\[0\]\.tasks\[0\]: expected a task index in 0\.\.2 .*got 3"),
+    ('[[robots]]\nname = "r"\ntasks = [3]',
+     r"f\.toml: robots\[0\]\.tasks\[0\]: expected a task index in 0\.\.2 .*got 3"),
     ('[[robots]]\nname = "r"\ntasks = []', r"robots\[0\]\.tasks: expected a non-empty list"),
     ('[[robots]]\nname = "r"\ntasks = [0, 2]',
      r"robots\[0\]\.tasks\[1\]: expected a task starting at dock 'B' where task 0 ends .*got 2"),
     ('[[robots]]\nname = "r"\ntasks = [0]\n[[robots]]\nname = "r"\ntasks = [1]',
      r'robots\[1\]\.name: expected a unique robot name, got "r"'),
-    ('[[robots]]\nname = "r"\ntasks = [0]\nstart_time = -1.0', r"robots\[0\]\.start_time: expected a number >= 0, got -1\.0"),
+    ('[[robots]]\nname = "r"\ntasks = [0]\nstart_time = -1.0',
+     r"robots\[0\]\.start_time: expected a number >= 0, got -1\.0"),
     ('[[robots]]\nname = "r"\ntasks = [0]\nwings = 2', r"robots\[0\]\.wings: unknown key"),
-    ('[[robots]]\nname = "r"\ntasks = [0]\nheight = 0.1', r"robots\[0\]\.height: expected a body taller than its wheels"),
-    ('[[robots]]\nname = "r"\ntasks = [0]\n[robots.actual]\nheight = 500.0', r"robots\[0\]\.actual\.height: expected a number <= 20"),
+    ('[[robots]]\nname = "r"\ntasks = [0]\nheight = 0.1',
+     r"robots\[0\]\.height: expected a body taller than its wheels"),
+    ('[[robots]]\nname = "r"\ntasks = [0]\n[robots.actual]\nheight = 500.0',
+     r"robots\[0\]\.actual\.height: expected a number <= 20"),
     ('[[robots]]\nname = "r"\ntasks = [true]', r"robots\[0\]\.tasks: expected a non-empty list"),
 ])
 def test_bad_robots_name_file_key_and_value(robots, pattern):

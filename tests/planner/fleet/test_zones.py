@@ -65,10 +65,13 @@ def _rot(v: np.ndarray, deg: float) -> np.ndarray:
 
 
 def cycle_paths() -> list[np.ndarray]:
-    """Three robots around a triangle, robot i along T_i -> T_i+1 -> T_i+2: each side is driven by
-    two robots and each robot's way is the next one's, a cycle of who-is-in-whose-way. Docks sit on
-    spurs outside the corners (start spurs turned +40 deg, final ones -40 deg from the outward
-    direction: a start and a final dock at one corner are 2.5 m x 2 sin 40 deg = 3.2 m apart)."""
+    """Three robots around a triangle, robot i along T_i -> T_i+1 -> T_i+2.
+
+    Each side is driven by two robots and each robot's way is the next one's, a cycle of
+    who-is-in-whose-way. Docks sit on spurs outside the corners (start spurs turned +40 deg, final
+    ones -40 deg from the outward direction: a start and a final dock at one corner are
+    2.5 m x 2 sin 40 deg = 3.2 m apart).
+    """
     c = np.mean(_T, axis=0)
     paths = []
     for i in range(3):

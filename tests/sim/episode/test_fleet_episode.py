@@ -1,0 +1,173 @@
+"""A fleet episode: two robots whose paths cross drive together, one waits, nobody touches anybody."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scenarios import loads
+from sim.episode.drive import prepare, run_episode
+from sim.episode.fleet import prepare_fleet, run_fleet_episode
+
+CROSS = """
+name = "cross"
+seed = 3
+[workspace]
+size = [12.0, 12.0]
+[[markers]]
+id = "SW"
+position = [0.0, 0.0]
+height = 0.3
+[[markers]]
+id = "SE"
+position = [12.0, 0.0]
+height = 0.3
+[[markers]]
+id = "NE"
+position = [12.0, 12.0]
+height = 0.3
+[[markers]]
+id = "NW"
+position = [0.0, 12.0]
+height = 0.3
+[sensor]
+[robot]
+[planning]
+eps_max = 0.05
+resolution = 0.2
+[[docks]]
+name = "A"
+pose = [1.0, 6.0, 0.0]
+[[docks]]
+name = "B"
+pose = [11.0, 6.0, 0.0]
+[[docks]]
+name = "C"
+pose = [6.0, 1.0, 90.0]
+[[docks]]
+name = "D"
+pose = [6.0, 11.0, 90.0]
+[[tasks]]
+from = "A"
+to = "B"
+[[tasks]]
+from = "C"
+to = "D"
+[[robots]]
+name = "east"
+tasks = [0]
+[[robots]]
+name = "north"
+tasks = [1]
+"""
+
+
+@pytest.fixture(scope="module")
+def crossing():
+    sc = loads(CROSS, source="cross.toml")
+    prepared = prepare_fleet(sc)
+    return sc, prepared, run_fleet_episode(sc, seed=5, prepared=prepared)
+
+
+def test_both_arrive_without_touching_and_one_waits(crossing):
+    sc, prepared, res = crossing
+    assert res.collisions == 0
+    assert [r.name for r in res.robots] == ["east", "north"]
+    for r in res.robots:
+        s = r.result.summary
+        assert s["reached"] and s["collisions"] == 0 and s["robot"] == r.name
+        assert s["violations"] == 0 and 0.0 < s["arrival"] <= s["duration"] == res.duration
+    assert max(r.wait_time for r in res.robots) > 0.5, "the crossing makes one of them wait"
+    # the closest the two got, over the control steps they shared
+    a, b = (r.result.steps.true_pose[:, :2] for r in res.robots)
+    n = min(len(a), len(b))
+    assert np.hypot(*(a[:n] - b[:n]).T).min() > 2 * sc.robot.radius
+
+
+def test_robot_zero_draws_what_a_single_robot_draws(crossing):
+    sc, prepared, res = crossing
+    single = run_episode(sc, 0, seed=5, prepared=prepare(sc, 0, pef=prepared.pef), time_limit=0.5)
+    assert np.array_equal(res.robots[0].result.steps.true_pose[0], single.steps.true_pose[0])
+    assert not np.array_equal(res.robots[1].result.steps.true_pose[0] - sc.dock("C").pose,
+                              res.robots[0].result.steps.true_pose[0] - sc.dock("A").pose)
+
+
+def test_reservations_run_ahead_of_the_robot(crossing):
+    _, _, res = crossing
+    for r in res.robots:
+        t, a, b = r.reserved.T
+        assert len(t) > 100 and np.all(np.diff(t) > 0)
+        assert np.all(b >= a - 0.2)   # held up to where it may drive, from just behind itself
+        assert np.all(np.diff(b) >= -1e-9)   # a reservation only grows at its front
+
+
+def test_fix_notes_name_the_robot_that_hid_a_marker(crossing):
+    sc, _, res = crossing
+    for j, r in enumerate(res.robots):
+        notes = r.result.fixes.notes
+        assert len(notes) == len(r.result.fixes.t)
+        for note in notes:
+            assert all(0 <= m < len(sc.markers) and other == 1 - j for m, other in note.items())
+        assert r.result.summary["robot_blocked"] >= sum(len(n) for n in notes)
+
+
+def test_the_recording_holds_every_robot_and_the_hidden_lines_of_sight(crossing, tmp_path):
+    from rerun.chunk import RrdReader
+
+    from sim.recording.fleet import write_fleet_rrd
+
+    sc, _, res = crossing
+    path = write_fleet_rrd(tmp_path / "fleet.rrd", sc, res)
+    entities = {str(ch.entity_path) for ch in RrdReader(str(path)).store().stream().to_chunks()}
+    for name in ("east", "north"):
+        assert {f"/world/robots/{name}/true", f"/world/robots/{name}/estimate", f"/world/robots/{name}/fix/rays",
+                f"/world/robots/{name}/fix/fault_area", f"/world/robots/{name}/reserved",
+                f"/metrics/{name}/error"} <= entities
+    hidden = sum(r.result.summary["robot_blocked"] for r in res.robots)
+    assert ("/world/blocked" in entities) == (hidden > 0)
+
+
+def test_a_robot_drives_its_tasks_one_after_another():
+    text = CROSS.replace('[[robots]]\nname = "east"\ntasks = [0]', '[[robots]]\nname = "east"\ntasks = [0, 2]')
+    text = text.replace('[[tasks]]\nfrom = "A"', '[[docks]]\nname = "E"\npose = [10.5, 10.5, 90.0]\n'
+                        '[[tasks]]\nfrom = "A"', 1)
+    text = text.replace("[[robots]]", '[[tasks]]\nfrom = "B"\nto = "E"\n[[robots]]', 1)
+    sc = loads(text, source="chain.toml")
+    prepared = prepare_fleet(sc)
+    east = prepared.plan.robots[0]
+    assert [(p.start, p.goal) for p in east.plans] == [("A", "B"), ("B", "E")]
+    res = run_fleet_episode(sc, seed=5, prepared=prepared)
+    assert res.collisions == 0
+    s = res.robots[0].result.summary
+    assert s["reached"] and s["violations"] == 0
+    assert np.hypot(*(res.robots[0].result.steps.true_pose[-1, :2] - sc.dock("E").position)) < 0.1
+    # fixes of both tasks, in time order
+    t = res.robots[0].result.fixes.t
+    assert np.all(np.diff(t) > 0) and s["scheduled_fixes"] == sum(len(p.schedule.fixes) for p in east.plans)
+
+
+@pytest.mark.e2e
+def test_the_built_in_fleet_drives_without_a_collision():
+    from scenarios import load
+
+    sc = load("warehouse-fleet")
+    res = run_fleet_episode(sc, seed=np.random.SeedSequence(sc.seed, spawn_key=(0,)))
+    assert res.collisions == 0
+    assert all(r.result.summary["reached"] for r in res.robots)
+    assert sum(r.result.summary["robot_blocked"] for r in res.robots) > 0, "the robots hide reflectors"
+    assert max(r.wait_time for r in res.robots) > 1.0, "the routes cross"
+
+
+def test_pefsim_run_prints_every_robot(tmp_path, capsys):
+    import json
+
+    from sim import cli
+
+    path = tmp_path / "cross.toml"
+    path.write_text(CROSS)
+    assert cli.main(["run", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["collisions"] == 0 and [r["robot"] for r in out["robots"]] == ["east", "north"]
+    assert all(r["reached"] for r in out["robots"])
+    assert cli.main(["run", str(path), "--tum", str(tmp_path / "tum")]) == 2
+    assert "--tum: not yet for a fleet scenario" in capsys.readouterr().err
