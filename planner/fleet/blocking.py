@@ -172,7 +172,7 @@ class Track:
 
 def low_segment(origin: np.ndarray, h_origin: float | np.ndarray, target: np.ndarray, h_target: np.ndarray,
                 top: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The floor projection of the part of each ray at most ``top`` high.
+    """Project onto the floor the part of each ray at most ``top`` high.
 
     Parameters
     ----------

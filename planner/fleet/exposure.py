@@ -55,7 +55,7 @@ class RobotBlocking:
     protected: np.ndarray
 
     def of(self, task: int, fix: int) -> tuple[np.ndarray, float]:
-        """The predictions of fix ``fix`` of plan ``task``: (p per scheduled marker (k,), p of the fix)."""
+        """Return the predictions of fix ``fix`` of plan ``task``: p per scheduled marker (k,), p of the fix."""
         i = int(np.flatnonzero((self.task == task) & (self.fix == fix))[0])
         return self.p_robot[i], float(self.p_fix[i])
 
@@ -155,7 +155,7 @@ def marker_risk(scenario: Scenario, tracks: list[Track], i: int, xy: np.ndarray,
 
 def risk(scenario: Scenario, tracks: list[Track], i: int, offset: float,
          timing: TimingModel = TIMING) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """The ``block`` argument of :func:`planner.schedule.schedule.make_schedule` for robot i's task.
+    """Make the ``block`` argument of :func:`planner.schedule.schedule.make_schedule` for robot i's task.
 
     ``offset`` is where the task's path begins along the robot's whole path [m]. The returned
     function maps the task's arc lengths (n,) and positions (n, 2) to the probability per marker

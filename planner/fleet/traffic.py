@@ -59,7 +59,7 @@ def _signature(plan: Plan) -> tuple:
 
 def reschedule(scenario: Scenario, robot, own: Scenario, pef, tracks, i: int, limit: float
                ) -> tuple[list[Plan], list[int]]:
-    """New schedules for robot ``i``'s tasks against the others' ``tracks``; the tasks left unprotected."""
+    """Schedule robot ``i``'s tasks anew against the others' ``tracks``; return them and the tasks left unprotected."""
     plans, loose = [], []
     for q, (plan, off) in enumerate(zip(robot.plans, robot.offsets, strict=True)):
         cand = plan.candidates[plan.chosen]
@@ -92,8 +92,8 @@ def plan_traffic(scenario: Scenario, robots: list, owns: list[Scenario], pefs: l
     """
     limit = block_limit(scenario)
     loose: dict[str, list[int]] = {}
-    n = 0
-    for n in range(1, ROUNDS + 1):
+    rounds = 0
+    for rounds in range(1, ROUNDS + 1):  # noqa: B007 (the count of rounds run is reported)
         tracks = exposure.tracks_of(robots)
         changed = False
         new = []
@@ -111,7 +111,7 @@ def plan_traffic(scenario: Scenario, robots: list, owns: list[Scenario], pefs: l
             r.timeline = tl
         if not changed:
             break
-    return TrafficNote(rounds=n, block_limit=limit,
+    return TrafficNote(rounds=rounds, block_limit=limit,
                        unprotected=tuple((name, q) for name, qs in loose.items() for q in qs))
 
 

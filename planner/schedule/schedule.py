@@ -59,7 +59,8 @@ from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
 BlockRisk = Callable[[np.ndarray, np.ndarray], np.ndarray]
-"""``block(s, xy) -> (M, n)``: probability that each marker's line of sight is hidden at arc lengths ``s`` [m], positions ``xy`` [m]."""
+"""``block(s, xy) -> (M, n)``: probability that each marker's line of sight is hidden at arc lengths
+``s`` [m], positions ``xy`` [m]."""
 
 
 @dataclass(frozen=True)

@@ -220,7 +220,8 @@ def fleet_fix_columns(run: int, fixes: FixLog, robot: str, marker_ids: list[str]
     n = len(fixes.t)
     notes = fixes.notes if fixes.notes is not None else [None] * n
     hidden = [sorted(note.hidden.items()) if note is not None else [] for note in notes]
-    cols["p_block_robot"] = np.array([note.p_block_robot if note is not None else np.nan for note in notes], dtype=float)
+    cols["p_block_robot"] = np.array([note.p_block_robot if note is not None else np.nan for note in notes],
+                                     dtype=float)
     cols["robot"] = np.array([robot] * n, dtype=object)
     cols["blocked_by_robot"] = np.array([",".join(marker_ids[m] for m, _ in h) for h in hidden], dtype=object)
     cols["blocked_by_robot_count"] = np.array([len(h) for h in hidden], dtype=np.int32)

@@ -48,7 +48,7 @@ def blocking_why_not(data: SweepData) -> str | None:
 
 
 def _bins(p: np.ndarray) -> list[np.ndarray]:
-    """Indices of the fixes in each bin of :data:`EDGES`, merged until each has enough expected counts."""
+    """Group the fixes by bin of :data:`EDGES`, merging bins until each has enough expected counts."""
     which = np.clip(np.searchsorted(EDGES, p, side="right") - 1, 0, len(EDGES) - 2)
     groups = [np.flatnonzero(which == b) for b in range(len(EDGES) - 1)]
     groups = [g for g in groups if len(g)]
@@ -69,7 +69,7 @@ def _bins(p: np.ndarray) -> list[np.ndarray]:
 
 
 def _runs_of(data: SweepData) -> np.ndarray:
-    """The run of each fix: a fleet's tables number each robot of each run as a unit (``run * n + robot``)."""
+    """Return the run of each fix (a fleet's tables number each robot of each run as a unit, ``run * n + robot``)."""
     n = max(len(data.scenario.robots), 1)
     return np.asarray(data.fixes.run, dtype=np.int64) // n
 

@@ -7,6 +7,7 @@ import json
 import numpy as np
 
 import scenarios
+from sim.episode.types import FixNote
 from sim.montecarlo import results
 from sim.montecarlo.results import RunRecord, SweepLayout
 from sim.montecarlo.rows import (
@@ -18,7 +19,6 @@ from sim.montecarlo.rows import (
     step_columns,
 )
 from sim.montecarlo.summary import summarize
-from sim.episode.types import FixNote
 from sim.validation.data import fleet_units
 from tests.sim.montecarlo import fake_episode as fe
 

@@ -43,7 +43,7 @@ def _profile(rng: np.random.Generator) -> np.ndarray:
 
 
 def _table(scenario, seed: int, scale: float = 1.0) -> SweepData:
-    """A fleet sweep of RUNS runs whose true blocking probabilities are ``scale`` x the predicted."""
+    """Make a fleet sweep of RUNS runs whose true blocking probabilities are ``scale`` x the predicted."""
     rng = np.random.default_rng(seed)
     pred = [_profile(rng) / scale for _ in range(ROBOTS)]
     unit, p_col, obs = [], [], []

@@ -92,7 +92,8 @@ def test_bonferroni_split_over_the_statistical_checks_that_apply(uniform_model):
     assert uniform_model.alpha_per_check == pytest.approx(0.01 / 5)
     alphas = {c.name: c.alpha for c in uniform_model.checks}
     assert alphas == {"containment": 0.0, "promise": 0.0, "bound": 0.0, "tightness": 0.002, "coverage": None,
-                      "nees": 0.002, "nis": 0.002, "nees_nrun": None, "nis_nrun": 0.002, "plan": 0.002, "blocking": None}
+                      "nees": 0.002, "nis": 0.002, "nees_nrun": None, "nis_nrun": 0.002, "plan": 0.002,
+                      "blocking": None}
     json.dumps(uniform_model.to_dict(), allow_nan=False)  # JSON-ready, no NaN
 
 
