@@ -357,8 +357,9 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     mode = stored_steps_mode(read_settings(layout.root) if layout.sweep_json.exists() else {})
     # Only a sweep of every step feeds the N-run NEES test (the only reader of steps here), so
     # the others' step rows are not read at all.
-    fleet = ["robot", *FLEET_BLOCKING_COLUMNS] if stored.is_fleet else []
+    fleet = ["robot"] if stored.is_fleet else []
     steps = results.read_steps(layout.root, columns=STEP_COLUMNS + fleet) if mode is StepsMode.ALL else None
-    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet),
+    blocking = FLEET_BLOCKING_COLUMNS if stored.is_fleet else []
+    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet + blocking),
                        source=str(directory), q_scale=q_scale, steps=steps)
     return replace(data, steps_mode=mode.value)
