@@ -101,3 +101,33 @@ def test_applies_only_to_fleet_tables_and_joins_the_suite(fleet_scenario):
     report = validate(data, alpha=ALPHA)
     assert report.check("blocking").status.value == "pass"
     assert report.check("blocking").alpha == pytest.approx(ALPHA / report.statistical)
+
+
+def _deterministic(scenario, p_pred: np.ndarray, blocked: np.ndarray) -> SweepData:
+    """Every run the same: fixes predicted ``p_pred``, blocked as ``blocked`` (a run of robots on time)."""
+    n = len(p_pred) * RUNS
+    z = np.zeros(n)
+    unit = np.repeat(np.arange(RUNS) * ROBOTS, len(p_pred))
+    fixes = FixTable(run=unit, fix=np.tile(np.arange(len(p_pred)), RUNS), true_xy=np.zeros((n, 2)),
+                     snapshot_xy=np.zeros((n, 2)), snapshot_cov=np.zeros((n, 2, 2)), snapshot_error=z,
+                     predicted_tau=np.ones(n), contained=np.ones(n, bool), fault_diameter=z, nis=z,
+                     n_accepted=np.zeros(n, np.int64), markers=np.zeros((n, 2), np.int64),
+                     p_block_robot=np.tile(p_pred, RUNS), robot_blocked=np.tile(blocked, RUNS))
+    units = np.arange(RUNS) * ROBOTS
+    runs = RunTable(run=units, ok=np.ones(RUNS, bool), succeeded=np.ones(RUNS, bool), mean_nees=np.full(RUNS, 3.0))
+    return SweepData(scenario=scenario, runs=runs, fixes=fixes)
+
+
+def test_sure_predictions_pass_when_they_come_true_and_fail_when_reversed(fleet_scenario):
+    # a deterministic fleet: 8 fixes hidden for sure, 500 never; predicted 1 - 1e-4 and 1e-4
+    truth = np.r_[np.ones(8, bool), np.zeros(500, bool)]
+    p = np.where(truth, 1.0 - 1e-4, 1e-4)
+    res = blocking(_deterministic(fleet_scenario, p, truth), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "pass", res.detail
+    # the sure bin by the Markov bound; the near-zero one (10 expected over 100000 rows, none seen)
+    # by the normal test, its variance the prediction's with each scheduled fix's rows dependent
+    assert [r["test"] for r in res.values["per_bin"]] == ["normal", "unblocked"]
+    # negative control: the hidden fixes are the ones predicted clear and the other way round
+    swapped = np.r_[np.zeros(8, bool), np.ones(8, bool), np.zeros(492, bool)]
+    res = blocking(_deterministic(fleet_scenario, p, swapped), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "FAIL", res.detail
