@@ -154,11 +154,14 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
             try:
                 plans.append(plan_task(own, i, pef=pefs[fr.robot]))
             except PlanningError as exc:
-                raise PlanningError(f"robot {fr.name!r}, task {i}: {exc}") from None
+                raise PlanningError(f"{scenario.source}: robots: {fr.name!r}, task {i}: {exc}") from None
         path, s, speed, offsets = chain(plans)
         fleet.append(FleetRobotPlan(fr.name, plans, fr.start_time, fr.robot, offsets, path, s, speed))
-    timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
-                                 [r.start_time for r in fleet])
+    try:
+        timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
+                                     [r.start_time for r in fleet])
+    except PlanningError as exc:
+        raise PlanningError(f"{scenario.source}: robots: {exc}") from None
     for r, tl in zip(fleet, timelines, strict=True):
         r.timeline = tl
         r.alone_time = float(Kinematics(r.s, r.speed).t_v[-1])

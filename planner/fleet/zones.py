@@ -64,8 +64,10 @@ DEFAULT_MARGIN = 0.15
 #: Side of a zone cell [m]: fine against the footprint (a 0.55 m disc covers ~25 cells), so the
 #: zones hold little floor beyond the footprints.
 DEFAULT_CELL = 0.25
-#: Most cells of a zone grid: a grid over a very large floor gets coarser cells instead.
-MAX_CELLS = 4_000_000
+#: Most cells of a zone grid (a 250 m square at 0.25 m): a grid over a larger floor gets coarser
+#: cells instead. Each robot keeps two int32 arrays over the grid (8 MB at the most, 190 MB for
+#: the largest fleet, :data:`scenarios.limits.MAX_ROBOTS`).
+MAX_CELLS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,8 @@ def make_grid(paths: Sequence[np.ndarray], reach: float, cell: float = DEFAULT_C
     lo = pts.min(axis=0) - reach - cell
     hi = pts.max(axis=0) + reach + cell
     extent = hi - lo
-    cell = max(cell, math.sqrt(float(extent[0] * extent[1]) / MAX_CELLS))
+    # a footprint covers at most ~(2 reach / cell + 3)^2 cells: a big robot gets coarser cells
+    cell = max(cell, reach / 4.0, math.sqrt(float(extent[0] * extent[1]) / MAX_CELLS))
     shape = tuple(int(n) for n in np.ceil(extent / cell).astype(int) + 1)
     return ZoneGrid((float(lo[0]), float(lo[1])), float(cell), (shape[0], shape[1]))
 
@@ -169,7 +172,7 @@ class ZoneControl:
         # last[j][c]: the last sample of robot j whose footprint covers cell c (-1: none)
         self._last = []
         for (indptr, ids), p in zip(self._feet, self.paths, strict=True):
-            last = np.full(g, -1, dtype=np.int64)
+            last = np.full(g, -1, dtype=np.int32)
             sample = np.repeat(np.arange(len(p)), np.diff(indptr))
             np.maximum.at(last, ids, sample)
             self._last.append(last)
@@ -182,7 +185,7 @@ class ZoneControl:
                     rows[j] = np.maximum.reduceat(self._last[j][ids], indptr[:-1])
             self._need.append(rows)
         self._check_docks()
-        self.owner = np.full(g, -1, dtype=np.int64)
+        self.owner = np.full(g, -1, dtype=np.int32)
         self._count = [np.zeros(g, dtype=np.int32) for _ in range(n)]
         self.lo = [0] * n
         self.end = [0] * n

@@ -116,7 +116,19 @@ class RobotResult:
 
 @dataclass
 class FleetResult:
-    """A fleet episode: ``robots[i]`` for ``scenario.robots[i]``, collisions, and the zone control used."""
+    """A fleet episode.
+
+    Attributes
+    ----------
+    robots : list of RobotResult
+        ``robots[i]`` for ``scenario.robots[i]``.
+    collisions : int
+        Times two robots' bodies began to overlap.
+    duration : float
+        Simulated time until the last robot arrived (or the time limit) [s].
+    names : list of str
+        The robots' names, in order.
+    """
 
     robots: list[RobotResult]
     collisions: int

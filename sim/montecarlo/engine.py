@@ -201,9 +201,10 @@ class RunContext:
                 st["robot"] = np.array([r.name] * len(st["run"]), dtype=object)
                 steps.append(st)
             fixes.append(fleet_fix_columns(spec.run, res.fixes, r.name, ids, names))
-        warning = "recordings of fleet runs are not written yet" if spec.record else None
-        return RunRecord(spec.run, rows, concat_columns(steps) if steps else None, concat_columns(fixes),
-                         warning=warning)
+        record = RunRecord(spec.run, rows, concat_columns(steps) if steps else None, concat_columns(fixes))
+        if spec.record:
+            record.recording, record.warning = self._recording(result)
+        return record
 
     @staticmethod
     def died(spec: RunSpec, reason: str, wall_time: float | None = None) -> RunRecord:
@@ -221,7 +222,12 @@ class RunContext:
                 self._pef_map = recording_pef_map(self.payload.scenario)
             with tempfile.TemporaryDirectory(prefix="pefsim-rrd-") as tmp:
                 path = Path(tmp) / "run.rrd"
-                recording.write_episode_rrd(path, self.payload.scenario, result, pef_map=self._pef_map)
+                if self.payload.scenario.is_fleet:
+                    from sim.recording.fleet import write_fleet_rrd
+
+                    write_fleet_rrd(path, self.payload.scenario, result, pef_map=self._pef_map)
+                else:
+                    recording.write_episode_rrd(path, self.payload.scenario, result, pef_map=self._pef_map)
                 return path.read_bytes(), None
         except Exception as exc:  # a recording is a by-product: keep the run, report the failure
             return None, f"recording failed: {_one_line(exc)}"

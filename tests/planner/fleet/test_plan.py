@@ -60,3 +60,14 @@ def test_chain_joins_at_the_dock_once():
     path, s, speed, offsets = chain([a, b])
     assert path.tolist() == [[0, 0], [1, 0], [2, 0], [2, 1]]
     assert s.tolist() == [0, 1, 2, 3] and speed.tolist() == [1, 1, 0, 0] and offsets.tolist() == [0, 2]
+
+
+def test_a_dock_on_another_robots_path_is_refused_in_one_line():
+    from dataclasses import replace
+
+    sc = load("warehouse-fleet")
+    # r3 given r1's task: both start on dock A, which is on the other's path
+    bad = replace(sc, robots=(sc.robots[0], replace(sc.robots[2], tasks=(0,))))
+    with pytest.raises(PlanningError, match=r"^warehouse-fleet\.toml: robots: zone control: r1's start "
+                                            r"\(2\.00, 2\.00\) lies within 1\.10 m of r3's path"):
+        plan_fleet(bad)

@@ -172,3 +172,131 @@ def test_pefsim_run_prints_every_robot(tmp_path, capsys):
     assert all(r["reached"] for r in out["robots"])
     assert cli.main(["run", str(path), "--tum", str(tmp_path / "tum")]) == 2
     assert "--tum: not yet for a fleet scenario" in capsys.readouterr().err
+
+
+@pytest.mark.e2e   # a sweep, its report's figures and the validation: ~40 s
+def test_mc_and_validate_a_fleet(tmp_path, capsys):
+    import json
+
+    from sim import cli
+    from sim.montecarlo import results
+
+    path = tmp_path / "cross.toml"
+    path.write_text(CROSS)
+    out = tmp_path / "mc"
+    assert cli.main(["mc", str(path), "--runs", "1", "--workers", "1", "--out", str(out), "--rrd-every", "1",
+                     "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary["runs"], summary["robots"], summary["collisions"]) == (2, 2, 0)
+    runs = results.read_runs(out)
+    assert runs.column("robot").to_pylist() == ["east", "north"]
+    assert (out / "recordings" / "run-000000.rrd").stat().st_size > 0
+    code = cli.main(["validate", "--from", str(out), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code in (0, 1) and {c["name"] for c in report["checks"]} >= {"containment", "promise", "plan"}
+
+
+# Two robots swap the ends of a 2 m wide, 14 m long corridor (the head-on case of zone control,
+# driven in physics), the second at half the speed.
+CORRIDOR = """
+name = "corridor"
+seed = 2
+[workspace]
+size = [20.0, 8.0]
+[[obstacles]]
+center = [10.0, 1.5]
+size = [14.0, 3.0]
+[[obstacles]]
+center = [10.0, 6.5]
+size = [14.0, 3.0]
+[[markers]]
+id = "W"
+position = [0.0, 4.0]
+height = 0.3
+[[markers]]
+id = "E"
+position = [20.0, 4.0]
+height = 0.3
+[[markers]]
+id = "SW"
+position = [0.0, 0.0]
+height = 0.3
+[[markers]]
+id = "NE"
+position = [20.0, 8.0]
+height = 0.3
+[[markers]]
+id = "NW"
+position = [0.0, 8.0]
+height = 0.3
+[[markers]]
+id = "SE"
+position = [20.0, 0.0]
+height = 0.3
+[[markers]]
+id = "M0"
+position = [6.0, 3.0]
+height = 0.3
+[[markers]]
+id = "M1"
+position = [10.0, 5.0]
+height = 0.3
+[[markers]]
+id = "M2"
+position = [14.0, 3.0]
+height = 0.3
+[[markers]]
+id = "M3"
+position = [8.0, 5.0]
+height = 0.3
+[[markers]]
+id = "M4"
+position = [12.0, 3.0]
+height = 0.3
+[sensor]
+[robot]
+[planning]
+eps_max = 0.05
+resolution = 0.2
+[[docks]]
+name = "A"
+pose = [1.2, 1.2, 90.0]
+[[docks]]
+name = "B"
+pose = [18.8, 6.8, 90.0]
+[[docks]]
+name = "C"
+pose = [18.8, 1.2, 90.0]
+[[docks]]
+name = "D"
+pose = [1.2, 6.8, 90.0]
+[[tasks]]
+from = "A"
+to = "B"
+[[tasks]]
+from = "C"
+to = "D"
+[[robots]]
+name = "fast"
+tasks = [0]
+[[robots]]
+name = "slow"
+tasks = [1]
+max_speed = 0.5
+"""
+
+
+@pytest.mark.e2e   # two episodes' worth of driving: ~10 s
+def test_head_on_in_a_corridor_at_different_speeds():
+    sc = loads(CORRIDOR, source="corridor.toml")
+    prepared = prepare_fleet(sc)
+    res = run_fleet_episode(sc, seed=1, prepared=prepared)
+    assert res.collisions == 0 and all(r.result.summary["reached"] for r in res.robots)
+    a, b = (r.result.steps.true_pose[:, :2] for r in res.robots)
+    n = min(len(a), len(b))
+    assert np.hypot(*(a[:n] - b[:n]).T).min() > 2 * sc.robot.radius
+    # the slow one waits at its end of the corridor while the fast one passes: the fast one is in
+    # the corridor for at least 14 m / 1 m/s = 14 s from about 1 s after the start, the slow one
+    # reaches its end after at least 3 m / 0.5 m/s = 6 s: it waits at least 9 s, less its braking
+    slow = res.robots[1]
+    assert slow.name == "slow" and slow.wait_time > 5.0 and res.robots[0].wait_time < slow.wait_time
