@@ -19,7 +19,10 @@ number of zone waits it has had so far (:class:`TimingModel`; the numbers, measu
 triggered by arc length, so it is where the plan says, at time T + delta_i); robot j is then
 where its plan has it at time ``T + delta_i - delta_j``. The probability that robot j blocks the
 ray is the mass of ``T + delta_i - delta_j`` over the planned times at which j's centre is in the
-blocking region (robot j's timeline; before its start and after its end it stands on its docks).
+blocking region (robot j's timeline; before its start and after its end it stands on its docks),
+each time weighted by the chance that j's centre, spread by :data:`POS_SD` about its planned
+place, lies in the region (a robot waiting at a stop stands a few centimetres from where the
+timeline has it: timing alone would make its shadow's edge sharp).
 Several robots block independently: ``p = 1 - prod_j (1 - p_j)``.
 
 **Traffic that is not simulated** (``routes.traffic``, a density in [0, 1] per segment): it adds,
@@ -45,6 +48,14 @@ from planner.fleet.zones import Timeline
 FINE_DT = 0.025
 #: Standard deviations of the timing spread beyond which a sample's mass is neglected (Phi(-8) ~ 6e-16).
 WINDOW_SD = 8.0
+#: Spread of where a body stands across the edge of a blocking region [m]. The simulated robots
+#: stop STOP_MARGIN = 5 cm short of their reservation's end (sim.episode.fleet), where the
+#: timeline stops them on it; the timeline's path samples are 0.1 m apart (a uniform error of
+#: 0.1 m, variance 0.1^2 / 12); the path follower tracks within ~2 cm; and the measuring robot's
+#: own place moves the ray by as much again: sqrt(2 (0.05^2 + 0.1^2 / 12 + 0.02^2)) = 0.087 m.
+POS_SD = float(np.sqrt(2.0 * (0.05 ** 2 + 0.1 ** 2 / 12.0 + 0.02 ** 2)))
+#: Position spreads beyond the radius a sample is still looked at (Phi(-5) ~ 3e-7).
+POS_REACH = 5.0
 #: A ray within this fraction of the marker's height of level is treated as level.
 _LEVEL = 1e-12
 #: Blocking probability per unit of ``routes.traffic`` density of a line of sight below the
@@ -209,14 +220,14 @@ def low_segment(origin: np.ndarray, h_origin: float | np.ndarray, target: np.nda
     return origin + lo[:, None] * d, origin + hi[:, None] * d, some & (hi >= lo)
 
 
-def _inside(xy: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
-    """(Q, T) bool: point ``xy[t]`` within ``r`` of segment ``a[q] b[q]``."""
+def _distance(xy: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(Q, T): distance from point ``xy[t]`` to segment ``a[q] b[q]`` [m]."""
     d = b - a                                                   # (Q, 2)
     L2 = np.einsum("qi,qi->q", d, d)
     w = xy[None, :, :] - a[:, None, :]                          # (Q, T, 2)
     u = np.clip(np.einsum("qti,qi->qt", w, d) / np.where(L2 > 0, L2, 1.0)[:, None], 0.0, 1.0)
     e = w - u[..., None] * d[:, None, :]
-    return np.einsum("qti,qti->qt", e, e) <= r * r
+    return np.sqrt(np.einsum("qti,qti->qt", e, e))
 
 
 def block_probability(other: Track, origin: np.ndarray, h_origin: float, target: np.ndarray,
@@ -273,29 +284,40 @@ def block_probability(other: Track, origin: np.ndarray, h_origin: float, target:
     rows = np.flatnonzero(some)
     rows = rows[np.argsort(when[rows], kind="stable")]
     reach_lo, reach_hi = when + mu - WINDOW_SD * sd, when + mu + WINDOW_SD * sd
-    pairs = []
+    pairs, cover = [], []
     for lo in range(0, len(rows), chunk):
         q = rows[lo:lo + chunk]
         k0 = max(int(np.searchsorted(edges, reach_lo[q].min(), side="right")) - 1, 0)
         k1 = min(int(np.searchsorted(edges, reach_hi[q].max(), side="left")), len(t))
         if k1 <= k0:
             continue
-        # rays whose low part (widened by the radius) misses the box of the window's samples: none
-        box_lo, box_hi = other.xy[k0:k1].min(axis=0) - other.radius, other.xy[k0:k1].max(axis=0) + other.radius
+        # rays whose low part (widened by the radius and the position spread) misses the box of
+        # the window's samples: none
+        reach = other.radius + POS_REACH * POS_SD
+        box_lo, box_hi = other.xy[k0:k1].min(axis=0) - reach, other.xy[k0:k1].max(axis=0) + reach
         near = np.all((np.minimum(a[q], b[q]) <= box_hi) & (np.maximum(a[q], b[q]) >= box_lo), axis=1)
         q = q[near]
         if len(q) == 0:
             continue
-        qi, ki = np.nonzero(_inside(other.xy[k0:k1], a[q], b[q], other.radius))
+        dist = _distance(other.xy[k0:k1], a[q], b[q])
+        qi, ki = np.nonzero(dist <= reach)
         pairs.append(gid[q[qi]] * len(t) + ki + k0)
+        # the body covers the ray with the probability its centre, spread by POS_SD across the
+        # edge of the blocking region, is inside: Phi((r - d) / POS_SD)
+        cover.append(ndtr((other.radius - dist[qi, ki]) / POS_SD))
     if not pairs:
         return out
-    # a sample inside several rays of one group counts once
-    g, k = np.divmod(np.unique(np.concatenate(pairs)), len(t))
+    # a sample near several rays of one group counts once, with its largest cover (one position)
+    key, cov = np.concatenate(pairs), np.concatenate(cover)
+    order = np.lexsort((-cov, key))
+    key, cov = key[order], cov[order]
+    head = np.concatenate([[True], key[1:] != key[:-1]])
+    key, cov = key[head], cov[head]
+    g, k = np.divmod(key, len(t))
     r = first[g]
     z_hi = (edges[k + 1] - when[r] - mu[r]) / sd[r]
     z_lo = (edges[k] - when[r] - mu[r]) / sd[r]
-    out += np.bincount(g, weights=ndtr(z_hi) - ndtr(z_lo), minlength=n_out)
+    out += np.bincount(g, weights=cov * (ndtr(z_hi) - ndtr(z_lo)), minlength=n_out)
     return np.clip(out, 0.0, 1.0)
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from planner.fleet.blocking import FINE_DT, TimingModel, Track, block_probability, combine, low_segment
+from planner.fleet.blocking import FINE_DT, POS_SD, TimingModel, Track, block_probability, combine, low_segment
 from planner.fleet.zones import Timeline
 
 SHARP = TimingModel(lag0=0.0, lag_rate=0.0, wait_lag=0.0, base_var=1e-8, var_rate=0.0, wait_var=0.0)
@@ -41,10 +41,13 @@ def test_the_low_part_of_a_ray_is_where_it_passes_below_the_body_top():
 def test_a_body_standing_on_the_ray_hides_it_and_beside_it_does_not():
     t = np.arange(0.0, 10.0, 0.1)
     on = _track(np.tile([5.0, 0.2], (len(t), 1)), t)
-    off = _track(np.tile([5.0, 0.7], (len(t), 1)), t)   # 0.7 m off the ray, radius 0.4
+    edge = _track(np.tile([5.0, 0.45], (len(t), 1)), t)
+    off = _track(np.tile([5.0, 1.0], (len(t), 1)), t)   # 1 m off the ray, radius 0.4
     args = (np.array([[0.0, 0.0]]), 0.5, np.array([[10.0, 0.0]]), np.array([0.3]), np.array([4.0]),
             np.zeros(1), np.zeros(1), SHARP)
-    assert block_probability(on, *args)[0] == pytest.approx(1.0)
+    # where it stands is spread by POS_SD across the shadow's edge
+    assert block_probability(on, *args)[0] == pytest.approx(ndtr(0.2 / POS_SD))
+    assert block_probability(edge, *args)[0] == pytest.approx(ndtr(-0.05 / POS_SD))
     assert block_probability(off, *args)[0] == 0.0
 
 
@@ -57,9 +60,11 @@ def test_a_crossing_hides_the_ray_for_the_timing_spread_s_share_of_its_passage()
     when = np.array([3.0, 4.5, 5.0, 5.6, 7.0])
     p = block_probability(track, np.zeros((5, 2)), 0.5, np.tile([10.0, 0.0], (5, 1)), np.full(5, 0.3), when,
                           np.zeros(5), np.full(5, 0.5 * sd**2), timing)
-    exact = ndtr((5.0 + r / v - when) / sd) - ndtr((5.0 - r / v - when) / sd)
+    # crossing at right angles, the position spread along the motion adds (POS_SD / v)^2 to the timing's
+    total = math.hypot(sd, POS_SD / v)
+    exact = ndtr((5.0 + r / v - when) / total) - ndtr((5.0 - r / v - when) / total)
     # each end of the passage is sampled to half a refined step: error at most 2 x dt/2 x max density
-    bound = FINE_DT / (sd * math.sqrt(2 * math.pi))
+    bound = FINE_DT / (total * math.sqrt(2 * math.pi))
     assert np.all(np.abs(p - exact) <= bound)
     assert p[2] > 0.75 and p[0] < 1e-6
 
