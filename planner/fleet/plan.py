@@ -49,6 +49,9 @@ class FleetRobotPlan:
         Predicted drive in space and time under zone control.
     blocking : RobotBlocking
         Predicted blocking of its scheduled fixes by the other robots (:mod:`planner.fleet.exposure`).
+    alone_blocking : RobotBlocking
+        The same for its schedule planned as if alone (``blocking`` itself without traffic): where
+        the others hide what a lone robot would count on.
     alone_time : float
         Its drive time as planned alone: the schedule of one robot, no waits [s].
     """
@@ -63,6 +66,7 @@ class FleetRobotPlan:
     speed: np.ndarray
     timeline: Timeline | None = None
     blocking: RobotBlocking | None = None
+    alone_blocking: RobotBlocking | None = None
     alone_time: float = math.nan
 
     @property
@@ -165,9 +169,12 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
     for r, tl in zip(fleet, timelines, strict=True):
         r.timeline = tl
         r.alone_time = float(Kinematics(r.s, r.speed).t_v[-1])
+    alone = exposure.predict(scenario, fleet)
     note = None
     if traffic:
         note = plan_traffic(scenario, fleet, owns, [pefs[r.robot] for r in fleet], zones_of, chain)
-    for r, b in zip(fleet, exposure.predict(scenario, fleet), strict=True):
+    for r, b in zip(fleet, alone, strict=True):
+        r.alone_blocking = b
+    for r, b in zip(fleet, exposure.predict(scenario, fleet) if traffic else alone, strict=True):
         r.blocking = b
     return FleetPlan(robots=fleet, traffic=traffic, note=note)

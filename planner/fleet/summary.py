@@ -13,9 +13,11 @@ import numpy as np
 
 from scenarios.schema import Scenario
 
-NEAR = 2.0
-"""A place of a robot's path is *near the others* when it lies within this distance of another
-robot's path (centre lines) [m]: where they cross or share an aisle."""
+NEAR = 1.0
+"""A place of a robot's path is *where the others are* when it lies within this arc length [m] of a
+fix that its schedule planned as if alone would take with a risky subset (a blocking probability
+above the limit of :func:`planner.fleet.traffic.block_limit`): where the others hide what a lone
+robot counts on. The same places with traffic on and off, so their fix densities compare."""
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,7 @@ class RobotSummary:
     traffic_cost : float
         ``time - alone_time`` [s]: waits and the slow-downs of the traffic-aware schedule.
     near_length, far_length : float
-        Length of its path near the others' paths (:data:`NEAR`) and elsewhere [m].
+        Length of its path where the others are (:data:`NEAR`) and elsewhere [m].
     fixes_per_m_near, fixes_per_m_far : float
         Scheduled fixes per metre there [1/m] (NaN where the length is 0).
     """
@@ -71,27 +73,30 @@ class RobotSummary:
         return asdict(self)
 
 
-def _near(path: np.ndarray, others: list[np.ndarray], near: float) -> np.ndarray:
-    """(N,) bool: each point of ``path`` within ``near`` of a point of another path (sampled densely)."""
-    out = np.zeros(len(path), bool)
-    for o in others:
-        for lo in range(0, len(path), 512):
-            d = np.hypot(*(path[lo:lo + 512, None, :] - o[None, :, :]).transpose(2, 0, 1))
-            out[lo:lo + 512] |= d.min(axis=1) <= near
+def _near(s: np.ndarray, risky: np.ndarray, near: float) -> np.ndarray:
+    """(N,) bool: each arc length of ``s`` within ``near`` of one in ``risky`` [m]."""
+    s = np.asarray(s, float)
+    out = np.zeros(len(s), bool)
+    for x in np.asarray(risky, float):
+        out |= np.abs(s - x) <= near
     return out
 
 
 def summarize(scenario: Scenario, fleet) -> list[RobotSummary]:
     """Per robot of ``fleet`` (a :class:`~planner.fleet.plan.FleetPlan`) what its plan says."""
+    from planner.fleet.traffic import block_limit
+
+    limit = block_limit(scenario)
     out = []
-    for i, r in enumerate(fleet.robots):
-        others = [o.path for j, o in enumerate(fleet.robots) if j != i]
-        near = _near(r.path, others, NEAR)
-        seg = np.diff(r.s)
-        seg_near = near[1:] & near[:-1]
-        near_len, far_len = float(seg[seg_near].sum()), float(seg[~seg_near].sum())
+    for r in fleet.robots:
+        a = r.alone_blocking if r.alone_blocking is not None else r.blocking
+        risky = a.s[a.p_fix > limit]
+        fine = np.linspace(0.0, float(r.s[-1]), max(2, int(r.s[-1] / 0.01) + 1))
+        near = _near(fine, risky, NEAR)
+        near_len = float(near.mean() * r.s[-1])
+        far_len = float(r.s[-1]) - near_len
         b = r.blocking
-        fix_near = near[np.clip(np.searchsorted(r.s, b.s, side="left"), 0, len(near) - 1)]
+        fix_near = _near(b.s, risky, NEAR)
         n_near, n_far = int(fix_near.sum()), int((~fix_near).sum())
         out.append(RobotSummary(
             name=r.name, tasks=[f"{p.start} -> {p.goal}" for p in r.plans], fixes=len(b.s),

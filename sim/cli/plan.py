@@ -51,7 +51,8 @@ def _fleet(args: argparse.Namespace, sc) -> int:
         left = ", ".join(f"{name} task {q}" for name, q in fleet.note.unprotected)
         print(f"not protected (no schedule survives a hidden marker there even slowed): {left}")
     print("E: expected over the timing spread of the robots; unprotected: blocked fixes without a fallback "
-          "for every marker; traffic: time - alone (waits and slow-downs); near: within 2 m of another's path")
+          "for every marker; traffic: time - alone (waits and slow-downs); near: within 1 m of a fix that, planned "
+          "alone, others would likely hide")
     return 0
 
 
