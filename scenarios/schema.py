@@ -220,7 +220,8 @@ class RobotSpec:
     max_wheel_torque : float
         Torque limit of each wheel motor [N m].
     height : float
-        Height of the robot's body above the floor [m]; its laser sits on top. 0.5 m is the
+        Height of the robot's body above the floor [m]; in a fleet its laser sits on top (a lone
+        robot's laser stays at ``PhysicsConfig.laser_height``, 0.5 m). 0.5 m is the
         height the laser had in every episode before robots had a height (and a usual height of
         an AGV's top-mounted reflector laser, which must look over loads and people's legs).
         In a fleet a robot's body (a cylinder of ``radius`` and ``height``) blocks the other

@@ -149,3 +149,49 @@ def test_start_times_delay_and_record():
     zc, tls = drive(CROSSING, starts=[0.0, 30.0])
     assert tls[1].s[tls[1].t <= 30.0].max() == 0.0
     assert tls[0].wait_time == 0.0 and tls[1].wait_time == 0.0   # robot 0 is long gone
+
+
+def random_fleet(rng: np.random.Generator, n: int) -> list[np.ndarray]:
+    """Draw n robots' paths on a 20 x 20 m floor.
+
+    Each from a dock on the west or south edge through three random interior points to a dock on
+    the east or north edge; docks 3 m apart along the edges.
+    """
+    slots = rng.permutation(6)[: 2 * n]
+    edge = [(0.0, 2.0 + 3.0 * k) for k in range(6)] + [(2.0 + 3.0 * k, 0.0) for k in range(6)]
+    far = [(20.0, 2.0 + 3.0 * k) for k in range(6)] + [(2.0 + 3.0 * k, 20.0) for k in range(6)]
+    paths = []
+    for i in range(n):
+        a = edge[int(slots[i]) + 6 * int(rng.integers(2))]
+        b = far[int(slots[n + i]) + 6 * int(rng.integers(2))]
+        mid = [tuple(p) for p in rng.uniform(3.0, 17.0, size=(3, 2))]
+        paths.append(polyline(a, *mid, b))
+    return paths
+
+
+@pytest.mark.parametrize("count,seed", [(6, 20261203), pytest.param(60, 1203, marks=pytest.mark.e2e)])
+def test_random_fleets_all_arrive_and_never_meet(count, seed):
+    # the argument of planner/fleet/zones.py on random three-robot floors whose docks zone control
+    # accepts: every robot arrives (no deadlock, no livelock) and the clearance holds
+    # (negative control: reserving one sample at a time, the same floors deadlock)
+    rng = np.random.default_rng(seed)
+    tried = accepted = stuck = 0
+    while accepted < count:
+        tried += 1
+        paths = random_fleet(rng, 3)
+        starts = list(rng.uniform(0.0, 5.0, size=3))
+        try:
+            zc, tls = drive(paths, starts=starts)
+        except PlanningError as exc:
+            assert "lies within" in str(exc), exc   # a dock on another's path: refused, never stuck
+            continue
+        accepted += 1
+        assert all(tl.s[-1] == pytest.approx(zc.length(i)) for i, tl in enumerate(tls))
+        assert min_distance(tls) >= BOUND
+        try:
+            drive(paths, starts=starts, cls=Greedy)
+        except PlanningError as exc:
+            assert "no robot can move" in str(exc)
+            stuck += 1
+    assert tried < 25 * count
+    assert stuck > 0, "no random floor is adversarial: greedy reservation got through every one"
