@@ -65,7 +65,7 @@ def __getattr__(name: str) -> Any:
 
 __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
            "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
-           "pef_map", "place", "plan", "run_episode", "run_fleet", "sweep", "validate", "watch", "worlds"]
+           "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet", "sweep", "validate", "watch", "worlds"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}
@@ -217,6 +217,33 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
 
         write_static_rrd(rrd, sc, pef_map=grid, plan=result)
     return result
+
+
+def plan_fleet(scenario: Scenario | str | Path, *, traffic: bool = True):
+    """Plan a fleet (``[[robots]]``): every robot's tasks, the zone timeline, the predicted blocking.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or path
+        A fleet scenario.
+    traffic : bool
+        The traffic-aware measurement schedule (:mod:`planner.fleet.traffic`); False: each robot's
+        schedule as if it drove alone (its blocking is still predicted).
+
+    Returns
+    -------
+    fleet : planner.fleet.plan.FleetPlan
+        Per robot its plans, timeline and predicted blocking (``robots[i].blocking``).
+    summary : list of planner.fleet.summary.RobotSummary
+        Per robot: tasks, expected blocked lines of sight and fixes, predicted waiting, what the
+        traffic costs in time against driving alone, fixes per metre near the others and elsewhere.
+    """
+    from planner.fleet.plan import plan_fleet as _plan_fleet
+    from planner.fleet.summary import summarize
+
+    sc = _scenario(scenario)
+    fleet = _plan_fleet(sc, traffic=traffic)
+    return fleet, summarize(sc, fleet)
 
 
 def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,

@@ -9,10 +9,14 @@ through zone control (:mod:`planner.fleet.zones`), when each robot is where, wai
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from planner.fleet import exposure
+from planner.fleet.exposure import RobotBlocking
+from planner.fleet.traffic import TrafficNote, plan_traffic
 from planner.fleet.zones import Timeline, ZoneControl, predict_timeline
 from planner.plan import Plan, plan_task
 from planner.schedule.pathtime import Kinematics
@@ -43,6 +47,13 @@ class FleetRobotPlan:
         Planned speed along ``path`` [m/s] (0 at each task's goal).
     timeline : Timeline
         Predicted drive in space and time under zone control.
+    blocking : RobotBlocking
+        Predicted blocking of its scheduled fixes by the other robots (:mod:`planner.fleet.exposure`).
+    alone_blocking : RobotBlocking
+        The same for its schedule planned as if alone (``blocking`` itself without traffic): where
+        the others hide what a lone robot would count on.
+    alone_time : float
+        Its drive time as planned alone: the schedule of one robot, no waits [s].
     """
 
     name: str
@@ -54,14 +65,26 @@ class FleetRobotPlan:
     s: np.ndarray
     speed: np.ndarray
     timeline: Timeline | None = None
+    blocking: RobotBlocking | None = None
+    alone_blocking: RobotBlocking | None = None
+    alone_time: float = math.nan
+
+    @property
+    def time(self) -> float:
+        """Planned drive time from its start to its final dock, zone waits included [s]."""
+        return float(self.timeline.end_time - self.start_time)
 
 
 @dataclass
 class FleetPlan:
-    """A fleet's plans: ``robots[i]`` for ``scenario.robots[i]``; ``traffic``: the flag it was planned with."""
+    """A fleet's plans: ``robots[i]`` for ``scenario.robots[i]``; ``traffic``: the flag it was planned with.
+
+    ``note`` says how the traffic-aware schedule came about (None with ``traffic`` False).
+    """
 
     robots: list[FleetRobotPlan]
     traffic: bool
+    note: TrafficNote | None = None
 
 
 def chain(plans: list[Plan]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -101,9 +124,9 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
     scenario : Scenario
         A fleet scenario (``[[robots]]``).
     traffic : bool
-        Plan with the other robots in mind (the traffic-aware measurement schedule, predicted
-        blocking); False plans each robot as if it drove alone. At present both plan each robot
-        alone: the traffic-aware schedule is to come, and this flag is its switch.
+        Plan with the other robots in mind: the traffic-aware measurement schedule
+        (:mod:`planner.fleet.traffic`); False plans each robot's schedule as if it drove alone.
+        Either way each fix's predicted blocking is in ``blocking`` (:mod:`planner.fleet.exposure`).
     pef : planner.pef.map.PEF, optional
         The PEF of the scenario (default built once here); robots whose declared spec differs
         from ``scenario.robot`` get their own.
@@ -124,9 +147,10 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
     if pef is None:
         pef = PEF(scenario)
     pefs = {scenario.robot: pef}
-    fleet = []
+    fleet, owns = [], []
     for fr in scenario.robots:
         own = replace(scenario, robot=fr.robot, robot_actual=fr.robot_actual)
+        owns.append(own)
         if fr.robot not in pefs:
             pefs[fr.robot] = PEF(own)
         plans = []
@@ -144,4 +168,13 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
         raise PlanningError(f"{scenario.source}: robots: {exc}") from None
     for r, tl in zip(fleet, timelines, strict=True):
         r.timeline = tl
-    return FleetPlan(robots=fleet, traffic=traffic)
+        r.alone_time = float(Kinematics(r.s, r.speed).t_v[-1])
+    alone = exposure.predict(scenario, fleet)
+    note = None
+    if traffic:
+        note = plan_traffic(scenario, fleet, owns, [pefs[r.robot] for r in fleet], zones_of, chain)
+    for r, b in zip(fleet, alone, strict=True):
+        r.alone_blocking = b
+    for r, b in zip(fleet, exposure.predict(scenario, fleet) if traffic else alone, strict=True):
+        r.blocking = b
+    return FleetPlan(robots=fleet, traffic=traffic, note=note)

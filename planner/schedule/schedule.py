@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from itertools import combinations
 
@@ -56,6 +57,10 @@ from planner.schedule.promise import MAX_SUBSETS
 from planner.schedule.search import StretchError, Windows, search
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
+
+BlockRisk = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""``block(s, xy) -> (M, n)``: probability that each marker's line of sight is hidden at arc lengths
+``s`` [m], positions ``xy`` [m]."""
 
 
 @dataclass(frozen=True)
@@ -167,7 +172,8 @@ def _stretch_tau(tau: np.ndarray, tau_c: np.ndarray, c_idx: np.ndarray) -> np.nd
 def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray | None = None, *,
                   spacing: float | None = None, policy: str = "often",
                   switch_tolerance: float = 0.2, k_sigma: float = K_SIGMA,
-                  heading_error: float = 0.0, increment: float | None = DEFAULT_INCREMENT) -> Schedule:
+                  heading_error: float = 0.0, increment: float | None = DEFAULT_INCREMENT,
+                  block: BlockRisk | None = None, block_limit: float = 1.0, protect: bool = True) -> Schedule:
     """Choose fixes along ``path`` so that the predicted error stays under ``eps_max``.
 
     Parameters
@@ -191,6 +197,19 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
         Keep the previous subset while its tau is within this fraction of the best's.
     k_sigma, heading_error, increment
         Passed to :func:`planner.schedule.drift.drift_bound`.
+    block : callable, optional
+        ``block(s, xy)``: the probability (M, n) that each marker's line of sight is hidden when
+        the robot is at arc lengths ``s`` (n,), positions ``xy`` (n, 2) (other robots of a
+        fleet, :func:`planner.fleet.exposure.risk`). With it the schedule avoids *risky*
+        subsets (probability that one of their markers is hidden above ``block_limit``) where a
+        subset that is not risky serves, and, with ``protect``, holds every fix that stays risky
+        to the single-failure test of ``planning.redundancy`` (a fallback for each marker, or the
+        neighbouring fixes covering its loss), slowing down where it cannot: more fixes per
+        metre where the others are near. None: no blocking known (the schedule of one robot).
+    block_limit : float
+        Probability above which a subset is risky.
+    protect : bool
+        Hold risky fixes to the single-failure test.
 
     Returns
     -------
@@ -227,7 +246,7 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     while True:
         try:
             sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
-                             t_planned)
+                             t_planned, block, block_limit, protect)
             return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
         except StretchError as exc:
             slower, moved = v_try, False
@@ -270,7 +289,23 @@ def _slow_stretch(s_v: np.ndarray, v: np.ndarray, stretch: tuple[float, float], 
     return acceleration_limited(s_v, cap)
 
 
-def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned) -> Schedule:
+def _subset_risk(block: BlockRisk, subsets: list[tuple[int, ...]], tr) -> np.ndarray:
+    """Probability (C, n) that at least one marker of each subset is hidden at each sample (independent markers)."""
+    pm = np.clip(np.asarray(block(tr.s, tr.xy), dtype=float), 0.0, 1.0)         # (M, n)
+    return 1.0 - np.prod(1.0 - pm[np.asarray(subsets, dtype=np.int64)], axis=1)  # (C, n)
+
+
+def _avoid(levels: list, risky: np.ndarray, limit: float) -> list:
+    """Levels with risky subsets out (tau inf) at the samples where a subset that is not risky is usable."""
+    out = []
+    for lv in levels:
+        safe = (~risky & (lv.tau < limit)).any(axis=0)
+        out.append(replace(lv, tau=np.where(risky & safe[None, :], np.inf, lv.tau)))
+    return out
+
+
+def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned,
+             block=None, block_limit=1.0, protect=True) -> Schedule:
     """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists."""
     sensor, eps = scenario.sensor, scenario.planning.eps_max
     fix_time = k * sensor.measurement_time
@@ -288,6 +323,10 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
           else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
     limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
+    risky = None
+    if block is not None:
+        risky = _subset_risk(block, subsets, tr) > block_limit
+        lv = _avoid(lv, risky, limit)
 
     pl = Windows(tr, drift, eps, gap)
     taus = np.stack([x.tau for x in lv])
@@ -304,17 +343,22 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     margin = np.array([pl.err_at_completion(starts[i], 0.0, starts[i + 1]) for i in range(len(starts) - 1)]
                       + [pl.err_at_end(starts[-1], 0.0)])
     fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin)
-    if scenario.planning.redundancy > 0:
+    judged = np.full(len(starts), scenario.planning.redundancy > 0)
+    if risky is not None and protect:
+        judged |= risky[[c for _, c, _ in chosen], starts]
+    if judged.any():
         holes = [i for i in range(len(starts))
-                 if not all(fb[i]) and not _covered_without(pl, starts, pred, fb, fb_tau, i)]
+                 if judged[i] and not all(fb[i]) and not _covered_without(pl, starts, pred, fb, fb_tau, i)]
         if holes:
             # a marker whose blocking the plan cannot survive here: slower, the fallback's
             # earlier ranges shift less and the drift to the next fix shrinks
             ends = [float(tr.c[starts[i + 1]]) if i + 1 < len(starts) else float(tr.s[-1]) for i in holes]
             i = holes[0]
             x, y = tr.xy[starts[i]]
+            why = (f"planning.redundancy = {scenario.planning.redundancy}" if scenario.planning.redundancy > 0
+                   else f"other robots likely (> {block_limit:.3g}) to hide a marker")
             raise StretchError(
-                f"planning.redundancy = {scenario.planning.redundancy}: the fix at s = {tr.s[starts[i]]:.2f} m "
+                f"{why}: the fix at s = {tr.s[starts[i]]:.2f} m "
                 f"({x:.2f}, {y:.2f}) has no fallback that keeps the error under eps_max = {eps:.4g} m "
                 f"with marker {order[i][fb[i].index(())]} blocked, even at "
                 f"{scenario.planning.min_fix_speed:g} m/s",

@@ -10,7 +10,8 @@ robots share the physics steps and the control ticks. At each control tick a rob
   reservation (it waits there, turning on the spot if the follower wants, which stays inside its
   footprint);
 * starts its scheduled fixes as a single robot does; before a fix it checks which scheduled
-  markers another robot's body hides (the fix's note: ``FixLog.notes``, marker index -> robot).
+  markers another robot's body hides (the fix's note: ``FixLog.notes``, a ``FixNote``: marker
+  index -> robot, and the plan's probability of it).
   Those lines of sight count as blocked for the fix, as ``sensor.block_probability``'s do: the
   robot measures the schedule's fallback, or improvises beyond what the plan promised
   (``beyond_redundancy``), and the single-failure test (runs column ``lost_guarantee``) judges
@@ -51,7 +52,7 @@ from sim.episode.drive import (
     seed_sequence,
 )
 from sim.episode.follower import SPEED, YAW_RATE, PurePursuit, wheel_speeds
-from sim.episode.types import EpisodeResult, StepLog
+from sim.episode.types import EpisodeResult, FixNote, StepLog
 
 STOP_MARGIN = 0.05
 """A robot aims to stop this far before the end of its reservation [m] (the follower's overshoot)."""
@@ -95,7 +96,7 @@ class RobotResult:
     ----------
     name : str
     result : EpisodeResult
-        Its steps and fixes over all its tasks (``result.fixes.notes``: per fix, a dict
+        Its steps and fixes over all its tasks (``result.fixes.notes``: per fix, a FixNote whose ``hidden`` maps
         marker index -> index of the robot that hid it at the fix start).
     wait_time : float
         Time it stood at the end of its reservation waiting for zones [s].
@@ -200,6 +201,12 @@ class _Robot:
                                     max_yaw_rate=robot.max_yaw_rate)
         self.tick = ControlTick(self.odo, self.loc, self.follower, self.log, self.dt_ctrl)
         self.fix_s = [f.s for f in plan.schedule.fixes]
+        # the plan's probability that robots hide a scheduled marker at each fix (the blocking check)
+        self.p_fix = [math.nan] * len(self.fix_s)
+        b = self.rp.blocking
+        if b is not None:
+            for f, p in zip(b.fix[b.task == self.task].tolist(), b.p_fix[b.task == self.task].tolist(), strict=True):
+                self.p_fix[f] = p
         self.scheduled += len(self.fix_s)
         self.next_fix, self.last_fix_start = 0, -math.inf
         self.holding = len(self.fix_s) > 0 and self.fix_s[0] <= 1e-9
@@ -240,7 +247,7 @@ class _Robot:
         if subset is None:
             fixes.skipped += 1
         else:
-            fixes.start(subset, t, sched, note=hidden)
+            fixes.start(subset, t, sched, note=FixNote(hidden, self.p_fix[f]))
             self.last_fix_start = t
         self.next_fix = f + 1
 

@@ -6,6 +6,7 @@ the result's shape without importing pybullet.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -107,8 +108,8 @@ class FixLog:
         because the laser did not see a marker the plan counted on. ``predicted_tau`` is then
         the promise of what it measured, at the scheduled poses.
     notes : list or None
-        What the episode noted with each fix (a fleet's episode: the scheduled markers whose
-        lines of sight other robots blocked, and by which robot); None where nothing was noted.
+        What the episode noted with each fix (a fleet's episode: a :class:`FixNote`); None where
+        nothing was noted.
     """
 
     t: np.ndarray
@@ -129,6 +130,24 @@ class FixLog:
     beyond_redundancy: np.ndarray | None = None
     unplanned: np.ndarray | None = None
     notes: list | None = None
+
+
+@dataclass(frozen=True)
+class FixNote:
+    """What a fleet's episode notes with a fix.
+
+    Attributes
+    ----------
+    hidden : dict of int to int
+        Each scheduled marker whose line of sight another robot's body hid at the fix start,
+        to that robot's index.
+    p_block_robot : float
+        The plan's probability that another robot hides at least one of the scheduled markers
+        at the fix start (:attr:`planner.fleet.exposure.RobotBlocking.p_fix`); NaN: none made.
+    """
+
+    hidden: dict[int, int]
+    p_block_robot: float = math.nan
 
 
 @dataclass

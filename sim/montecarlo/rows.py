@@ -91,9 +91,11 @@ FLEET_STEP_STORAGE = parts.lean(FLEET_STEP_SCHEMA)
 FLEET_FIX_SCHEMA = pa.schema([*FIX_SCHEMA, pa.field("robot", pa.string()),
                               pa.field("blocked_by_robot", pa.string()),       # scheduled marker ids robots hid
                               pa.field("blocked_by_robot_count", pa.int32()),
-                              pa.field("blocking_robots", pa.string())])      # which robot hid each of them
+                              pa.field("blocking_robots", pa.string()),       # which robot hid each of them
+                              pa.field("p_block_robot", pa.float64())])       # the plan's probability of a hidden one
 """A fleet sweep's fixes table: :data:`FIX_SCHEMA` plus the robot and the lines of sight other robots
-hid at the fix start (comma-joined marker ids, and the robots that hid them, in the same order)."""
+hid at the fix start (comma-joined marker ids, and the robots that hid them, in the same order), and
+the plan's probability that a robot hides at least one scheduled marker at the fix start (NaN: none)."""
 
 
 @dataclass(frozen=True)
@@ -210,13 +212,16 @@ def fleet_fix_columns(run: int, fixes: FixLog, robot: str, marker_ids: list[str]
                       robot_names: list[str]) -> dict[str, np.ndarray]:
     """Per-fix columns of :data:`FLEET_FIX_SCHEMA`: :func:`fix_columns` plus the robot and what robots hid.
 
-    ``fixes.notes[f]`` maps each scheduled marker another robot hid at fix f's start to that
-    robot's index (:mod:`sim.episode.fleet`).
+    ``fixes.notes[f]`` (a :class:`~sim.episode.types.FixNote`) maps each scheduled marker another
+    robot hid at fix f's start to that robot's index and carries the plan's blocking probability
+    (:mod:`sim.episode.fleet`).
     """
     cols = fix_columns(run, fixes)
     n = len(fixes.t)
     notes = fixes.notes if fixes.notes is not None else [None] * n
-    hidden = [sorted((note or {}).items()) for note in notes]
+    hidden = [sorted(note.hidden.items()) if note is not None else [] for note in notes]
+    cols["p_block_robot"] = np.array([note.p_block_robot if note is not None else np.nan for note in notes],
+                                     dtype=float)
     cols["robot"] = np.array([robot] * n, dtype=object)
     cols["blocked_by_robot"] = np.array([",".join(marker_ids[m] for m, _ in h) for h in hidden], dtype=object)
     cols["blocked_by_robot_count"] = np.array([len(h) for h in hidden], dtype=np.int32)

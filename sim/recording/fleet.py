@@ -80,7 +80,7 @@ def hidden_rays(result: Any, scenario: Scenario, names: list[str]) -> tuple[np.n
     ids = scenario.marker_ids()
     rays, labels = [], []
     for f, note in enumerate(fixes.notes or [None] * len(fixes.t)):
-        items = sorted((note or {}).items())
+        items = sorted(note.hidden.items()) if note is not None else []
         start = np.asarray(fixes.true_position[f], float)
         rays.append(np.array([[start, xy[m]] for m, _ in items], dtype=float).reshape(-1, 2, 2))
         labels += [f"{ids[m]} hidden by {names[j]}" for m, j in items]

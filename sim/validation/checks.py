@@ -24,6 +24,7 @@ from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from estimators.fault.linearized import chi2_2dof_ppf
 from scenarios.schema import NoiseModel, PefModel
 from sim.validation import nrun, null
+from sim.validation.blocking import blocking, blocking_why_not
 from sim.validation.data import EPISODE_GATE_PROBABILITY, CheckResult, CheckStatus, SweepData
 from sim.validation.promise import promise, promise_why_not
 
@@ -254,7 +255,8 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
     With lines of sight blocked, a run must also keep its certified bound under eps_max through
     every fix that lost at most one of the markers the plan counted
     on (the single-failure test, :func:`sim.montecarlo.summary.succeeded`): what a layout placed
-    for redundancy promises, and what a redundancy-0 layout does not.
+    for redundancy promises, and what a redundancy-0 layout does not. A fleet's robots hide each
+    other's reflectors: the same test, whoever blocked the line of sight.
     Crashed runs count as failures. Fails when the upper end of the two-sided Clopper-Pearson
     interval at ``alpha`` is below ``montecarlo.success_target`` (false alarm <= alpha / 2).
     """
@@ -265,7 +267,7 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
     crashed = int(np.sum(~runs.ok))
     sc = data.scenario
     single = ""
-    if sc.sensor_actual.block_probability > 0:
+    if sc.sensor_actual.block_probability > 0 or sc.is_fleet:
         single = (" and kept the certified bound under it through every fix that lost at most "
                   "one line of sight")
         if runs.untested:
@@ -288,5 +290,6 @@ CHECKS: tuple[Check, ...] = (
     Check("nees_nrun", True, nrun.nees_nrun_why_not, nrun.nees_nrun),
     Check("nis_nrun", True, nrun.nis_nrun_why_not, nrun.nis_nrun),
     Check("plan", True, _plan_why_not, plan),
+    Check("blocking", True, blocking_why_not, blocking),
 )
 """Every check, in the order they are reported."""

@@ -140,6 +140,13 @@ class FixTable:
     unplanned : (F,) bool or None
         Fixes that measured a subset the plan did not schedule; None where the sweep did not
         record it (written before the column existed).
+    p_block_robot : (F,) float or None
+        Fleets: the plan's probability that another robot hides at least one of the scheduled
+        fix's markers at its start (:attr:`planner.fleet.exposure.RobotBlocking.p_fix`); None
+        without the column.
+    robot_blocked : (F,) bool or None
+        Fleets: another robot hid at least one of the scheduled fix's markers at its start
+        (``blocked_by_robot_count`` > 0); None without the column.
     """
 
     run: np.ndarray
@@ -157,6 +164,8 @@ class FixTable:
     static_tau: np.ndarray | None = None
     beyond: np.ndarray | None = None
     unplanned: np.ndarray | None = None
+    p_block_robot: np.ndarray | None = None
+    robot_blocked: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.run)
@@ -194,6 +203,8 @@ FIX_COLUMNS = ["run", "fix", "true_x", "true_y", "snapshot_x", "snapshot_y", "sn
                "snapshot_x_var", "snapshot_y_var", "snapshot_xy_cov", "fault_diameter", "predicted_tau",
                "nis", "n_accepted", "contained", "markers", "beyond_redundancy", "unplanned"]
 """The columns of :data:`sim.montecarlo.rows.FIX_SCHEMA` that the checks read."""
+FLEET_BLOCKING_COLUMNS = ["p_block_robot", "blocked_by_robot_count"]
+"""The columns of a fleet's fixes (:data:`sim.montecarlo.rows.FLEET_FIX_SCHEMA`) the ``blocking`` check reads."""
 
 
 @dataclass(frozen=True)
@@ -256,7 +267,10 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
         beyond=(col("beyond_redundancy", bool, False) if "beyond_redundancy" in fixes.column_names
                 else np.zeros(n, dtype=bool)),
         unplanned=(None if "unplanned" not in fixes.column_names or fixes.column("unplanned").null_count == n
-                   else col("unplanned", bool, False)))
+                   else col("unplanned", bool, False)),
+        p_block_robot=col("p_block_robot") if "p_block_robot" in fixes.column_names else None,
+        robot_blocked=(col("blocked_by_robot_count", np.int64, 0) > 0
+                       if "blocked_by_robot_count" in fixes.column_names else None))
 
 
 def step_table(steps: pa.Table) -> StepTable:
@@ -345,6 +359,7 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     # the others' step rows are not read at all.
     fleet = ["robot"] if stored.is_fleet else []
     steps = results.read_steps(layout.root, columns=STEP_COLUMNS + fleet) if mode is StepsMode.ALL else None
-    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet),
+    blocking = FLEET_BLOCKING_COLUMNS if stored.is_fleet else []
+    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet + blocking),
                        source=str(directory), q_scale=q_scale, steps=steps)
     return replace(data, steps_mode=mode.value)

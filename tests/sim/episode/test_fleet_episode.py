@@ -107,8 +107,9 @@ def test_fix_notes_name_the_robot_that_hid_a_marker(crossing):
         notes = r.result.fixes.notes
         assert len(notes) == len(r.result.fixes.t)
         for note in notes:
-            assert all(0 <= m < len(sc.markers) and other == 1 - j for m, other in note.items())
-        assert r.result.summary["robot_blocked"] >= sum(len(n) for n in notes)
+            assert all(0 <= m < len(sc.markers) and other == 1 - j for m, other in note.hidden.items())
+            assert 0.0 <= note.p_block_robot <= 1.0   # the plan's prediction for the fix
+        assert r.result.summary["robot_blocked"] >= sum(len(n.hidden) for n in notes)
 
 
 def test_the_recording_holds_every_robot_and_the_hidden_lines_of_sight(crossing, tmp_path):

@@ -7,6 +7,7 @@ import json
 import numpy as np
 
 import scenarios
+from sim.episode.types import FixNote
 from sim.montecarlo import results
 from sim.montecarlo.results import RunRecord, SweepLayout
 from sim.montecarlo.rows import (
@@ -26,7 +27,7 @@ def _fleet_record(scenario, run: int, names: list[str]) -> RunRecord:
     rows, steps, fixes = [], [], []
     for j, name in enumerate(names):
         result = fe.run_episode(scenario, 0, np.random.SeedSequence(scenario.seed, spawn_key=(run, j)))
-        result.fixes.notes = [{0: 1 - j} if f % 3 == 0 else {} for f in range(len(result.fixes.t))]
+        result.fixes.notes = [FixNote({0: 1 - j} if f % 3 == 0 else {}, 0.25) for f in range(len(result.fixes.t))]
         rows.append(run_row(run, f"seed {run}", 0, {**result.summary, "robot": name, "wait_time": 1.5 * j,
                                                      "robot_blocked": 2, "collisions": 0}, 0.5,
                             schema=FLEET_RUN_SCHEMA))
@@ -53,6 +54,7 @@ def test_a_fleet_sweep_round_trips_a_row_per_robot(tmp_path):
     assert fixes.schema == FLEET_FIX_SCHEMA
     hid = fixes.filter(fixes.column("blocked_by_robot_count").to_numpy(zero_copy_only=False) > 0)
     assert set(hid.column("blocked_by_robot").to_pylist()) == {sc.marker_ids()[0]}
+    assert np.all(fixes.column("p_block_robot").to_numpy() == 0.25)   # the plan's prediction, for the blocking check
     # robot a's hidden line of sight was hidden by b and the other way round
     pairs = set(zip(hid.column("robot").to_pylist(), hid.column("blocking_robots").to_pylist(), strict=True))
     assert pairs == {("a", "b"), ("b", "a")}

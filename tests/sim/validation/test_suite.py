@@ -80,7 +80,7 @@ def test_model_sweep_passes_every_applicable_check(uniform_model):
     assert _status(uniform_model) == {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS,
                                       "coverage": NA,
                                       "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS,
-                                      "plan": PASS}
+                                      "plan": PASS, "blocking": NA}
     assert uniform_model.passed and uniform_model.failed == []
     assert uniform_model.fixes == RUNS * FIXES_PER_RUN
 
@@ -92,7 +92,8 @@ def test_bonferroni_split_over_the_statistical_checks_that_apply(uniform_model):
     assert uniform_model.alpha_per_check == pytest.approx(0.01 / 5)
     alphas = {c.name: c.alpha for c in uniform_model.checks}
     assert alphas == {"containment": 0.0, "promise": 0.0, "bound": 0.0, "tightness": 0.002, "coverage": None,
-                      "nees": 0.002, "nis": 0.002, "nees_nrun": None, "nis_nrun": 0.002, "plan": 0.002}
+                      "nees": 0.002, "nis": 0.002, "nees_nrun": None, "nis_nrun": 0.002, "plan": 0.002,
+                      "blocking": None}
     json.dumps(uniform_model.to_dict(), allow_nan=False)  # JSON-ready, no NaN
 
 
@@ -127,7 +128,7 @@ def test_gaussian_coverage_passes_and_an_understated_covariance_fails(tmp_path):
     sc = _scenario("gaussian")
     good = validation.validate(write_sweep(tmp_path / "good", sc, seed=4))
     assert _status(good) == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
-                             "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS}
+                             "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS, "blocking": NA}
     bad = validation.validate(write_sweep(tmp_path / "bad", sc, seed=5, error_scale=2.0))
     assert bad.check("coverage").status is FAIL
     # Independent count: errors twice the model's leave ~1 - exp(-chi2_95 / 8) inside.

@@ -1,0 +1,82 @@
+"""Predicted against observed robot blocking on a fleet's episodes, planned alone or with traffic.
+
+Run: ``python benchmarks/blocking_calibration.py [--scenario warehouse-fleet] [--runs 20] [--alone]``;
+the last line is JSON. The fleet is planned once (``--alone``: each robot's schedule as if it drove
+alone, so that it counts on reflectors the others hide and blocks happen; default: the
+traffic-aware schedule), then driven ``--runs`` times (seeds spawned from the scenario's, as a
+sweep's); each fix's prediction (``p_block_robot``) and what happened (a scheduled line of sight
+hidden by a robot) go through the ``blocking`` check of ``pefsim validate``
+(:mod:`sim.validation.blocking`) at alpha = 0.01, and per robot the runs that lost the guarantee
+(the plan check's single-failure test). Nothing is written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
+
+import numpy as np  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="warehouse-fleet")
+    ap.add_argument("--runs", type=int, default=20)
+    ap.add_argument("--alone", action="store_true")
+    args = ap.parse_args()
+
+    from scenarios import load
+    from sim.episode.fleet import prepare_fleet, run_fleet_episode
+    from sim.physics.world import PhysicsWorld
+    from sim.validation.blocking import blocking
+    from sim.validation.data import FixTable, RunTable, SweepData
+
+    sc = load(args.scenario)
+    prep = prepare_fleet(sc, traffic=not args.alone)
+    n_rob = len(sc.robots)
+    unit, p_col, obs = [], [], []
+    lost = np.zeros(n_rob, int)
+    hidden = np.zeros(n_rob, int)
+    world = PhysicsWorld(sc, fleet=True)
+    try:
+        for run in range(args.runs):
+            res = run_fleet_episode(sc, np.random.SeedSequence(sc.seed, spawn_key=(run,)), world=world, prepared=prep)
+            for j, r in enumerate(res.robots):
+                notes = r.result.fixes.notes or []
+                unit.append(np.full(len(notes), run * n_rob + j))
+                p_col.append(np.array([n.p_block_robot for n in notes], float))
+                obs.append(np.array([len(n.hidden) > 0 for n in notes], bool))
+                lost[j] += int(r.result.summary.get("lost_guarantee", 0) > 0)
+                hidden[j] += int(r.result.summary.get("robot_blocked", 0))
+            print(f"run {run}: blocked fixes {int(sum(o.sum() for o in obs[-n_rob:]))}, "
+                  f"expected {sum(p.sum() for p in p_col[-n_rob:]):.2f}", flush=True)
+    finally:
+        world.close()
+    n = int(sum(len(u) for u in unit))
+    z = np.zeros(n)
+    fixes = FixTable(run=np.concatenate(unit), fix=np.zeros(n, np.int64), true_xy=np.zeros((n, 2)),
+                     snapshot_xy=np.zeros((n, 2)), snapshot_cov=np.zeros((n, 2, 2)), snapshot_error=z,
+                     predicted_tau=np.ones(n), contained=np.ones(n, bool), fault_diameter=z, nis=z,
+                     n_accepted=np.zeros(n, np.int64), markers=np.zeros((n, 2), np.int64),
+                     p_block_robot=np.concatenate(p_col), robot_blocked=np.concatenate(obs))
+    units = np.arange(args.runs * n_rob)
+    data = SweepData(scenario=sc, runs=RunTable(run=units, ok=np.ones(len(units), bool),
+                                                succeeded=np.ones(len(units), bool), mean_nees=np.zeros(len(units))),
+                     fixes=fixes)
+    res = blocking(data, 0.01, np.random.default_rng(0))
+    print(f"blocking check: {res.status.value}: {res.statistic} ({res.acceptance})")
+    print(res.detail)
+    names = [r.name for r in sc.robots]
+    print(f"runs that lost the guarantee per robot: {dict(zip(names, lost.tolist(), strict=True))}; "
+          f"scheduled lines of sight hidden by robots: {dict(zip(names, hidden.tolist(), strict=True))}")
+    print(json.dumps({"scenario": sc.name, "alone": args.alone, "runs": args.runs, "check": res.to_dict(),
+                      "lost_guarantee_runs": lost.tolist(), "robot_blocked": hidden.tolist()}))
+
+
+if __name__ == "__main__":
+    main()

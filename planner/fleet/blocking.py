@@ -1,0 +1,357 @@
+"""Predicted blocking of a fleet's lines of sight: the chance another robot's body hides a reflector.
+
+**Geometry (3D).** Robot i's laser sits on top of it (``robot.height`` h_i, at the robot's
+centre p). Its ray to marker m runs from (p, h_i) to the reflector's centre (m, h_m). Another
+robot j is a cylinder of radius r_j and height H_j on the floor (what the simulation builds);
+it blocks the ray where the ray passes over its footprint below its top: the ray's height
+``z(u) = h_i + u (h_m - h_i)`` (u in [0, 1] along the ray) is at most H_j on an interval of u,
+whose floor projection is a *low segment* of the ray, and robot j blocks the ray exactly when
+its centre lies within r_j of that segment (:func:`low_segment`). A marker without a height
+(above every robot) is never blocked.
+
+**Timing (the uncertainty).** The plan says where each robot is when
+(:func:`planner.fleet.zones.predict_timeline`, waits included); real robots are not there on
+time. Each robot's *lag* delta (actual minus planned time at which it passes a place on its
+path) is modelled as Gaussian, mean ``lag0 + lag_rate * d + wait_lag * w`` and variance
+``base_var + var_rate * d + wait_var * w``, with d the planned time it has driven and w the
+number of zone waits it has had so far (:class:`TimingModel`; the numbers, measured and derived:
+:data:`TIMING`). Robots' lags are independent. Robot i measures at planned time T (its fix is
+triggered by arc length, so it is where the plan says, at time T + delta_i); robot j is then
+where its plan has it at time ``T + delta_i - delta_j``. The probability that robot j blocks the
+ray is the mass of ``T + delta_i - delta_j`` over the planned times at which j's centre is in the
+blocking region (robot j's timeline; before its start and after its end it stands on its docks),
+each time weighted by the chance that j's centre, spread by :data:`POS_SD` about its planned
+place, lies in the region (a robot waiting at a stop stands a few centimetres from where the
+timeline has it: timing alone would make its shadow's edge sharp).
+Several robots block independently: ``p = 1 - prod_j (1 - p_j)``.
+
+**Traffic that is not simulated** (``routes.traffic``, a density in [0, 1] per segment): it adds,
+for a fix on a segment of density d, ``traffic_block * d`` for each of its lines of sight to a
+reflector mounted below the robots' tops (:func:`traffic_probability`; ``traffic_block`` is
+:data:`TRAFFIC_BLOCK` unless given): the chance a person or a forklift of the density's traffic
+stands in the ray, independent of the robots. It is planned for, and reported apart from the
+robots' blocking (the simulation does not draw it, so the calibration check compares only the
+robots').
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import ndtr
+
+from planner.fleet.zones import Timeline
+
+#: Time step the timelines are refined to before the blocking regions are sampled [s]: a robot
+#: at 1 m/s moves 2.5 cm, against a body of tens of cm and a timing spread of tenths of a second.
+FINE_DT = 0.025
+#: Standard deviations of the timing spread beyond which a sample's mass is neglected (Phi(-8) ~ 6e-16).
+WINDOW_SD = 8.0
+#: Spread of where a body stands across the edge of a blocking region [m]. The simulated robots
+#: stop STOP_MARGIN = 5 cm short of their reservation's end (sim.episode.fleet), where the
+#: timeline stops them on it; the timeline's path samples are 0.1 m apart (a uniform error of
+#: 0.1 m, variance 0.1^2 / 12); the path follower tracks within ~2 cm; and the measuring robot's
+#: own place moves the ray by as much again: sqrt(2 (0.05^2 + 0.1^2 / 12 + 0.02^2)) = 0.087 m.
+POS_SD = float(np.sqrt(2.0 * (0.05 ** 2 + 0.1 ** 2 / 12.0 + 0.02 ** 2)))
+#: Position spreads beyond the radius a sample is still looked at (Phi(-5) ~ 3e-7).
+POS_REACH = 5.0
+#: A ray within this fraction of the marker's height of level is treated as level.
+_LEVEL = 1e-12
+#: Blocking probability per unit of ``routes.traffic`` density of a line of sight below the
+#: robots' tops (default of :func:`traffic_probability`): a segment of density 1 is one on which,
+#: half the time, somebody stands in the way of a line of sight to a low reflector.
+TRAFFIC_BLOCK = 0.5
+
+
+@dataclass(frozen=True)
+class TimingModel:
+    """A robot's lag against its planned timeline: Gaussian, mean and variance growing with its drive.
+
+    Attributes
+    ----------
+    lag0 : float
+        Mean lag at departure [s].
+    lag_rate : float
+        Mean lag gained per second of planned driving [s/s].
+    wait_lag : float
+        Mean lag gained per zone wait [s].
+    base_var : float
+        Variance of the lag at departure [s^2].
+    var_rate : float
+        Variance gained per second of planned driving [s^2/s].
+    wait_var : float
+        Variance gained per zone wait [s^2].
+    """
+
+    lag0: float
+    lag_rate: float
+    wait_lag: float
+    base_var: float
+    var_rate: float
+    wait_var: float
+
+    def mean(self, drive: np.ndarray, waits: np.ndarray) -> np.ndarray:
+        """Mean lag [s] after ``drive`` seconds driven and ``waits`` zone waits (planned)."""
+        return self.lag0 + self.lag_rate * np.asarray(drive, float) + self.wait_lag * np.asarray(waits, float)
+
+    def var(self, drive: np.ndarray, waits: np.ndarray) -> np.ndarray:
+        """Variance of the lag [s^2] after ``drive`` seconds driven and ``waits`` zone waits (planned)."""
+        return self.base_var + self.var_rate * np.asarray(drive, float) + self.wait_var * np.asarray(waits, float)
+
+
+#: Measured with ``python benchmarks/timing_spread.py --seeds 4`` (warehouse-fleet's three tasks,
+#: each driven alone, 4 seeds; lag at every metre of the path): the robot is 1.05 s late at the
+#: first metre (the standstill fix and the follower's acceleration from rest at 0.5 m/s^2, which
+#: the plan does not ramp), and catches up 0.0046 s per second driven (pooled line
+#: 0.989 s - 0.0046 t); over seeds the lag varies by at most 0.0096 s (var 2.4e-5 s^2 + 1.6e-6
+#: s^2/s t): the physics is deterministic but for the start pose and the odometry noise. The
+#: measured lag departs from its line by 0.044 s rms: that model error is part of the variance.
+_MEASURED = {"lag0": 0.989, "lag_rate": -0.0046, "base_var": 2.4e-5, "var_rate": 1.6e-6, "line_error_var": 0.044 ** 2}
+# Floors the simulation sets whatever the seed: a fix starts at a control tick (1/60 s) after its
+# planned place is passed and measures at physics steps (1/240 s), and the timeline is a grid of
+# predict_timeline's 0.1 s: each a uniform error of its width, variance width^2 / 12.
+_FLOOR_VAR = (1.0 / 60.0) ** 2 / 12.0 + (1.0 / 240.0) ** 2 / 12.0 + 0.1 ** 2 / 12.0
+# A zone wait, derived (not yet measured on fleet episodes): the timeline stops and restarts the
+# robot at once; the follower restarts from rest at max_accel 0.5 m/s^2 (sim.episode.follower),
+# v / (2 a) = 1 s later at 1 m/s, and may have braked before the release or not: the lag a wait
+# adds is taken uniform on [0, v / a] = [0, 2 s], mean 1 s, variance (2 s)^2 / 12.
+_WAIT = {"lag": 1.0, "var": 2.0 ** 2 / 12.0}
+
+TIMING = TimingModel(lag0=_MEASURED["lag0"], lag_rate=_MEASURED["lag_rate"], wait_lag=_WAIT["lag"],
+                     base_var=_MEASURED["base_var"] + _MEASURED["line_error_var"] + _FLOOR_VAR,
+                     var_rate=_MEASURED["var_rate"], wait_var=_WAIT["var"])
+"""The timing model of the simulated robots (the comments above give each number's source)."""
+
+
+@dataclass(frozen=True)
+class Track:
+    """One robot's predicted drive, refined, with its lag model: what blocks the others' rays.
+
+    Attributes
+    ----------
+    t : ndarray, shape (T,)
+        Planned time [s] (the fleet's clock), every :data:`FINE_DT`.
+    xy : ndarray, shape (T, 2)
+        Planned centre [m].
+    s : ndarray, shape (T,)
+        Arc length along the robot's whole path [m].
+    drive : ndarray, shape (T,)
+        Planned time driven so far [s].
+    waits : ndarray, shape (T,)
+        Zone waits begun so far (planned).
+    radius, height : float
+        The robot's body [m].
+    """
+
+    t: np.ndarray
+    xy: np.ndarray
+    s: np.ndarray
+    drive: np.ndarray
+    waits: np.ndarray
+    radius: float
+    height: float
+
+    @classmethod
+    def of(cls, timeline: Timeline, start_time: float, radius: float, height: float, dt: float = FINE_DT) -> Track:
+        """Refine ``timeline`` to steps of ``dt`` [s] and count its driving time and zone waits."""
+        t0 = np.asarray(timeline.t, float)
+        t = np.arange(t0[0], t0[-1] + 0.5 * dt, dt)
+        s = np.interp(t, t0, timeline.s)
+        xy = np.column_stack([np.interp(t, t0, timeline.xy[:, 0]), np.interp(t, t0, timeline.xy[:, 1])])
+        step = np.diff(t0, prepend=t0[0])
+        waiting = np.asarray(timeline.waiting, bool)
+        driving = ~waiting & (t0 > start_time) & (t0 <= timeline.end_time + 1e-9)
+        drive = np.interp(t, t0, np.cumsum(np.where(driving, step, 0.0)))
+        begun = np.cumsum(waiting & ~np.concatenate([[False], waiting[:-1]]))
+        waits = begun[np.clip(np.searchsorted(t0, t, side="right") - 1, 0, len(t0) - 1)].astype(float)
+        return cls(t, xy, s, drive, waits, float(radius), float(height))
+
+    def at_s(self, s: np.ndarray) -> np.ndarray:
+        """Planned time [s] at which the robot first reaches arc length(s) ``s`` [m]."""
+        s = np.asarray(s, float)
+        k = np.clip(np.searchsorted(self.s, s, side="left"), 1, len(self.s) - 1)
+        s0, s1 = self.s[k - 1], self.s[k]
+        u = np.where(s1 > s0, np.clip((s - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0, 1.0), 1.0)
+        return np.where(s <= self.s[0], self.t[0], self.t[k - 1] + u * (self.t[k] - self.t[k - 1]))
+
+    def state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Planned time driven [s] and zone waits begun at planned time(s) ``t`` [s]."""
+        k = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 1)
+        return np.interp(t, self.t, self.drive), self.waits[k]
+
+
+def low_segment(origin: np.ndarray, h_origin: float | np.ndarray, target: np.ndarray, h_target: np.ndarray,
+                top: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Project onto the floor the part of each ray at most ``top`` high.
+
+    Parameters
+    ----------
+    origin : ndarray, shape (Q, 2)
+        Laser positions [m] (at height ``h_origin``).
+    h_origin : float or ndarray, shape (Q,)
+        Laser heights [m].
+    target : ndarray, shape (Q, 2)
+        Reflector positions [m].
+    h_target : ndarray, shape (Q,)
+        Reflector centre heights [m]; NaN: above every robot (no low part).
+    top : float
+        Height of the blocking body [m].
+
+    Returns
+    -------
+    a, b : ndarray, shape (Q, 2)
+        Ends of the low part's projection [m].
+    some : ndarray of bool, shape (Q,)
+        The ray has a low part.
+    """
+    origin, target = np.asarray(origin, float).reshape(-1, 2), np.asarray(target, float).reshape(-1, 2)
+    h0 = np.broadcast_to(np.asarray(h_origin, float), (len(origin),))
+    h1 = np.asarray(h_target, float).reshape(-1)
+    dh = h1 - h0
+    level = np.abs(dh) <= _LEVEL * np.maximum(np.abs(h1), 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u_top = np.where(level, np.nan, (top - h0) / np.where(level, 1.0, dh))
+    rising = dh > 0
+    lo = np.where(level, 0.0, np.where(rising, 0.0, np.clip(u_top, 0.0, 1.0)))
+    hi = np.where(level, 1.0, np.where(rising, np.clip(u_top, 0.0, 1.0), 1.0))
+    some = np.where(level, h0 <= top, np.where(rising, u_top >= 0.0, u_top <= 1.0)) & np.isfinite(h1)
+    d = target - origin
+    return origin + lo[:, None] * d, origin + hi[:, None] * d, some & (hi >= lo)
+
+
+def _distance(xy: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(Q, T): distance from point ``xy[t]`` to segment ``a[q] b[q]`` [m]."""
+    d = b - a                                                   # (Q, 2)
+    L2 = np.einsum("qi,qi->q", d, d)
+    w = xy[None, :, :] - a[:, None, :]                          # (Q, T, 2)
+    u = np.clip(np.einsum("qti,qi->qt", w, d) / np.where(L2 > 0, L2, 1.0)[:, None], 0.0, 1.0)
+    e = w - u[..., None] * d[:, None, :]
+    return np.sqrt(np.einsum("qti,qti->qt", e, e))
+
+
+def block_probability(other: Track, origin: np.ndarray, h_origin: float, target: np.ndarray,
+                      h_target: np.ndarray, when: np.ndarray, lag_mean: np.ndarray, lag_var: np.ndarray,
+                      timing: TimingModel = TIMING, group: np.ndarray | None = None, chunk: int = 256) -> np.ndarray:
+    """Probability that robot ``other``'s body is on each ray at the time it is measured.
+
+    Parameters
+    ----------
+    other : Track
+        The robot that may block.
+    origin : ndarray, shape (Q, 2)
+        Where the measuring robot's laser is [m].
+    h_origin : float
+        Its height [m].
+    target : ndarray, shape (Q, 2)
+        The reflector of each ray [m].
+    h_target : ndarray, shape (Q,)
+        Reflector heights [m] (NaN: above every robot, never blocked).
+    when : ndarray, shape (Q,)
+        Planned time of each measurement [s].
+    lag_mean, lag_var : ndarray, shape (Q,)
+        Mean [s] and variance [s^2] of the measuring robot's lag at ``when``.
+    timing : TimingModel
+        The other robot's lag model.
+    group : ndarray of int, shape (Q,), optional
+        Rays measured together (one fix's): the probability is then per group (0 .. G-1) that
+        the body hides at least one of its rays, each group's times and lags taken from its
+        first ray.
+    chunk : int
+        Rays per vectorised pass (memory: chunk x T booleans).
+
+    Returns
+    -------
+    ndarray, shape (Q,), or (G,) with ``group``
+    """
+    when = np.asarray(when, float).reshape(-1)
+    q_n = len(when)
+    gid = np.arange(q_n) if group is None else np.asarray(group, np.int64).reshape(q_n)
+    n_out = int(gid.max(initial=-1)) + 1
+    out = np.zeros(n_out)
+    a, b, some = low_segment(origin, h_origin, target, h_target, other.height)
+    drive, waits = other.state(when)
+    mu = np.asarray(lag_mean, float) - timing.mean(drive, waits)      # mean of delta_i - delta_j
+    sd = np.sqrt(np.asarray(lag_var, float) + timing.var(drive, waits))
+    # cells of the other's samples: sample k stands for planned times [edge_k, edge_k+1), the first
+    # and last reaching to -inf and +inf (standing on its docks before and after)
+    t = other.t
+    edges = np.concatenate([[-np.inf], 0.5 * (t[1:] + t[:-1]), [np.inf]])
+    first = np.full(n_out, q_n, dtype=np.int64)
+    np.minimum.at(first, gid, np.arange(q_n))
+    # rays in time order, so that a chunk's rays need the other's samples of a short window only:
+    # beyond WINDOW_SD standard deviations of a measurement its mass is below 1e-15
+    rows = np.flatnonzero(some)
+    rows = rows[np.argsort(when[rows], kind="stable")]
+    reach_lo, reach_hi = when + mu - WINDOW_SD * sd, when + mu + WINDOW_SD * sd
+    pairs, cover = [], []
+    for lo in range(0, len(rows), chunk):
+        q = rows[lo:lo + chunk]
+        k0 = max(int(np.searchsorted(edges, reach_lo[q].min(), side="right")) - 1, 0)
+        k1 = min(int(np.searchsorted(edges, reach_hi[q].max(), side="left")), len(t))
+        if k1 <= k0:
+            continue
+        # rays whose low part (widened by the radius and the position spread) misses the box of
+        # the window's samples: none
+        reach = other.radius + POS_REACH * POS_SD
+        box_lo, box_hi = other.xy[k0:k1].min(axis=0) - reach, other.xy[k0:k1].max(axis=0) + reach
+        near = np.all((np.minimum(a[q], b[q]) <= box_hi) & (np.maximum(a[q], b[q]) >= box_lo), axis=1)
+        q = q[near]
+        if len(q) == 0:
+            continue
+        dist = _distance(other.xy[k0:k1], a[q], b[q])
+        qi, ki = np.nonzero(dist <= reach)
+        pairs.append(gid[q[qi]] * len(t) + ki + k0)
+        # the body covers the ray with the probability its centre, spread by POS_SD across the
+        # edge of the blocking region, is inside: Phi((r - d) / POS_SD)
+        cover.append(ndtr((other.radius - dist[qi, ki]) / POS_SD))
+    if not pairs:
+        return out
+    # a sample near several rays of one group counts once, with its largest cover (one position)
+    key, cov = np.concatenate(pairs), np.concatenate(cover)
+    order = np.lexsort((-cov, key))
+    key, cov = key[order], cov[order]
+    head = np.concatenate([[True], key[1:] != key[:-1]])
+    key, cov = key[head], cov[head]
+    g, k = np.divmod(key, len(t))
+    r = first[g]
+    z_hi = (edges[k + 1] - when[r] - mu[r]) / sd[r]
+    z_lo = (edges[k] - when[r] - mu[r]) / sd[r]
+    out += np.bincount(g, weights=cov * (ndtr(z_hi) - ndtr(z_lo)), minlength=n_out)
+    return np.clip(out, 0.0, 1.0)
+
+
+def traffic_probability(segment_density: np.ndarray, h_target: np.ndarray, tops: float,
+                        traffic_block: float = TRAFFIC_BLOCK) -> np.ndarray:
+    """Blocking probability of rays by traffic that is not simulated.
+
+    Parameters
+    ----------
+    segment_density : ndarray, shape (Q,)
+        ``routes.traffic`` density of the segment each ray's fix is taken on (0 off the network).
+    h_target : ndarray, shape (Q,)
+        Reflector heights [m] (NaN: above everything, never blocked).
+    tops : float
+        The tallest robot's height [m]: traffic is taken to be no taller.
+    traffic_block : float
+        Blocking probability per unit density.
+
+    Returns
+    -------
+    ndarray, shape (Q,)
+    """
+    h = np.asarray(h_target, float)
+    low = np.isfinite(h) & (h < tops)
+    return np.where(low, np.clip(traffic_block * np.asarray(segment_density, float), 0.0, 1.0), 0.0)
+
+
+def combine(p: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Probability that at least one of independent events of probabilities ``p`` happens, along ``axis``."""
+    return 1.0 - np.prod(1.0 - np.clip(np.asarray(p, float), 0.0, 1.0), axis=axis)
+
+
+def lag_of(track: Track, timing: TimingModel, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean [s] and variance [s^2] of a robot's lag at planned time(s) ``t``."""
+    drive, waits = track.state(np.asarray(t, float))
+    return timing.mean(drive, waits), timing.var(drive, waits)
+

@@ -1,0 +1,217 @@
+"""A fleet's exposure to blocking: per robot and fix, the chance its lines of sight are hidden.
+
+Built on the model of :mod:`planner.fleet.blocking` and the fleet's predicted timelines:
+:func:`predict` gives each scheduled fix's probability per counted marker (and that at least
+one is hidden) from the other robots, and from traffic that is not simulated; :func:`risk`
+gives the measurement schedule (:func:`planner.schedule.schedule.make_schedule`, its ``block``
+argument) the probability per marker along a task's path, for the robot's place in the fleet.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.fleet.blocking import TIMING, TimingModel, Track, block_probability, lag_of, traffic_probability
+from scenarios.schema import Scenario
+
+
+@dataclass(frozen=True)
+class RobotBlocking:
+    """Predicted blocking of one robot's scheduled fixes, F fixes of k markers in driving order.
+
+    Attributes
+    ----------
+    task : ndarray of int, shape (F,)
+        Index of the fix's plan in the robot's plans.
+    fix : ndarray of int, shape (F,)
+        Index of the fix in that plan's schedule.
+    time : ndarray, shape (F,)
+        Planned time of the fix (the fleet's clock) [s].
+    s : ndarray, shape (F,)
+        Arc length along the robot's whole path [m].
+    markers : ndarray of int, shape (F, k)
+        The scheduled markers, in measurement order.
+    p_robot : ndarray, shape (F, k)
+        Probability that another robot's body hides each scheduled marker at the fix.
+    p_fix : ndarray, shape (F,)
+        Probability that another robot hides at least one of them.
+    p_traffic : ndarray, shape (F, k)
+        Probability that traffic not simulated (``routes.traffic``) hides each.
+    protected : ndarray of bool, shape (F,)
+        The fix names a fallback for every marker (one lost line of sight keeps the promise).
+    """
+
+    task: np.ndarray
+    fix: np.ndarray
+    time: np.ndarray
+    s: np.ndarray
+    markers: np.ndarray
+    p_robot: np.ndarray
+    p_fix: np.ndarray
+    p_traffic: np.ndarray
+    protected: np.ndarray
+
+    def of(self, task: int, fix: int) -> tuple[np.ndarray, float]:
+        """Return the predictions of fix ``fix`` of plan ``task``: p per scheduled marker (k,), p of the fix."""
+        i = int(np.flatnonzero((self.task == task) & (self.fix == fix))[0])
+        return self.p_robot[i], float(self.p_fix[i])
+
+    @property
+    def expected_blocked_los(self) -> float:
+        """Expected number of scheduled lines of sight another robot hides."""
+        return float(self.p_robot.sum())
+
+    @property
+    def expected_blocked_fixes(self) -> float:
+        """Expected number of fixes with at least one scheduled line of sight hidden by a robot."""
+        return float(self.p_fix.sum())
+
+    @property
+    def expected_unprotected(self) -> float:
+        """Expected number of blocked fixes without a fallback for every marker."""
+        return float(self.p_fix[~self.protected].sum())
+
+
+def tracks_of(robots: Sequence) -> list[Track]:
+    """Each robot's refined timeline (``robots``: :class:`planner.fleet.plan.FleetRobotPlan`)."""
+    return [Track.of(r.timeline, r.start_time, r.robot.radius, r.robot.height) for r in robots]
+
+
+def _heights(scenario: Scenario) -> np.ndarray:
+    return scenario.marker_heights()
+
+
+def _segment_density(scenario: Scenario, xy: np.ndarray) -> np.ndarray:
+    """``routes.traffic`` density of the network segment nearest each point, 0 farther than 0.5 m from any."""
+    net = scenario.routes
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    if net is None or not net.traffic:
+        return np.zeros(len(xy))
+    best_d = np.full(len(xy), np.inf)
+    dens = np.zeros(len(xy))
+    for a, b in net.segments:
+        pa, pb = np.asarray(net.nodes[a], float), np.asarray(net.nodes[b], float)
+        d = pb - pa
+        L2 = max(float(d @ d), 1e-12)
+        u = np.clip((xy - pa) @ d / L2, 0.0, 1.0)
+        dist = np.hypot(*(xy - pa - u[:, None] * d).T)
+        closer = dist < best_d
+        best_d = np.where(closer, dist, best_d)
+        dens = np.where(closer, net.traffic_of(a, b), dens)
+    return np.where(best_d <= 0.5, dens, 0.0)
+
+
+def marker_risk(scenario: Scenario, tracks: list[Track], i: int, xy: np.ndarray, when: np.ndarray,
+                timing: TimingModel = TIMING, traffic_block: float | None = None) -> np.ndarray:
+    """Probability per marker that its line of sight from ``xy`` at planned time ``when`` is hidden.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    tracks : list of Track
+        The fleet (``tracks[i]`` is the measuring robot).
+    i : int
+        The measuring robot.
+    xy : ndarray, shape (n, 2)
+        Laser positions [m].
+    when : ndarray, shape (n,)
+        Planned times [s].
+    timing : TimingModel
+    traffic_block : float, optional
+        Blocking per unit of ``routes.traffic`` density (default
+        :data:`planner.fleet.blocking.TRAFFIC_BLOCK`); 0 leaves traffic that is not simulated out.
+
+    Returns
+    -------
+    ndarray, shape (M, n)
+        Robots and traffic together (independent).
+    """
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    when = np.asarray(when, float).reshape(-1)
+    n, m_pos, h = len(xy), scenario.marker_positions(), _heights(scenario)
+    low = np.flatnonzero(np.isfinite(h))
+    out = np.zeros((len(m_pos), n))
+    if len(low) == 0 or n == 0:
+        return out
+    mean_i, var_i = lag_of(tracks[i], timing, when)
+    origin = np.repeat(xy, len(low), axis=0)
+    target = np.tile(m_pos[low], (n, 1))
+    ht = np.tile(h[low], n)
+    w, mu, v = np.repeat(when, len(low)), np.repeat(mean_i, len(low)), np.repeat(var_i, len(low))
+    free = np.ones(len(origin))
+    for j, tr in enumerate(tracks):
+        if j != i:
+            free *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v, timing)
+    tops = max(t.height for t in tracks)
+    dens = np.repeat(_segment_density(scenario, xy), len(low))
+    kw = {} if traffic_block is None else {"traffic_block": traffic_block}
+    free *= 1.0 - traffic_probability(dens, ht, tops, **kw)
+    out[low] = (1.0 - free).reshape(n, len(low)).T
+    return out
+
+
+def risk(scenario: Scenario, tracks: list[Track], i: int, offset: float,
+         timing: TimingModel = TIMING) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """Make the ``block`` argument of :func:`planner.schedule.schedule.make_schedule` for robot i's task.
+
+    ``offset`` is where the task's path begins along the robot's whole path [m]. The returned
+    function maps the task's arc lengths (n,) and positions (n, 2) to the probability per marker
+    (M, n) that another robot (or traffic) hides its line of sight when the robot is there.
+    """
+    track = tracks[i]
+    cache: dict[bytes, np.ndarray] = {}
+
+    def block(s: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        # the schedule asks again for each slow-down it tries, mostly at the same samples; within a
+        # round the others' timelines and this robot's time at each place are fixed
+        s = np.asarray(s, float)
+        key = s.tobytes()
+        if key not in cache:
+            cache[key] = marker_risk(scenario, tracks, i, xy, track.at_s(offset + s), timing)
+        return cache[key]
+
+    return block
+
+
+def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = None,
+            timing: TimingModel = TIMING) -> list[RobotBlocking]:
+    """Predicted blocking of every scheduled fix of every robot (``robots``: ``FleetRobotPlan``)."""
+    tracks = tracks_of(robots) if tracks is None else tracks
+    m_pos, h = scenario.marker_positions(), _heights(scenario)
+    tops = max(t.height for t in tracks)
+    out = []
+    for i, r in enumerate(robots):
+        task, fix, s, xy, markers, prot = [], [], [], [], [], []
+        for q, (plan, off) in enumerate(zip(r.plans, r.offsets, strict=True)):
+            for f, fx in enumerate(plan.schedule.fixes):
+                task.append(q)
+                fix.append(f)
+                s.append(off + fx.s)
+                xy.append(fx.position)
+                markers.append(fx.markers)
+                prot.append(len(fx.fallbacks) == len(fx.markers) and all(fx.fallbacks))
+        s, xy, markers = np.array(s, float), np.array(xy, float).reshape(-1, 2), np.array(markers, int)
+        n_fix, k = markers.shape if markers.size else (0, scenario.sensor.markers_per_fix)
+        when = tracks[i].at_s(s)
+        mean_i, var_i = lag_of(tracks[i], timing, when)
+        origin = np.repeat(xy, k, axis=0)
+        target, ht = m_pos[markers.reshape(-1)], h[markers.reshape(-1)]
+        w, mu, v = np.repeat(when, k), np.repeat(mean_i, k), np.repeat(var_i, k)
+        free_ray, free_fix = np.ones(n_fix * k), np.ones(n_fix)
+        for j, tr in enumerate(tracks):
+            if j == i:
+                continue
+            free_ray *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v, timing)
+            # at least one of the fix's rays: the union of their regions under the same lag
+            free_fix *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v, timing,
+                                                group=np.repeat(np.arange(n_fix), k))
+        dens = np.repeat(_segment_density(scenario, xy), k)
+        out.append(RobotBlocking(task=np.array(task, int), fix=np.array(fix, int), time=when, s=s, markers=markers,
+                                 p_robot=(1.0 - free_ray).reshape(n_fix, k), p_fix=1.0 - free_fix,
+                                 p_traffic=traffic_probability(dens, ht, tops).reshape(n_fix, k),
+                                 protected=np.array(prot, bool)))
+    return out
+

@@ -1,0 +1,120 @@
+"""The traffic-aware measurement schedule: each robot's fixes planned knowing where the others are.
+
+Starting from every robot's schedule as if it drove alone and the fleet's predicted timeline,
+each round gives every task a new schedule (:func:`planner.schedule.schedule.make_schedule` on
+the chosen route's own speed profile) with the probability that other robots hide each marker
+along it (:func:`planner.fleet.exposure.risk`), then chains and re-times the fleet (slow-downs
+move the others' blocking). Rounds stop when no schedule changes, or after :data:`ROUNDS`.
+
+What a risky fix is (``block_limit``): the single-failure test judges a run by the fixes that lose
+one counted line of sight; a fix without a fallback that loses one breaks the run. The plan must
+reach ``montecarlo.success_target``, so blocking may cost at most a share
+:data:`BLOCK_SHARE` of the failure budget ``1 - success_target``: a fix whose subset is hidden
+with a larger probability than that share is risky. The schedule then avoids such a subset where
+another serves, and holds a fix that stays risky to the single-failure test (a fallback for each
+marker, or its neighbours covering its loss), slowing down where it cannot (more fixes per
+metre where the others are near). Where even the slowest fixes cannot pass, the task keeps the
+schedule that avoids risky subsets without that test, and the unprotected exposure is reported
+(:attr:`planner.fleet.exposure.RobotBlocking.expected_unprotected`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from planner.fleet import exposure
+from planner.fleet.zones import predict_timeline
+from planner.plan import Plan
+from planner.routes.smoothing import speed_profile
+from planner.schedule.pathtime import Kinematics
+from planner.schedule.schedule import make_schedule
+from scenarios.errors import PlanningError
+from scenarios.schema import Scenario
+
+ROUNDS = 3
+"""Most rounds of re-scheduling against the others' timelines."""
+BLOCK_SHARE = 0.5
+"""Share of the plan's failure budget ``1 - montecarlo.success_target`` one fix's blocking may take."""
+
+
+@dataclass(frozen=True)
+class TrafficNote:
+    """How the traffic-aware schedule came about: rounds run, tasks left unprotected, the limit used."""
+
+    rounds: int
+    block_limit: float
+    unprotected: tuple[tuple[str, int], ...]
+
+
+def block_limit(scenario: Scenario) -> float:
+    """Probability above which a fix's subset is risky (module docstring)."""
+    return BLOCK_SHARE * (1.0 - scenario.montecarlo.success_target)
+
+
+def _signature(plan: Plan) -> tuple:
+    return tuple((round(f.s, 6), f.markers) for f in plan.schedule.fixes)
+
+
+def reschedule(scenario: Scenario, robot, own: Scenario, pef, tracks, i: int, limit: float
+               ) -> tuple[list[Plan], list[int]]:
+    """Schedule robot ``i``'s tasks anew against the others' ``tracks``; return them and the tasks left unprotected."""
+    plans, loose = [], []
+    for q, (plan, off) in enumerate(zip(robot.plans, robot.offsets, strict=True)):
+        cand = plan.candidates[plan.chosen]
+        base = speed_profile(cand.path, own.robot)
+        block = exposure.risk(scenario, tracks, i, float(off))
+        try:
+            sched = make_schedule(own, pef, cand.path.points, base, block=block, block_limit=limit)
+        except PlanningError:
+            sched = make_schedule(own, pef, cand.path.points, base, block=block, block_limit=limit, protect=False)
+            loose.append(q)
+        plans.append(replace(plan, speed=sched.speed, schedule=sched))
+    return plans, loose
+
+
+def plan_traffic(scenario: Scenario, robots: list, owns: list[Scenario], pefs: list, zones_of, chain
+                 ) -> TrafficNote:
+    """Re-schedule ``robots`` (``FleetRobotPlan``, modified in place) knowing where the others are.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    robots : list of FleetRobotPlan
+        Planned alone, with their timelines.
+    owns : list of Scenario
+        Each robot's scenario (its own declared robot).
+    pefs : list of PEF
+        Each robot's PEF.
+    zones_of, chain : callable
+        :func:`planner.fleet.plan.zones_of` and :func:`planner.fleet.plan.chain`.
+    """
+    limit = block_limit(scenario)
+    loose: dict[str, list[int]] = {}
+    rounds = 0
+    for rounds in range(1, ROUNDS + 1):  # noqa: B007 (the count of rounds run is reported)
+        tracks = exposure.tracks_of(robots)
+        changed = False
+        new = []
+        for i, r in enumerate(robots):
+            plans, lost = reschedule(scenario, r, owns[i], pefs[i], tracks, i, limit)
+            loose[r.name] = lost
+            changed |= [_signature(p) for p in plans] != [_signature(p) for p in r.plans]
+            new.append(plans)
+        for r, plans in zip(robots, new, strict=True):
+            r.plans = plans
+            r.path, r.s, r.speed, r.offsets = chain(plans)
+        timelines = predict_timeline(zones_of(robots), [Kinematics(r.s, r.speed) for r in robots],
+                                     [r.start_time for r in robots])
+        for r, tl in zip(robots, timelines, strict=True):
+            r.timeline = tl
+        if not changed:
+            break
+    return TrafficNote(rounds=rounds, block_limit=limit,
+                       unprotected=tuple((name, q) for name, qs in loose.items() for q in qs))
+
+
+def alone_time(robots: list) -> np.ndarray:
+    """Each robot's drive time as if alone: its chained speed profile, no waits [s]."""
+    return np.array([float(Kinematics(r.s, r.speed).t_v[-1]) for r in robots])

@@ -1,0 +1,129 @@
+"""Blocking prediction: the ray's low part, a body on it, the timing spread, and the schedule's use of it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import ndtr
+
+from planner.fleet.blocking import FINE_DT, POS_SD, TimingModel, Track, block_probability, combine, low_segment
+from planner.fleet.zones import Timeline
+
+SHARP = TimingModel(lag0=0.0, lag_rate=0.0, wait_lag=0.0, base_var=1e-8, var_rate=0.0, wait_var=0.0)
+
+
+def _track(xy, t, radius=0.4, height=0.5, waiting=None):
+    xy = np.asarray(xy, float)
+    tl = Timeline(t=np.asarray(t, float), s=np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]),
+                  xy=xy, waiting=np.zeros(len(t), bool) if waiting is None else np.asarray(waiting, bool),
+                  wait_time=0.0, end_time=float(t[-1]))
+    return Track.of(tl, 0.0, radius, height)
+
+
+def test_the_low_part_of_a_ray_is_where_it_passes_below_the_body_top():
+    o, m = np.array([[0.0, 0.0]]), np.array([[10.0, 0.0]])
+    # laser 0.5 m, reflector 0.3 m: a 0.5 m body is above the whole ray
+    a, b, some = low_segment(o, 0.5, m, np.array([0.3]), 0.5)
+    assert some[0] and np.allclose(a, [[0, 0]]) and np.allclose(b, [[10, 0]])
+    # a 0.4 m body: the ray is below 0.4 m from half way on
+    a, b, some = low_segment(o, 0.5, m, np.array([0.3]), 0.4)
+    assert some[0] and np.allclose(a, [[5, 0]]) and np.allclose(b, [[10, 0]])
+    # a 0.25 m body is below the whole ray; a reflector above every robot (NaN) is never low
+    assert not low_segment(o, 0.5, m, np.array([0.3]), 0.25)[2][0]
+    assert not low_segment(o, 0.5, m, np.array([np.nan]), 5.0)[2][0]
+    # a reflector above the laser: low from the laser up to where the ray passes the top
+    a, b, some = low_segment(o, 0.5, m, np.array([1.5]), 1.0)
+    assert some[0] and np.allclose(a, [[0, 0]]) and np.allclose(b, [[5, 0]])
+
+
+def test_a_body_standing_on_the_ray_hides_it_and_beside_it_does_not():
+    t = np.arange(0.0, 10.0, 0.1)
+    on = _track(np.tile([5.0, 0.2], (len(t), 1)), t)
+    edge = _track(np.tile([5.0, 0.45], (len(t), 1)), t)
+    off = _track(np.tile([5.0, 1.0], (len(t), 1)), t)   # 1 m off the ray, radius 0.4
+    args = (np.array([[0.0, 0.0]]), 0.5, np.array([[10.0, 0.0]]), np.array([0.3]), np.array([4.0]),
+            np.zeros(1), np.zeros(1), SHARP)
+    # where it stands is spread by POS_SD across the shadow's edge
+    assert block_probability(on, *args)[0] == pytest.approx(ndtr(0.2 / POS_SD))
+    assert block_probability(edge, *args)[0] == pytest.approx(ndtr(-0.05 / POS_SD))
+    assert block_probability(off, *args)[0] == 0.0
+
+
+def test_a_crossing_hides_the_ray_for_the_timing_spread_s_share_of_its_passage():
+    # a body crossing the ray at right angles at v = 1 m/s, on it from t = 4.6 s to 5.4 s (radius 0.4)
+    v, r, sd = 1.0, 0.4, 0.3
+    t = np.arange(0.0, 10.0 + 1e-9, 0.1)
+    track = _track(np.column_stack([np.full(len(t), 5.0), -5.0 + v * t]), t, radius=r)
+    timing = TimingModel(0.0, 0.0, 0.0, 0.5 * sd**2, 0.0, 0.0)
+    when = np.array([3.0, 4.5, 5.0, 5.6, 7.0])
+    p = block_probability(track, np.zeros((5, 2)), 0.5, np.tile([10.0, 0.0], (5, 1)), np.full(5, 0.3), when,
+                          np.zeros(5), np.full(5, 0.5 * sd**2), timing)
+    # crossing at right angles, the position spread along the motion adds (POS_SD / v)^2 to the timing's
+    total = math.hypot(sd, POS_SD / v)
+    exact = ndtr((5.0 + r / v - when) / total) - ndtr((5.0 - r / v - when) / total)
+    # each end of the passage is sampled to half a refined step: error at most 2 x dt/2 x max density
+    bound = FINE_DT / (total * math.sqrt(2 * math.pi))
+    assert np.all(np.abs(p - exact) <= bound)
+    assert p[2] > 0.75 and p[0] < 1e-6
+
+
+def test_a_fix_s_rays_count_once_when_the_body_hides_several():
+    t = np.arange(0.0, 10.0, 0.1)
+    track = _track(np.column_stack([np.full(len(t), 5.0), -5.0 + t]), t)
+    timing = TimingModel(0.0, 0.0, 0.0, 0.02, 0.0, 0.0)
+    origin = np.zeros((2, 2))
+    target = np.array([[10.0, 0.0], [10.0, 0.5]])   # two markers, both rays crossed at about 5 s
+    kw = dict(lag_mean=np.zeros(2), lag_var=np.full(2, 0.02), timing=timing)
+    each = block_probability(track, origin, 0.5, target, np.full(2, 0.3), np.full(2, 5.2), **kw)
+    both = block_probability(track, origin, 0.5, target, np.full(2, 0.3), np.full(2, 5.2), group=np.zeros(2, int), **kw)
+    assert both.shape == (1,)
+    # one lag for both rays: at least the likelier ray's, at most what independent rays would give
+    assert 0.0 < each.max() - 1e-12 <= both[0] <= combine(each) + 1e-12
+
+
+def test_waits_count_as_events_and_widen_the_spread():
+    t = np.arange(0.0, 6.0, 0.1)
+    waiting = (t > 2.0) & (t < 3.0)
+    x = np.where(t < 2.0, t, np.where(t < 3.0, 2.0, t - 1.0))
+    track = _track(np.column_stack([x, np.zeros(len(t))]), t, waiting=waiting)
+    drive, waits = track.state(np.array([1.0, 2.5, 5.0]))
+    assert np.allclose(waits, [0, 1, 1]) and drive[2] == pytest.approx(4.0, abs=0.11)
+    model = TimingModel(1.0, 0.0, 0.5, 0.01, 0.0, 0.25)
+    assert model.mean(drive, waits)[2] == pytest.approx(1.5) and model.var(drive, waits)[2] == pytest.approx(0.26)
+
+
+@pytest.fixture(scope="module")
+def docks():
+    from planner.pef.map import PEF
+    from planner.plan import plan_task
+    from scenarios import load
+
+    sc = load("paper-docks")
+    pef = PEF(sc)
+    return sc, pef, plan_task(sc, 0, pef=pef)
+
+
+def test_the_schedule_avoids_a_marker_others_hide_and_is_unchanged_without_blocking(docks):
+    from planner.routes.smoothing import speed_profile
+    from planner.schedule.schedule import make_schedule
+
+    sc, pef, plan = docks
+    cand = plan.candidates[plan.chosen]
+    base = speed_profile(cand.path, sc.robot)
+    alone = make_schedule(sc, pef, cand.path.points, base)
+    assert [(f.s, f.markers) for f in alone.fixes] == [(f.s, f.markers) for f in plan.schedule.fixes]
+    used = {m for f in alone.fixes for m in f.markers}
+    hidden = max(used, key=lambda m: sum(m in f.markers for f in alone.fixes))
+
+    def block(s, xy):
+        p = np.zeros((len(sc.markers), len(s)))
+        p[hidden] = 0.9
+        return p
+
+    aware = make_schedule(sc, pef, cand.path.points, base, block=block, block_limit=0.025, protect=False)
+    before = sum(hidden in f.markers for f in alone.fixes)
+    after = sum(hidden in f.markers for f in aware.fixes)
+    assert after < before
+    assert aware.worst < sc.planning.eps_max
