@@ -15,7 +15,9 @@ from scenarios import PlanningError, load
 
 @pytest.fixture(scope="module")
 def fleet():
-    return load("warehouse-fleet"), plan_fleet(load("warehouse-fleet"))
+    # chaining, timeline and clearance do not depend on the traffic-aware schedule (40 s on this floor;
+    # tests/planner/fleet/test_traffic.py covers it on a two-robot crossing)
+    return load("warehouse-fleet"), plan_fleet(load("warehouse-fleet"), traffic=False)
 
 
 def test_each_robot_drives_its_tasks_from_dock_to_dock(fleet):
