@@ -9,7 +9,7 @@ scheduled fix) names an empty one: with that marker blocked the robot improvises
 visible subset (beyond what the plan promises) or, with fewer than k visible, dead-reckons on.
 
 A fallback passes the test of a scheduled fix: its promise is under ``eps_max / (1 +
-PROMISE_TOLERANCE)``, and its promise plus the drift until the next fix completes (``margin``;
+POLYGON_TOLERANCE)``, and its promise plus the drift until the next fix completes (``margin``;
 the fallback's area stays in force that long) is under ``eps_max``. Without the second part a
 fallback could promise 29 mm and leave the robot at 33 mm before the next fix (``warehouse-
 reflectors``, 19 of 405 fallbacks): the plan's redundancy would not hold for a moving robot.
@@ -67,7 +67,7 @@ def fallbacks(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: n
     n_fix = len(orders)
     margin = np.zeros(n_fix) if margin is None else np.asarray(margin, dtype=float).reshape(n_fix)
     eps = scenario.planning.eps_max
-    limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
+    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
     subs = [[() for _ in range(k)] for _ in orders]
     taus = [[math.inf] * k for _ in orders]
     if not orders:

@@ -9,7 +9,7 @@ where fix ``i`` starts at ``s_i`` and completes at ``c_i`` (it measures its ``k`
 after another, ``k * measurement_time`` seconds, while the robot moves on), and ``tau_i`` is its
 promise ``predicted_tau``: the fault-area diameter of that moving fix, its earlier ranges
 carried to the last by odometry (:mod:`planner.schedule.promise`). A fix is admissible when its promise
-is under ``eps_max / (1 + PROMISE_TOLERANCE)``.
+is under ``eps_max / (1 + POLYGON_TOLERANCE)``.
 
 Slowing down (the paper's compromise between speed and accuracy)
     Where no fix is admissible at the planned speed, the fix is taken slower (its earlier ranges
@@ -272,7 +272,7 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
           else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
-    limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
+    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
 
     pl = Windows(tr, drift, eps, gap)
     taus = np.stack([x.tau for x in lv])
@@ -385,5 +385,5 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
                     f"no measurement schedule keeps the error under eps_max = {scenario.planning.eps_max:.4g} m: "
                     f"the fix at s = {tr.s[j]:.2f} m ({x:.2f}, {y:.2f}) promises {pred[i]:.4g} m even at "
                     f"{scenario.planning.min_fix_speed:g} m/s (limit {limit:.4g} m = eps_max / "
-                    f"{1 + promise.PROMISE_TOLERANCE:g})", (float(tr.s[j]), float(tr.s[j]) + 0.1))
+                    f"{1 + promise.POLYGON_TOLERANCE:g})", (float(tr.s[j]), float(tr.s[j]) + 0.1))
             fix_level[i] = slower[0]

@@ -13,7 +13,7 @@ import scenarios
 from estimators.fault.carried import promised_fault_area
 from planner.pef.map import PEF
 from planner.schedule.drift import drift_bound
-from planner.schedule.promise import PROMISE_TOLERANCE, START_LAGS
+from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
 from planner.schedule.schedule import Schedule, make_schedule
 from scenarios.errors import PlanningError
 
@@ -23,6 +23,19 @@ FINE = 0.005  # check spacing [m]
 @pytest.fixture(scope="module")
 def warehouse():
     sc = scenarios.load("warehouse")
+    return sc, PEF(sc)
+
+
+@pytest.fixture(scope="module")
+def raw_corners():
+    """The warehouse for routes through its nodes' unrounded corners at full speed: eps_max 40 mm.
+
+    The follower cuts and overshoots such corners by up to a fraction of its lookahead, and the
+    promise covers every pose it may take (planner.schedule.promise): at 30 mm no schedule exists
+    on these routes (a stretch of A-w1 or of A-C whose best fix promises 29.6-30.0 mm).
+    """
+    sc = scenarios.load("warehouse")
+    sc = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.04))
     return sc, PEF(sc)
 
 
@@ -97,16 +110,16 @@ def independent_check(sc, pef, path, speed, sched: Schedule):
         stretch = np.append(np.arange(f.s, comp[i], FINE), comp[i])
         static = float(np.max(pef.tau_subset(xy_of(stretch), np.array(sorted(f.markers)))))
         assert f.tau >= static * (1 - 1e-9) - 1e-12, f"fix {i} reports tau {f.tau} below {static}"
-        # the promise holds for a start up to START_LAG late (the robot starts at a control tick)
+        # the promise bounds a start up to START_LAG late (the robot starts at a control tick)
         taus = []
-        for lag in (START_LAGS if i else (0.0,)):
+        for lag in ((0.0, 0.5 * START_LAG, START_LAG) if i else (0.0,)):
             at = np.array([s_of(t) for t in t_start[i] + lag + mt * np.arange(1, k + 1)]) if i else np.zeros(k)
             taus.append(promised_fault_area(sc.sensor, sc.robot, sc.marker_positions()[list(f.markers)], xy_of(at),
                                             sc.planning.heading_std).diameter)
         tau = max(taus)
-        assert f.predicted_tau == pytest.approx(tau, rel=1e-6), f"fix {i}: promise {f.predicted_tau} vs {tau}"
+        assert f.predicted_tau >= tau, f"fix {i}: promise {f.predicted_tau} below the exact area {tau}"
         assert np.allclose(f.poses, xy_of(at if not i else [s_of(t) for t in t_start[i] + mt * np.arange(1, k + 1)]))
-        assert f.predicted_tau * (1 + PROMISE_TOLERANCE) < sc.planning.eps_max
+        assert f.predicted_tau * (1 + POLYGON_TOLERANCE) < sc.planning.eps_max
         end = comp[i + 1] if i + 1 < len(fixes) else s_v[-1]
         s = np.append(np.arange(comp[i], end, FINE), end)
         turned = turned_between(path, f.s, s)
@@ -118,8 +131,8 @@ def independent_check(sc, pef, path, speed, sched: Schedule):
 
 
 @pytest.mark.parametrize("policy", ["often", "sparse"])
-def test_schedule_keeps_error_under_eps(warehouse, policy):
-    sc, pef = warehouse
+def test_schedule_keeps_error_under_eps(raw_corners, policy):
+    sc, pef = raw_corners
     path = route(sc, ["A", "C", "e1", "e2", "B"])
     sched = make_schedule(sc, pef, path, policy=policy)
     speed = np.full(len(path), sc.robot.max_speed)
@@ -133,8 +146,8 @@ def test_schedule_keeps_error_under_eps(warehouse, policy):
     assert all(0 <= m < len(sc.markers) for f in sched.fixes for m in f.markers)
 
 
-def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(warehouse):
-    sc, pef = warehouse
+def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(raw_corners):
+    sc, pef = raw_corners
     path = route(sc, ["A", "w1", "w2", "D", "B"])
     often = make_schedule(sc, pef, path)
     sparse = make_schedule(sc, pef, path, policy="sparse")
