@@ -338,7 +338,7 @@ def verdict_planned_route(numbers: dict) -> tuple[str, str]:
            f"{numbers['max_error_over_eps_max']:.2f} ε_max, the plan's largest predicted bound "
            f"{numbers['max_predicted_over_eps_max']:.2f} ε_max, and the error stayed within the predicted "
            f"bound at {numbers['steps_within_predicted_frac']:.1%} of the steps. The set-membership "
-           f"guarantee per fix (realised fault-area diameter within the prediction, 2 % tolerance), over "
+           f"guarantee per fix (realised fault-area diameter within the prediction, polygon tolerance), over "
            f"{numbers['fixes']} fixes of the moving robot: the paper's static PEF holds at "
            f"{numbers['static_kept_frac']:.1%} (realised up to {numbers['static_max_ratio']:.2f} × it), the "
            f"motion-aware promise at {numbers['moving_kept_frac']:.1%} (up to "

@@ -93,9 +93,10 @@ def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_dia
                 tolerance: float = POLYGON_TOLERANCE) -> Figure:
     """Per fix: the snapshot error and the realised fault-area diameter against the plan's promise.
 
-    The promise is the fault-area diameter of the moving fix the plan made (ranges one after
-    another at the planned poses, carried by odometry): the same construction as the realised
-    area, so the right panel compares like with like. Points above y = x exceed the promise.
+    The promise bounds the fault-area diameter of the moving fix the robot makes (ranges one
+    after another, carried by odometry) over every pose it may take near the planned ones
+    (:mod:`planner.schedule.promise`): the same construction as the realised area, so the right
+    panel compares like with like. Points above y = x exceed the promise.
 
     Parameters
     ----------

@@ -30,7 +30,7 @@ def scenario():
 
 
 def _disc(rng, n, radius):
-    """n points uniform in a disc of ``radius`` (2,) each; radius (n,)."""
+    """Draw n points uniform in discs of radius ``radius`` (n,), shape (n, 2)."""
     a = rng.uniform(0.0, 2.0 * math.pi, n)
     r = np.asarray(radius) * np.sqrt(rng.uniform(0.0, 1.0, n))
     return np.column_stack([r * np.cos(a), r * np.sin(a)])

@@ -28,7 +28,7 @@ def warehouse():
 
 @pytest.fixture(scope="module")
 def raw_corners():
-    """The warehouse for routes through its nodes' unrounded corners at full speed: eps_max 40 mm.
+    """Load the warehouse for routes through its nodes' unrounded corners at full speed: eps_max 40 mm.
 
     The follower cuts and overshoots such corners by up to a fraction of its lookahead, and the
     promise covers every pose it may take (planner.schedule.promise): at 30 mm no schedule exists

@@ -49,8 +49,11 @@ CORNER_WORLD = Path(__file__).with_name("corner_world.toml")
 
 
 def _corner_fixes(runs: int):
-    """Fixes of ``runs`` episodes of the corner world's task C -> D (two 90 deg corners), with the
-    exact area at the planned poses of the scheduled fix each realises (the promise before issue 23)."""
+    """Drive ``runs`` episodes of the corner world's task C -> D (two 90 deg corners).
+
+    Returns each episode's fixes with the exact area at the planned poses of the scheduled fix
+    each realises (the promise before issue 23).
+    """
     sc = scenarios.load(CORNER_WORLD)
     prep = prepare(sc, 1)
     sched = prep.plan.schedule

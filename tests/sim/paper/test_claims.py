@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from estimators.fault.linearized import unit_rows
+from planner.schedule.promise import POLYGON_TOLERANCE
 from sim.cli import main
 from sim.paper import geometry as geo
 from sim.paper import pef as paper_pef
@@ -115,7 +116,7 @@ def test_claim7_counts_are_consistent(claims):
     # the moving robot breaks the paper's static PEF and keeps the motion-aware promise
     assert n["fixes"] > 100
     assert n["static_kept_frac"] < 0.5 < n["static_max_ratio"] - 0.2
-    assert n["moving_kept_frac"] == 1.0 and n["moving_max_ratio"] <= 1.02
+    assert n["moving_kept_frac"] == 1.0 and n["moving_max_ratio"] <= 1.0 + POLYGON_TOLERANCE
 
 
 def test_claim7_verdict_turns_on_the_motion_aware_promise(claims):
