@@ -26,21 +26,21 @@ def warehouse():
     return sc, PEF(sc)
 
 
-@pytest.fixture(scope="module")
-def raw_corners():
-    """Load the warehouse for routes through its nodes' unrounded corners at full speed: eps_max 40 mm.
-
-    The follower cuts and overshoots such corners by up to a fraction of its lookahead, and the
-    promise covers every pose it may take (planner.schedule.promise): at 30 mm no schedule exists
-    on these routes (a stretch of A-w1 or of A-C whose best fix promises 29.6-30.0 mm).
-    """
-    sc = scenarios.load("warehouse")
-    sc = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.04))
-    return sc, PEF(sc)
-
-
 def route(sc, names):
     return np.array([sc.routes.nodes[n] for n in names], dtype=float)
+
+
+def dense(path, step=0.1):
+    """Return ``path`` with vertices every ``step`` metres or less, as the follower is given paths.
+
+    The promise bounds the follower's tracking from the chords it steers along, one lookahead to
+    the next vertex: on a path of a few long segments that vertex is metres away.
+    """
+    out = [path[:1]]
+    for a, b in zip(path[:-1], path[1:], strict=True):
+        n = max(1, math.ceil(np.hypot(*(b - a)) / step))
+        out.append(a + (b - a) * np.arange(1, n + 1)[:, None] / n)
+    return np.vstack(out)
 
 
 def arc_length(path):
@@ -131,9 +131,9 @@ def independent_check(sc, pef, path, speed, sched: Schedule):
 
 
 @pytest.mark.parametrize("policy", ["often", "sparse"])
-def test_schedule_keeps_error_under_eps(raw_corners, policy):
-    sc, pef = raw_corners
-    path = route(sc, ["A", "C", "e1", "e2", "B"])
+def test_schedule_keeps_error_under_eps(warehouse, policy):
+    sc, pef = warehouse
+    path = dense(route(sc, ["A", "C", "e1", "e2", "B"]))
     sched = make_schedule(sc, pef, path, policy=policy)
     speed = np.full(len(path), sc.robot.max_speed)
     worst = independent_check(sc, pef, path, speed, sched)
@@ -146,9 +146,9 @@ def test_schedule_keeps_error_under_eps(raw_corners, policy):
     assert all(0 <= m < len(sc.markers) for f in sched.fixes for m in f.markers)
 
 
-def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(raw_corners):
-    sc, pef = raw_corners
-    path = route(sc, ["A", "w1", "w2", "D", "B"])
+def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(warehouse):
+    sc, pef = warehouse
+    path = dense(route(sc, ["A", "w1", "w2", "D", "B"]))
     often = make_schedule(sc, pef, path)
     sparse = make_schedule(sc, pef, path, policy="sparse")
     assert len(sparse.fixes) < len(often.fixes)
