@@ -152,7 +152,10 @@ def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(warehouse):
     often = make_schedule(sc, pef, path)
     sparse = make_schedule(sc, pef, path, policy="sparse")
     assert len(sparse.fixes) < len(often.fixes)
-    assert often.worst < sparse.worst < sc.planning.eps_max
+    # fixing as often as the rate allows keeps the error lower along the path (the worst of
+    # both is set by the one stretch whose best fix promises nearly eps_max: 29.99 mm each)
+    assert np.mean(often.predicted_error) < np.mean(sparse.predicted_error)
+    assert often.worst < sc.planning.eps_max and sparse.worst < sc.planning.eps_max
     eager = make_schedule(sc, pef, path, switch_tolerance=0.0)
     assert sum(f.switch for f in often.fixes) <= sum(f.switch for f in eager.fixes)
     # with no tolerance every fix uses a subset of least tau over its stretch
