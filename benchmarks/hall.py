@@ -4,9 +4,8 @@ Run: ``python benchmarks/hall.py [--skip-place] [--repeat N]``. The hall is writ
 temporary folder (nothing is written elsewhere). Each command runs as a subprocess, measured by
 ``os.wait4``: wall time, CPU (user + sys) and peak RSS; ``map`` and ``plan`` run ``--repeat``
 times (default 3) after a warm-up run, and the medians are printed. Targets:
-``map --resolution 0.05 --json`` (3.84 M cells) <= 1.5 s and <= 1 GB; ``plan`` <= 2 s (with the
-ahead-of-time build of ``pefsim compile``; each is also run with ``PEFSIM_AOT=0``, numba's JIT
-only, interleaved, and the outputs compared); ``place`` from the empty floor <= 60 s and
+``map --resolution 0.05 --json`` (3.84 M cells) <= 1.5 s and <= 1 GB; ``plan`` <= 2 s (numba's
+cache warm; ``benchmarks/commands.py`` has the cold start); ``place`` from the empty floor <= 60 s and
 <= 1.5 GB with at most 1.2 x its lower bound. The machine may be shared: compare CPU times,
 and the baselines measured in this same run:
 
@@ -110,36 +109,21 @@ def numpy_reference(sc, points: np.ndarray) -> np.ndarray:
     return out
 
 
-def median_of(repeat: int, args: list[str], cwd: Path) -> tuple[dict, dict]:
-    """:func:`measured` ``repeat`` times with the ahead-of-time build and without (``PEFSIM_AOT=0``), interleaved.
-
-    Returns the two medians (wall, CPU, RSS; the last run's exit and output), built first.
-    """
-    runs: dict[str, list] = {"1": [], "0": []}
-    for _ in range(max(1, repeat)):
-        for flag in runs:
-            runs[flag].append(measured(args, cwd, PEFSIM_AOT=flag))
-    out = []
-    for flag in ("1", "0"):
-        one = dict(runs[flag][-1])
-        for key in ("wall_s", "cpu_s", "rss_mb"):
-            one[key] = float(np.median([r[key] for r in runs[flag]]))
-        out.append(one)
-    return out[0], out[1]
-
-
-def aot_state() -> str:
-    """``fresh`` when ``pefsim compile`` built every declared kernel for these sources, else ``missing or stale``."""
-    m = measured(["compile", "--check", "--json"], ROOT)
-    return "fresh" if m["code"] == 0 and json.loads(m["stdout"])["fresh"] else "missing or stale"
+def median_of(repeat: int, args: list[str], cwd: Path) -> dict:
+    """:func:`measured` ``repeat`` times: the medians of wall, CPU and RSS, the last run's exit and output."""
+    runs = [measured(args, cwd) for _ in range(max(1, repeat))]
+    one = dict(runs[-1])
+    for key in ("wall_s", "cpu_s", "rss_mb"):
+        one[key] = float(np.median([r[key] for r in runs]))
+    return one
 
 
 def bench_map(folder: Path, hall: Path, n_ref: int, repeat: int = 3) -> dict:
     import scenarios
     from planner.pef.map import PEF
 
-    measured(["map", str(hall), "--resolution", "2.0", "--json"], folder, PEFSIM_AOT="0")  # numba cache warm-up
-    m, jit = median_of(repeat, ["map", str(hall), "--resolution", "0.05", "--json"], folder)
+    measured(["map", str(hall), "--resolution", "2.0", "--json"], folder)  # numba cache warm-up
+    m = median_of(repeat, ["map", str(hall), "--resolution", "0.05", "--json"], folder)
     summary = json.loads(m["stdout"])
     sc = scenarios.load(hall)
     pm = PEF(sc).grid(0.05)
@@ -157,19 +141,15 @@ def bench_map(folder: Path, hall: Path, n_ref: int, repeat: int = 3) -> dict:
     return {"map_wall_s": m["wall_s"], "map_cpu_s": m["cpu_s"], "map_rss_mb": m["rss_mb"], "map_code": m["code"],
             "map_cells": cells, "map_cells_per_s": cells / m["wall_s"], "numpy_ref_points": n_ref,
             "numpy_ref_cells_per_s": n_ref / t_ref, "map_vs_numpy": cells / m["wall_s"] / (n_ref / t_ref),
-            "ref_max_rel_diff": rel, "ref_inf_agree": bool(np.array_equal(np.isinf(ref), np.isinf(ours))),
-            "map_jit_wall_s": jit["wall_s"], "map_jit_cpu_s": jit["cpu_s"], "map_jit_rss_mb": jit["rss_mb"],
-            "map_same_as_jit": jit["stdout"] == m["stdout"]}
+            "ref_max_rel_diff": rel, "ref_inf_agree": bool(np.array_equal(np.isinf(ref), np.isinf(ours)))}
 
 
 def bench_plan(folder: Path, hall: Path, repeat: int = 3) -> dict:
-    measured(["plan", str(hall), "--json"], folder, PEFSIM_AOT="0")  # numba cache warm-up
-    m, jit = median_of(repeat, ["plan", str(hall), "--json"], folder)
+    measured(["plan", str(hall), "--json"], folder)  # numba cache warm-up
+    m = median_of(repeat, ["plan", str(hall), "--json"], folder)
     chosen = json.loads(m["stdout"])["chosen"] if m["code"] == 0 else None
     return {"plan_wall_s": m["wall_s"], "plan_cpu_s": m["cpu_s"], "plan_rss_mb": m["rss_mb"],
-            "plan_code": m["code"], "plan_chosen": chosen, "plan_jit_wall_s": jit["wall_s"],
-            "plan_jit_cpu_s": jit["cpu_s"], "plan_jit_rss_mb": jit["rss_mb"],
-            "plan_same_as_jit": jit["stdout"] == m["stdout"]}
+            "plan_code": m["code"], "plan_chosen": chosen}
 
 
 def bench_place(folder: Path, empty: Path, tag: str = "place") -> dict:
@@ -211,23 +191,16 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         hall, empty = hs.write_hall(folder), hs.write_hall(folder, markers=False)
-        state = aot_state()
-        print(f"ahead-of-time build (pefsim compile): {state}")
-        r = {"aot": state} | bench_map(folder, hall, args.ref_points, args.repeat)
+        r = bench_map(folder, hall, args.ref_points, args.repeat)
         print(f"map 0.05 m ({r['map_cells']} cells, median of {args.repeat}): {r['map_wall_s']:.2f} s wall, "
               f"{r['map_cpu_s']:.2f} s CPU, "
               f"{r['map_rss_mb']:.0f} MB peak (target 1.5 s, 1 GB); {r['map_cells_per_s']:.3g} cells/s end to end "
               f"vs numpy reference {r['numpy_ref_cells_per_s']:.3g} cells/s (x{r['map_vs_numpy']:.0f}), "
-              f"max rel diff {r['ref_max_rel_diff']:.1e}, inf cells agree {r['ref_inf_agree']}; "
-              f"numba JIT only (PEFSIM_AOT=0): {r['map_jit_wall_s']:.2f} s wall, {r['map_jit_cpu_s']:.2f} s CPU, "
-              f"{r['map_jit_rss_mb']:.0f} MB (built / JIT CPU x{r['map_cpu_s'] / r['map_jit_cpu_s']:.2f}), "
-              f"same output {r['map_same_as_jit']}")
+              f"max rel diff {r['ref_max_rel_diff']:.1e}, inf cells agree {r['ref_inf_agree']}")
         r |= bench_plan(folder, hall, args.repeat)
         print(f"plan D1 -> D24 (median of {args.repeat}): {r['plan_wall_s']:.2f} s wall, "
               f"{r['plan_cpu_s']:.2f} s CPU, {r['plan_rss_mb']:.0f} MB "
-              f"(target 2 s), exit {r['plan_code']}, chosen {r['plan_chosen']}; numba JIT only: "
-              f"{r['plan_jit_wall_s']:.2f} s wall, {r['plan_jit_cpu_s']:.2f} s CPU, {r['plan_jit_rss_mb']:.0f} MB "
-              f"(x{r['plan_cpu_s'] / r['plan_jit_cpu_s']:.2f}), same output {r['plan_same_as_jit']}")
+              f"(target 2 s), exit {r['plan_code']}, chosen {r['plan_chosen']}")
         if not args.skip_place:
             # the default sites on faces are flat reflectors; posts (seen from every side) are
             # the harder cover: more pairs per point, a weaker LP bound

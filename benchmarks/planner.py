@@ -29,7 +29,8 @@ import scenarios  # noqa: E402
 from planner import plan
 from planner.pef.map import PEF  # noqa: E402
 from planner.routes import criteria, gridsearch, network, ranking  # noqa: E402
-from scenarios.schema import Dock, Marker, Obstacle, RouteNetwork, Task  # noqa: E402
+from scenarios.route_network import RouteNetwork  # noqa: E402
+from scenarios.schema import Dock, Marker, Obstacle, Task
 
 
 def hall() -> scenarios.Scenario:

@@ -64,10 +64,11 @@ import math
 
 import numpy as np
 
-from estimators import compiled, motion, process_noise
+from estimators import motion, process_noise
 from estimators.measurements import bound_std
-from estimators.predict import BASE_VAR, BIASED, Q_SCALE, QUANT_VAR, REL_VAR, WALK_VAR, WHEEL_BASE, predict_step  # noqa: F401
+from estimators.predict import predict_step
 from estimators.update import UpdateResult, gate_threshold, gated_joseph_update, wrap_scalar
+from jit import compiled
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
 

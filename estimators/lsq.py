@@ -1,7 +1,8 @@
-"""Weighted Gauss-Newton position from ranges (and world bearings).
+"""Weighted Gauss-Newton position from ranges (and bearings).
 
 The inverse of the measurement model: both the snapshot fix and the fault-area construction
-start from it.
+start from it. :func:`solve_position` takes bearings in the world frame (a known heading);
+:func:`solve_pose` takes them in the robot frame and estimates the heading with the position.
 """
 
 from __future__ import annotations
@@ -11,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
 from estimators.measurements import (
     _MIN_RANGE,
     wrap_angle,
 )
+from jit import compiled
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,9 @@ class LsqSolution:
         Gauss-Newton iterations taken.
     converged : bool
         True if the last step was shorter than the tolerance.
+    heading : float or None
+        Estimated heading [rad] in (-pi, pi] (:func:`solve_pose`; None from :func:`solve_position`,
+        whose ``jacobian`` then has 2 columns, else 3: x, y, heading).
     """
 
     position: np.ndarray
@@ -41,6 +45,7 @@ class LsqSolution:
     residuals: np.ndarray
     iterations: int
     converged: bool
+    heading: float | None = None
 
 
 def _stack(p, markers, meas_ranges, world_bearings):
@@ -81,9 +86,7 @@ def _stack_ranges(px, py, markers, meas, w, res, jac):
     return cost
 
 
-@compiled.njit(cache=True,
-               aot=("Tuple((float64[::1], float64[:, ::1], float64[::1], int64, boolean, boolean))(float64[:, ::1], "
-                    "float64[::1], float64[::1], float64[::1], int64, float64)"))
+@compiled.njit(cache=True)
 def _gauss_newton_ranges(markers, meas, w, prior, max_iter, step_tol):
     """:func:`solve_position` for ranges only, the same iteration compiled (sums in another order).
 
@@ -203,6 +206,82 @@ def _gauss_newton(markers, meas_ranges, w, p, world_bearings, max_iter, step_tol
             break
         p, res, jac, cost = q, res_q, jac_q, cost_q
     return LsqSolution(position=p, jacobian=jac, residuals=res, iterations=it, converged=converged)
+
+
+def _stack_pose(q, markers, meas_ranges, robot_bearings):
+    """Residuals (2k,) and Jacobian (2k, 3) of ranges and robot-frame bearings at pose ``q``."""
+    d = q[:2] - markers
+    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), _MIN_RANGE)
+    pred = np.arctan2(-d[:, 1], -d[:, 0]) - q[2]
+    res = np.concatenate([meas_ranges - r, wrap_angle(robot_bearings - pred)])
+    k = markers.shape[0]
+    jac = np.zeros((2 * k, 3))
+    jac[:k, :2] = d / r[:, None]
+    jac[k:, :2] = np.column_stack([-d[:, 1], d[:, 0]]) / (r * r)[:, None]
+    jac[k:, 2] = -1.0
+    return res, jac
+
+
+def solve_pose(markers: np.ndarray, meas_ranges: np.ndarray, robot_bearings: np.ndarray, std: np.ndarray,
+               prior: np.ndarray, max_iter: int = 20, step_tol: float = 1e-10) -> LsqSolution:
+    """Weighted least-squares pose (position and heading) from ranges and robot-frame bearings.
+
+    Minimises ``sum(residual_j^2 / std_j^2)`` over ``(x, y, theta)`` by Gauss-Newton from
+    ``prior``, halving steps that do not decrease it. The heading is an unknown, so the fix owes
+    nothing to any other heading estimate: a common error of the frame the bearings were taken
+    in cannot enter it. Needs at least three measurements (k >= 2 markers).
+
+    Parameters
+    ----------
+    markers : ndarray, shape (k, 2)
+        Marker positions [m].
+    meas_ranges : ndarray, shape (k,)
+        Measured ranges [m].
+    robot_bearings : ndarray, shape (k,)
+        Measured bearings of the markers in the robot frame at ``theta`` [rad].
+    std : ndarray, shape (2k,)
+        Standard deviations of the range errors [m], then of the bearing errors [rad].
+    prior : ndarray, shape (3,)
+        Starting pose (x [m], y [m], theta [rad]).
+    max_iter : int
+        Iteration limit.
+    step_tol : float
+        Convergence when a step's position part is shorter than this [m].
+
+    Returns
+    -------
+    LsqSolution
+        With ``heading`` set and a (2k, 3) ``jacobian`` (columns x, y, theta).
+    """
+    markers = np.asarray(markers, dtype=float).reshape(-1, 2)
+    meas_ranges = np.asarray(meas_ranges, dtype=float)
+    robot_bearings = np.asarray(robot_bearings, dtype=float)
+    w = 1.0 / np.asarray(std, dtype=float)
+    q = np.array(prior, dtype=float)
+    res, jac = _stack_pose(q, markers, meas_ranges, robot_bearings)
+    cost = float(np.sum((res * w) ** 2))
+    converged = False
+    it = 0
+    for it in range(1, max_iter + 1):  # noqa: B007 -- the count is reported
+        step, *_ = np.linalg.lstsq(jac * w[:, None], res * w, rcond=None)
+        if math.hypot(step[0], step[1]) < step_tol:
+            q = q + step
+            res, jac = _stack_pose(q, markers, meas_ranges, robot_bearings)
+            converged = True
+            break
+        for _ in range(30):
+            trial = q + step
+            res_t, jac_t = _stack_pose(trial, markers, meas_ranges, robot_bearings)
+            cost_t = float(np.sum((res_t * w) ** 2))
+            if cost_t <= cost * (1.0 + 1e-12):
+                break
+            step = 0.5 * step
+        else:
+            converged = True
+            break
+        q, res, jac, cost = trial, res_t, jac_t, cost_t
+    return LsqSolution(position=q[:2].copy(), jacobian=jac, residuals=res, iterations=it, converged=converged,
+                       heading=float(wrap_angle(q[2])))
 
 
 compiled.keep_fresh(__name__)

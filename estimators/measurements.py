@@ -2,7 +2,7 @@
 
 A marker ``M_i`` seen from the robot at ``R`` gives the range ``r_i = |R - M_i|`` and, when
 the sensor measures angles, the bearing of the marker in the robot frame. Errors are bounded
-(DESIGN §1): ``|e_i| <= rho_i`` with ``rho_i = Re * r_i + rho0`` for ranges and ``+-xi`` for
+(`docs/design.md` §1): ``|e_i| <= rho_i`` with ``rho_i = Re * r_i + rho0`` for ranges and ``+-xi`` for
 bearings, realised either uniform in the bound or gaussian with ``sigma = bound / 3``.
 
 The inverse, the weighted least-squares position, is in :mod:`estimators.lsq`.

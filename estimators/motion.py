@@ -92,7 +92,7 @@ import math
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 VARIANCE_FLOOR = 1e-12
 """Smallest per-wheel travel variance per step [m^2] (1 µm std)."""

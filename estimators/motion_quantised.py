@@ -38,8 +38,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators import compiled
 from estimators.motion import _arc_terms, _jacobians_into
+from jit import compiled
 
 
 @compiled.njit(cache=True)

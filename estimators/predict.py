@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 
-from estimators import compiled, motion
+from estimators import motion
 from estimators.motion_quantised import propagate_moments_quantised
+from jit import compiled
 
 # Localizer.predict_params (float64, shape (8,)): what a predict step needs besides x and P.
 WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED, QUANT_VAR, TURN_SLIP = range(8)

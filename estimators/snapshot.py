@@ -5,9 +5,17 @@ covariance ``P = (H^T W H)^-1`` with ``W = diag(1 / std^2)``, where ``std`` is t
 deviation of the realised errors (:func:`estimators.measurements.range_std`). The realised
 exact fault area of the same measurements comes with it.
 
-Bearings are supported with a *known* heading (e.g. the filter's): a robot-frame bearing
-``b_i`` becomes the world direction ``b_i + heading``; the heading's own error is not
-propagated into the covariance or the fault area.
+With bearings (robot frame) the heading is a third unknown of the least squares
+(:func:`estimators.lsq.solve_pose`): the fix is then a function of its own measurements
+alone, and ``P`` is the position block of the pose's ``(H^T W H)^-1``. Any other heading
+(the filter's) has an error common to every bearing and, having been updated with these same
+bearings, correlated with their errors; neither a diagonal ``W`` nor an independent heading
+variance describes that. The heading given is only the starting point of the solve.
+
+The realised fault area does not use any heading: the robot-frame bearings constrain the
+position through their pairwise differences (:func:`estimators.fault.exact.exact_fault_area`,
+"Robot-frame bearings"), so under bounded errors the truth is in it whatever the heading
+estimate's error (a filter heading's 3-sigma wedges missed the truth at 4 of 17,300 fixes).
 """
 
 from __future__ import annotations
@@ -20,14 +28,13 @@ import numpy as np
 
 from estimators.fault.annuli import marker_side
 from estimators.fault.exact import FaultArea, exact_fault_area
-from estimators.lsq import solve_position
+from estimators.lsq import solve_pose, solve_position
 from estimators.measurements import (
     bearing_std,
     collinear_markers,
     marker_line_side,
     range_std,
     reflect_across_marker_line,
-    wrap_angle,
 )
 from scenarios.schema import NoiseModel
 
@@ -51,6 +58,8 @@ class SnapshotFix:
         Gauss-Newton iterations.
     converged : bool
         Whether Gauss-Newton converged.
+    heading : float or None
+        The heading estimated with the position [rad] (None without bearings).
     """
 
     position: np.ndarray
@@ -59,12 +68,13 @@ class SnapshotFix:
     residuals: np.ndarray
     iterations: int
     converged: bool
+    heading: float | None = None
 
 
 def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior: np.ndarray,
                  noise: NoiseModel, bearings: np.ndarray | None = None, bearing_error: float = 0.0,
                  heading: float | None = None, extra_var: np.ndarray | None = None,
-                 fault_margin: np.ndarray | None = None) -> SnapshotFix:
+                 fault_margin: np.ndarray | None = None, bearing_margin: np.ndarray | None = None) -> SnapshotFix:
     """Weighted least-squares position fix and its fault area.
 
     Parameters
@@ -85,12 +95,16 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     bearing_error : float
         Bound xi of the bearing errors [rad]; > 0 when ``bearings`` are given.
     heading : float, optional
-        Robot heading [rad], required with ``bearings`` and taken as exact.
+        Robot heading [rad], required with ``bearings``: where the estimated heading starts
+        (the fault area does not use it).
     extra_var : ndarray, shape (k,), optional
         Variance added to each range's error variance in the weights and the covariance
         [m^2] (e.g. the odometry error of carrying a range taken earlier to the fix time).
     fault_margin : ndarray, shape (k,), optional
         Added to ``rho`` for the fault area only [m] (a bound on the same extra error).
+    bearing_margin : ndarray, shape (k,), optional
+        Added to ``bearing_error`` for the fault area only [rad]: a bound on the extra error of
+        each bearing (e.g. one taken earlier, turned into the last one's frame by odometry).
 
     Returns
     -------
@@ -107,23 +121,32 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     std = rho * _std_per_bound(noise)
     if extra_var is not None:
         std = np.sqrt(std**2 + np.asarray(extra_var, dtype=float))
-    world = None
+    robot_frame = None
     if bearings is not None:
         if heading is None:
             raise ValueError("snapshot_fix: bearings given without the heading")
-        world = wrap_angle(np.asarray(bearings, dtype=float) + float(heading))
+        robot_frame = np.asarray(bearings, dtype=float)
         std = np.concatenate([std, np.full(k, bearing_std(float(bearing_error), noise))])
-
-    sol = solve_position(markers, meas, std, prior, world_bearings=world)
-    if world is None and _across_marker_line(sol.position, prior, markers):
-        # Both mirror points fit equally well; the prior decides (DESIGN §1).
-        sol = solve_position(markers, meas, std, reflect_across_marker_line(sol.position, markers))
+        sol = solve_pose(markers, meas, robot_frame, std, np.r_[prior, float(heading)])
+        covariance = _pose_position_covariance(sol.jacobian, std)
+    else:
+        sol = solve_position(markers, meas, std, prior)
+        if _across_marker_line(sol.position, prior, markers):
+            # Both mirror points fit equally well; the prior decides (`docs/design.md` §1).
+            sol = solve_position(markers, meas, std, reflect_across_marker_line(sol.position, markers))
+        covariance = _covariance(sol.jacobian, std)
 
     fault_rho = rho if fault_margin is None else rho + np.asarray(fault_margin, dtype=float)
-    area = exact_fault_area(markers, meas, fault_rho, sol.position, bearings=world,
-                            bearing_error=bearing_error)
-    return SnapshotFix(position=sol.position, covariance=_covariance(sol.jacobian, std), fault_area=area,
-                       residuals=sol.residuals, iterations=sol.iterations, converged=sol.converged)
+    if robot_frame is None:
+        area = exact_fault_area(markers, meas, fault_rho, sol.position)
+    else:
+        xi = np.full(k, float(bearing_error)) + (0.0 if bearing_margin is None
+                                                 else np.asarray(bearing_margin, dtype=float))
+        area = exact_fault_area(markers, meas, fault_rho, sol.position, robot_bearings=robot_frame,
+                                robot_bearing_error=xi)
+    return SnapshotFix(position=sol.position, covariance=covariance, fault_area=area,
+                       residuals=sol.residuals, iterations=sol.iterations, converged=sol.converged,
+                       heading=sol.heading)
 
 
 def _across_marker_line(position, prior, markers):
@@ -149,5 +172,21 @@ def _covariance(jacobian, std):
         c += hy * hy * w
     det = a * c - b * b
     if abs(det) <= 1e-14 * (a + c) ** 2:
+        return np.full((2, 2), math.inf)
+    return np.array([[c / det, -b / det], [-b / det, a / det]])
+
+
+def _pose_position_covariance(jacobian, std):
+    """Position block (2, 2) [m^2] of the pose's ``(H^T W H)^-1``; ``inf`` where (near) singular.
+
+    The inverse of the Schur complement ``A - b b^T / c`` of the heading in the information
+    matrix ``[[A, b], [b^T, c]]``: what the position keeps once the heading is estimated too.
+    """
+    jw = jacobian / std[:, None]
+    info = jw.T @ jw
+    schur = info[:2, :2] - np.outer(info[:2, 2], info[:2, 2]) / info[2, 2]
+    (a, b), (_, c) = schur.tolist()
+    det = a * c - b * b
+    if not det > 1e-14 * (a + c) ** 2:
         return np.full((2, 2), math.inf)
     return np.array([[c / det, -b / det], [-b / det, a / det]])

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from estimators import compiled
+from jit import compiled
 
 
 @dataclass(frozen=True, slots=True)

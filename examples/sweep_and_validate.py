@@ -17,8 +17,8 @@ def main() -> int:
     runs = int(sys.argv[2]) if len(sys.argv) > 2 else 8
 
     sc = pefsim.load("paper-two-markers")
-    directory = pefsim.sweep(sc, out=out, runs=runs, workers=2, resume=True)
-    report = pefsim.validate(directory)
+    swept = pefsim.sweep(sc, out=out, runs=runs, workers=2, resume=True)
+    report = pefsim.validate(swept)
     print(f"{report.scenario}: {report.runs} runs, {report.fixes} fixes, family alpha {report.alpha:g}")
     for c in report.checks:
         print(f"  {c.name:<12} {c.status.value:<15} {c.statistic:<28} {c.acceptance}")

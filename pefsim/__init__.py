@@ -1,17 +1,22 @@
 """pefsim: robot routes planned from a Position Error Function, and checked in simulation.
 
 The public Python API; the ``pefsim`` command calls the same functions. Nothing here writes a
-file unless told where (``out=``, ``rrd=``, ``tum=``)::
+file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s files)::
 
     import pefsim
     sc = pefsim.load("paper-docks")                      # Scenario
     m = pefsim.pef_map(sc)                               # PefMap (x, y, tau, best)
     p = pefsim.plan(sc)                                  # Plan of task 0
     placed = pefsim.place(sc)                            # Placement
+    pefsim.export(sc, lif="routes.lif")                  # files for the tools downstream
     r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
-    sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # a finished sweep directory
+    sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # SweepSummary of the finished sweep
     rep = pefsim.validate(sw)                            # ValidationReport
+    page = pefsim.paper("paper-report", quick=True)      # PaperPage: the paper's claims, one page
+    pefsim.watch("hall.toml", save="hall.rrd")           # live view, updated on every save (Ctrl-C ends)
+    ws = pefsim.worlds(3, seed=1, out="worlds")          # random honest worlds (PlannedWorld)
 
+Every command of the ``pefsim`` program is these functions plus argument parsing and printing.
 Units are metres, seconds and radians throughout. Bad input raises :class:`PefsimError` (its
 subclasses ``ScenarioError``, ``PlanningError``, ``SimulationError``, ``OutputError``) with a
 one-line message naming the file, key and value.
@@ -19,17 +24,51 @@ one-line message naming the file, key and value.
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from planner.pef.map import PefMap
-from planner.placement.placement import PlacementResult as Placement
-from planner.plan import Plan
 from scenarios import PefsimError, Scenario
-from sim.episode.types import EpisodeResult
-from sim.validation.suite import ValidationReport
 
-__all__ = ["EpisodeResult", "PefMap", "PefsimError", "Placement", "Plan", "Scenario", "ValidationReport",
-           "load", "pef_map", "place", "plan", "run_episode", "sweep", "validate"]
+if TYPE_CHECKING:
+    import threading
+    from collections.abc import Callable
+
+    from planner.pef.result import PefMap
+    from planner.placement.placement import PlacementResult as Placement
+    from planner.plan import Plan
+    from sim.episode.types import EpisodeResult
+    from sim.montecarlo.summary import SweepSummary
+    from sim.paper.page import PaperPage
+    from sim.validation.suite import ValidationReport
+
+_TYPES = {"PefMap": ("planner.pef.result", "PefMap"), "Placement": ("planner.placement.placement", "PlacementResult"),
+          "Plan": ("planner.plan", "Plan"), "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
+          "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"), "PaperPage": ("sim.paper.page", "PaperPage"),
+          "ValidationReport": ("sim.validation.suite", "ValidationReport"),
+          "DEFAULT_ALPHA": ("sim.validation.suite", "DEFAULT_ALPHA")}
+"""The types the functions return, imported on first use: a command that needs one part of the
+library (``pefsim list``, ``pefsim map``) does not pay for importing the others (seconds)."""
+
+
+def __getattr__(name: str) -> Any:
+    """Import the type ``name`` of :data:`_TYPES` on first use (PEP 562)."""
+    try:
+        module, attr = _TYPES[name]
+    except KeyError:
+        raise AttributeError(f"module 'pefsim' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
+           "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
+           "pef_map", "place", "plan", "run_episode", "sweep", "validate", "watch", "worlds"]
+
+EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
+                  "keepout": (".yaml", ".yml")}
+"""File extensions :func:`export` accepts for each output (its format comes from them)."""
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -50,13 +89,30 @@ def load(scenario: str | Path) -> Scenario:
     return scenarios.load(scenario)
 
 
+def builtin_names() -> list[str]:
+    """Return the names of the built-in scenarios (``scenarios/library/``), sorted.
+
+    Returns
+    -------
+    list of str
+        Each loads with :func:`load`.
+    """
+    import scenarios
+
+    return scenarios.builtin_names()
+
+
 def _scenario(scenario: Scenario | str | Path) -> Scenario:
     return scenario if isinstance(scenario, Scenario) else load(scenario)
 
 
 def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolution: float | None = None,
-            speed: float | None = None) -> PefMap:
+            speed: float | None = None, out: str | Path | None = None, npz: str | Path | None = None,
+            rrd: str | Path | None = None) -> PefMap:
     """Compute the PEF map: predicted position error on a grid over the workspace.
+
+    Outputs are checked before the map is computed (a figure's extension, a recording's
+    folder) and written at exactly the paths given.
 
     Parameters
     ----------
@@ -69,6 +125,12 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     speed : float, optional
         The motion-aware PEF: the promise of a fix ending at each cell while driving at
         ``speed`` [m/s] (two markers per fix). Default the paper's static PEF.
+    out : str or path, optional
+        Write the figure here (``.png``, ``.pdf`` or ``.svg``).
+    npz : str or path, optional
+        Write the arrays ``tau``, ``x``, ``y``, ``best`` here (NumPy ``.npz`` content, whatever the name).
+    rrd : str or path, optional
+        Write a rerun recording of the static layers (map, region, markers, docks) here.
 
     Returns
     -------
@@ -79,16 +141,33 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     from planner.pef.map import PEF
 
     sc = _scenario(scenario)
+    _check_outputs(figure=out, rrd=rrd)
     pef = PEF(sc, model=model)
     if speed is not None:
         from planner.schedule.promise import moving_map
 
-        return moving_map(sc, pef, speed, resolution)
-    return pef.grid(resolution)
+        result = moving_map(sc, pef, speed, resolution)
+    else:
+        result = pef.grid(resolution)
+    if npz is not None:
+        from sim.export.npz import write_npz
+
+        write_npz(npz, result)
+    if out is not None:
+        from scenarios.errors import output_errors
+        from sim.report.map_figure import plot_map
+
+        with output_errors(out, "write the figure"):
+            plot_map(sc, result, sc.planning.eps_max, out, pef.k)
+    if rrd is not None:
+        from sim.recording import write_static_rrd
+
+        write_static_rrd(rrd, sc, pef_map=result)
+    return result
 
 
 def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = None, goal: str | None = None,
-         free: bool | None = None) -> Plan:
+         free: bool | None = None, out: str | Path | None = None, rrd: str | Path | None = None) -> Plan:
     """Plan a route: candidates, criteria, the choice and its measurement schedule.
 
     Parameters
@@ -100,6 +179,11 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         Dock names, instead of a task.
     free : bool, optional
         Free-space search (True) or the route network (False); default the network if any.
+    out : str or path, optional
+        Write the figure of the plan over the PEF map here (``.png``, ``.pdf`` or ``.svg``;
+        checked before planning).
+    rrd : str or path, optional
+        Write a rerun recording of the map, the candidate routes and the schedule here.
 
     Returns
     -------
@@ -108,6 +192,7 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         (N, 2) [m] with ``speed`` (N,) [m/s] and the ``schedule`` (each fix with its promise
         ``predicted_tau`` [m]).
     """
+    from planner.pef.map import PEF
     from planner.plan import plan_route, plan_task
 
     sc = _scenario(scenario)
@@ -115,18 +200,32 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         from scenarios import PlanningError
 
         raise PlanningError("plan: give both start and goal, or neither (then a task is planned)")
+    _check_outputs(figure=out, rrd=rrd)
+    pef = PEF(sc)
     if start is not None:
-        return plan_route(sc, start, goal, free=free)
-    return plan_task(sc, task, free=free)
+        result = plan_route(sc, start, goal, free=free, pef=pef)
+    else:
+        result = plan_task(sc, task, free=free, pef=pef)
+    grid = pef.grid() if (out is not None or rrd is not None) else None
+    if out is not None:
+        from sim.report.plan_figure import plot_plan  # matplotlib: only when a figure is asked for
+
+        plot_plan(sc, result, grid, out)
+    if rrd is not None:
+        from sim.recording import write_static_rrd
+
+        write_static_rrd(rrd, sc, pef_map=grid, plan=result)
+    return result
 
 
 def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,
-          plannable: bool = True) -> Placement:
+          png: str | Path | None = None, plannable: bool = True, time_limit: float | None = None) -> Placement:
     """Find the fewest markers, among sites on walls and obstacle faces, that keep the routes under eps_max.
 
     With ``plannable`` (the default, as ``pefsim place``) the layout is planned for every task
     and the cover target tightened until each has an admissible route
-    (:mod:`planner.placement.plannable`); ``plannable=False`` is the plain cover.
+    (:mod:`planner.placement.plannable`); ``plannable=False`` is the plain cover. With
+    ``placement.existing = "keep"`` the scenario's markers stay and only added ones are chosen.
 
     Parameters
     ----------
@@ -134,39 +233,153 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     method : {"auto", "milp", "greedy"}
         Exact MILP (small instances), greedy with the LP lower bound, or chosen by size.
     out : str or path, optional
-        Also write the scenario with the placed markers as TOML here.
+        Also write the scenario with the placed markers as TOML here (when the layout has at
+        least k markers).
+    png : str or path, optional
+        Also draw the candidate sites, the points to cover and the markers here.
     plannable : bool
         Check the layout with the planner and tighten the cover until every task plans.
+    time_limit : float, optional
+        Safety limit of the exact solver's LP and MILP rounds [s]; default
+        :data:`planner.placement.cover.MILP_TIME_LIMIT`.
 
     Returns
     -------
     Placement
-        ``markers`` [(id, (x, y))] [m], ``count``, ``lower_bound``, ``optimal``, ``uncovered``.
+        ``markers`` [(id, (x, y))] [m] added, ``kept`` markers, ``count``, ``lower_bound``,
+        ``optimal``, ``uncovered``, ``target`` [m] (the cover target used), ``unplanned`` (tasks
+        without an admissible route on the layout), ``finest_spacing``; ``summary()`` as JSON.
+
+    Raises
+    ------
+    PlanningError
+        A bad method or time limit.
     """
+    from planner.placement.cover import MILP_TIME_LIMIT
     from planner.placement.placement import place as _place
     from planner.placement.placement import write_scenario_with_markers
+    from scenarios import OutputError, PlanningError
 
+    limit = MILP_TIME_LIMIT if time_limit is None else time_limit
+    if not limit > 0:
+        raise PlanningError(f"time_limit (--time-limit): expected a positive number of seconds, got {limit}")
+    for path, suffix, what in ((out, ".toml", "out (-o)"), (png, ".png", "png (--png)")):
+        if path is not None and Path(path).suffix.lower() != suffix:
+            raise OutputError(f"{path}: {what}: expected a {suffix} file, got {Path(path).suffix or 'no extension'!r}")
     sc = _scenario(scenario)
     if plannable:
         from planner.placement.plannable import place_plannable
 
-        result = place_plannable(sc, method=method).result
+        result = place_plannable(sc, method=method, time_limit=limit).result
     else:
-        result = _place(sc, method=method)
-    if out is not None:
+        result = _place(sc, method=method, time_limit=limit)
+    if out is not None and len(result.layout()) >= sc.sensor.markers_per_fix:
         write_scenario_with_markers(sc, result, out)
+    if png is not None:
+        from sim.report.placement_figure import plot_placement
+
+        plot_placement(sc, result, png)
     return result
 
 
-def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0, rrd: str | Path | None = None,
-                tum: str | Path | None = None) -> EpisodeResult:
-    """Drive one episode in PyBullet: plan, follow on the EKF estimate, measure, estimate.
+def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None, markers: str | Path | None = None,
+           dxf: str | Path | None = None, lif: str | Path | None = None,
+           keepout: str | Path | None = None) -> dict[str, tuple[Path, ...]]:
+    """Write the scenario's results for the tools downstream; only the files asked for.
 
     Parameters
     ----------
     scenario : Scenario, str or path
-    seed : int
-        Root of the episode's random streams (same seed, same numbers).
+    routes : str or path, optional
+        The route network as a Nav2 route graph (GeoJSON), each edge with ``max_tau``,
+        ``mean_tau`` [m], ``min_visible``, ``admissible``, ``why_not``
+        (:mod:`sim.export.routegraph`).
+    markers : str or path, optional
+        The markers as CSV ``id,x,y,x_mm,y_mm,kind,facing_deg`` (:mod:`sim.export.markers`).
+    dxf : str or path, optional
+        The drawing with the reflectors, the contour τ = ε_max and the routes, each labelled
+        with its worst τ, inadmissible ones on their own layer (:mod:`sim.export.dxf`).
+    lif : str or path, optional
+        The route network as a VDA LIF file keeping every id, each node with its τ as
+        ``nodePosition.allowedDeviationXY`` [m] (:mod:`sim.export.lif`).
+    keepout : str or path, optional
+        A Nav2 keepout mask: this map_server YAML and a PGM beside it, occupied outside the
+        navigation region (:mod:`sim.export.keepout`).
+
+    Returns
+    -------
+    dict of str to tuple of Path
+        What was written, by output name (``keepout``: the YAML and the PGM).
+
+    Raises
+    ------
+    PefsimError
+        Nothing asked for, an extension that does not name the output's format, or a route
+        export of a scenario without a route network: before anything is computed or written.
+    """
+    from scenarios import OutputError
+
+    asked = {"routes": routes, "markers": markers, "dxf": dxf, "lif": lif, "keepout": keepout}
+    asked = {k: Path(v) for k, v in asked.items() if v is not None}
+    if not asked:
+        raise OutputError("export: give at least one of --routes, --markers, --dxf, --lif, --keepout")
+    for name, path in asked.items():
+        if path.suffix.lower() not in EXPORT_FORMATS[name]:
+            raise OutputError(f"{path}: --{name}: expected a {' or '.join(EXPORT_FORMATS[name])} file, got "
+                              f"{path.suffix or 'no extension'!r}")
+    sc = _scenario(scenario)
+    for name in ("routes", "lif"):
+        if name in asked and sc.routes is None:
+            raise OutputError(f"--{name}: scenario {sc.name!r} has no route network ([routes]) to export")
+    from planner.pef.map import PEF
+
+    pef = PEF(sc)
+    written: dict[str, tuple[Path, ...]] = {}
+    reports = None
+    if sc.routes is not None and ("routes" in asked or "dxf" in asked):
+        from planner.routes.edges import segment_reports
+
+        reports = segment_reports(sc, pef)
+    if "routes" in asked:
+        from sim.export.routegraph import write_route_graph
+
+        written["routes"] = (write_route_graph(asked["routes"], sc, reports),)
+    if "markers" in asked:
+        from sim.export.markers import write_markers_csv
+
+        written["markers"] = (write_markers_csv(asked["markers"], sc),)
+    if "dxf" in asked:
+        from sim.export.dxf import write_dxf
+        from sim.export.region import region_contours, route_lines
+
+        contours = region_contours(pef.grid(), sc.planning.eps_max, sc.workspace.bounds)
+        written["dxf"] = (write_dxf(sc, asked["dxf"], region_contours=contours, route_lines=route_lines(sc),
+                                    route_reports=reports),)
+    if "lif" in asked:
+        from sim.export.lif import write_lif
+
+        names = list(sc.routes.nodes)
+        tau = pef.at([sc.routes.nodes[n] for n in names]).tau
+        written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
+    if "keepout" in asked:
+        from sim.export.keepout import write_keepout
+
+        written["keepout"] = write_keepout(asked["keepout"], sc, pef)
+    return written
+
+
+def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, task: int = 0,
+                rrd: str | Path | None = None, tum: str | Path | None = None) -> EpisodeResult:
+    """Drive one episode in PyBullet: plan, follow on the EKF estimate, measure, estimate.
+
+    Outputs are checked before the episode is driven (a recording's folder; the TUM folder is
+    created) and written at exactly the paths given.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or path
+    seed : int, optional
+        Root of the episode's random streams (same seed, same numbers); default the scenario's.
     task : int
         Index into ``scenario.tasks``.
     rrd : str or path, optional
@@ -180,14 +393,16 @@ def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0
         ``steps`` (per control step: poses, covariance, error, NEES), ``fixes`` (per fix: the
         realised fault area against its promise), ``plan`` and ``summary``.
     """
-    from sim.episode.drive import prepare
+    from scenarios import SimulationError
+    from sim.episode.drive import check_task, prepare
     from sim.episode.drive import run_episode as _run
 
     sc = _scenario(scenario)
-    if rrd is not None:
-        from sim.recording import check_writable
-
-        check_writable(rrd)
+    check_task(sc, task)
+    seed = sc.seed if seed is None else seed
+    if seed < 0:
+        raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
+    _check_outputs(rrd=rrd, folder=tum)
     prepared = prepare(sc, task)
     result = _run(sc, task, seed=seed, prepared=prepared)
     if tum is not None:
@@ -201,60 +416,90 @@ def run_episode(scenario: Scenario | str | Path, seed: int = 0, *, task: int = 0
     return result
 
 
-def sweep(scenario: Scenario | str | Path, out: str | Path, *, runs: int | None = None, workers: int | None = None,
-          task: int | None = None, resume: bool = False, progress: bool = False, report: bool = True,
-          steps: str | None = None) -> Path:
+def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, runs: int | None = None,
+          workers: int | None = None, task: int | None = None, executor: str = "local", address: str | None = None,
+          resume: bool = False, rrd_every: int = 0, steps: str | None = None, q_scale: float = 1.0,
+          progress: bool | None = False, report: bool = True) -> SweepSummary:
     """Run a Monte-Carlo sweep into ``out`` (written run by run; ``resume`` completes it).
 
     Parameters
     ----------
     scenario : Scenario, str or path
-    out : str or path
-        Sweep directory (new, or an earlier sweep of the same scenario with ``resume``).
+    out : str or path, optional
+        Sweep directory (new, or an earlier sweep of the same scenario with ``resume``);
+        default ``mc-<scenario name>`` in the working directory.
     runs : int, optional
         Runs ``0 .. runs-1``; default ``montecarlo.runs``.
     workers : int, optional
-        Worker processes; default the CPU count. Results do not depend on it.
+        Worker processes (or Ray actors); default the CPU count. Results do not depend on it.
     task : int, optional
         Drive only this task; default run i drives task ``i % len(tasks)``.
+    executor : {"local", "ray"}
+        Where the runs execute: local worker processes, or a Ray cluster.
+    address : str, optional
+        Ray cluster address (with ``executor="ray"``; default starts one).
     resume : bool
         Complete the runs an earlier sweep into ``out`` left missing.
-    progress : bool
-        Show a progress bar.
-    report : bool
-        Write ``report.html`` and its figures into ``out`` (as ``pefsim mc`` does).
+    rrd_every : int
+        Write a rerun recording of every ``rrd_every``-th run into ``out/recordings/`` (0: none).
     steps : {"all", "fixes", "none"}, optional
         Per-step rows to keep: every control step, the steps at fix times (the N-run NEES
         check then does not apply), or none; default ``all`` (on resume: the sweep's own).
+    q_scale : float
+        NEGATIVE CONTROL ONLY: the filter's process noise times ``q_scale`` (1: as declared);
+        the directory records it (:mod:`sim.montecarlo.negative_control`).
+    progress : bool or None
+        Show a progress bar; None: when stderr is a terminal.
+    report : bool
+        Write ``report.html`` and its figures into ``out`` (as ``pefsim mc`` does).
 
     Returns
     -------
-    pathlib.Path
-        The sweep directory (``runs.parquet``, per-step and per-fix parts, ``report.html``).
+    SweepSummary
+        What the directory holds (``out``, run counts, success and its interval, this call's
+        runs and wall time, bytes per run) and ``report``, the page written (None without).
     """
+    import dataclasses
+
+    from sim.episode.drive import check_markers
     from sim.montecarlo.engine import sweep as _sweep
+    from sim.montecarlo.negative_control import check_q_scale, mark, scaled_api
 
     sc = _scenario(scenario)
+    check_markers(sc)  # before the output directory is made
+    q_scale = check_q_scale(q_scale)
+    written: list[Path] = []
 
-    def write(summary) -> None:  # while the sweep still holds the directory's lock
-        from sim.report.page import write_report
+    def then(summary: SweepSummary) -> None:  # while the sweep still holds the directory's lock
+        if q_scale != 1.0:
+            mark(summary.out, q_scale)
+        if report:
+            from sim.report.page import write_report
 
-        write_report(summary.out, sc)
+            written.append(write_report(summary.out, sc))
 
-    summary = _sweep(sc, out, runs=runs, task=task, workers=workers, resume=resume, progress=progress,
-                     steps=steps, then=write if report else None)
-    return Path(summary.out)
+    summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
+                     resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
+                     api=scaled_api(q_scale) if q_scale != 1.0 else None, then=then)
+    return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
 
-def validate(sweep_dir: str | Path, *, alpha: float = 0.01) -> ValidationReport:
+def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
+             scenario: Scenario | str | Path | None = None) -> ValidationReport:
     """Check a sweep's results against the predictions (containment, promise, bound, NEES, NIS, ...).
+
+    The checks judge the sweep's tables; running the sweep is :func:`sweep`'s job.
 
     Parameters
     ----------
-    sweep_dir : str or path
-        A sweep directory written by :func:`sweep` (or ``pefsim mc``).
-    alpha : float
-        Family false-alarm probability, split Bonferroni over the statistical checks.
+    sweep : SweepSummary, str or path
+        A sweep (its directory) written by :func:`sweep` (or ``pefsim mc``); refused while
+        another process is still writing it.
+    alpha : float, optional
+        Family false-alarm probability, split Bonferroni over the statistical checks; default
+        :data:`sim.validation.suite.DEFAULT_ALPHA` (0.01).
+    scenario : Scenario, str or path, optional
+        When given, the sweep must have been made from exactly this scenario.
 
     Returns
     -------
@@ -262,7 +507,172 @@ def validate(sweep_dir: str | Path, *, alpha: float = 0.01) -> ValidationReport:
         ``checks`` (each with its statistic, acceptance region and false-alarm probability),
         ``passed``, ``failed``.
     """
-    from sim.validation.suite import load_sweep
+    from sim.montecarlo.summary import SweepSummary
+    from sim.validation.suite import DEFAULT_ALPHA, load_sweep
     from sim.validation.suite import validate as _validate
 
-    return _validate(load_sweep(sweep_dir), alpha=alpha)
+    directory = sweep.out if isinstance(sweep, SweepSummary) else sweep
+    expected = None if scenario is None else _scenario(scenario)
+    return _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha)
+
+
+def paper(out: str | Path = "paper-report", *, quick: bool = False, runs: int | None = None,
+          workers: int | None = None, claims: set[int] | None = None, sections: bool = True) -> PaperPage:
+    """Reproduce the source paper's claims as figures, numbers and verdicts on one HTML page.
+
+    Parameters
+    ----------
+    out : str or path
+        Output directory: ``index.html``, ``figures/``, claim 7's sweep in ``mc/`` (completed,
+        not redone, on a second call).
+    quick : bool
+        Fewer samples, coarser grids and 3 Monte-Carlo runs instead of 10 (seconds, for tests).
+    runs : int, optional
+        Monte-Carlo runs of claim 7 (default 10, 3 with ``quick``).
+    workers : int, optional
+        Monte-Carlo worker processes; default the CPU count.
+    claims : set of int, optional
+        Only these claims (1..7); default all.
+    sections : bool
+        Also the results beside the claims (redundancy against blocked lines of sight), when
+        every claim is reproduced.
+
+    Returns
+    -------
+    PaperPage
+        ``index`` (the page), ``claims`` (each with its verdict), ``sections``, ``seconds``.
+    """
+    from sim.paper.claims import Options
+    from sim.paper.page import reproduce_page
+
+    return reproduce_page(out, Options(quick=quick, runs=runs, workers=workers), only=claims, sections=sections)
+
+
+def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str | None = None,
+          on_update: Callable[..., None] | None = None, on_error: Callable[[PefsimError], None] | None = None,
+          interval: float | None = None, max_updates: int | None = None, stop: threading.Event | None = None) -> int:
+    """Show a scenario live in rerun and update the view whenever its files are saved.
+
+    The view: the PEF map and the navigation region (τ < ε_max), the markers (flat ones with
+    their facing), the route network coloured by each segment's worst τ (τ = ∞ and inadmissible
+    segments apart), every task's chosen route and its fix schedule. The files followed are
+    the scenario file and every file it reads (floor plan, map image, route graph). A version
+    that does not load or plan is reported through ``on_error`` and the last good view stays.
+
+    Parameters
+    ----------
+    scenario : str or path
+        Scenario file (a built-in name follows the library's file).
+    save : str or path, optional
+        Write the recording to this ``.rrd`` file instead of showing it.
+    connect : str, optional
+        Stream to a running viewer at this gRPC URL (``""``: rerun's default).
+        Neither: a viewer is started (``rerun`` must be on the ``PATH``).
+    on_update : callable (sim.watch.loop.Update), optional
+        Called after each update (``.line()`` is ``"updated in 0.23 s: hall.toml: ..."``).
+    on_error : callable (PefsimError), optional
+        Called with the error of a refused version of the files.
+    interval : float, optional
+        Polling period [s]; default :data:`sim.watch.loop.POLL_INTERVAL`.
+    max_updates : int, optional
+        Return after this many updates (the first view included); default run until ``stop``
+        is set or the process is interrupted (Ctrl-C: the recording is finished either way).
+    stop : threading.Event, optional
+        Return once it is set.
+
+    Returns
+    -------
+    int
+        Number of updates shown.
+
+    Raises
+    ------
+    PefsimError
+        An unknown scenario, both ``save`` and ``connect``, or an output that cannot be written
+        (before anything is watched).
+    """
+    from scenarios.load import resolve
+    from sim.recording import close
+    from sim.recording.live import log_view, open_live
+    from sim.watch.loop import POLL_INTERVAL, watch_files
+
+    path = resolve(scenario)
+    rec = open_live(path.name, save=save, connect=connect)
+
+    def show(step, view) -> None:
+        log_view(rec, step, view.scenario, view.pef_map, view.reports, view.plans, view.unplanned, view.summary())
+
+    try:
+        return watch_files(path, show, on_update=on_update, on_error=on_error,
+                           interval=POLL_INTERVAL if interval is None else interval,
+                           max_updates=max_updates, stop=stop)
+    finally:
+        close(rec)
+
+
+def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None = None,
+                   folder: str | Path | None = None) -> None:
+    """Refuse, before any work, an output that cannot be written: one line naming the path."""
+    if figure is not None:
+        from sim.report.figure_format import figure_format
+
+        figure_format(figure)
+    if rrd is not None:
+        from sim.recording import check_writable
+
+        check_writable(rrd)
+    if folder is not None:
+        from sim.export.tum import make_folder
+
+        make_folder(folder)
+
+
+def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0) -> list:
+    """Draw random honest worlds that plan (declared sensor and robot = the simulated ones).
+
+    World i draws from ``SeedSequence(seed, spawn_key=(i,))`` alone: the same ``seed`` gives
+    the same files byte for byte, and world i does not depend on ``count``. A draw that does not
+    plan is redrawn (:mod:`planner.worlds`; what is drawn: :mod:`scenarios.worlds`).
+
+    Parameters
+    ----------
+    count : int
+        Number of worlds (>= 1).
+    seed : int
+        Root seed (>= 0).
+    out : str or path, optional
+        Write ``<name>.toml`` for each world into this directory (created if missing); nothing
+        is written without it.
+    first : int
+        Index of the first world (worlds ``first .. first + count - 1``).
+
+    Returns
+    -------
+    list of planner.worlds.PlannedWorld
+        Each with ``name``, ``text`` (the TOML with its header comment), ``scenario``,
+        ``attempts`` and ``summary``; with ``out``, ``path`` is where it was written.
+    """
+    from dataclasses import replace
+
+    from planner.worlds import plannable_world
+    from scenarios import ScenarioError
+    from scenarios.errors import output_errors
+
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ScenarioError(f"count: expected a whole number of worlds >= 1, got {count!r}")
+    for key, value in (("seed", seed), ("first", first)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ScenarioError(f"{key}: expected a whole number >= 0, got {value!r}")
+    if out is None:
+        return [plannable_world(seed, i) for i in range(first, first + count)]
+    folder = Path(out)
+    with output_errors(folder, "create the output directory"):  # before the drawing, which takes seconds a world
+        folder.mkdir(parents=True, exist_ok=True)
+    drawn = [plannable_world(seed, i) for i in range(first, first + count)]
+    written = []
+    for w in drawn:
+        path = folder / f"{w.name}.toml"
+        with output_errors(path, "write the world"):
+            path.write_text(w.text, encoding="utf-8")
+        written.append(replace(w, path=path))
+    return written

@@ -99,7 +99,7 @@ def _fine_check(scenario: Scenario, cand: Candidate, tau_fn: TauFn) -> str:
     if not tau[i] < scenario.planning.eps_max:
         cand.max_tau = max(cand.max_tau, float(tau[i]))
         cand.worst_point = (float(pts[i, 0]), float(pts[i, 1]))
-        return (f"tau {tau[i]:.4g} m >= eps_max {scenario.planning.eps_max:g} m at "
+        return (f"tau {tau[i] * 1e3:.4g} mm >= eps_max {scenario.planning.eps_max * 1e3:g} mm at "
                 f"({pts[i, 0]:.2f}, {pts[i, 1]:.2f}) on fine re-check")
     cl = float(criteria.clearance(pts, scenario).min())
     if cl < scenario.robot.radius:

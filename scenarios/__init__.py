@@ -12,6 +12,7 @@ from scenarios.errors import (
 )
 from scenarios.load import builtin_names, from_dict, load, loads, resolve
 from scenarios.obstacles import ConvexPieces
+from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.schema import (
     Dock,
     Marker,
@@ -23,8 +24,6 @@ from scenarios.schema import (
     PlacementSpec,
     PlanningSpec,
     RobotSpec,
-    RouteEdge,
-    RouteNetwork,
     Scenario,
     SensorSpec,
     Task,

@@ -9,9 +9,28 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 
+#: Longest message an error prints [characters]: a value or a file name beyond it is elided in
+#: the middle, so that an error stays one readable line whatever the input held.
+MAX_MESSAGE = 1000
+
+
+def elide(text: str, limit: int) -> str:
+    """Return ``text`` cut to at most ``limit`` characters by eliding its middle (" ... ")."""
+    if len(text) <= limit:
+        return text
+    keep = max(0, limit - 5)
+    return f"{text[:keep - keep // 3]} ... {text[len(text) - keep // 3:]}" if keep else text[:limit]
+
 
 class PefsimError(Exception):
-    """Root of all errors caused by input (files, arguments, infeasible requests)."""
+    """Root of all errors caused by input (files, arguments, infeasible requests).
+
+    The message is one line of at most :data:`MAX_MESSAGE` characters (longer ones are elided
+    in the middle, line breaks become spaces).
+    """
+
+    def __init__(self, message: str = "", *args: object) -> None:
+        super().__init__(elide(" ".join(str(message).split("\n")), MAX_MESSAGE), *args)
 
 
 class ScenarioError(PefsimError):
@@ -32,6 +51,14 @@ class SimulationError(PefsimError):
 
 class OutputError(PefsimError):
     """A result cannot be written (unwritable path, conflicting output directory, ...)."""
+
+
+class ScenarioWarning(UserWarning):
+    """Input pefsim accepts although it is irregular (a route graph's repeated edge ids, ...).
+
+    The message is one line naming the file, key and values; the CLI prints it as
+    ``pefsim: warning: ...`` on stderr.
+    """
 
 
 @contextlib.contextmanager

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from scenarios.errors import ScenarioError
+from scenarios.errors import ScenarioError, elide
 
 _MISSING = object()
 
@@ -22,17 +22,55 @@ MAX_NUMBER = 1e9
 MAX_COORD = 1e8
 
 
-def show(value: Any) -> str:
-    """Render a value the way the user wrote it in TOML (roughly)."""
-    if isinstance(value, str):
-        return f'"{value}"'
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(show(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {show(v)}" for k, v in value.items()) + "}"
-    return repr(value)
+#: Longest rendering of a value in a message [characters]: a long list or string is cut, so that
+#: an error names a 20 000-vertex polygon or a 5000-character name in one short line.
+MAX_SHOWN = 200
+
+
+def show(value: Any, limit: int = MAX_SHOWN) -> str:
+    """Render a value the way the user wrote it in TOML (roughly), in at most about ``limit`` characters.
+
+    Containers are walked only until the rendering is that long (a value built from YAML
+    aliases may be exponentially large: it is never expanded in full).
+    """
+    out: list[str] = []
+    budget = [limit]
+
+    def put(text: str) -> bool:
+        out.append(text[:max(budget[0], 0)])
+        budget[0] -= len(text)
+        return budget[0] > 0
+
+    def walk(v: Any) -> bool:
+        if isinstance(v, str):
+            return put(f'"{v}"')
+        if isinstance(v, bool):
+            return put("true" if v else "false")
+        if isinstance(v, (list, tuple, dict)):
+            items = v.items() if isinstance(v, dict) else v
+            opening, closing = ("{", "}") if isinstance(v, dict) else ("[", "]")
+            if not put(opening):
+                return False
+            for i, item in enumerate(items):
+                if i and not put(", "):
+                    return False
+                if isinstance(v, dict):
+                    if not put(f"{item[0]} = "):
+                        return False
+                    item = item[1]
+                if not walk(item):
+                    return False
+            return put(closing)
+        return put(repr(v))
+
+    if walk(value):
+        return "".join(out)
+    return "".join(out) + " ..."
+
+
+def show_path(path: Any) -> str:
+    """Return a file name for a message, with the middle of a very long one elided."""
+    return elide(str(path), MAX_SHOWN)
 
 
 class Table:

@@ -14,7 +14,17 @@ from typing import Any
 
 from scenarios import floorplan
 from scenarios.errors import ScenarioError
-from scenarios.fields import Table
+from scenarios.fields import Table, show_path
+from scenarios.limits import (
+    MAX_GRID_CELLS,
+    MAX_NESTING,
+    MAX_PATH_SAMPLES,
+    MAX_PEF_PASSES,
+    MAX_RUNS,
+    MIN_GRID_CELLS,
+    SAMPLES_PER_FIX,
+    nesting_depth,
+)
 from scenarios.obstacle_table import read_obstacle
 from scenarios.routegraph import place_node_docks, portable_routes_text, read_node_dock, read_routes
 from scenarios.schema import (
@@ -37,10 +47,8 @@ from scenarios.schema import (
 LIBRARY = Path(__file__).resolve().parent / "library"
 
 #: Limits of the loader, each with its reason (values beyond them are typos or unit mistakes,
-#: and would otherwise surface as overflows, memory errors or hour-long runs downstream).
-MAX_GRID_CELLS = 200_000_000
-"""Largest PEF grid (workspace / planning.resolution) a scenario may ask for: 2e8 cells is
-already 1.6 GB per float64 layer."""
+#: and would otherwise surface as overflows, memory errors or hour-long runs downstream); the
+#: budgets shared with the readers and the planner are in :mod:`scenarios.limits`.
 MAX_EPS = 100.0
 """Largest eps_max [m]: an allowed error beyond 100 m is not a positioning question."""
 MAX_RANGE = 10_000.0
@@ -60,10 +68,13 @@ def builtin_names() -> list[str]:
 def resolve(name_or_path: str | Path) -> Path:
     """Return the path of a scenario given as a path or a built-in name."""
     p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists():
-        if not p.is_file():
-            raise ScenarioError(f"{p}: no such scenario file")
-        return p
+    try:
+        if p.suffix == ".toml" or p.exists():
+            if not p.is_file():
+                raise ScenarioError(f"{p}: no such scenario file")
+            return p
+    except OSError as exc:  # a name too long for the file system, a path through a file, ...
+        raise ScenarioError(f"{show_path(p)}: cannot read: {exc.strerror or exc}") from None
     candidate = LIBRARY / f"{name_or_path}.toml"
     if candidate.is_file():
         return candidate
@@ -80,7 +91,8 @@ def load(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
     # Errors name the file as the user gave it; a built-in one by its file name alone.
     shown = path.name if path.parent == LIBRARY else str(name_or_path)
-    return loads(text, source=shown, base=path.parent)
+    sc = loads(text, source=shown, base=path.parent)
+    return replace(sc, files=(path.resolve(), *sc.files))
 
 
 def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scenario:
@@ -90,6 +102,9 @@ def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scen
     current directory); ``Scenario.text`` names them absolutely, since it is stored beside
     results and loaded again from there.
     """
+    depth = nesting_depth(text)
+    if depth > MAX_NESTING:  # tomllib recurses per level: refused before it parses
+        raise ScenarioError(f"{source}: arrays and tables nested {depth} deep, at most {MAX_NESTING}")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -165,6 +180,47 @@ def _planning(t: Table) -> PlanningSpec:
     )
 
 
+def _check_grid(t: Table, workspace: Workspace, resolution: float) -> None:
+    """Refuse a ``planning.resolution`` giving fewer than 2 cells along a side or too many cells in all."""
+    w, h = workspace.size
+    per_side = [extent / resolution for extent in (w, h)]  # floats: 1e-320 gives inf, not an OverflowError
+    if min(round(n) if n < 1e18 else n for n in per_side) < MIN_GRID_CELLS:
+        t.fail(t.key("resolution"), f"expected a cell size giving at least {MIN_GRID_CELLS} cells along each side "
+               f"of the {w:g} x {h:g} m workspace (at most {min(w, h) / (MIN_GRID_CELLS - 0.5):.3g} m)", resolution)
+    cells = per_side[0] * per_side[1]
+    if cells > MAX_GRID_CELLS:
+        t.fail(t.key("resolution"), f"expected a cell size giving at most {MAX_GRID_CELLS:.0e} grid cells "
+               f"over the {w:g} x {h:g} m workspace ({cells:.3g} cells)", resolution)
+
+
+def _check_redundancy(t: Table, redundancy: int, k: int) -> None:
+    """Refuse a redundancy r whose k^r plain PEF passes per point exceed :data:`MAX_PEF_PASSES`."""
+    most = int(math.floor(math.log(MAX_PEF_PASSES) / math.log(k) + 1e-9))
+    if redundancy > most:
+        passes = f"{k}^{redundancy}" if redundancy > 60 else f"{k ** redundancy:.3g}"
+        t.fail(t.key("redundancy"), f"expected at most {most} with sensor.markers_per_fix = {k} "
+               f"(k^r = {passes} PEF passes per point, at most {MAX_PEF_PASSES})", redundancy)
+
+
+def _check_path_samples(t: Table, robot: RobotSpec, workspace: Workspace, fix_rate_hz: float) -> None:
+    """Refuse speeds so slow that a path across the workspace needs more than MAX_PATH_SAMPLES samples.
+
+    The planner samples a path at least :data:`~scenarios.limits.SAMPLES_PER_FIX` times per fix
+    interval; crossing the workspace (width + height, an L-shaped route) at ``max_speed`` and a
+    full turn on the spot at ``max_yaw_rate`` each must fit in the budget.
+    """
+    per_second = SAMPLES_PER_FIX * fix_rate_hz
+    crossing = sum(workspace.size)
+    for key, value, seconds, what in (
+            ("max_speed", robot.max_speed, crossing / robot.max_speed, f"a {crossing:g} m crossing of the workspace"),
+            ("max_yaw_rate", robot.max_yaw_rate, 2.0 * math.pi / robot.max_yaw_rate, "a full turn")):
+        samples = seconds * per_second
+        if samples > MAX_PATH_SAMPLES:
+            floor = value * samples / MAX_PATH_SAMPLES
+            t.fail(t.key(key), f"expected at least {floor:.3g} ({what} takes {samples:.3g} path samples at "
+                   f"{SAMPLES_PER_FIX} per fix at {fix_rate_hz:g} Hz, at most {MAX_PATH_SAMPLES:.0e})", value)
+
+
 def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = None) -> Scenario:
     """Validate a parsed TOML document and build the :class:`Scenario` (``base``: its folder)."""
     data, plan = floorplan.apply(data, source, base)  # [floorplan] -> obstacles, markers, workspace
@@ -227,11 +283,11 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
     p_t = root.table("planning")
     planning = _planning(p_t)
     p_t.done()
-    cells = math.prod(max(1, round(extent / planning.resolution)) for extent in workspace.size)
-    if cells > MAX_GRID_CELLS:
-        p_t.fail(p_t.key("resolution"), f"expected a cell size giving at most {MAX_GRID_CELLS:.0e} grid cells "
-                 f"over the {workspace.size[0]:g} x {workspace.size[1]:g} m workspace ({cells:.3g} cells)",
-                 planning.resolution)
+    _check_grid(p_t, workspace, planning.resolution)
+    _check_redundancy(p_t, planning.redundancy, sensor.markers_per_fix)
+    for table, spec in ((r_t, robot), (r_t.table("actual") if r_t.has("actual") else None, robot_actual)):
+        if table is not None:
+            _check_path_samples(table, spec, workspace, sensor.fix_rate_hz)
     if planning.pef_model is PefModel.PARALLELOGRAM and sensor.markers_per_fix != 2:
         p_t.fail(p_t.key("pef_model"),
                  f"parallelogram needs sensor.markers_per_fix = 2 (use \"strips\" for k = {sensor.markers_per_fix})",
@@ -272,7 +328,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
 
     mc_t = root.table("montecarlo", {})
     montecarlo = MonteCarloSpec(
-        runs=mc_t.integer("runs", MonteCarloSpec().runs, low=1, high=10**7),
+        runs=mc_t.integer("runs", MonteCarloSpec().runs, low=1, high=MAX_RUNS),
         success_target=mc_t.number("success_target", MonteCarloSpec().success_target, low=0.0, high=1.0),
     )
     mc_t.done()
@@ -291,6 +347,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         cover=pl_t.string("cover", PlacementSpec().cover, choices=("routes", "free")),
         marker_kind=MarkerKind(pl_t.string("marker_kind", PlacementSpec().marker_kind.value,
                                            choices=tuple(k.value for k in MarkerKind))),
+        existing=pl_t.string("existing", PlacementSpec().existing, choices=("replace", "keep")),
     )
     pl_t.done()
     root.done()
@@ -301,6 +358,8 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
         docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
         placement=placement, source=source, floorplan=plan,
+        files=(*(plan.files if plan is not None else ()),
+               *((routes.file,) if routes is not None and routes.file is not None else ())),
     )
 
 

@@ -23,6 +23,7 @@ from shapely.geometry import Polygon
 
 from scenarios.fields import Table
 from scenarios.geometry import first_crossing
+from scenarios.limits import MAX_RING_VERTICES, MIN_LENGTH
 from scenarios.obstacles import Obstacle
 
 _KINDS = "center + size [+ yaw_deg] (a box), center + radius (a circle) or polygon [+ holes]"
@@ -59,15 +60,16 @@ def read_obstacle(t: Table) -> Obstacle:
             if t.has(k):
                 t.fail(t.key(k), f"not a key of a circle obstacle (expected {_KINDS})", t.data[k])
         ob = Obstacle.circle(t.vector("center", 2, what="[x, y]"),
-                             t.number("radius", low=0.0, low_open=True, high=1000.0,  # a pillar, not a planet:
+                             t.number("radius", low=MIN_LENGTH, high=1000.0,  # a pillar, not a planet:
                                       what="a radius in metres"))  # its polygon has ~pi sqrt(r / 2 mm) sides
         t.done()
         return ob
     if not t.has("center") or not t.has("size"):
         t.fail(t.path, f"expected {_KINDS}", t.data)
-    ob = Obstacle.box(t.vector("center", 2, what="[x, y]"),
-                      t.vector("size", 2, what="[length, width] in metres", positive=True),
-                      math.radians(t.number("yaw_deg", 0.0)))
+    size = t.vector("size", 2, what="[length, width] in metres", positive=True)
+    if min(size) < MIN_LENGTH:
+        t.fail(t.key("size"), f"expected [length, width] in metres of at least {MIN_LENGTH:g}", list(size))
+    ob = Obstacle.box(t.vector("center", 2, what="[x, y]"), size, math.radians(t.number("yaw_deg", 0.0)))
     t.done()
     return ob
 
@@ -75,6 +77,8 @@ def read_obstacle(t: Table) -> Obstacle:
 def _ring(t: Table, key: str, value: Any) -> np.ndarray:
     """Read a simple ring of at least 3 distinct vertices with positive area, shape (n, 2) [m]."""
     what = "a list of at least 3 [x, y] vertices"
+    if isinstance(value, list) and len(value) > MAX_RING_VERTICES:
+        t.fail(key, f"expected at most {MAX_RING_VERTICES} vertices, got {len(value)}")
     ok = isinstance(value, list) and all(
         isinstance(v, list) and len(v) == 2
         and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in v)
@@ -91,6 +95,11 @@ def _ring(t: Table, key: str, value: Any) -> np.ndarray:
         i = int(same[0])
         t.fail(key, f"expected distinct consecutive vertices (vertices {i} and {(i + 1) % len(ring)} coincide)",
                value)
+    edge = np.hypot(*(np.roll(ring, -1, axis=0) - ring).T)
+    if edge.min() < MIN_LENGTH:
+        i = int(edge.argmin())
+        t.fail(key, f"expected edges of at least {MIN_LENGTH:g} m (vertices {i} and {(i + 1) % len(ring)} are "
+               f"{edge[i]:.3g} m apart)", value)
     crossing = first_crossing(ring)
     if crossing is not None:
         t.fail(key, f"expected a simple polygon (edges {crossing[0]} and {crossing[1]} cross)", value)

@@ -7,6 +7,7 @@ Built by :mod:`scenarios.routegraph` from a hand-written ``[routes]`` table or a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,8 @@ class RouteNetwork:
     # "/abs/g.geojson" (a scenario's portable text) is the same network
     source: str = field(default="", compare=False)
     layout: str = ""
+    file: Path | None = field(default=None, compare=False)
+    """The graph file read, absolute (None for a hand-written network)."""
 
     def traffic_of(self, a: str, b: str) -> float:
         """Traffic density of segment a–b (0 when not listed)."""

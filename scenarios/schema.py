@@ -12,12 +12,13 @@ import math
 from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
 from scenarios.floorplan.spec import FloorPlan
 from scenarios.obstacles import ConvexPieces, Obstacle, pack_pieces
-from scenarios.route_network import RouteEdge, RouteNetwork  # noqa: F401 (RouteEdge: re-exported)
+from scenarios.route_network import RouteNetwork
 
 
 class NoiseModel(str, Enum):
@@ -257,7 +258,7 @@ class PlanningSpec:
     min_fix_speed: float = 0.05
     """Slowest speed the planner may slow down to for a fix [m/s]."""
     redundancy: int = 0
-    """r: markers that may be blocked without breaking the promise (tau_r, DESIGN section 1)."""
+    """r: markers that may be blocked without breaking the promise (tau_r, `docs/design.md` §1)."""
 
     @property
     def heading_std(self) -> float:
@@ -300,6 +301,9 @@ class PlacementSpec:
     """``routes`` (the route network, or free-space routes between the tasks' docks) or ``free``."""
     marker_kind: MarkerKind = MarkerKind.FLAT
     """Kind of the placed markers: ``flat`` sites on faces face out of them; ``post`` everywhere."""
+    existing: str = "replace"
+    """``replace``: place from an empty floor (the scenario's markers are ignored); ``keep``: the
+    scenario's markers stay as they are and placement adds the fewest new ones."""
 
 
 @dataclass(frozen=True)
@@ -341,6 +345,9 @@ class Scenario:
     """The TOML text it was loaded from (Monte-Carlo keeps it beside the results)."""
     floorplan: FloorPlan | None = None
     """The drawing or map its obstacles and markers were read from (``[floorplan]``), if any."""
+    files: tuple[Path, ...] = field(default=(), compare=False)
+    """Every file it was read from, absolute: the scenario TOML (when loaded from a file), the floor
+    plan's files and the route graph file; ``pefsim watch`` follows them."""
 
     def marker_positions(self) -> np.ndarray:
         """Marker positions, shape (M, 2) [m], in file order."""

@@ -1,6 +1,12 @@
-"""Shared test scenarios: the tiny worlds several test modules build."""
+"""Shared test scenarios (the tiny worlds several test modules build) and one small real sweep."""
 
 from __future__ import annotations
+
+import contextlib
+import io
+import json
+
+import pytest
 
 
 def flat_text(size: float = 30.0, extra: str = "") -> str:
@@ -11,3 +17,26 @@ def flat_text(size: float = 30.0, extra: str = "") -> str:
     return (f'name = "flat"\n[workspace]\nsize = [{size}, {size}]\n'
             f'[[markers]]\nid = "a"\nposition = [0.0, 0.0]\n[[markers]]\nid = "b"\nposition = [{size}, 0.0]\n'
             f'[sensor]\n[planning]\neps_max = 0.05\n{extra}')
+
+
+@pytest.fixture(scope="session")
+def small_validated_sweep(tmp_path_factory):
+    """``pefsim validate paper-two-markers --runs 4 --out DIR --json``, run once per session.
+
+    Real episodes, few: the wiring from a sweep's tables to the verdicts (``--from`` reads them
+    back). The checks' power and their negative controls are tested on synthetic and transformed
+    tables (``tests/sim/validation``); the long real sweeps are in the e2e tier.
+
+    Returns
+    -------
+    (pathlib.Path, int, dict)
+        The sweep directory, the exit code and the JSON report.
+    """
+    from sim import cli
+
+    out = tmp_path_factory.mktemp("small-sweep") / "mc"
+    buf = io.StringIO()  # a session-scoped fixture cannot use capsys
+    with contextlib.redirect_stdout(buf):
+        code = cli.main(["validate", "paper-two-markers", "--runs", "4", "--workers", "1", "--out", str(out),
+                         "--json"])
+    return out, code, json.loads(buf.getvalue())

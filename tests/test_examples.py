@@ -17,6 +17,7 @@ def test_there_are_examples():
     assert len(EXAMPLES) >= 2
 
 
+@pytest.mark.e2e  # each example plans, drives and sweeps real episodes as a user would
 @pytest.mark.parametrize("script", EXAMPLES, ids=lambda p: p.stem)
 def test_example_runs(script, tmp_path):
     out = tmp_path / "out"

@@ -24,8 +24,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import scenarios
+
+# the whole loop of a user (map, place, plan, validate on a real sweep, export): the longest test
+pytestmark = pytest.mark.e2e
 
 REPO = Path(__file__).resolve().parents[1]
 RES = 0.05                  # map resolution [m/cell]

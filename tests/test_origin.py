@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import tomllib
-
 import numpy as np
 import pytest
 
@@ -11,28 +9,7 @@ import scenarios
 from planner.pef.map import PEF
 from planner.plan import plan_route
 from sim.episode.drive import run_episode
-
-
-def shifted(name: str, dx: float, dy: float) -> scenarios.Scenario:
-    """Load built-in ``name`` with every position, and the workspace origin, moved by (dx, dy) [m]."""
-    d = tomllib.loads(scenarios.load(name).text)
-    move = lambda p: [p[0] + dx, p[1] + dy, *p[2:]]  # noqa: E731 - keeps a dock's yaw
-    d["workspace"]["origin"] = [dx, dy]
-    for ob in d.get("obstacles", []):
-        if "polygon" in ob:
-            ob["polygon"] = [move(v) for v in ob["polygon"]]
-            ob["holes"] = [[move(v) for v in h] for h in ob.get("holes", [])]
-        else:
-            ob["center"] = move(ob["center"])
-    for m in d["markers"]:
-        m["position"] = move(m["position"])
-    for k in d.get("docks", []):
-        k["pose"] = move(k["pose"])
-    if "routes" in d:
-        d["routes"]["nodes"] = {n: move(p) for n, p in d["routes"]["nodes"].items()}
-    if "placement" in d and "candidates" in d["placement"]:
-        d["placement"]["candidates"] = [move(p) for p in d["placement"]["candidates"]]
-    return scenarios.from_dict(d, f"{name}-shifted")
+from tests.scenarios.worlds import shifted
 
 
 @pytest.mark.parametrize("name", ["paper-docks", "warehouse"])

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 MAX_VERTICES = 256
 """Vertex limit of the closed-form polygon (the simplicity check is quadratic in it)."""
@@ -62,7 +62,7 @@ class AnnuliRegion:
     diameter: float
 
 
-@compiled.njit(cache=True, aot="float64(float64[:, ::1])")
+@compiled.njit(cache=True)
 def max_pairwise_distance(xy):
     """Largest distance [m] between two rows of ``xy`` (n, 2)."""
     best = 0.0
@@ -74,7 +74,7 @@ def max_pairwise_distance(xy):
     return math.sqrt(best)
 
 
-@compiled.njit(cache=True, aot="Tuple((int64, float64))(float64, float64, float64, boolean)")
+@compiled.njit(cache=True)
 def arc_steps(radius, span, tol, outside):
     """Segment count and vertex radius of a polyline within ``tol`` of an arc of ``span`` [rad].
 
@@ -257,9 +257,7 @@ def _area_centroid(ring):
     return 0.5 * a2, x0 + sx / (3.0 * a2), y0 + sy / (3.0 * a2)
 
 
-@compiled.njit(cache=True,
-               aot=("Tuple((int64, float64[:, ::1], float64, float64, float64, float64))(float64[:, ::1], "
-                    "float64[::1], float64[::1], float64[::1], float64, boolean)"))
+@compiled.njit(cache=True)
 def _region(markers, ranges, rho, prior, tol, outer_chords):
     """Kernel of :func:`two_annuli_region`: (status, world ring, area, cx, cy, diameter)."""
     m1x, m1y, m2x, m2y = markers[0, 0], markers[0, 1], markers[1, 0], markers[1, 1]

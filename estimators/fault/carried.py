@@ -7,7 +7,7 @@ dead-reckoned, so each range's error band widens by a bound on the odometry erro
 (:func:`shift_bound`). The fault area of the fix is the intersection of the annuli
 ``| |p - M_i'| - r_i | <= rho_i + shift_bound_i``.
 
-One construction serves both sides of the promise (DESIGN section 1):
+One construction serves both sides of the promise (`docs/design.md` §1):
 
 - the simulation's **realised** fault area (``sim.episode.fixes``): measured ranges,
   dead-reckoned displacements turned into the world frame with the filter's heading, and the
@@ -25,9 +25,9 @@ import math
 
 import numpy as np
 
-from estimators import compiled
 from estimators.fault.annuli import _OK, _region
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION, FaultArea, _input_summary, exact_fault_area
+from jit import compiled
 from scenarios.schema import RobotSpec, SensorSpec
 
 K_SIGMA = 3.0
@@ -86,6 +86,51 @@ def _shift_coefficients(robot: RobotSpec, heading_std: float) -> tuple[float, fl
     per_metre = (K_SIGMA * robot.odometry_noise + abs(robot.wheel_radius_error) + K_SIGMA * max(heading_std, 0.0)
                  + 2.0 * tick / robot.wheel_base)
     return tick, per_metre
+
+
+def turn_bound(robot: RobotSpec, travelled, turned, reads=None) -> np.ndarray:
+    """Bound on the odometry error of a dead-reckoned heading change [rad].
+
+    A bearing taken earlier in a fix is turned into the frame of the last one by the
+    odometry's heading change ``turned`` since; its error is ``(e_right - e_left) / b`` with
+    ``e_w`` each wheel's travel error. Per wheel: less than one tick of quantisation (both
+    readings are floors), the declared systematic radius error ``|wheel_radius_error|`` times
+    the wheel's true travel (at most its reported travel ``|d_w|`` plus a tick),
+    and the random slip (std ``odometry_noise |increment|`` per read, taken as ``K_SIGMA``
+    times the std of the sum over ``reads`` equal increments, like :func:`shift_bound`'s). The
+    wheels' travels are ``d_w = s +- b turned / 2`` over the midpoint's path ``s``, taken as
+    the arc of chord ``travelled`` and turn ``turned`` (constant curvature over the shift).
+
+    Parameters
+    ----------
+    robot : RobotSpec
+        The declared robot.
+    travelled : array_like, shape (k,)
+        Length of each dead-reckoned shift (its chord) [m], >= 0.
+    turned : array_like, shape (k,)
+        Dead-reckoned heading change over each shift [rad].
+    reads : array_like, shape (k,), optional
+        Odometry reads over each shift; by default one (the slip of one increment, an upper
+        bound).
+
+    Returns
+    -------
+    numpy.ndarray, shape (k,)
+        Bound [rad].
+    """
+    d = np.ravel(travelled).tolist()
+    dth = np.ravel(turned).tolist()
+    n = [1.0] * len(d) if reads is None else np.ravel(reads).tolist()
+    b, tick = robot.wheel_base, encoder_tick(robot)
+    out = []
+    for dj, tj, nj in zip(d, dth, n, strict=True):  # a fix has a few bearings: plain floats
+        h = 0.5 * abs(tj)
+        path = max(dj, 0.0) * (h / math.sin(h) if 0.0 < h < 0.5 * math.pi else 1.0)
+        x = 0.5 * b * abs(tj)                  # the wheels' travels are path +- x
+        slip = K_SIGMA * robot.odometry_noise * math.sqrt((2.0 * path * path + 2.0 * x * x) / max(nj, 1.0))
+        e = abs(robot.wheel_radius_error)
+        out.append((2.0 * tick * (1.0 + e) + e * 2.0 * max(path, x) + slip) / b)
+    return np.array(out).reshape(np.shape(travelled))
 
 
 def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along_cos=None) -> np.ndarray:
@@ -259,9 +304,7 @@ def promised_diameters(sensor: SensorSpec, robot: RobotSpec, markers, poses,
     return diameter, empty
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(float64[:, :, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64[::1], "
-                    "float64[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def _two_range_diameters(markers, ranges, rho, prior, status, diameter):
     """Diameter of exact_fault_area's closed form (default tolerance) for each two-range fix.
 
@@ -332,9 +375,7 @@ def _diagonal(ax, ay, bx, by, p0x, p0y, p1x, p1y, rel, ab, sb):
     return 2.0 / sin_a * math.sqrt(rho0 * rho0 + rho1 * rho1 + 2.0 * rho0 * rho1 * cos_a)
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(float64[:, ::1], int64[:, ::1], float64[:, :, :, ::1], int64[::1], int64[::1], float64, "
-                    "float64, float64, float64, float64[::1], boolean[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def _best_order(mk, sub, p, c, j, rel, ab, tick, per_metre, tau, flip):
     for i in range(c.size):
         a, b = sub[c[i], 0], sub[c[i], 1]

@@ -3,7 +3,22 @@
 A range ``r_i`` with error bound ``rho_i`` confines the robot to the annulus
 ``{p : | |p - M_i| - r_i | <= rho_i}``; a world bearing ``beta_i`` (direction robot -> marker)
 with bound ``xi`` confines it to the wedge with apex ``M_i`` and directions
-``beta_i + pi +- xi``. The fault area is the intersection (DESIGN §1), polygonised with shapely.
+``beta_i + pi +- xi``. The fault area is the intersection (`docs/design.md` §1), polygonised with shapely.
+
+Robot-frame bearings
+--------------------
+A bearing measured in the robot frame needs the heading to become a world direction, and a
+heading from elsewhere (a filter's) is not bounded. The heading-free set needs none: ``p`` is
+consistent with robot-frame bearings ``beta_i`` (bounds ``xi_i``) iff some heading ``theta``
+has ``|wrap(a_i(p) - theta - beta_i)| <= xi_i`` for every ``i`` (``a_i(p)`` the direction from
+``p`` to ``M_i``): the arcs ``a_i(p) - beta_i +- xi_i`` of the circle share a point. Every
+pair of them must meet, ``|wrap((a_i - a_j)(p) - (beta_i - beta_j))| <= xi_i + xi_j``: the region
+between two circular arcs through ``M_i`` and ``M_j`` (inscribed-angle theorem,
+:func:`estimators.fault.pieces.bearing_pair_piece`). The fault area intersects these pairwise
+regions with the annuli. It is the heading-free set exactly when ``3 * 2 max xi_i < 2 pi``
+(pairwise-meeting arcs no longer than ``L`` lie in one arc of length ``3 L`` around any of them,
+where Helly's theorem on the line applies); otherwise it contains it. The true position is in
+it whenever every bearing error is within its bound, whatever the heading.
 
 Polygonisation
 --------------
@@ -16,8 +31,11 @@ the window's angular span as seen from the marker.
 
 Every arc is replaced by a polygonal line that lies *outside* the exact set, at most
 ``tolerance`` from its circle: the outer circle by a circumscribed polyline, the inner
-circle by an inscribed one (wedges are polygons already). So the polygon *contains* the
-exact fault area and lies inside the exact fault area of the bounds ``rho_i + tolerance``.
+circle by an inscribed one (wedges are polygons already; of a bearing pair's two circles,
+the one whose disk is kept is circumscribed, the one whose disk is removed inscribed). So the
+polygon *contains* the exact fault area and lies inside the exact fault area of the bounds
+``rho_i + tolerance`` (with robot-frame bearings: and each pair's arcs moved outwards by at
+most ``tolerance``: the angle ``a_i - a_j`` by at most ``tolerance (1/|p - M_i| + 1/|p - M_j|)``).
 The default tolerance is ``1e-3 * min(rho)``. For two ranges meeting at angle alpha this
 overestimates the area by a relative ``<= tolerance (1/rho_1 + 1/rho_2) <= 2e-3`` and moves
 each corner by ``<= 2 tolerance / sin(alpha)``.
@@ -47,9 +65,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
-from estimators import compiled
 from estimators.fault.annuli import max_pairwise_distance, ring_contains, two_annuli_region
-from estimators.fault.pieces import annulus_piece, wedge_piece
+from estimators.fault.pieces import annulus_piece, bearing_pair_piece, wedge_piece
 from estimators.lsq import solve_position
 from estimators.measurements import (
     collinear_markers,
@@ -60,6 +77,7 @@ from estimators.measurements import (
     world_bearing,
     world_bearing_jacobian,
 )
+from jit import compiled
 
 DEFAULT_TOLERANCE_FRACTION = 1e-3
 """Default polygonisation tolerance as a fraction of the smallest range bound rho."""
@@ -133,7 +151,7 @@ def _from_polygon(poly: Polygon, tol: float) -> FaultArea:
                      shape=poly)
 
 
-def _local_region(markers, meas, rho, bearings, xi, center, half, tol):
+def _local_region(markers, meas, rho, bearings, xi, center, half, tol, pairs=()):
     """Intersection of the pieces that constrain the window; None when empty.
 
     Every piece is exact (up to ``tol``) only inside the window; the caller checks that the
@@ -150,6 +168,12 @@ def _local_region(markers, meas, rho, bearings, xi, center, half, tol):
             piece = wedge_piece(markers[i], bearings[i], xi, center, half)
             if piece is not None:
                 pieces.append(piece)
+    for i, j, gamma, delta in pairs:
+        piece = bearing_pair_piece(markers[i], markers[j], gamma, delta, center, half, tol)
+        if isinstance(piece, str):
+            return None
+        if piece is not None:
+            pieces.append(piece)
     if not pieces:
         return shapely.box(center[0] - half, center[1] - half, center[0] + half, center[1] + half)
     geom = pieces[0]
@@ -198,18 +222,18 @@ def _initial_half_width(markers, seed, rho, bearings, xi):
     return 2.0 * math.sqrt(n / eig_min)
 
 
-def _component(markers, meas, rho, bearings, xi, seed, prior, tol):
+def _component(markers, meas, rho, bearings, xi, seed, prior, tol, pairs=()):
     """Find the fault-area component nearest ``prior`` in growing windows around ``seed``."""
     dist = ranges(seed, markers)
     # A window holding a whole outer disk makes the clip inactive: no need to grow past it.
     half_cap = float(np.min(dist + meas + rho)) * 1.01
     half = min(max(_initial_half_width(markers, seed, rho, bearings, xi), 20.0 * tol), half_cap)
     for _ in range(_MAX_WINDOWS):
-        comp = _pick(_local_region(markers, meas, rho, bearings, xi, seed, half, tol), prior)
+        comp = _pick(_local_region(markers, meas, rho, bearings, xi, seed, half, tol, pairs), prior)
         if half >= half_cap:
             return comp
         if comp is not None:
-            # Inside the window's interior, the component's edges are all annulus/wedge edges:
+            # Inside the window's interior, the component's edges are all annulus/wedge/arc edges:
             # it is a whole component of the exact set.
             inner = half * (1.0 - 1e-9)
             bx0, by0, bx1, by1 = comp.bounds
@@ -227,7 +251,7 @@ def _mirror_polygon(poly, markers):
     return shapely.polygons(shell, holes=holes or None)
 
 
-@compiled.njit(cache=True, aot="Tuple((float64, float64, float64))(float64[:, ::1], float64[::1], float64[::1])")
+@compiled.njit(cache=True)
 def _input_summary(markers, meas, rho):
     """Sum of every input (finite iff all are, barring overflow), min rho, min(range + rho)."""
     total, rho_min, reach_min = 0.0, math.inf, math.inf
@@ -238,7 +262,7 @@ def _input_summary(markers, meas, rho):
     return total, rho_min, reach_min
 
 
-def _validate(markers, meas, rho, bearings, xi):
+def _validate(markers, meas, rho, bearings, xi, relative=None, relative_error=None):
     """Raise ValueError on bad inputs; return (min rho, min(range + rho))."""
     k = markers.shape[0]
     if k == 0 or meas.shape != (k,) or rho.shape != (k,):
@@ -254,12 +278,22 @@ def _validate(markers, meas, rho, bearings, xi):
             raise ValueError(f"fault area: bearings {bearings.shape} must be ({k},)")
         if not xi > 0.0:
             raise ValueError(f"fault area: bearing_error must be > 0 with bearings, got {xi}")
+    if relative is not None:
+        if bearings is not None:
+            raise ValueError("fault area: world and robot-frame bearings together")
+        if relative.shape != (k,) or relative_error.shape != (k,):
+            raise ValueError(f"fault area: robot-frame bearings {relative.shape} and their bounds "
+                             f"{relative_error.shape} must be ({k},)")
+        if not (np.all(np.isfinite(relative)) and np.all(relative_error > 0.0)):
+            raise ValueError(f"fault area: robot-frame bearings {relative.tolist()} must be finite, their "
+                             f"bounds {relative_error.tolist()} > 0")
     return rho_min, reach_min
 
 
 def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior: np.ndarray,
                      bearings: np.ndarray | None = None, bearing_error: float = 0.0,
-                     tolerance: float | None = None) -> FaultArea:
+                     tolerance: float | None = None, robot_bearings: np.ndarray | None = None,
+                     robot_bearing_error: np.ndarray | None = None) -> FaultArea:
     """Exact (polygonised) fault area of one fix.
 
     Parameters
@@ -281,6 +315,12 @@ def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, p
         Bound xi of the bearing errors [rad]; must be > 0 when ``bearings`` are given.
     tolerance : float, optional
         Polygonisation tolerance [m]; default ``1e-3 * min(rho)``.
+    robot_bearings : ndarray, shape (k,), optional
+        Measured directions to the markers in one robot frame [rad] (not with ``bearings``):
+        they constrain the position through their differences only, no heading needed (module
+        docstring, "Robot-frame bearings").
+    robot_bearing_error : float or ndarray, shape (k,), optional
+        Bound of each robot-frame bearing's error [rad], > 0; required with ``robot_bearings``.
 
     Returns
     -------
@@ -293,15 +333,25 @@ def exact_fault_area(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, p
     prior = np.asarray(prior, dtype=float)
     bearings = None if bearings is None else np.asarray(bearings, dtype=float)
     xi = float(bearing_error)
-    rho_min, reach_min = _validate(markers, meas, rho, bearings, xi)
+    relative = None if robot_bearings is None else np.asarray(robot_bearings, dtype=float)
+    relative_error = (None if relative is None
+                      else np.broadcast_to(np.asarray(robot_bearing_error, dtype=float), relative.shape))
+    rho_min, reach_min = _validate(markers, meas, rho, bearings, xi, relative, relative_error)
     tol = DEFAULT_TOLERANCE_FRACTION * rho_min if tolerance is None else float(tolerance)
     if reach_min < 0.0:       # no point is at a negative distance
         return _empty(tol)
-    if bearings is None and markers.shape[0] == 2:
+    if bearings is None and relative is None and markers.shape[0] == 2:
         fast = _two_ranges(markers, meas, rho, prior, tol)
         if fast is not None:
             return fast
-    return _general(markers, meas, rho, prior, bearings, xi, tol)
+    pairs = () if relative is None else _bearing_pairs(relative, relative_error)
+    return _general(markers, meas, rho, prior, bearings, xi, tol, pairs)
+
+
+def _bearing_pairs(relative, relative_error):
+    """``(i, j, beta_i - beta_j, xi_i + xi_j)`` for every pair of robot-frame bearings."""
+    b, e = relative.tolist(), relative_error.tolist()
+    return tuple((i, j, b[i] - b[j], e[i] + e[j]) for i in range(len(b)) for j in range(i + 1, len(b)))
 
 
 def _two_ranges(markers, meas, rho, prior, tol):
@@ -315,12 +365,13 @@ def _two_ranges(markers, meas, rho, prior, tol):
     return FaultArea(region.ring, region.area, region.diameter, region.centroid, tol)
 
 
-def _general(markers, meas, rho, prior, bearings, xi, tol):
+def _general(markers, meas, rho, prior, bearings, xi, tol, pairs=()):
     """Windowed shapely construction of :func:`exact_fault_area` (any measurements)."""
     std = rho if bearings is None else np.concatenate([rho, np.full(len(rho), xi)])
     seed = solve_position(markers, meas, std, prior, world_bearings=bearings).position
-    comp = _component(markers, meas, rho, bearings, xi, seed, prior, tol)
-    if comp is not None and bearings is None and collinear_markers(markers):
+    comp = _component(markers, meas, rho, bearings, xi, seed, prior, tol, pairs)
+    # (robot-frame bearings tell the mirror twins apart: the pair angle changes sign across)
+    if comp is not None and bearings is None and not pairs and collinear_markers(markers):
         # Ranges to collinear markers: the exact set is symmetric about the marker line, so a
         # component on one side has a mirror twin on the other. Reflection is an isometry and
         # points on the prior's side are nearer to it: take the twin if the prior is across.

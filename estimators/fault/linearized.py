@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 #: A vertex is inside a strip if ``|g . delta| <= 1 + FEASIBLE_TOL`` (relative to the half-width).
 FEASIBLE_TOL = 1e-9

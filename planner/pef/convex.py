@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from scenarios.obstacles import ConvexPieces
 
 
@@ -69,7 +69,7 @@ class PieceArrays:
     shrink: float
 
 
-def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
+def piece_arrays(pieces: ConvexPieces, shrink: float, grow: float = 0.0) -> PieceArrays:
     """Turn padded convex pieces into edge half-planes, shrunk corners and bounding boxes.
 
     Parameters
@@ -78,6 +78,9 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         Counter-clockwise convex polygons, ``vertices`` shape (P, V, 2) [m].
     shrink : float
         Shift of the edges for line-of-sight tests [m] (faces in, cuts out).
+    grow : float
+        Then every edge, faces and cuts alike, moves *out* by this much [m] (>= 0): the
+        pieces a line of sight must clear by ``grow`` (:mod:`planner.pef.sight`).
 
     Returns
     -------
@@ -100,7 +103,7 @@ def piece_arrays(pieces: ConvexPieces, shrink: float) -> PieceArrays:
         normal = np.column_stack([e[:, 1], -e[:, 0]]) / length[:, None]   # outward for CCW
         planes[p, :n, :2] = normal
         planes[p, :n, 2] = np.einsum("ij,ij->i", normal, q)
-        shift = np.where(pieces.inner[p, :n], shrink, -shrink - pieces.inset[p, :n])
+        shift = np.where(pieces.inner[p, :n], shrink, -shrink - pieces.inset[p, :n]) + grow
         sight[p, :n] = planes[p, :n, 2] + shift
         # Corner k joins edges k-1 and k; with their lines moved by d_{k-1} and d_k along the
         # normals it moves by the delta solving n_{k-1}.delta = d_{k-1}, n_k.delta = d_k.
@@ -236,8 +239,7 @@ def shadow_halfplanes(mx, my, planes, sight, shrunk, count, p, out):
     return nrow
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(float64[::1], float64[::1], float64[:, :, ::1], int64[::1], float64[:, ::1], float64[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def signed_distance_min(px, py, vertices, count, bbox, out):
     """Lower ``out[n]`` to the signed distance from point n to the nearest piece [m].
 

@@ -33,46 +33,20 @@ import math
 
 import numpy as np
 
-from estimators import compiled
-from planner.pef.convex import shadow_halfplanes
+from jit import compiled
 from planner.pef.pairs import BLOCK, MARGIN, TILE_COLS, TILE_ROWS, _block, _scratch
-from planner.pef.pointblocks import blocks_points_local  # noqa: F401 (re-exported)
+from planner.pef.sight import SightRule
 from planner.pef.threads import run_ranges
 from planner.pef.visibility import (
     _first_above,
     _first_at_or_above,
     _free_grid_kernel,
-    _normals,
-    facing_ok,
-    prepare,
+    _range,
+    prepare_sight,
     shadow_row,
+    shadow_table,
+    wedges_ok,
 )
-
-
-@compiled.njit(cache=True,
-               aot=("Tuple((float64[:, :, :, ::1], int64[:, ::1], boolean[::1]))(float64[::1], float64[::1], "
-                    "float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1], int64[::1], boolean[::1], "
-                    "float64[:, ::1], float64)"))
-def _shadows(mx, my, planes, sight, shrunk, count, blocks, bbox, max_range):
-    """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
-
-    A piece farther than ``max_range`` from a marker gets no half-planes: its shadow, beyond
-    the piece, is out of range.
-    """
-    nm, npc = mx.size, count.size
-    hp = np.zeros((nm, npc, planes.shape[1] + 2, 3))
-    nhp = np.zeros((nm, npc), dtype=np.int64)
-    hidden = np.zeros(nm, dtype=np.bool_)
-    for m in range(nm):
-        for p in range(npc):
-            if blocks[p]:
-                dx = max(bbox[p, 0] - mx[m], mx[m] - bbox[p, 2], 0.0)
-                dy = max(bbox[p, 1] - my[m], my[m] - bbox[p, 3], 0.0)
-                n = shadow_halfplanes(mx[m], my[m], planes, sight, shrunk, count, p, hp[m, p])
-                if n < 0:
-                    hidden[m] = True
-                nhp[m, p] = n if dx * dx + dy * dy <= max_range * max_range * 1.0000001 else 0
-    return hp, nhp, hidden
 
 
 @compiled.njit(cache=True)
@@ -156,17 +130,13 @@ def _without_pass(t, w, nl, npair, gm, local_of, visb, bestb, vist, pxb, pyb, mx
     return ncand
 
 
-@compiled.njit(cache=True, nogil=True, error_model="numpy",
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-                    "float64[::1], float64, float64, float64[:, :, :, ::1], int64[:, ::1], boolean[::1], "
-                    "boolean[:, ::1], float64, float64, float64, float64[::1], int64[::1], boolean, float64[::1])"))
-def bands_parallelogram(b0, b1, x, y, mx, my, fnx, fny, cos_inc, max_range, hp, nhp, hidden, free, rel, ab, margin,
-                        tau, best, redundant, tau_plain):
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
+def bands_parallelogram(b0, b1, x, y, mx, my, wedge, max_range, hp, nhp, hidden, free, rel, ab, margin, tau, best,
+                        redundant, tau_plain):
     """Bands ``b0 <= b < b1`` of the grid (``run_ranges`` kernel); see the module docstring.
 
-    ``x`` (nx,), ``y`` (ny,) cell centres [m]; ``fnx``, ``fny`` (M,) the markers' normals ((0, 0)
-    for a post) and ``cos_inc`` the cosine of the incidence limit (:func:`facing_ok`, per cell,
-    as on the full array); ``free`` (ny, nx); writes ``tau`` (ny * nx,) [m]
+    ``x`` (nx,), ``y`` (ny,) cell centres [m]; ``wedge`` (M, W, 4) the markers' wedges
+    (:func:`wedges_ok`, per cell, as on the full array); ``free`` (ny, nx); writes ``tau`` (ny * nx,) [m]
     and ``best`` (2 * ny * nx,): the (ny, nx) and (ny, nx, 2) arrays flattened. With
     ``redundant`` (redundancy 1), ``tau`` is tau_1, the larger of the plain tau and the best
     pair's tau with either of its markers hidden, and ``tau_plain`` (ny * nx,) the plain tau
@@ -260,7 +230,7 @@ def bands_parallelogram(b0, b1, x, y, mx, my, fnx, fny, cos_inc, max_range, hp, 
                         for i in range(max(ivs[q, r, v, 0], ix0), min(ivs[q, r, v, 1], ix1)):
                             dx = x[i] - mx[m]
                             visb[o + i] = (frow[i] and dx * dx + dy * dy <= r2max
-                                           and facing_ok(dx, dy, fnx[m], fny[m], cos_inc))
+                                           and wedges_ok(dx, dy, wedge, m))
             npair = 0
             for a in range(nl):
                 for b in range(a + 1, nl):
@@ -301,7 +271,8 @@ def bands_parallelogram(b0, b1, x, y, mx, my, fnx, fny, cos_inc, max_range, hp, 
 def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
                        bounds: tuple[float, float, float, float], rel: float,
                        ab: float, redundancy: int = 0, normals: np.ndarray | None = None,
-                       max_incidence: float = math.pi / 2) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                       max_incidence: float = math.pi / 2,
+                       rule: SightRule | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Compute the parallelogram PEF (k = 2) on the cell centres of a grid, band by band.
 
     Parameters
@@ -320,8 +291,9 @@ def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstac
         0 or 1: with 1, ``tau`` is tau_1 (:mod:`planner.pef.map`: the larger of the plain tau
         and the best pair's tau with either of its markers hidden), computed in the same tile
         pass as the plain one.
-    normals, max_incidence
-        Flat markers' normals and incidence limit, as in :func:`planner.pef.visibility.visible_grid`.
+    normals, max_incidence, rule
+        Flat markers' normals and incidence limit, the line-of-sight rule, as in
+        :func:`planner.pef.visibility.visible_grid`.
 
     Returns
     -------
@@ -341,7 +313,7 @@ def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstac
     y = np.ascontiguousarray(y, dtype=float)
     mk = np.asarray(markers, float).reshape(-1, 2)
     mx, my = np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1])
-    pa = prepare(obstacles)
+    pa, sa = prepare_sight(obstacles, mk, bounds, normals, max_incidence, rule)
     x0, y0, x1, y1 = (float(v) for v in bounds)
     free = np.empty((y.size, x.size), dtype=np.bool_)
     _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
@@ -353,12 +325,12 @@ def parallelogram_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstac
         tau_plain.fill(np.inf)
         best.fill(-1)
         return tau, best, free, tau_plain
-    hp, nhp, hidden = _shadows(mx, my, pa.planes, pa.sight, pa.shrunk, pa.count, pa.blocks, pa.sight_bbox,
-                               float(max_range))
+    max_range = _range(max_range, rule)
+    hp, nhp, hidden = shadow_table(mx, my, sa.planes, sa.sight, sa.shrunk, sa.count, sa.blocks, sa.widen,
+                                   sa.sight_bbox, max_range)
     nbands = -(-y.size // TILE_ROWS)
-    fn = _normals(normals, mk.shape[0])
     run_ranges(bands_parallelogram, nbands,
-               (x, y, mx, my, fn[:, 0].copy(), fn[:, 1].copy(), math.cos(max_incidence), float(max_range), hp, nhp,
+               (x, y, mx, my, sa.wedge, float(max_range), hp, nhp,
                 hidden, free, float(rel), float(ab), MARGIN, tau.reshape(-1), best.reshape(-1), bool(redundancy),
                 tau_plain.reshape(-1)), min_chunk=2)
     return tau, best, free, tau_plain

@@ -37,8 +37,8 @@ import math
 
 import numpy as np
 
-from estimators import compiled
 from estimators.fault.linearized import strip_max_vertex_sq_k
+from jit import compiled
 from planner.pef import pairs as pef_pairs
 from planner.pef.pointblocks import blocks_points_local
 from planner.pef.scalar import (
@@ -210,9 +210,7 @@ def _store_best(best, p, subsets, s):
         best[p, t] = subsets[s, t] if s >= 0 else -1
 
 
-@compiled.njit(cache=True, nogil=True, error_model="numpy",
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], boolean[:, ::1], "
-                    "float64, float64, float64, int64[:, ::1], float64, float64[::1], int64[:, ::1])"))
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf, tau, best):
     nm = mx.size
     k = subsets.shape[1]
@@ -241,9 +239,7 @@ def _blocks_gdop(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, chi2_ppf
                                    tx, ty, tb) if s >= 0 else np.inf
 
 
-@compiled.njit(cache=True, nogil=True, error_model="numpy",
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], boolean[:, ::1], "
-                    "float64, float64, float64, int64[:, ::1], float64[::1], int64[:, ::1])"))
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def _blocks_strips(b0, b1, px, py, mx, my, vis, rel, ab, tan_xi, subsets, tau, best):
     nm = mx.size
     k = subsets.shape[1]

@@ -1,7 +1,7 @@
 """The Position Error Function: predicted position error tau at points and on grids.
 
 ``tau(p)`` is the error of the best visible subset of k markers at ``p`` under a model
-(DESIGN section 1), computed from the *declared* sensor (``scenario.sensor``):
+(`docs/design.md` §1), computed from the *declared* sensor (``scenario.sensor``):
 
 - ``parallelogram`` (k = 2, ranges only): long diagonal of the linearised parallelogram;
 - ``strips``: diameter of the intersection of the linearised strips of the subset, with the
@@ -48,8 +48,8 @@ import numpy as np
 from estimators.fault.linearized import chi2_2dof_ppf
 from planner.pef import kernels as pef_kernels
 from planner.pef.gridtiles import parallelogram_grid
-from planner.pef.result import MAX_CELLS, PefMap, PefResult, grid_centres  # noqa: F401 (re-exported)
-from planner.pef.visibility import scenario_visible_grid, scenario_visible_points, visible_points
+from planner.pef.result import PefMap, PefResult, grid_centres
+from planner.pef.visibility import scenario_sight_rule, scenario_visible_grid, scenario_visible_points, visible_points
 from scenarios.errors import PlanningError
 from scenarios.schema import PefModel, Scenario
 
@@ -77,11 +77,16 @@ class PEF:
         Candidate factor of the ``exact`` model (see the module docstring).
     redundancy : int, optional
         r, markers that may be blocked (tau_r); default ``scenario.planning.redundancy``.
+    sight : bool
+        Count a marker only where the plan's line-of-sight rule does (:mod:`planner.pef.sight`,
+        the default); False gives the margin-free geometry of the scenario's shapes alone.
     """
 
     def __init__(self, scenario: Scenario, model: PefModel | str | None = None, k: int | None = None,
-                 exact_margin: float = EXACT_MARGIN, redundancy: int | None = None):
+                 exact_margin: float = EXACT_MARGIN, redundancy: int | None = None, sight: bool = True):
         self.scenario = scenario
+        self.sight = bool(sight)
+        self.rule = scenario_sight_rule(scenario) if self.sight else None
         self.sensor = scenario.sensor
         try:
             self.model = PefModel(model) if model is not None else scenario.planning.pef_model
@@ -121,7 +126,7 @@ class PEF:
         points : ndarray, shape (N, 2)
             Points [m]; rows all False where a point is not free.
         """
-        vis, _ = scenario_visible_points(self.scenario, _points(points))
+        vis, _ = scenario_visible_points(self.scenario, _points(points), self.sight)
         return vis.T
 
     # --- evaluation ---------------------------------------------------------------------------
@@ -141,7 +146,7 @@ class PEF:
             fallback subsets.
         """
         pts = _points(points)
-        vis, _ = scenario_visible_points(self.scenario, pts)
+        vis, _ = scenario_visible_points(self.scenario, pts, self.sight)
         px, py = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
         return self._redundant(lambda v: self._evaluate(px, py, v), vis)
 
@@ -161,6 +166,31 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
+        return self.cells(x, y, cell_size=(size[0] / x.size, size[1] / y.size))
+
+    def cells(self, x: np.ndarray, y: np.ndarray, cell_size: tuple[float, float] | None = None) -> PefMap:
+        """Evaluate the PEF on the grid of cell centres ``x`` x ``y`` (a window of :meth:`grid`'s).
+
+        Every cell's value depends on its centre alone, so a window of a grid's centres gives
+        the grid's values there (``pefsim watch`` recomputes only where a moved marker is seen).
+
+        Parameters
+        ----------
+        x : ndarray, shape (nx,)
+            Cell-centre x coordinates [m], increasing.
+        y : ndarray, shape (ny,)
+            Cell-centre y coordinates [m], increasing.
+        cell_size : (float, float), optional
+            Recorded in the result [m]; default the spacing of ``x`` and ``y``.
+
+        Returns
+        -------
+        PefMap
+        """
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        if cell_size is None:
+            dx = float(x[1] - x[0]) if x.size > 1 else 0.0
+            cell_size = (dx, float(y[1] - y[0]) if y.size > 1 else dx)
         if self.model is PefModel.PARALLELOGRAM and self.redundancy <= 1:
             # streamed band by band: no (M, ny, nx) visibility array (planner.pef.gridtiles), with
             # tau_1 in the same pass; r >= 2 and the other models take the general path below
@@ -168,11 +198,10 @@ class PEF:
             tau, best, free, tau_plain = parallelogram_grid(
                 x, y, self.markers, sc.obstacle_pieces(), self.sensor.max_range, sc.workspace.bounds,
                 float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
-                sc.marker_normals(), self.sensor.max_incidence)
+                sc.marker_normals(), self.sensor.max_incidence, self.rule)
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                          cell_size=(size[0] / x.size, size[1] / y.size), redundancy=self.redundancy,
-                          tau_plain=tau_plain)
-        vis, free = scenario_visible_grid(self.scenario, x, y)
+                          cell_size=cell_size, redundancy=self.redundancy, tau_plain=tau_plain)
+        vis, free = scenario_visible_grid(self.scenario, x, y, self.sight)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
             evaluate = lambda v: self._evaluate(px, py, v)  # noqa: E731
@@ -181,10 +210,9 @@ class PEF:
                 t, b = self._kernel_grid(x, y, v.reshape(v.shape[0], y.size, x.size))
                 return PefResult(tau=t.ravel(), best=b.reshape(y.size * x.size, self.k))
         r = self._redundant(evaluate, vis.reshape(vis.shape[0], y.size * x.size))
-        size = self.scenario.workspace.size
         shape = (y.size, x.size)
         return PefMap(x=x, y=y, tau=r.tau.reshape(shape), best=r.best.reshape(*shape, self.k), free=free,
-                      model=self.model, cell_size=(size[0] / x.size, size[1] / y.size),
+                      model=self.model, cell_size=cell_size,
                       redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape))
 
     def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:
@@ -217,7 +245,8 @@ class PEF:
         sc = self.scenario
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
-                                     sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence)
+                                     sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
+                                     self.rule, bodies=self.markers)
         local = np.arange(self.k, dtype=np.int64)
         out = np.empty((sub.shape[0], pts.shape[0]))
         px, py = pts[:, 0].copy(), pts[:, 1].copy()

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.pef.scalar import diagonal_of_offsets
 
 #: Grid tiles: rows x columns of cells per block.
@@ -223,6 +223,9 @@ def _tau_pairs(pxb, pyb, w, mx, my, subsets, rel, ab, bs, ax, ay, bx, by, taub, 
     for c in range(w):
         t = diagonal_of_offsets(pxb[c] - ax[c], pyb[c] - ay[c], pxb[c] - bx[c], pyb[c] - by[c], rel, ab)
         taub[c] = t if bs[c] >= 0 else np.inf
+        if not taub[c] < np.inf:  # the point on the line through both markers: no subset fixes it
+            bestb[2 * c] = -1
+            bestb[2 * c + 1] = -1
 
 
 @compiled.njit(cache=True, error_model="numpy")

@@ -10,13 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.pef.pairs import BLOCK, _block, _scratch
 
 
-@compiled.njit(cache=True, nogil=True, error_model="numpy",
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], boolean[::1], "
-                    "float64, float64, int64[:, ::1], float64, float64[::1], int64[::1])"))
+@compiled.njit(cache=True, nogil=True, error_model="numpy")
 def blocks_points_local(b0, b1, px, py, mx, my, vis, rel, ab, subsets, margin, tau, best):
     """:func:`planner.pef.pairs.blocks_points` on each block's visible markers only.
 

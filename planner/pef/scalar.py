@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from estimators import compiled
 from estimators.fault.linearized import info_lambda_max_inv_k, strip_max_vertex_sq_k
+from jit import compiled
 
 PARALLELOGRAM, STRIPS, GDOP = 0, 1, 2
 

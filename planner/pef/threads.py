@@ -15,7 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 _threads: int | None = None
 _pool: ThreadPoolExecutor | None = None  # shared by every call: a plan makes hundreds of calls

@@ -17,6 +17,13 @@ passes through it does. Where two pieces of one obstacle meet, their cut is move
 much, so the pieces overlap and even a segment running along the cut is blocked: the split is
 invisible. Free space uses the pieces at full size.
 
+That is the margin-free geometry (``rule=None``). What a plan counts on is stricter, the rule of
+:mod:`planner.pef.sight` (``rule=SightRule``, what :func:`scenario_visible_points` and
+:func:`scenario_visible_grid` apply): every piece but a marker's mount grown by the physics ray's
+reach and its shadow widened by the robot's margin (:func:`shadow_table`, the same half-planes
+for points and grid rows), the reflectors' bodies as pieces of the others' lines of sight, a
+wedge in front of each mount face, and the range and incidence limits held within the margin.
+
 Two paths give the same answer (a test checks it):
 
 - :func:`visible_points`: arbitrary points, a Cyrus-Beck segment/piece clip for every point,
@@ -32,11 +39,13 @@ from __future__ import annotations
 
 import math
 import weakref
+from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from planner.pef.convex import PieceArrays, inside_closed, piece_arrays, segment_enters, shadow_halfplanes
+from planner.pef.sight import SightRule, sight_rule
 from planner.pef.threads import run_ranges
 from scenarios.obstacles import ConvexPieces, pack_pieces
 from scenarios.schema import Scenario
@@ -96,17 +105,32 @@ def _is_free(px, py, x0, y0, x1, y1, planes, count, bbox):
 
 
 @compiled.njit(cache=True)
-def facing_ok(dx, dy, nx, ny, cos_inc):
-    """Tell whether offset (dx, dy) = p - M [m] lies in the incidence wedge of normal (nx, ny).
+def facing_ok(dx, dy, nx, ny, cos_inc, offset):
+    """Tell whether offset (dx, dy) = p - M [m] lies in the wedge of normal (nx, ny).
 
-    The wedge ``angle(d, n) <= max_incidence`` is ``d.n >= |d| cos(max_incidence)``; squared
-    (no square root) it is ``d.n >= 0`` and ``(d.n)^2 >= |d|^2 cos^2``, exact for a limit up to
-    90 degrees. ``n = (0, 0)`` (a post) passes everywhere.
+    The wedge is ``d.n >= offset + |d| cos_inc``: with ``offset = 0`` a flat marker's incidence
+    wedge ``angle(d, n) <= max_incidence`` (``cos_inc = cos(max_incidence)``), with an offset
+    the mount wedge of :mod:`planner.pef.sight`. Squared (no square root) it is ``d.n - offset
+    >= 0`` and ``(d.n - offset)^2 >= |d|^2 cos_inc^2``, exact for ``cos_inc >= 0``.
+    ``n = (0, 0)`` (a free-standing post) passes everywhere.
     """
     if nx == 0.0 and ny == 0.0:
         return True
-    dot = dx * nx + dy * ny
+    dot = dx * nx + dy * ny - offset
     return dot >= 0.0 and dot * dot >= (dx * dx + dy * dy) * (cos_inc * cos_inc)
+
+
+@compiled.njit(cache=True)
+def wedges_ok(dx, dy, wedge, m):
+    """Tell whether offset (dx, dy) = p - M [m] lies in every wedge of marker m.
+
+    ``wedge`` (M, W, 4): rows ``(nx, ny, cos_inc, offset)`` for :func:`facing_ok`; a row with
+    ``n = (0, 0)`` is unused.
+    """
+    for w in range(wedge.shape[1]):
+        if not facing_ok(dx, dy, wedge[m, w, 0], wedge[m, w, 1], wedge[m, w, 2], wedge[m, w, 3]):
+            return False
+    return True
 
 
 @compiled.njit(cache=True)
@@ -123,13 +147,53 @@ def _blocked(ax, ay, bx, by, planes, sight, count, sight_bbox, blocks):
     return False
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-                    "float64[::1], float64, float64, float64, float64, float64, float64, float64[:, :, ::1], "
-                    "float64[:, ::1], int64[::1], float64[:, ::1], float64[:, ::1], boolean[::1], boolean[:, ::1], "
-                    "boolean[::1])"))
-def _visible_points_range(lo, hi, px, py, mx, my, fnx, fny, cos_inc, max_range, x0, y0, x1, y1, planes, sight,
-                          count, bbox, sight_bbox, blocks, vis, free):
+@compiled.njit(cache=True)
+def in_shadow(px, py, hp, n):
+    """Tell whether point (px, py) meets all ``n`` half-planes ``a x + b y + c < 0`` of ``hp`` (False if n <= 0)."""
+    if n <= 0:
+        return False
+    for h in range(n):
+        if not hp[h, 0] * px + hp[h, 1] * py + hp[h, 2] < 0.0:
+            return False
+    return True
+
+
+@compiled.njit(cache=True)
+def shadow_table(mx, my, planes, sight, shrunk, count, blocks, widen, bbox, max_range):
+    """Shadow half-planes of every (marker, piece), their counts, and the markers hidden everywhere.
+
+    Marker m's pieces are ``sight[m]``, ``shrunk[m]``, ``blocks[m]``, ``bbox[m]``
+    (:class:`SightArrays`). A shadow widened by ``widen[m, p]`` [m] takes in the points within
+    that distance of it (every half-plane moved out by it, mitred: a superset): the points from
+    which some position within ``widen`` looks at the marker through the piece. A piece farther
+    than ``max_range`` (plus its widening) from a marker gets no half-planes: its shadow, beyond
+    the piece, is out of range. ``hidden[m]``: the marker lies in one of its pieces.
+    """
+    nm, npc = mx.size, count.size
+    hp = np.zeros((nm, npc, planes.shape[1] + 2, 3))
+    nhp = np.zeros((nm, npc), dtype=np.int64)
+    hidden = np.zeros(nm, dtype=np.bool_)
+    for m in range(nm):
+        for p in range(npc):
+            if blocks[m, p]:
+                dx = max(bbox[m, p, 0] - mx[m], mx[m] - bbox[m, p, 2], 0.0)
+                dy = max(bbox[m, p, 1] - my[m], my[m] - bbox[m, p, 3], 0.0)
+                n = shadow_halfplanes(mx[m], my[m], planes, sight[m], shrunk[m], count, p, hp[m, p])
+                if n < 0:
+                    hidden[m] = True
+                    continue
+                w = widen[m, p]
+                if w > 0.0:
+                    for h in range(n):
+                        hp[m, p, h, 2] -= w * math.sqrt(hp[m, p, h, 0] ** 2 + hp[m, p, h, 1] ** 2)
+                reach = max_range + w
+                nhp[m, p] = n if dx * dx + dy * dy <= reach * reach * 1.0000001 else 0
+    return hp, nhp, hidden
+
+
+@compiled.njit(cache=True, nogil=True)
+def _visible_points_range(lo, hi, px, py, mx, my, wedge, max_range, x0, y0, x1, y1, planes, count, bbox,
+                          splanes, scount, sight, sight_bbox, blocks, hp, nhp, vis, free):
     r2max = max_range * max_range
     for n in range(lo, hi):
         f = _is_free(px[n], py[n], x0, y0, x1, y1, planes, count, bbox)
@@ -138,15 +202,206 @@ def _visible_points_range(lo, hi, px, py, mx, my, fnx, fny, cos_inc, max_range, 
             ok = f
             if ok:
                 dx, dy = px[n] - mx[m], py[n] - my[m]
-                ok = dx * dx + dy * dy <= r2max and facing_ok(dx, dy, fnx[m], fny[m], cos_inc)
+                ok = dx * dx + dy * dy <= r2max and wedges_ok(dx, dy, wedge, m)
             if ok:
-                ok = not _blocked(px[n], py[n], mx[m], my[m], planes, sight, count, sight_bbox, blocks)
+                ok = not _blocked(px[n], py[n], mx[m], my[m], splanes, sight[m], scount, sight_bbox[m], blocks[m])
+            if ok:
+                for p in range(nhp.shape[1]):
+                    if in_shadow(px[n], py[n], hp[m, p], nhp[m, p]):
+                        ok = False
+                        break
             vis[m, n] = ok
+
+
+@dataclass(frozen=True)
+class SightArrays:
+    """Each marker's line-of-sight pieces and wedge, as the kernels read them (:func:`prepare_sight`).
+
+    Attributes
+    ----------
+    sight : ndarray, shape (M, P, V)
+        Edge offsets of the pieces marker m's line of sight must not enter [m]: its mount's
+        shrunk ones (``PieceArrays.sight``), every other piece's grown by ``SightRule.reach``.
+    shrunk : ndarray, shape (M, P, V, 2)
+        The corners of those pieces [m].
+    sight_bbox : ndarray, shape (M, P, 4)
+        Their bounding boxes [m].
+    blocks : ndarray of bool, shape (M, P)
+        Whether they block (``PieceArrays.blocks``).
+    wedge : ndarray, shape (M, W, 4)
+        Each marker's wedges ``(nx, ny, cos_inc, offset)`` (:func:`wedges_ok`): a flat marker's
+        incidence wedge, and one per mount face (a face whose line passes within the
+        reflector's radius of the marker: two in a corner), ``n = (0, 0)`` where unused.
+    mount : ndarray of bool, shape (M, P)
+        Piece p is marker m's mount (not grown for it).
+    widen : ndarray, shape (M, P)
+        How far piece p's shadow is widened for marker m [m]: the rule's margin, 0 on its mount.
+    planes : ndarray, shape (P, V, 3)
+        The pieces' edges (``PieceArrays.planes``): the obstacles', then, with a rule, each
+        marker's body (an octagon around it; not a piece of its own line of sight).
+    count : ndarray of int64, shape (P,)
+        Their edge counts.
+    """
+
+    sight: np.ndarray
+    shrunk: np.ndarray
+    sight_bbox: np.ndarray
+    blocks: np.ndarray
+    wedge: np.ndarray
+    mount: np.ndarray
+    widen: np.ndarray
+    planes: np.ndarray
+    count: np.ndarray
+
+
+def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, float, float],
+                  normals: np.ndarray | None = None, max_incidence: float = math.pi / 2,
+                  rule: SightRule | None = None, bodies: np.ndarray | None = None) -> tuple[PieceArrays, SightArrays]:
+    """Prepare the obstacles and each marker's line-of-sight pieces and wedge.
+
+    Parameters
+    ----------
+    obstacles : scenarios.ConvexPieces or ndarray of shape (B, 4, 2)
+        As in :func:`prepare` (already prepared ``PieceArrays`` only when ``rule`` is None).
+    markers : ndarray, shape (M, 2)
+        Marker positions [m].
+    bounds : (float, float, float, float)
+        Workspace ``(x0, y0, x1, y1)`` [m]: its sides are mount faces too (the border walls).
+    normals, max_incidence
+        Flat markers' normals and incidence limit, as in :func:`visible_points`.
+    rule : SightRule, optional
+        The margins of a usable line of sight (:mod:`planner.pef.sight`); None: the margin-free
+        test (segment against the shrunk pieces, the flat wedge only).
+    bodies : ndarray, shape (B, 2), optional
+        Where the reflectors' bodies stand [m] (every marker of the world, when ``markers`` are
+        some of them); default ``markers``. A body at a marker's own position is its own.
+
+    Returns
+    -------
+    (PieceArrays, SightArrays)
+    """
+    mk = np.asarray(markers, float).reshape(-1, 2)
+    fn = _normals(normals, mk.shape[0])
+    pa = prepare(obstacles)
+    m_n = mk.shape[0]
+    wedge = np.zeros((m_n, 1 if rule is None else _MAX_WEDGES, 4))
+    wedge[:, 0, :2] = fn
+    wedge[:, 0, 2] = math.cos(max_incidence)
+    if rule is None:
+        mount = np.zeros((m_n, pa.count.size), dtype=np.bool_)
+        return pa, SightArrays(np.ascontiguousarray(np.broadcast_to(pa.sight, (m_n, *pa.sight.shape))),
+                               np.ascontiguousarray(np.broadcast_to(pa.shrunk, (m_n, *pa.shrunk.shape))),
+                               np.ascontiguousarray(np.broadcast_to(pa.sight_bbox, (m_n, *pa.sight_bbox.shape))),
+                               np.ascontiguousarray(np.broadcast_to(pa.blocks, (m_n, *pa.blocks.shape))),
+                               wedge, mount, np.zeros(mount.shape), pa.planes, pa.count)
+    flat = np.any(fn != 0.0, axis=1)
+    wedge[flat, 0, 3] = rule.wedge_offset(math.cos(max_incidence))   # the incidence limit within the margin too
+    pieces = _pieces(obstacles)
+    n_ob = len(pieces.count)
+    # the obstacles' pieces, then every marker's body (it blocks the others' lines of sight)
+    at = mk if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
+    both = _with_bodies(pieces, at, rule.radius)
+    base = piece_arrays(both, BOX_SHRINK)
+    grown = piece_arrays(both, BOX_SHRINK, rule.reach)
+    swallow = piece_arrays(both, BOX_SHRINK, rule.grow)
+    nrm, c = base.planes[:, :, :2], base.planes[:, :, 2]
+    # (M, P, V): how far each marker lies outside each edge's line [m]
+    out = np.einsum("pvk,mk->mpv", nrm, mk) - c[None]
+    used = np.arange(base.planes.shape[1])[None, :] < base.count[:, None]      # (P, V)
+    mount = np.all((out <= (swallow.sight - c)[None]) | ~used[None], axis=2)  # inside the piece grown by grow
+    sight = np.where(mount[:, :, None], base.sight[None], grown.sight[None])
+    shrunk = np.where(mount[:, :, None, None], base.shrunk[None], grown.shrunk[None])
+    sight_bbox = np.where(mount[:, :, None], base.sight_bbox[None], grown.sight_bbox[None])
+    blocks = np.where(mount, base.blocks[None], grown.blocks[None])
+    # a marker's own body (the one at its position, as the laser matches its post) is what the ray must meet
+    own = np.all(at[None, :, :] == mk[:, None, :], axis=2)
+    blocks[:, n_ob:] &= ~own
+    for m in range(m_n):
+        for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m, :n_ob], rule.radius, bounds), start=1):
+            wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
+    return pa, SightArrays(np.ascontiguousarray(sight), np.ascontiguousarray(shrunk),
+                           np.ascontiguousarray(sight_bbox), np.ascontiguousarray(blocks), wedge, mount,
+                           np.where(mount, 0.0, rule.margin), base.planes, base.count)
+
+
+def _with_bodies(pieces: ConvexPieces, mk: np.ndarray, radius: float) -> ConvexPieces:
+    """``pieces`` followed by one octagon per body ``mk`` (B, 2), circumscribing it (radius ``radius``) [m]."""
+    ang = np.pi / 8.0 + np.arange(8) * np.pi / 4.0
+    octagon = (radius / math.cos(np.pi / 8.0)) * np.column_stack([np.cos(ang), np.sin(ang)])
+    nv = max(pieces.vertices.shape[1], 8)
+    n_ob, m_n = len(pieces.count), mk.shape[0]
+    verts = np.zeros((n_ob + m_n, nv, 2))
+    verts[:n_ob, :pieces.vertices.shape[1]] = pieces.vertices
+    verts[:n_ob, pieces.vertices.shape[1]:] = pieces.vertices[:, -1:]
+    verts[n_ob:, :8] = mk[:, None, :] + octagon[None]
+    verts[n_ob:, 8:] = verts[n_ob:, 7:8]
+    inner = np.zeros((n_ob + m_n, nv), dtype=np.bool_)
+    inner[:n_ob, :pieces.inner.shape[1]] = pieces.inner
+    inset = np.zeros((n_ob + m_n, nv))
+    inset[:n_ob, :pieces.inset.shape[1]] = pieces.inset
+    return ConvexPieces(verts, np.concatenate([pieces.count, np.full(m_n, 8, dtype=np.int64)]),
+                        np.concatenate([pieces.owner, -1 - np.arange(m_n, dtype=np.int64)]), inner, inset)
+
+
+#: Wedges per marker: a flat marker's incidence wedge and up to two mount faces (a corner).
+_MAX_WEDGES = 3
+
+
+def _range(max_range: float, rule: SightRule | None) -> float:
+    """Return the range limit the kernels apply [m]: the sensor's, or the rule's usable range."""
+    return float(max_range) if rule is None else rule.usable_range(max_range)
+
+
+def _pieces(obstacles) -> ConvexPieces:
+    """Return the obstacles as :class:`~scenarios.ConvexPieces` (box corners packed)."""
+    if isinstance(obstacles, ConvexPieces):
+        return obstacles
+    if isinstance(obstacles, PieceArrays):
+        raise ValueError("obstacles: a line-of-sight rule needs the convex pieces, not prepared PieceArrays")
+    corners = np.asarray(obstacles, float).reshape(-1, 4, 2)
+    return pack_pieces([_Corners(c) for c in corners])
+
+
+def _mount_faces(pa: PieceArrays, pieces: ConvexPieces, mk: np.ndarray, mount: np.ndarray, radius: float,
+                 bounds) -> list[tuple[float, float]]:
+    """Return a marker's mount faces: outward unit normals, the nearest first, at most two.
+
+    A face is an obstacle edge of a mount piece (not a cut between pieces), or a side of the
+    workspace (the border walls), whose line passes within ``radius`` (the reflector's body) of
+    the marker ``mk`` (2,) and whose extent, lengthened by ``radius`` at both ends, the marker
+    faces. Faces of one direction count once.
+    """
+    found = []
+    v = pa.vertices
+    for p in np.flatnonzero(mount):
+        n = int(pa.count[p])
+        for k in range(n):
+            if pieces.inner[p, k]:
+                continue
+            a, b = v[p, k], v[p, (k + 1) % n]
+            e = b - a
+            length = math.hypot(float(e[0]), float(e[1]))
+            if length == 0.0:
+                continue
+            t = float(np.dot(mk - a, e)) / length
+            d = abs(float(np.dot(pa.planes[p, k, :2], mk) - pa.planes[p, k, 2]))
+            if -radius <= t <= length + radius and d <= radius:
+                found.append((d, float(pa.planes[p, k, 0]), float(pa.planes[p, k, 1])))
+    x0, y0, x1, y1 = (float(b) for b in bounds)
+    for d, nx, ny in ((mk[0] - x0, 1.0, 0.0), (x1 - mk[0], -1.0, 0.0), (mk[1] - y0, 0.0, 1.0), (y1 - mk[1], 0.0, -1.0)):
+        if abs(d) <= radius:
+            found.append((abs(float(d)), nx, ny))
+    faces: list[tuple[float, float]] = []
+    for _, nx, ny in sorted(found):
+        if all(nx * fx + ny * fy < 1.0 - 1e-9 for fx, fy in faces):
+            faces.append((nx, ny))
+    return faces[:_MAX_WEDGES - 1]
 
 
 def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
                    bounds: tuple[float, float, float, float], normals: np.ndarray | None = None,
-                   max_incidence: float = math.pi / 2) -> tuple[np.ndarray, np.ndarray]:
+                   max_incidence: float = math.pi / 2, rule: SightRule | None = None,
+                   bodies: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Visibility of markers from arbitrary points.
 
     Parameters
@@ -166,6 +421,12 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
         all posts.
     max_incidence : float
         Largest angle between ``p - M`` and a flat marker's normal [rad], in (0, pi/2].
+    rule : SightRule, optional
+        The margins of a usable line of sight (:mod:`planner.pef.sight`: obstacles grown, mount
+        and incidence wedges, the range shortened by the margin); None: the margin-free test.
+    bodies : ndarray, shape (B, 2), optional
+        Every reflector body in the world [m], when ``markers`` are some of them (the rule only;
+        :func:`prepare_sight`).
 
     Returns
     -------
@@ -177,16 +438,20 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
     """
     p = np.ascontiguousarray(np.asarray(points, float).reshape(-1, 2))
     mk = np.asarray(markers, float).reshape(-1, 2)
-    pa = prepare(obstacles)
-    fn = _normals(normals, mk.shape[0])
+    pa, sa = prepare_sight(obstacles, mk, bounds, normals, max_incidence, rule, bodies)
     x0, y0, x1, y1 = (float(v) for v in bounds)
     vis = np.empty((mk.shape[0], p.shape[0]), dtype=np.bool_)
     free = np.empty(p.shape[0], dtype=np.bool_)
+    # widened pieces by their (grid path's) shadows, the others by clipping the segment
+    widened = sa.widen > 0.0
+    hp, nhp, _ = shadow_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), sa.planes, sa.sight,
+                              sa.shrunk, sa.count, sa.blocks & widened, sa.widen, sa.sight_bbox,
+                              _range(max_range, rule))
     run_ranges(_visible_points_range, p.shape[0],
                (np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
                 np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]),
-                fn[:, 0].copy(), fn[:, 1].copy(), math.cos(max_incidence), float(max_range),
-                x0, y0, x1, y1, pa.planes, pa.sight, pa.count, pa.bbox, pa.sight_bbox, pa.blocks, vis, free),
+                sa.wedge, _range(max_range, rule), x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, sa.planes, sa.count,
+                sa.sight, sa.sight_bbox, np.ascontiguousarray(sa.blocks & ~widened), hp, nhp, vis, free),
                min_chunk=2048)
     return vis, free
 
@@ -251,9 +516,7 @@ def _first_at_or_above(x, v):
     return i
 
 
-@compiled.njit(cache=True,
-               aot=("void(float64[::1], float64[::1], float64, float64, float64, float64, float64[:, :, ::1], "
-                    "int64[::1], float64[:, ::1], boolean[:, ::1])"))
+@compiled.njit(cache=True)
 def _free_grid_kernel(x, y, x0, y0, x1, y1, planes, count, bbox, free):
     for iy in range(y.size):
         for ix in range(x.size):
@@ -300,48 +563,35 @@ def shadow_row(hp, n, yy, x):
 
 
 @compiled.njit(cache=True)
-def _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
-                         free, vis):
-    """Fill ``vis[m]``: free, in range and in the incidence wedge, then clear each piece's shadow row by row."""
+def _visible_grid_marker(m, x, y, mx, my, wedge, max_range, hp, nhp, hidden_all, free, vis):
+    """Fill ``vis[m]``: free, in range and in the wedges, then clear each piece's shadow row by row."""
     r2max = max_range * max_range
-    npc = count.size
-    hp = np.empty((npc, planes.shape[1] + 2, 3))
-    nhp = np.zeros(npc, dtype=np.int64)
-    hidden = False
-    for p in range(npc):
-        if blocks[p]:
-            nhp[p] = shadow_halfplanes(mx[m], my[m], planes, sight, shrunk, count, p, hp[p])
-            if nhp[p] < 0:
-                hidden = True
+    npc = nhp.shape[1]
+    hidden = hidden_all[m]
     for iy in range(y.size):
         yy = y[iy]
         dy = yy - my[m]
         for ix in range(x.size):
             dx = x[ix] - mx[m]
             vis[m, iy, ix] = (free[iy, ix] and (dx * dx + dy * dy <= r2max) and not hidden
-                              and facing_ok(dx, dy, fnx[m], fny[m], cos_inc))
+                              and wedges_ok(dx, dy, wedge, m))
         if hidden:
             continue
         for p in range(npc):
-            i0, i1 = shadow_row(hp[p], nhp[p], yy, x)
+            i0, i1 = shadow_row(hp[m, p], nhp[m, p], yy, x)
             for ix in range(i0, i1):
                 vis[m, iy, ix] = False
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(int64, int64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-                    "float64[::1], float64, float64, float64[:, :, ::1], float64[:, ::1], float64[:, :, ::1], "
-                    "int64[::1], boolean[::1], boolean[:, ::1], boolean[:, :, ::1])"))
-def _visible_grid_markers(m0, m1, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
-                          free, vis):
+@compiled.njit(cache=True, nogil=True)
+def _visible_grid_markers(m0, m1, x, y, mx, my, wedge, max_range, hp, nhp, hidden, free, vis):
     for m in range(m0, m1):
-        _visible_grid_marker(m, x, y, mx, my, fnx, fny, cos_inc, max_range, planes, sight, shrunk, count, blocks,
-                             free, vis)
+        _visible_grid_marker(m, x, y, mx, my, wedge, max_range, hp, nhp, hidden, free, vis)
 
 
 def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
                  max_range: float, bounds: tuple[float, float, float, float], normals: np.ndarray | None = None,
-                 max_incidence: float = math.pi / 2) -> tuple[np.ndarray, np.ndarray]:
+                 max_incidence: float = math.pi / 2, rule: SightRule | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Visibility of markers from the cell centres of a regular grid.
 
     Parameters
@@ -350,7 +600,7 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
         Cell-centre x coordinates, ascending and uniformly spaced [m].
     y : ndarray, shape (ny,)
         Cell-centre y coordinates, ascending and uniformly spaced [m].
-    markers, obstacles, max_range, bounds, normals, max_incidence
+    markers, obstacles, max_range, bounds, normals, max_incidence, rule
         As in :func:`visible_points`.
 
     Returns
@@ -363,37 +613,47 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
     x = np.ascontiguousarray(x, dtype=float)
     y = np.ascontiguousarray(y, dtype=float)
     mk = np.asarray(markers, float).reshape(-1, 2)
-    pa = prepare(obstacles)
-    fn = _normals(normals, mk.shape[0])
+    pa, sa = prepare_sight(obstacles, mk, bounds, normals, max_incidence, rule)
     x0, y0, x1, y1 = (float(v) for v in bounds)
     free = np.empty((y.size, x.size), dtype=np.bool_)
     _free_grid_kernel(x, y, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free)
     vis = np.empty((mk.shape[0], y.size, x.size), dtype=np.bool_)
+    mx, my = np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1])
+    hp, nhp, hidden = shadow_table(mx, my, sa.planes, sa.sight, sa.shrunk, sa.count, sa.blocks, sa.widen,
+                                   sa.sight_bbox, _range(max_range, rule))
     run_ranges(_visible_grid_markers, mk.shape[0],
-               (x, y, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), fn[:, 0].copy(),
-                fn[:, 1].copy(), math.cos(max_incidence), float(max_range),
-                pa.planes, pa.sight, pa.shrunk, pa.count, pa.blocks, free, vis))
+               (x, y, mx, my, sa.wedge, _range(max_range, rule), hp, nhp, hidden, free, vis))
     return vis, free
 
 
-def scenario_visible_points(scenario: Scenario, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def scenario_visible_points(scenario: Scenario, points: np.ndarray,
+                            sight: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """:func:`visible_points` for a scenario's markers (their kinds too), obstacles and declared sensor.
 
-    Returns ``vis`` (M, N) and ``free`` (N,).
+    With ``sight`` False the margin-free geometry (no :func:`scenario_sight_rule`): what the
+    drawing alone says. Returns ``vis`` (M, N) and ``free`` (N,).
     """
     return visible_points(points, scenario.marker_positions(), scenario.obstacle_pieces(),
                           scenario.sensor.max_range, scenario.workspace.bounds, scenario.marker_normals(),
-                          scenario.sensor.max_incidence)
+                          scenario.sensor.max_incidence, scenario_sight_rule(scenario) if sight else None)
 
 
-def scenario_visible_grid(scenario: Scenario, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def scenario_visible_grid(scenario: Scenario, x: np.ndarray, y: np.ndarray,
+                          sight: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """:func:`visible_grid` for a scenario's markers (their kinds too), obstacles and declared sensor.
+
+    ``sight`` as in :func:`scenario_visible_points`.
 
     Returns ``vis`` (M, ny, nx) and ``free`` (ny, nx).
     """
     return visible_grid(x, y, scenario.marker_positions(), scenario.obstacle_pieces(),
                         scenario.sensor.max_range, scenario.workspace.bounds, scenario.marker_normals(),
-                        scenario.sensor.max_incidence)
+                        scenario.sensor.max_incidence, scenario_sight_rule(scenario) if sight else None)
+
+
+def scenario_sight_rule(scenario: Scenario) -> SightRule:
+    """Return the line-of-sight rule of a scenario's plans (:func:`planner.pef.sight.sight_rule` at its eps_max)."""
+    return sight_rule(scenario.planning.eps_max)
 
 
 compiled.keep_fresh(__name__)

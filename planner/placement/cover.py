@@ -12,18 +12,29 @@ cover must choose a site of ``S_r minus T``::
 
 Taking every maximal T this is exact; the cuts are generated as needed (one per row and
 round, T grown greedily), so each LP/MILP has only the site variables and few hundred rows.
+
+Redundancy 1 (any one chosen site may be blocked) is the same formulation with right-hand
+sides one higher: a row is 1-robust exactly when no single chosen site meets every chosen good
+pair of it, i.e. when every independent T leaves at least *two* chosen sites in ``S_r minus T``
+(if only u were left, blocking u leaves the chosen sites of the row inside T, no pair among
+them; conversely, if every chosen pair held u, T = the other chosen sites of the row would be
+independent and leave only u). So ``sum_{S_r minus T} z >= 2``, ``sum_{S_r} z >= 3`` and
+``sum_{visible} z >= k + 1``: its LP is a lower bound on the redundancy-1 count, and its
+integer rounds find redundancy-1 covers directly (completed by
+:func:`planner.placement.redundant.greedy_robust`).
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize, sparse
 
-from estimators import compiled
+from jit import compiled
+from planner.placement.pair_cover import PairCover
+from planner.placement.redundant import greedy_robust, robust_rows
 from planner.placement.search import WORK, local_search
 
 MILP_TIME_LIMIT = 30.0
@@ -35,31 +46,10 @@ LP_STALL = 0.01
 """The LP phase stops when two rounds raised the LP value by less than this [markers]."""
 MILP_NODE_LIMIT = 20_000
 """Branch-and-bound nodes of one integer round (HiGHS ``node_limit``)."""
-
-@dataclass(frozen=True, eq=False)
-class PairCover:
-    """A pair-cover problem on unique point rows (R rows, P good pairs, E row-pair entries).
-
-    A row is covered by a set of sites when the set holds both sites of one of its entries
-    and at least k sites visible from the row.
-    """
-
-    weight: np.ndarray   # (R,) number of points with this row
-    row_of: np.ndarray   # (N_coverable,) row of each coverable point
-    row_ptr: np.ndarray  # (R + 1,) entries of row r: row_ptr[r]:row_ptr[r + 1]
-    ep: np.ndarray       # (E,) pair of each entry
-    ea: np.ndarray       # (E,) first site of each entry's pair
-    eb: np.ndarray       # (E,) second site
-    pj: np.ndarray       # (P,) first site of each pair
-    pl: np.ndarray       # (P,) second site
-    vis: np.ndarray      # (R, S) bool, sites visible from the row's points
-    n_sites: int
-
-    @property
-    def er(self) -> np.ndarray:
-        """Row of each entry, shape (E,)."""
-        return np.repeat(np.arange(len(self.weight)), np.diff(self.row_ptr))
-
+SEARCH_GAP = 1.1
+"""While the best cover is more than this times the bound, the local search goes on ..."""
+SEARCH_EXTENSIONS = 2
+"""... for at most this many more budgets, each from the best cover with the next seed."""
 
 @compiled.njit(cache=True)
 def _rows_covered(row_ptr, ea, eb, vis, k, chosen):
@@ -83,8 +73,8 @@ def _recheck(row_ptr, ea, eb, vis, k, chosen, covered):
 
 
 @compiled.njit(cache=True)
-def _greedy_kernel(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, chosen):
-    """Greedy completion of ``chosen`` (in place), then removal of redundant sites."""
+def _greedy_kernel(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, chosen, fixed):
+    """Greedy completion of ``chosen`` (in place), then removal of redundant sites (never ``fixed`` ones)."""
     n_rows, n_sites, n_pairs = row_ptr.size - 1, chosen.size, pj.size
     covered = _rows_covered(row_ptr, ea, eb, vis, k, chosen)
     stamp = np.full(n_sites, -1, dtype=np.int64)
@@ -117,7 +107,7 @@ def _greedy_kernel(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, chosen):
             chosen[np.argmax(seen)] = True
         covered = _recheck(row_ptr, ea, eb, vis, k, chosen, covered)
     for j in range(n_sites - 1, -1, -1):
-        if chosen[j]:
+        if chosen[j] and not fixed[j]:
             chosen[j] = False
             if not _rows_covered(row_ptr, ea, eb, vis, k, chosen).all():
                 chosen[j] = True
@@ -129,26 +119,35 @@ def covered(cov: PairCover, chosen: np.ndarray, k: int) -> np.ndarray:
     return _rows_covered(cov.row_ptr, cov.ea, cov.eb, cov.vis, k, chosen)
 
 
-def greedy(cov: PairCover, k: int, start: np.ndarray | None = None) -> np.ndarray:
+def greedy(cov: PairCover, k: int, start: np.ndarray | None = None, fixed: np.ndarray | None = None) -> np.ndarray:
     """Greedy cover: chosen sites, shape (S,) bool.
 
     Adds the site that with the chosen ones covers the most uncovered points, or the pair of
     new sites that covers the most per site added when that is more, until every row is
     covered; then drops chosen sites that are no longer needed (latest index first).
-    ``start`` (S,) bool: sites chosen beforehand (a partial solution to complete).
+    ``start`` (S,) bool: sites chosen beforehand (a partial solution to complete);
+    ``fixed`` (S,) bool: sites that stay chosen (markers already installed).
     """
+    fixed = _fixed(cov, fixed)
     chosen = np.zeros(cov.n_sites, dtype=np.bool_) if start is None else np.array(start, dtype=np.bool_)
-    return _greedy_kernel(cov.row_ptr, cov.ea, cov.eb, cov.ep, cov.pj, cov.pl, cov.weight, cov.vis, k, chosen)
+    chosen |= fixed
+    return _greedy_kernel(cov.row_ptr, cov.ea, cov.eb, cov.ep, cov.pj, cov.pl, cov.weight, cov.vis, k, chosen,
+                          fixed)
+
+
+def _fixed(cov: PairCover, fixed: np.ndarray | None) -> np.ndarray:
+    return np.zeros(cov.n_sites, dtype=np.bool_) if fixed is None else np.asarray(fixed, dtype=np.bool_)
 
 
 @compiled.njit(cache=True)
-def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts):
+def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts, need):
     """Independent-set cuts, one per row: ``cuts[r]`` = S_r minus a maximal independent set T.
 
     T is grown greedily in the row's good-pair graph G_r (sites S_r, edges = good pairs), by
     descending ``z`` then ascending degree. No good pair lies inside T, so every cover takes a
-    site of S_r minus T: ``sum_{S_r minus T} z >= 1`` is valid. Returns which rows' cuts ``z``
-    violates by more than ``tol``.
+    site of S_r minus T: ``sum_{S_r minus T} z >= 1`` is valid (``>= 2`` for redundancy 1,
+    see module doc). Returns which rows' cuts ``z`` violates, their sum short of ``need`` by
+    more than ``tol``.
     """
     n_rows = row_ptr.size - 1
     violated = np.zeros(n_rows, dtype=np.bool_)
@@ -177,7 +176,7 @@ def _separate(row_ptr, ea, eb, n_sites, z, tol, cuts):
             for m in sites:  # j joins T: its neighbours can no longer
                 if adj[j, m]:
                     blocked[m] = True
-        violated[r] = slack < 1.0 - tol
+        violated[r] = slack < need - tol
         for e in range(row_ptr[r], row_ptr[r + 1]):
             a, b = ea[e], eb[e]
             adj[a, b] = adj[b, a] = False
@@ -243,22 +242,28 @@ class _Cuts:
         self.rhs = np.append(self.rhs[~drop], np.full(len(support), float(rhs)))
         return len(support)
 
-    def solve(self, time_limit: float, at_most: int | None = None):
-        """LP relaxation (``at_most`` None) or an integer point with at most ``at_most`` sites."""
+    def solve(self, time_limit: float, at_most: int | None = None, fixed: np.ndarray | None = None):
+        """LP relaxation (``at_most`` None) or an integer point with at most ``at_most`` sites.
+
+        ``fixed`` (S,) bool: sites held at 1 and not counted (in the objective nor in ``at_most``).
+        """
         n = self.support.shape[1]
+        free = np.ones(n) if fixed is None else (~fixed).astype(float)
         a, lo, hi = self.support.astype(float), self.rhs, np.full(len(self.rhs), np.inf)
         if at_most is not None:
-            a, lo, hi = np.vstack([a, np.ones(n)]), np.append(lo, 0.0), np.append(hi, at_most)
+            a, lo, hi = np.vstack([a, free]), np.append(lo, 0.0), np.append(hi, at_most)
         con = optimize.LinearConstraint(sparse.csr_matrix(a), lo, hi)
         # integer rounds only look for a feasible point: a zero objective stops at the first
-        cost = np.ones(n) if at_most is None else np.zeros(n)
+        cost = free if at_most is None else np.zeros(n)
+        low = np.zeros(n) if fixed is None else fixed.astype(float)
         return optimize.milp(cost, constraints=[con], integrality=np.full(n, float(at_most is not None)),
-                             bounds=optimize.Bounds(0.0, 1.0),
+                             bounds=optimize.Bounds(low, 1.0),
                              options={"time_limit": max(time_limit, 0.1), "node_limit": MILP_NODE_LIMIT})
 
 
 def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, integral: bool = True,
-                xy: np.ndarray | None = None, seed: int = 0, work: int | None = None):
+                xy: np.ndarray | None = None, seed: int = 0, work: int | None = None,
+                fixed: np.ndarray | None = None, redundancy: int = 0):
     """Cutting planes on the site-only formulation, local search, then integer rounds (see module doc).
 
     LP phase: solve the LP over the current covering rows, add the independent-set cuts it
@@ -266,6 +271,8 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     two rounds, or after :data:`MAX_LP_ROUNDS` rounds; every LP value is a lower bound. Upper
     bound: the best of the greedy cover and the greedy completions of the LP solution's sites
     with ``z >= 0.3, 0.5, 0.7``, improved by :func:`planner.placement.search.local_search`.
+    While the cover exceeds :data:`SEARCH_GAP` times the bound, the search runs again from it
+    with the next seed, at most :data:`SEARCH_EXTENSIONS` times.
     Integer rounds (``integral``): look for an integer point with fewer sites than the best
     cover (HiGHS with a node limit, :data:`MILP_NODE_LIMIT`); if it covers, it is the new best;
     if not, add the cuts it violates (and complete it greedily); if there is none, the best
@@ -291,43 +298,66 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     work : int, optional
         Local search budget in entries visited (default :data:`planner.placement.search.WORK`;
         0 turns it off).
+    fixed : ndarray of bool, shape (S,), optional
+        Sites that are chosen whatever happens (markers already installed): held at 1 in the
+        LP and MILP, never dropped, and not counted; count and bound are then of the others.
+    redundancy : {0, 1}
+        Cover every row 1-robustly (see module doc): every row must be able to be made robust
+        with every site chosen (:func:`planner.placement.redundant.robust_rows`). The local
+        search is for redundancy 0 only.
 
     Returns
     -------
     chosen : ndarray of bool, shape (S,)
-        Best cover found.
+        Best cover found (the fixed sites included).
     bound : float
-        Lower bound on the count.
+        Lower bound on the count (of the sites not fixed).
     optimal : bool
         ``chosen`` is proven minimal.
     """
     start = time.perf_counter()
     left = lambda: time_limit - (time.perf_counter() - start)
+    fixed = _fixed(cov, fixed)
+    size = lambda z: int(np.count_nonzero(z & ~fixed))
+    r = int(redundancy)
+    if r:
+        def complete(z):
+            return greedy_robust(cov, k, r, z, fixed)[0]
+
+        def ok(z):
+            return bool(robust_rows(cov, z, k, r).all())
+        work = 0  # the local search keeps covers, not robust ones
+    else:
+        def complete(z):
+            return greedy(cov, k, z, fixed)
+
+        def ok(z):
+            return bool(covered(cov, z, k).all())
     cuts = _Cuts(cov.n_sites)
     in_pair = np.zeros((len(cov.weight), cov.n_sites), dtype=bool)
     er = cov.er
     in_pair[er, cov.ea] = in_pair[er, cov.eb] = True
-    cuts.add(in_pair, 2.0)
-    if k > 2:
-        cuts.add(cov.vis, float(k))
+    cuts.add(in_pair, 2.0 + r)
+    if k + r > 2:
+        cuts.add(cov.vis, float(k + r))
 
     def separate(z):
         out = np.zeros((len(cov.weight), cov.n_sites), dtype=bool)
-        return out[_separate(cov.row_ptr, cov.ea, cov.eb, cov.n_sites, z, 1e-6, out)]
+        return out[_separate(cov.row_ptr, cov.ea, cov.eb, cov.n_sites, z, 1e-6, out, 1.0 + r)]
 
-    cuts.add(separate(np.zeros(cov.n_sites)), 1.0)
+    cuts.add(separate(np.zeros(cov.n_sites)), 1.0 + r)
     bound, x, history = 0.0, np.zeros(cov.n_sites), []
     for _ in range(MAX_LP_ROUNDS):
         if left() <= 0:
             break
-        res = cuts.solve(left())
+        res = cuts.solve(left(), fixed=fixed)
         if res.x is None:
             break
         bound, x = max(bound, float(res.fun)), res.x
         history.append(bound)
         if len(history) > 2 and history[-1] < history[-3] + LP_STALL:
             break
-        if not cuts.add(separate(res.x), 1.0):
+        if not cuts.add(separate(res.x), 1.0 + r):
             break
     # LP rounding with repair at several thresholds (the hall's LP is fractional everywhere, and
     # which threshold completes best varies by a marker or two), without the search also against
@@ -335,26 +365,32 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
     # the local search does better from the roundings than from plain greedy (on the hall, 51-53
     # against 51-55 markers over three seeds), and each greedy costs seconds there
     work = WORK if work is None else int(work)
-    starts = [greedy(cov, k, x >= t) for t in (0.3, 0.5)]
+    starts = [complete((x >= t) | fixed) for t in (0.3, 0.5)]
     if work <= 0:
-        starts += [greedy(cov, k, x >= 0.7), greedy(cov, k)]
-    best = min(starts, key=lambda z: z.sum())
-    if work > 0 and math.ceil(bound - 1e-6) < best.sum():
+        starts += [complete((x >= 0.7) | fixed), complete(fixed.copy())]
+    best = min(starts, key=size)
+    if work > 0 and math.ceil(bound - 1e-6) < size(best):
         pos = np.column_stack([np.arange(cov.n_sites, dtype=float), np.zeros(cov.n_sites)]) if xy is None else xy
-        best = local_search(cov, k, best, pos, seed, work)
-    while integral and math.ceil(bound - 1e-6) < best.sum() and left() > 0:
-        res = cuts.solve(left(), at_most=int(best.sum()) - 1)
+        best = local_search(cov, k, best, pos, seed, work, fixed)
+        # far from the bound: search on from the best with fresh streams (the hall with posts:
+        # 52 -> 51 against a bound of 47), a count of budgets, so the result stays load-free
+        for extra in range(1, SEARCH_EXTENSIONS + 1):
+            if size(best) <= SEARCH_GAP * math.ceil(bound - 1e-6):
+                break
+            best = local_search(cov, k, best, pos, seed + extra, work, fixed)
+    while integral and math.ceil(bound - 1e-6) < size(best) and left() > 0:
+        res = cuts.solve(left(), at_most=size(best) - 1, fixed=fixed)
         if res.status == 2:  # infeasible: nothing smaller than the best cover exists
-            bound = float(best.sum())
+            bound = float(size(best))
             break
         if res.x is None:
             break
-        z = res.x > 0.5
-        if covered(cov, z, k).all():
+        z = (res.x > 0.5) | fixed
+        if ok(z):
             best = z
             continue
-        completed = greedy(cov, k, z)
-        best = completed if completed.sum() < best.sum() else best
-        if not cuts.add(separate(z.astype(float)), 1.0):
+        completed = complete(z)
+        best = completed if size(completed) < size(best) else best
+        if not cuts.add(separate(z.astype(float)), 1.0 + r):
             break
-    return best, bound, math.ceil(bound - 1e-6) >= best.sum()
+    return best, bound, math.ceil(bound - 1e-6) >= size(best)

@@ -23,6 +23,18 @@ tau comes from the PEF's own kernel (:func:`planner.pef.kernels.subset_tau`) on 
 visible sites, visibility the PEF's (:func:`planner.pef.visibility.scenario_visible_points`) over
 a scenario copy whose markers are the sites; the ``exact`` model is optimised with its
 linearisation (``strips``): clipping polygons for every pair and point would be far too slow.
+
+Refinement: sampled sites (``placement.spacing`` apart) can miss the few places on a face from
+which a point is seen at all (a flat reflector is seen only within ``max_incidence`` of its
+normal: from 1 m off a rack face, a 2 m stretch of it). Where points are left uncovered, the
+faces are sampled again at half the spacing, and the new sites that form a good pair for an
+uncovered point (with any site) join the candidates; this repeats down to
+``spacing / 2**REFINE_LEVELS``. Points still uncovered then are reported (uncoverable at that
+sampling). Only the sites that help those points are added, so the problem stays small.
+
+Keeping what is installed (``placement.existing = "keep"``): the scenario's markers are sites
+that are always chosen (held at 1 in the LP and MILP, never dropped by the greedy or the local
+search) and not counted; count and lower bound are those of the markers added.
 """
 
 from __future__ import annotations
@@ -37,13 +49,15 @@ import numba
 import numpy as np
 import tomli_w
 
-from estimators import compiled
+from jit import compiled
 from planner.pef import kernels as pef_kernels
-from planner.placement.cover import MILP_TIME_LIMIT, PairCover, solve_exact
+from planner.placement.cover import MILP_TIME_LIMIT, solve_exact
 from planner.placement.facing import site_facings, site_marker
-from planner.placement.redundant import greedy_robust
+from planner.placement.pair_cover import PairCover, subset_rows
+from planner.placement.redundant import robust_rows
 from planner.placement.sites import candidate_sites, cover_points
 from scenarios.errors import PlanningError, output_errors
+from scenarios.load import MIN_SPACING
 from scenarios.schema import Marker, MarkerKind, PefModel, Scenario
 
 MILP_MAX_SITES = 150
@@ -52,6 +66,8 @@ DENSE_KEYS = 20_000_000
 """Largest sites**2 for which the pairs are numbered through a dense table (5 bytes a key)."""
 SEARCH_STREAM = 15
 """Spawn key of the local search's random stream under the scenario seed."""
+REFINE_LEVELS = 4
+"""Halvings of ``placement.spacing`` tried where points are left uncovered (2 m -> 0.125 m)."""
 TAU_MARGIN = 1e-5
 """Pairs count as good when ``tau < eps_max (1 - TAU_MARGIN)``: the PEF selects its best
 subset in float32, so its tau may exceed the float64 minimum by ~1e-6 relative."""
@@ -67,14 +83,15 @@ class PlacementResult:
         Marker ids and positions [m].
     count : int
     lower_bound : int
-        No placement among the sites covers the coverable points with fewer markers.
+        No placement among the sites covers the coverable points with fewer markers (added
+        markers, when some are kept).
     optimal : bool
         ``count`` is proven minimal (MILP solved to optimality).
     uncovered : ndarray, shape (U, 2)
         Points no subset of sites can cover [m].
     method : str
-        ``milp`` (integer rounds ran), ``search`` (LP rounding and local search only), or
-        ``greedy`` (nothing to cover); ``+greedy`` when redundancy completed it greedily.
+        ``milp`` (integer rounds ran), ``search`` (LP rounding and local search only; with
+        redundancy 1 LP rounding completed greedily), or ``greedy`` (nothing to cover).
     sites : ndarray, shape (S, 2)
         The candidate sites [m].
     points : ndarray, shape (N, 2)
@@ -85,6 +102,17 @@ class PlacementResult:
         Facing of each chosen marker [rad]: flat, out of its face; None for a post.
     redundancy : int
         r: every covered point keeps a good subset with any r chosen markers blocked.
+    kept : tuple of Marker
+        Markers kept as installed (``placement.existing = "keep"``); ``markers``, ``count``
+        and ``lower_bound`` are then the ones added.
+    target : float
+        The cover's target [m]: every covered point has a subset with tau below it.
+    unplanned : tuple of str
+        ``"A->B: reason"`` for each task without an admissible route on the layout (filled by
+        :func:`planner.placement.plannable.place_plannable`; empty when not checked).
+    finest_spacing : float or None
+        Finest spacing the candidate sites were refined to where points were uncovered [m]
+        (None: not refined).
     """
 
     markers: list[tuple[str, tuple[float, float]]]
@@ -98,6 +126,46 @@ class PlacementResult:
     chosen: np.ndarray
     facings: tuple = ()
     redundancy: int = 0
+    kept: tuple = ()
+    target: float = float("nan")
+    unplanned: tuple = ()
+    finest_spacing: float | None = None
+
+    @property
+    def new_ids(self) -> tuple[str, ...]:
+        """Ids of the markers this placement added (all of them unless markers were kept)."""
+        return tuple(i for i, _ in self.markers)
+
+    def layout(self) -> tuple[Marker, ...]:
+        """Every marker of the placed layout: the kept ones unchanged, then the added ones."""
+        return self.kept + tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(self))
+
+    def summary(self) -> dict:
+        """Return the placement as a JSON-ready dict (positions in metres, facings in degrees).
+
+        ``markers`` is the whole layout, each marker with ``new`` (added by this placement);
+        ``count`` and ``lower_bound`` are of the added ones.
+        """
+        new = set(self.new_ids)
+        return {
+            "target": _finite_or_none(self.target),
+            "unplanned": list(self.unplanned),
+            "count": int(self.count),
+            "lower_bound": int(self.lower_bound),
+            "optimal": bool(self.optimal),
+            "method": self.method,
+            "kept": [m.id for m in self.kept],
+            "new": sorted(new, key=self.new_ids.index),
+            "markers": [{**_marker_dict(m), "kind": m.kind.value, "new": m.id in new} for m in self.layout()],
+            "points": int(len(self.points)),
+            "sites": int(len(self.sites)),
+            "finest_spacing": self.finest_spacing,
+            "uncovered": [[float(x), float(y)] for x, y in self.uncovered],
+        }
+
+
+def _finite_or_none(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
 
 
 @compiled.njit(parallel=True, cache=True)
@@ -131,10 +199,15 @@ def _good_pairs_kernel(px, py, sx, sy, vis, model, rel, ab, tan_xi, chi2, limit,
     return counts
 
 
-def _site_scenario(scenario: Scenario, sites: np.ndarray) -> Scenario:
-    """Return a copy of ``scenario`` whose markers are the sites (flat on faces, see :mod:`.facing`)."""
-    markers = tuple(site_marker(f"S{j}", p, f) for j, (p, f) in enumerate(zip(sites, site_facings(scenario, sites),
-                                                                            strict=True)))
+def _site_scenario(scenario: Scenario, sites: np.ndarray, kept: tuple[Marker, ...] = ()) -> Scenario:
+    """Return a copy of ``scenario`` whose markers are the sites (flat on faces, see :mod:`.facing`).
+
+    ``kept``: markers already installed, as they are; they stand for the first ``len(kept)``
+    rows of ``sites``, the others become markers of the placement's kind.
+    """
+    free = sites[len(kept):]
+    markers = kept + tuple(site_marker(f"S{j}", p, f)
+                           for j, (p, f) in enumerate(zip(free, site_facings(scenario, free), strict=True)))
     return dataclasses.replace(scenario, markers=markers)
 
 
@@ -143,8 +216,12 @@ def _model(scenario: Scenario) -> PefModel:
     return PefModel.STRIPS if m is PefModel.EXACT else m
 
 
-def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_max: float):
+def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_max: float,
+                kept: tuple[Marker, ...] = ()):
     """Good pairs of sites at every point.
+
+    ``kept``: markers already installed, standing for the first ``len(kept)`` sites (their
+    own kinds and facings; see :func:`_site_scenario`).
 
     Returns
     -------
@@ -160,7 +237,7 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     # the sites' visibility only: a PEF over them would list every pair of sites (4e6 for 3000
     # sites, past its limit), where a point's good pairs are among the few sites it sees
     points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites), points)[0].T)
+    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points)[0].T)
     model = _model(scenario)
     kernel_model = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                     PefModel.GDOP: pef_kernels.GDOP}[model]
@@ -226,16 +303,19 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     Parameters
     ----------
     scenario : Scenario
-        Sensor, obstacles, PEF model, k, and the defaults below.
+        Sensor, obstacles, PEF model, k, and the defaults below. With
+        ``placement.existing = "keep"`` its markers stay as they are and only the added ones
+        are chosen and counted (see module doc); with ``"replace"`` they are ignored.
     points : ndarray, shape (N, 2), optional
         Points to cover [m]; default :func:`planner.placement.sites.cover_points`.
     sites : ndarray, shape (S, 2), optional
-        Candidate sites [m]; default :func:`planner.placement.sites.candidate_sites`.
+        Candidate sites [m]; default :func:`planner.placement.sites.candidate_sites`, refined
+        where points are left uncovered (see module doc). Given sites are not refined.
     eps_max : float, optional
         Allowed error [m]; default ``scenario.planning.eps_max``. With
         ``planning.redundancy`` = 1 every covered point keeps a pair under it with any one
-        chosen marker blocked (:mod:`planner.placement.redundant`: the exact redundancy-0
-        cover completed greedily; its count is the lower bound).
+        chosen marker blocked (the redundancy-1 cutting planes of :mod:`planner.placement.cover`,
+        with their own LP bound; points no choice keeps robust are reported uncovered).
     method : {"auto", "milp", "greedy"}
         ``auto``: the exact solver with at most :data:`MILP_MAX_SITES` useful sites, else
         ``greedy``: LP rounding and local search (with the LP bound), no integer rounds.
@@ -253,35 +333,89 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     eps = scenario.planning.eps_max if eps_max is None else float(eps_max)
     k = scenario.sensor.markers_per_fix
     redundancy = scenario.planning.redundancy
-    cov, coverable = build_cover(scenario, pts, cand, eps)
-    chosen, bound, optimal, used = np.zeros(len(cand), dtype=bool), 0.0, True, "greedy"
+    kept = scenario.markers if scenario.placement.existing == "keep" else ()
+    if kept:  # a candidate where a marker already is would only duplicate it
+        have = scenario.marker_positions()
+        cand = cand[np.hypot(*(cand[:, None, :] - have[None, :, :]).transpose(2, 0, 1)).min(axis=1) > 1e-6]
+    n_kept = len(kept)
+    allx = lambda c: np.vstack([np.asarray(scenario.marker_positions(), dtype=float).reshape(-1, 2)[:n_kept], c])
+    cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept)
+    finest = None
+    if sites is None and not scenario.placement.candidates and not coverable.all():
+        cand, finest = _refine(scenario, pts, cand, coverable, eps, kept)
+        if finest is not None:
+            cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept)
+    fixed = np.zeros(n_kept + len(cand), dtype=bool)
+    fixed[:n_kept] = True
+    chosen, bound, optimal, used = fixed.copy(), 0.0, True, "greedy"
     if coverable.any():
-        used_sites = int(np.unique(np.concatenate([cov.pj, cov.pl])).size)
+        used_sites = int(np.setdiff1d(np.concatenate([cov.pj, cov.pl]), np.arange(n_kept)).size)
         integral = method == "milp" or (method == "auto" and used_sites <= MILP_MAX_SITES)
-        chosen, bound, optimal = solve_exact(cov, k, time_limit, integral=integral, xy=cand,
-                                             seed=_search_seed(scenario.seed))
-        used = "milp" if integral else "search"
-        bound = max(bound, float(k))
-        if redundancy > 0:
-            start = chosen
-            chosen, target = greedy_robust(cov, k, redundancy, start)
+        problem = cov
+        if redundancy > 0:  # only rows that all sites together keep robust can be asked to be
+            target = robust_rows(cov, np.ones(cov.n_sites, dtype=bool), k, redundancy)
             coverable = coverable.copy()
             coverable[np.flatnonzero(coverable)] = target[cov.row_of]
-            bound = max(float(start.sum()) if optimal else bound, float(k + redundancy))
-            optimal, used = False, used + "+greedy"
-    idx = np.flatnonzero(chosen)
+            problem = subset_rows(cov, target)
+        if coverable.any():
+            chosen, bound, optimal = solve_exact(problem, k, time_limit, integral=integral, xy=allx(cand),
+                                                 seed=_search_seed(scenario.seed), fixed=fixed,
+                                                 redundancy=redundancy)
+        used = "milp" if integral else "search"
+        if not n_kept:  # a fix needs k markers (k + r with r blocked); kept ones may already be them
+            bound = max(bound, float(k + redundancy))
+    idx = np.flatnonzero(chosen[n_kept:])
     lower = min(math.ceil(bound - 1e-6), len(idx))
-    markers = [(f"P{n + 1}", (float(cand[j, 0]), float(cand[j, 1]))) for n, j in enumerate(idx)]
+    taken = {m.id for m in kept}
+    names = (f"P{n}" for n in range(1, len(taken) + len(idx) + 2) if f"P{n}" not in taken)
+    markers = [(next(names), (float(cand[j, 0]), float(cand[j, 1]))) for j in idx]
     facing = site_facings(scenario, cand[idx]) if len(idx) else []
     return PlacementResult(markers=markers, count=len(idx), lower_bound=lower,
                            optimal=bool(optimal and lower == len(idx)), uncovered=pts[~coverable],
                            method=used, sites=cand, points=pts, chosen=idx, facings=tuple(facing),
-                           redundancy=redundancy)
+                           redundancy=redundancy, kept=tuple(kept), target=eps, finest_spacing=finest)
+
+
+def _refine(scenario: Scenario, pts: np.ndarray, cand: np.ndarray, coverable: np.ndarray, eps: float,
+            kept: tuple[Marker, ...]) -> tuple[np.ndarray, float | None]:
+    """Add finer candidate sites where points are uncovered (see module doc).
+
+    Returns the candidate sites (the given ones first, then those added) and the finest spacing
+    sampled [m] (None when nothing was sampled).
+    """
+    bad = pts[~coverable]
+    finest = None
+    for level in range(1, REFINE_LEVELS + 1):
+        spacing = scenario.placement.spacing / 2**level
+        if spacing < MIN_SPACING:
+            break
+        finest = spacing
+        finer = candidate_sites(scenario, spacing=spacing)
+        have = np.vstack([scenario.marker_positions()[:len(kept)].reshape(-1, 2), cand])
+        far = np.ones(len(finer), dtype=bool)
+        for lo in range(0, len(finer), 512):  # chunks: (512, S) distances
+            d = np.hypot(*(finer[lo:lo + 512, None, :] - have[None, :, :]).transpose(2, 0, 1))
+            far[lo:lo + 512] = d.min(axis=1) > 1e-6
+        finer = finer[far]
+        if not len(finer):
+            continue
+        base = len(kept) + len(cand)
+        sub, ok = build_cover(scenario, bad, np.vstack([have, finer]), eps, kept)
+        helpful = np.unique(np.concatenate([sub.pj, sub.pl]))
+        helpful = helpful[helpful >= base] - base
+        cand = np.vstack([cand, finer[helpful]])
+        bad = bad[~ok]
+        if not len(bad):
+            break
+    return cand, finest
 
 
 def scenario_with_markers(scenario: Scenario, result: PlacementResult) -> Scenario:
-    """Return a copy of ``scenario`` whose markers are the placement's (flat ones facing out of their faces)."""
-    return dataclasses.replace(scenario, markers=tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(result)))
+    """Return a copy of ``scenario`` whose markers are the placement's (flat ones facing out of their faces).
+
+    Kept markers (``result.kept``) come first, unchanged.
+    """
+    return dataclasses.replace(scenario, markers=result.layout())
 
 
 def _facing_pairs(result: PlacementResult):
@@ -344,7 +478,7 @@ def _scenario_dict(sc: Scenario) -> dict:
     d["montecarlo"] = {"runs": sc.montecarlo.runs, "success_target": sc.montecarlo.success_target}
     d["placement"] = {"candidates": [list(c) for c in sc.placement.candidates],
                       "spacing": sc.placement.spacing, "cover": sc.placement.cover,
-                      "marker_kind": sc.placement.marker_kind.value}
+                      "marker_kind": sc.placement.marker_kind.value, "existing": sc.placement.existing}
     return d
 
 
@@ -365,8 +499,9 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     """
     import scenarios as scn
 
-    if result.count < scenario.sensor.markers_per_fix:
-        raise PlanningError(f"placement chose {result.count} markers, fewer than markers_per_fix = "
+    layout = result.layout()
+    if len(layout) < scenario.sensor.markers_per_fix:
+        raise PlanningError(f"placement chose {len(layout)} markers, fewer than markers_per_fix = "
                             f"{scenario.sensor.markers_per_fix}: nothing to write")
     data = None
     if scenario.text:
@@ -377,18 +512,49 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
             data = None
     if data is None:
         data = _scenario_dict(scenario)
-    data["markers"] = [_marker_dict(site_marker(i, p, f)) for (i, p), f in _facing_pairs(result)]
-    if scenario.routes is not None and scenario.routes.source:
-        # a relative graph file would be looked up beside the new scenario: name it absolutely
-        data["routes"]["file"] = str(Path(scenario.routes.source).resolve())
-    if isinstance(data.get("floorplan"), dict):
-        data["floorplan"].pop("marker_layer", None)  # the placed markers replace the drawing's too
-    text = tomli_w.dumps(data)
+    added = [_marker_dict(site_marker(i, p, f)) for (i, p), f in _facing_pairs(result)]
+    if result.kept:
+        # the installed markers stay as written: the file's own tables, the drawing's layer
+        in_file = data.get("markers", []) if isinstance(data.get("markers"), list) else []
+        written = {str(m.get("id")) for m in in_file if isinstance(m, dict)}
+        from_drawing = [m for m in result.kept if m.id not in written]
+        if from_drawing and not (isinstance(data.get("floorplan"), dict) and "marker_layer" in data["floorplan"]):
+            in_file = in_file + [_marker_dict(m) for m in from_drawing]  # a copy written out: all of them
+        data["markers"] = in_file + added
+    else:
+        data["markers"] = added
+        if isinstance(data.get("floorplan"), dict):
+            data["floorplan"].pop("marker_layer", None)  # the placed markers replace the drawing's too
     out = Path(path)
+    if scenario.routes is not None and scenario.routes.source:
+        data["routes"]["file"] = str(Path(scenario.routes.source).resolve())
+    for table in ("floorplan", "routes"):  # files the scenario reads, named from where it is written
+        if isinstance(data.get(table), dict) and isinstance(data[table].get("file"), str):
+            data[table]["file"] = _relative(data[table]["file"], out.parent)
+    data["description"] = _placed_description(scenario, result)
+    text = tomli_w.dumps(data)
     scn.loads(text, source=str(out), base=out.parent)  # a bug here must not leave a broken file behind
     with output_errors(out, "write the placed scenario"):
         out.write_text(text, encoding="utf-8")
     return out
+
+
+def _relative(file: str, folder: Path) -> str:
+    """``file`` (absolute, as a loaded scenario's text has it) relative to ``folder`` where it can be."""
+    import os
+
+    try:
+        return Path(os.path.relpath(Path(file).resolve(), folder.resolve())).as_posix()
+    except ValueError:  # another drive: only the absolute name reaches it
+        return file
+
+
+def _placed_description(scenario: Scenario, result: PlacementResult) -> str:
+    """Describe the placed scenario (the source's description counted its own markers)."""
+    what = (f"{len(result.kept)} markers kept and {result.count} added" if result.kept
+            else f"{result.count} markers")
+    target = f" (cover target {result.target:g} m)" if math.isfinite(result.target) else ""
+    return f"{scenario.name} with {what} placed by pefsim place{target}"
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

@@ -17,6 +17,7 @@ Without tasks, or when the cover leaves points uncovered, the plain cover is ret
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from planner.placement.placement import MILP_TIME_LIMIT, PlacementResult, place, scenario_with_markers
@@ -92,7 +93,7 @@ def place_plannable(scenario: Scenario, *, method: str = "auto", time_limit: flo
         if not scenario.tasks or len(result.uncovered) or result.count < k:
             return PlannablePlacement(result, target, (), checked=False)
         unplanned = _unplanned(scenario_with_markers(scenario, result))
-        out = PlannablePlacement(result, target, unplanned, checked=True)
+        out = PlannablePlacement(dataclasses.replace(result, unplanned=unplanned), target, unplanned, checked=True)
         if not unplanned:
             break
     return out

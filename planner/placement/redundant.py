@@ -1,24 +1,25 @@
 """Placement with redundancy: every point keeps a good pair when any r chosen markers are blocked.
 
-A row (a class of points, :class:`~planner.placement.cover.PairCover`) is *r-robust* under a
+A row (a class of points, :class:`~planner.placement.pair_cover.PairCover`) is *r-robust* under a
 set of chosen sites when no r chosen sites hit every chosen good pair of the row (the vertex
 cover number of the row's chosen good-pair graph exceeds r) and at least k + r chosen sites are
 visible from it. Any vertex cover holds an end of the first chosen pair, so for r = 1 the test
 is: a chosen good pair avoids its first end, and one avoids its second end. Only r <= 1 is
 supported here.
 
-Solver: the exact redundancy-0 cover (:func:`~planner.placement.cover.solve_exact`) is a lower
-bound (an r-robust set covers every row) and the start; the greedy adds the site that makes the
+The greedy here completes a set of sites into an r-robust one: it adds the site that makes the
 most points robust (or, where one site is not enough, the one that completes the most chosen
-pairs at non-robust rows), then drops chosen sites that are no longer needed.
+pairs at non-robust rows), then drops chosen sites that are no longer needed. The exact solver
+(:func:`~planner.placement.cover.solve_exact` with ``redundancy=1``) uses it to complete LP
+roundings and integer points.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from estimators import compiled
-from planner.placement.cover import PairCover
+from jit import compiled
+from planner.placement.pair_cover import PairCover
 from scenarios.errors import PlanningError
 
 #: Largest redundancy placement supports.
@@ -57,8 +58,8 @@ def _robust_rows(row_ptr, ea, eb, vis, k, r, chosen):
 
 
 @compiled.njit(cache=True)
-def _greedy_robust(row_ptr, ea, eb, vis, weight, k, r, target, chosen):
-    """Complete ``chosen`` (in place) until every ``target`` row is r-robust, then prune."""
+def _greedy_robust(row_ptr, ea, eb, vis, weight, k, r, target, chosen, fixed):
+    """Complete ``chosen`` (in place) until every ``target`` row is r-robust, then prune (never ``fixed`` sites)."""
     n_sites = chosen.size
     ok = _robust_rows(row_ptr, ea, eb, vis, k, r, chosen)
     while True:
@@ -91,7 +92,7 @@ def _greedy_robust(row_ptr, ea, eb, vis, weight, k, r, target, chosen):
         chosen[s] = True
         ok = _robust_rows(row_ptr, ea, eb, vis, k, r, chosen)
     for s in range(n_sites - 1, -1, -1):
-        if chosen[s]:
+        if chosen[s] and not fixed[s]:
             chosen[s] = False
             now = _robust_rows(row_ptr, ea, eb, vis, k, r, chosen)
             if np.any(target & ~now):
@@ -111,8 +112,11 @@ def robust_rows(cov: PairCover, chosen: np.ndarray, k: int, r: int) -> np.ndarra
     return _robust_rows(cov.row_ptr, cov.ea, cov.eb, cov.vis, k, r, np.asarray(chosen, dtype=np.bool_))
 
 
-def greedy_robust(cov: PairCover, k: int, r: int, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def greedy_robust(cov: PairCover, k: int, r: int, start: np.ndarray,
+                  fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Complete ``start`` (S,) bool into an r-robust cover of every row that can be made robust.
+
+    ``fixed`` (S,) bool: sites of ``start`` that stay chosen (markers already installed).
 
     Returns
     -------
@@ -123,6 +127,7 @@ def greedy_robust(cov: PairCover, k: int, r: int, start: np.ndarray) -> tuple[np
     """
     _check(r)
     target = robust_rows(cov, np.ones(cov.n_sites, dtype=bool), k, r)
+    fixed = np.zeros(cov.n_sites, dtype=np.bool_) if fixed is None else np.asarray(fixed, dtype=np.bool_)
     chosen = _greedy_robust(cov.row_ptr, cov.ea, cov.eb, cov.vis, cov.weight, k, r, target,
-                            np.array(start, dtype=np.bool_))
+                            np.array(start, dtype=np.bool_) | fixed, fixed)
     return chosen, target

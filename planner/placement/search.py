@@ -17,14 +17,10 @@ and under any load. Random numbers come from the caller's seed (a splitmix64 str
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from estimators import compiled
-
-if TYPE_CHECKING:  # the solver in cover imports this module
-    from planner.placement.cover import PairCover
+from jit import compiled
+from planner.placement.pair_cover import PairCover
 
 WORK = 1_000_000_000
 """Default budget of the search, in entries visited (rows of pairs counted or uncounted, pairs of rows scored):
@@ -244,8 +240,11 @@ def _repair(row_ptr, ea, eb, ep, weight, vis, k, chosen, cnt, vcnt, ls, unc, n_u
 
 @compiled.njit(cache=True)
 def _search(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, xy, start, seed, work, max_destroy, noise, n_prune,
-            stall):
-    """Local search from the cover ``start`` (S,) bool; returns the best cover found, shape (S,) bool."""
+            stall, fixed):
+    """Local search from the cover ``start`` (S,) bool; returns the best cover found, shape (S,) bool.
+
+    ``fixed`` (S,) bool: chosen sites that no move drops.
+    """
     n_rows, n_sites = row_ptr.size - 1, start.size
     n_pairs = pj.size
     pptr, prow, sptr, spair = _lists(row_ptr, ep, pj, pl, n_sites)
@@ -274,7 +273,9 @@ def _search(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, xy, start, seed, work, 
         moves += 1
         done += 4 * n_sites + 16 * int(chosen.sum())  # copies, scans and the sort of one move
         before = chosen.copy()
-        ids = np.flatnonzero(chosen)
+        ids = np.flatnonzero(chosen & ~fixed)
+        if ids.size == 0:
+            break
         c = ids[min(int(_rand(state) * ids.size), ids.size - 1)]
         dist = (xy[ids, 0] - xy[c, 0]) ** 2 + (xy[ids, 1] - xy[c, 1]) ** 2
         near = ids[np.argsort(dist, kind="mergesort")]
@@ -292,7 +293,7 @@ def _search(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, xy, start, seed, work, 
             m = min(int(_rand(state) * (i + 1)), i)
             cand[i], cand[m] = cand[m], cand[i]
         for j in cand:
-            if chosen[j]:
+            if chosen[j] and not fixed[j]:
                 ok, w = _removable(j, chosen, cnt, vcnt, vis, k, ls, tmp)
                 done += w
                 if ok:
@@ -318,7 +319,7 @@ def _search(row_ptr, ea, eb, ep, pj, pl, weight, vis, k, xy, start, seed, work, 
         if best[j] and not chosen[j]:
             _toggle(j, True, chosen, cnt, vcnt, vis, k, ls)
     for j in range(n_sites - 1, -1, -1):
-        if chosen[j] and _removable(j, chosen, cnt, vcnt, vis, k, ls, tmp)[0]:
+        if chosen[j] and not fixed[j] and _removable(j, chosen, cnt, vcnt, vis, k, ls, tmp)[0]:
             _toggle(j, False, chosen, cnt, vcnt, vis, k, ls)
     return chosen
 
@@ -332,12 +333,13 @@ N_PRUNE = 8
 
 
 def local_search(cov: PairCover, k: int, start: np.ndarray, xy: np.ndarray, seed: int,
-                 work: int = WORK) -> np.ndarray:
+                 work: int = WORK, fixed: np.ndarray | None = None) -> np.ndarray:
     """Improve the cover ``start`` (S,) bool by destroy-repair-prune moves (see module doc).
 
     Parameters
     ----------
-    cov : PairCover
+    cov : planner.placement.cover.PairCover
+        The problem (named, not imported: the solver in ``cover`` calls this search).
     k : int
         Markers per fix.
     start : ndarray of bool, shape (S,)
@@ -348,6 +350,8 @@ def local_search(cov: PairCover, k: int, start: np.ndarray, xy: np.ndarray, seed
         Seed of the moves' random choices.
     work : int
         Budget in (row, partner) entries visited.
+    fixed : ndarray of bool, shape (S,), optional
+        Sites of ``start`` that stay chosen (markers already installed).
 
     Returns
     -------
@@ -356,4 +360,5 @@ def local_search(cov: PairCover, k: int, start: np.ndarray, xy: np.ndarray, seed
     """
     return _search(cov.row_ptr, cov.ea, cov.eb, cov.ep, cov.pj, cov.pl, cov.weight, cov.vis, int(k),
                    np.ascontiguousarray(xy, dtype=float), np.asarray(start, dtype=np.bool_), int(seed) % (1 << 63),
-                   int(work), MAX_DESTROY, NOISE, N_PRUNE, STALL)
+                   int(work), MAX_DESTROY, NOISE, N_PRUNE, STALL,
+                   np.zeros(cov.n_sites, dtype=np.bool_) if fixed is None else np.asarray(fixed, dtype=np.bool_))

@@ -125,7 +125,7 @@ class _FlatPEF:
         return SimpleNamespace(tau=np.zeros(len(p)), best=np.zeros((len(p), 0), dtype=int))
 
     def grid(self, resolution=None):
-        from planner.pef.map import grid_centres
+        from planner.pef.result import grid_centres
 
         res = self.scenario.planning.resolution if resolution is None else resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)

@@ -89,7 +89,8 @@ class RouteScore:
         """Empty if admissible, else a short reason naming the value that fails."""
         if not self.max_tau < eps_max:
             x, y = self.worst_point
-            return f"tau {self.max_tau:.4g} m >= eps_max {eps_max:g} m at ({x:.2f}, {y:.2f})"
+            # in mm, as the plan table shows tau (positions and clearances stay in m)
+            return f"tau {self.max_tau * 1e3:.4g} mm >= eps_max {eps_max * 1e3:g} mm at ({x:.2f}, {y:.2f})"
         if self.min_clearance < robot_radius:
             return f"clearance {self.min_clearance:.3f} m < robot radius {robot_radius:g} m"
         return ""

@@ -93,7 +93,7 @@ def segment_reports(scenario: Scenario, pef) -> list[SegmentReport]:
         why = net.why_not(i)
         if not why and not tau[worst] < eps:
             x, y = p[worst]
-            why = f"tau {tau[worst]:.4g} m >= eps_max {eps:g} m at ({x:.2f}, {y:.2f})"
+            why = f"tau {tau[worst] * 1e3:.4g} mm >= eps_max {eps * 1e3:g} mm at ({x:.2f}, {y:.2f})"
         if not why and clear.min() < radius:
             why = f"clearance {clear.min():.3f} m < robot radius {radius:g} m"
         out.append(SegmentReport(index=i, max_tau=float(tau[worst]), mean_tau=mean, min_visible=int(vis.min()),

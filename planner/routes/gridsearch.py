@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 SQRT2 = math.sqrt(2.0)
 
@@ -143,9 +143,7 @@ def _heap_pop(fk, nd, size):
     return node
 
 
-@compiled.njit(cache=True,
-               aot=("Tuple((float64, int64[::1], int64))(float64[:, ::1], boolean[:, ::1], int64, int64, int64, "
-                    "int64, float64, float64, float64)"))
+@compiled.njit(cache=True)
 def _astar(cost, allowed, sr, sc, gr, gc, hx, hy, cmin):
     # Flat indices on a grid padded by one blocked cell, so neighbours need no bounds checks.
     # state: 0 blocked, 1 open, 2 closed (one byte array keeps the hot loop in cache).

@@ -18,7 +18,7 @@ from planner.routes.paths import Graph, NoPath
 from planner.routes.paths import all_simple_paths as _all_simple_paths
 from planner.routes.paths import shortest_simple_paths as _shortest_simple_paths
 from scenarios.errors import PlanningError
-from scenarios.schema import RouteNetwork
+from scenarios.route_network import RouteNetwork
 
 # Networks with at most this many simple paths between the docks are enumerated whole.
 MAX_ALL_PATHS = 200
@@ -29,7 +29,7 @@ class RouteGraph:
 
     Edges carry ``weight`` (the segment's length [m]), ``traffic`` (its density, 0 if
     missing) and ``why_not`` (why it may not be driven, "" if it may; see
-    :class:`scenarios.schema.RouteEdge`). Searches use only drivable edges (:attr:`usable`).
+    :class:`scenarios.route_network.RouteEdge`). Searches use only drivable edges (:attr:`usable`).
 
     Parameters
     ----------

@@ -39,7 +39,7 @@ import math
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 from scenarios.schema import RobotSpec
 
 K_SIGMA = 3.0
@@ -96,9 +96,7 @@ def drift_bound(robot: RobotSpec, distance: np.ndarray | float, turned: np.ndarr
     return float(out[0]) if len(shape) == 0 else out.reshape(shape)
 
 
-@compiled.njit(cache=True, nogil=True,
-               aot=("void(float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, float64, "
-                    "float64, boolean, float64, float64, float64[::1])"))
+@compiled.njit(cache=True, nogil=True)
 def _drift_kernel(d, phi, d15, b, e, sigma, q, k_sigma, heading_error, correlated, increment, c23, out):
     """:func:`drift_bound` element by element, in numpy's order of operations (correlated: increment None)."""
     half_b = 0.5 * b

@@ -2,7 +2,7 @@
 
 For the marker in slot q of a fix's subset, the fallback is the candidate subset without that
 marker whose static PEF over the fix's stretch is lowest (the best subset without it, as in
-:attr:`planner.pef.map.PefResult.fallback`); its promise is the bound on the moving fix's fault
+:attr:`planner.pef.result.PefResult.fallback`); its promise is the bound on the moving fix's fault
 area of that subset at the same start and speed (:func:`planner.schedule.promise.predict`). A fix whose
 marker has no fallback (no other visible subset, or none whose promise passes the test of a
 scheduled fix) names an empty one: with that marker blocked the robot improvises with the best

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.errors import PlanningError
+from scenarios.limits import MAX_PATH_SAMPLES
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,6 +128,10 @@ def sample_track(path: np.ndarray, speed: np.ndarray, spacing: float, fix_time: 
     dt = gap / max(4, math.ceil(max(speed.max(), 1e-12) * gap / spacing))
     anchor = (gap - fix_time) % dt  # grid holds t = gap - fix_time: the first rate-allowed start
     t_end = kin.t_v[-1]
+    samples = (t_end - anchor) / dt
+    if not samples <= MAX_PATH_SAMPLES:  # checked before the grid is allocated (NaN refused too)
+        raise PlanningError(f"robot.max_speed: the {s_in[-1]:.4g} m path at up to {speed.max():.3g} m/s takes "
+                            f"{t_end:.3g} s, {samples:.3g} path samples, at most {MAX_PATH_SAMPLES:.0e}")
     t_grid = np.concatenate([[0.0], np.arange(anchor, t_end, dt), [t_end]])
     s = np.concatenate([kin.s_at(t_grid), s_in])
     t = np.concatenate([t_grid, kin.t_v])

@@ -75,6 +75,18 @@ Start lag
     The robot starts a fix at its first control tick past the planned start, and takes each
     range at the first physics step it falls due: up to :data:`START_LAG` later than planned
     (``sim.episode.drive`` checks its own control and physics periods against it).
+
+Bearings
+    The promise counts ranges only. A fix that also measures bearings realises the same
+    annuli intersected with the heading-free regions of its bearings' pairwise differences
+    (:mod:`estimators.fault.exact`, "Robot-frame bearings"): a subset, so its diameter is at most
+    the ranges-only realised one's (up to the polygonisation: it lies in the ranges-only exact
+    set of ``rho + tolerance``; tested in ``tests/estimators/fault/test_heading_free.py``).
+    Bearings therefore never make a fix break a promise its ranges keep. What does *not* hold:
+    the heading-free set is the union over all headings of the heading-given wedges'
+    intersections, so it is larger than the intersection at a known heading (the planner's
+    ``exact``/``strips`` PEF with bearings, which assume the heading known); with two or more
+    ranges the annuli bound the fix, so the range-only promise stays the right one to keep.
 """
 
 from __future__ import annotations
@@ -454,7 +466,7 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
 
     Returns
     -------
-    planner.pef.map.PefMap
+    planner.pef.result.PefMap
         ``tau`` the motion-aware promise [m] (inf where fewer than 2 markers are visible),
         ``best`` the pair in measurement order.
     """

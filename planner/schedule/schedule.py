@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import combinations
 
 import numpy as np
@@ -82,7 +82,8 @@ class ScheduledFix:
     speed : float
         Mean planned speed over the fix [m/s] (0 for the standstill fix before departure).
     slowed : bool
-        The plan slows down for this fix (its promise would break at the cruising speed).
+        The fix is taken below the planned speed: slowed for its own promise (it would break
+        at the cruising speed), or on a stretch slowed because no schedule existed at full speed.
     poses : tuple of (x, y)
         Planned position at each measurement, in order [m].
     fallbacks : tuple of tuple of int
@@ -225,8 +226,9 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     v_try = v
     while True:
         try:
-            return _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
-                            t_planned)
+            sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
+                             t_planned)
+            return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
         except StretchError as exc:
             slower, moved = v_try, False
             for stretch in (exc.stretch, *exc.more):
@@ -236,6 +238,19 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
             if not moved:
                 raise
             v_try = slower
+
+
+def _mark_slowed(sched: Schedule, s_v: np.ndarray, v: np.ndarray, v_try: np.ndarray) -> Schedule:
+    """Mark as slowed the fixes that start on a stretch driven below the planned speed ``v``.
+
+    ``slowdown_time`` counts every slow-down, also those of whole stretches made when no
+    schedule existed at ``v``; a fix taken there is slowed down for as much as one slowed for
+    its own promise, and the count of slowed fixes must say so.
+    """
+    s_fix = np.array([f.s for f in sched.fixes])
+    slower = np.interp(s_fix, s_v, v_try) < np.interp(s_fix, s_v, v) * (1.0 - 1e-9)
+    fixes = tuple(replace(f, slowed=f.slowed or bool(b)) for f, b in zip(sched.fixes, slower, strict=True))
+    return replace(sched, fixes=fixes)
 
 
 def _slow_stretch(s_v: np.ndarray, v: np.ndarray, stretch: tuple[float, float], v_min: float) -> np.ndarray | None:

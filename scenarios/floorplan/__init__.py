@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import ScenarioError
-from scenarios.fields import Table, show
+from scenarios.fields import Table, show, show_path
 from scenarios.floorplan.spec import UNITS, FloorPlan, FloorPlanData, FloorPlanKind
 
 __all__ = ["FloorPlan", "FloorPlanData", "FloorPlanKind", "apply", "portable_text", "read"]
@@ -32,8 +32,13 @@ def _file(t: Table, base: Path | None) -> tuple[Path, str, FloorPlanKind]:
     kind = _SUFFIX.get(path.suffix.lower())
     if kind is None:
         t.fail(t.key("file"), "expected a DXF drawing (.dxf) or a ROS map_server YAML (.yaml)", shown)
-    if not path.is_file():
-        t.fail(t.key("file"), f"cannot read {path}: no such file", shown)
+    try:
+        regular = path.is_file()  # a FIFO or a device is not a floor plan (reading it could block)
+    except OSError as exc:  # a name too long for the file system, ...
+        t.fail(t.key("file"), f"cannot read: {exc.strerror or exc}", shown)
+    if not regular:
+        why = "not a regular file" if path.exists() else "no such file"
+        t.fail(t.key("file"), f"cannot read {show_path(path)}: {why}", shown)
     return path.resolve(), shown, kind
 
 
@@ -80,7 +85,7 @@ def read(t: Table, base: Path | None) -> tuple[FloorPlan, FloorPlanData]:
                         wall_thickness=wall, simplify=simplify, where=where, shown=shown)
     plan = FloorPlan(file=path, kind=kind, units=data.units, unit_factor=data.unit_factor,
                      obstacle_layers=layers, marker_layer=marker_layer, wall_thickness=wall,
-                     simplify=data.simplify, extent=data.extent)
+                     simplify=data.simplify, extent=data.extent, files=(path, *data.images))
     return plan, data
 
 

@@ -27,11 +27,11 @@ import numpy as np
 import shapely
 
 from scenarios.errors import ScenarioError
-from scenarios.fields import show
+from scenarios.fields import MAX_COORD, show
 from scenarios.floorplan import geometry
 from scenarios.floorplan.spec import INSUNITS, UNITS, FloorPlanData
+from scenarios.limits import MAX_DXF_ENTITIES, MIN_LENGTH
 
-MAX_BLOCK_DEPTH = 16  # deeper nesting is a block that references itself
 _OBSTACLE_TYPES = {"LINE", "ARC", "CIRCLE", "LWPOLYLINE", "POLYLINE", "SPLINE", "ELLIPSE",
                    "HATCH", "MPOLYGON", "SOLID", "TRACE"}
 
@@ -106,38 +106,160 @@ def _xy(points: Iterable) -> np.ndarray:
     return np.array([(p[0], p[1]) for p in points], dtype=float).reshape(-1, 2)
 
 
+def _numbers(value) -> Iterator[float]:
+    """Every number in ``value``: a number, a vector, or a (nested) sequence of them."""
+    if value is None or isinstance(value, str):
+        return
+    if isinstance(value, (int, float, np.number)):
+        yield float(value)
+        return
+    try:
+        items = iter(value)
+    except TypeError:
+        return
+    for v in items:
+        yield from _numbers(v)
+
+
+# What a DXF entity's geometry is made of: its numeric attributes, per type (the OCS ``extrusion``
+# of every planar entity is checked with them), and the attribute holding its points.
+_NUMERIC = {
+    "LINE": ("start", "end"), "POINT": ("location",), "CIRCLE": ("center", "radius"),
+    "ARC": ("center", "radius", "start_angle", "end_angle"),
+    "ELLIPSE": ("center", "major_axis", "ratio", "start_param", "end_param"),
+    "LWPOLYLINE": ("const_width", "elevation"), "SOLID": ("vtx0", "vtx1", "vtx2", "vtx3"),
+    "TRACE": ("vtx0", "vtx1", "vtx2", "vtx3"),
+    "INSERT": ("insert", "xscale", "yscale", "zscale", "rotation", "row_spacing", "column_spacing"),
+}
+_EDGE_PARTS = ("start", "end", "center", "radius", "start_angle", "end_angle", "major_axis", "ratio",
+               "control_points", "fit_points", "knot_values", "weights", "vertices")
+
+
 class _Reader:
-    def __init__(self, obstacle_layers: set[str], marker_layer: str | None, flat: float) -> None:
+    """Walks the drawing's entities (blocks expanded, without recursion) and collects the geometry.
+
+    Every entity is checked before ezdxf builds or flattens anything from it: finite numbers,
+    coordinates within :data:`~scenarios.fields.MAX_COORD` metres; an error names the entity
+    (type, handle, layer, and the block and INSERT it came through).
+    """
+
+    def __init__(self, obstacle_layers: set[str], marker_layer: str | None, flat: float, factor: float,
+                 where: str, shown: str) -> None:
         self.obstacle_layers = obstacle_layers
         self.marker_layer = marker_layer
         self.flat = flat  # flattening distance [drawing units]
+        self.bound = MAX_COORD / factor  # largest coordinate magnitude [drawing units]
+        self.shortest = MIN_LENGTH / factor  # the loader's floor of a size [drawing units]
+        self.where, self.shown = where, shown
         self.found = _Found()
 
-    def walk(self, entities: Iterable, parent_layer: str | None, depth: int) -> None:
-        for e in entities:
+    # --- errors ---------------------------------------------------------------------------
+
+    def fail(self, name: str, what: str) -> None:
+        raise ScenarioError(f"{self.where}.file: {self.shown}: {name}: {what}")
+
+    @staticmethod
+    def name(e, layer: str, via: str) -> str:
+        handle = e.dxf.get("handle")
+        own = f"{e.dxftype()} #{handle}" if handle else e.dxftype()
+        return f"{own} on layer {show(layer)}" + (f" in {via}" if via else "")
+
+    def check(self, e, kind: str, name: str) -> None:
+        """Refuse non-finite numbers and coordinates beyond the bound in ``e`` before ezdxf uses them."""
+        values = [e.dxf.get(a) for a in _NUMERIC.get(kind, ())]
+        values.append(e.dxf.get("extrusion"))
+        if kind == "LWPOLYLINE":
+            values.append(list(e.get_points("xyseb")))
+        elif kind == "POLYLINE":
+            values.append([v.dxf.get("location") for v in e.vertices] + [v.dxf.get("bulge") for v in e.vertices])
+        elif kind == "SPLINE":
+            values += [list(e.control_points), list(e.fit_points), list(e.knots), list(e.weights)]
+        elif kind in ("HATCH", "MPOLYGON"):
+            for bp in e.paths:
+                values.append(getattr(bp, "vertices", None))
+                values += [getattr(edge, part, None) for edge in getattr(bp, "edges", ()) for part in _EDGE_PARTS]
+        numbers = np.fromiter(_numbers(values), dtype=float)
+        if not np.isfinite(numbers).all():
+            self.fail(name, "expected finite coordinates, sizes and angles, found nan or inf")
+        if numbers.size and np.abs(numbers).max() > self.bound:
+            self.fail(name, f"expected coordinates and sizes of magnitude at most {MAX_COORD:g} m, "
+                            f"found {np.abs(numbers).max():.3g} drawing units")
+        ext = e.dxf.get("extrusion")
+        if ext is not None and not any(ext):
+            self.fail(name, "expected a non-zero extrusion (OCS) vector, found (0, 0, 0)")
+        if kind in ("CIRCLE", "ARC") and not e.dxf.radius >= self.shortest:
+            self.fail(name, f"expected a radius of at least {MIN_LENGTH:g} m, found {e.dxf.radius:g} drawing units")
+        if kind == "ELLIPSE" and not (any(e.dxf.major_axis) and 0.0 < e.dxf.ratio <= 1.0):
+            self.fail(name, "expected a non-zero major axis and an axis ratio in (0, 1]")
+        if kind == "SPLINE" and e.control_point_count() < 2 and e.fit_point_count() < 2:
+            self.fail(name, "expected a spline with at least 2 control or fit points")
+        if kind == "INSERT":
+            if any(float(e.dxf.get(a, 1.0)) == 0.0 for a in ("xscale", "yscale", "zscale")):
+                self.fail(name, "expected non-zero scale factors")
+
+    def points(self, pts: np.ndarray, name: str) -> np.ndarray:
+        """``pts`` after flattening, checked (a transform may still have carried them out of bounds)."""
+        if not np.isfinite(pts).all() or (pts.size and np.abs(pts).max() > self.bound):
+            self.fail(name, f"expected coordinates of magnitude at most {MAX_COORD:g} m after its block's "
+                            f"transformation, found {np.abs(pts).max():.3g} drawing units")
+        return pts
+
+    # --- the walk ------------------------------------------------------------------------
+
+    def walk(self, entities: Iterable) -> None:
+        """Collect the geometry of ``entities`` (model space), following blocks to any depth."""
+        # (entities, layer of the INSERT they came from, where they came from, that INSERT's name)
+        stack: list[tuple[Iterator, str | None, str, str]] = [(iter(entities), None, "", "")]
+        while stack:
+            it, parent_layer, via, owner = stack[-1]
+            try:
+                with quiet_ezdxf():
+                    e = next(it, None)
+            except (ArithmeticError, ValueError, IndexError, TypeError, AttributeError) as exc:
+                self.fail(owner, f"cannot expand its block ({type(exc).__name__}: {exc})")
+            except Exception as exc:  # ezdxf's DXFError family, raised while expanding
+                if not _is_dxf_error(exc):
+                    raise
+                self.fail(owner, f"cannot expand its block ({exc})")
+            if e is None:
+                stack.pop()
+                continue
             layer = e.dxf.get("layer", "0")
             if layer == "0" and parent_layer is not None:
                 layer = parent_layer  # CAD semantics: block content on layer 0 takes the INSERT's layer
             key = layer.upper()  # DXF layer names are case-insensitive
             kind = e.dxftype()
+            name = self.name(e, layer, via)
             if kind == "INSERT":
+                self.check(e, kind, name)
                 if key == self.marker_layer:
                     self.marker_insert(e)
-                elif depth < MAX_BLOCK_DEPTH:
-                    for ins in (e.multi_insert() if e.mcount > 1 else (e,)):
-                        with quiet_ezdxf():
-                            subs = list(ins.virtual_entities())
-                        self.walk(subs, layer, depth + 1)
+                    continue
+                block = e.dxf.get("name", "")
+                if e.block() is None:
+                    self.fail(name, f"expected a block defined in the drawing, found none named {show(block)}")
+                inner = f"block {show(block)} of " + (via.split(" of ", 1)[1] if " of " in via else name)
+                stack.append((_expand(e), layer, inner, name))
                 continue
-            if key in self.obstacle_layers and kind in _OBSTACLE_TYPES:
-                self.obstacle(e, kind)
-            if key == self.marker_layer:
-                if kind == "POINT":
-                    p = e.dxf.location
+            obstacle = key in self.obstacle_layers and kind in _OBSTACLE_TYPES
+            marker = key == self.marker_layer and kind in ("POINT", "CIRCLE")
+            if not (obstacle or marker):
+                continue
+            self.check(e, kind, name)
+            try:
+                if obstacle:
+                    self.obstacle(e, kind, name)
+                if marker:
+                    p = e.dxf.location if kind == "POINT" else e.ocs().to_wcs(e.dxf.center)
                     self.found.markers.append((p.x, p.y, None, None))
-                elif kind == "CIRCLE":
-                    p = e.ocs().to_wcs(e.dxf.center)
-                    self.found.markers.append((p.x, p.y, None, None))
+            except ScenarioError:
+                raise
+            except (ArithmeticError, ValueError, IndexError, TypeError, AttributeError) as exc:
+                self.fail(name, f"cannot read its geometry ({type(exc).__name__}: {exc})")
+            except Exception as exc:
+                if not _is_dxf_error(exc):
+                    raise
+                self.fail(name, f"cannot read its geometry ({exc})")
 
     def marker_insert(self, e) -> None:
         p = e.ocs().to_wcs(e.dxf.insert)
@@ -152,26 +274,29 @@ class _Reader:
         facing = float(e.dxf.rotation) % 360.0
         self.found.markers.append((p.x, p.y, facing, mid))
 
-    def flatten(self, path) -> np.ndarray:
-        return _xy(path.flattening(self.flat))
+    def flatten(self, path, name: str) -> np.ndarray:
+        # the path's own vertices first: flattening a path with a vertex at nan or 1e300 never ends
+        self.points(_xy(path.control_vertices()), name)
+        return self.points(_xy(path.flattening(self.flat)), name)
 
-    def obstacle(self, e, kind: str) -> None:
+    def obstacle(self, e, kind: str, name: str) -> None:
         from ezdxf import path as dxfpath
 
         f = self.found
         if kind == "CIRCLE":
             c = e.ocs().to_wcs(e.dxf.center)
+            self.points(_xy([c]), name)
             f.circles.append((c.x, c.y, abs(float(e.dxf.radius))))
         elif kind == "LINE":
-            f.lines.append(_xy([e.dxf.start, e.dxf.end]))
+            f.lines.append(self.points(_xy([e.dxf.start, e.dxf.end]), name))
         elif kind in ("HATCH", "MPOLYGON"):
-            f.filled.append([self.flatten(p) for p in dxfpath.from_hatch(e)])
+            f.filled.append([self.flatten(p, name) for p in dxfpath.from_hatch(e)])
         elif kind in ("SOLID", "TRACE"):
-            f.filled.append([self.flatten(dxfpath.make_path(e))])
+            f.filled.append([self.flatten(dxfpath.make_path(e), name)])
         else:
             if kind == "POLYLINE" and (e.is_polygon_mesh or e.is_poly_face_mesh):
                 return
-            pts = self.flatten(dxfpath.make_path(e))
+            pts = self.flatten(dxfpath.make_path(e), name)
             if len(pts) < 2:
                 return
             if kind == "LWPOLYLINE":
@@ -195,6 +320,100 @@ class _Reader:
                 f.rings.append(pts)
             else:
                 f.filled.append([pts])
+
+
+def _expand(insert) -> Iterator:
+    """Yield the entities of an INSERT's block, transformed, one grid cell of a MINSERT after another."""
+    for ins in (insert.multi_insert() if insert.mcount > 1 else (insert,)):
+        yield from ins.virtual_entities()
+
+
+def _count(n: int) -> str:
+    return f"more than {MAX_DXF_ENTITIES}" if n > MAX_DXF_ENTITIES else str(n)
+
+
+def _is_dxf_error(exc: Exception) -> bool:
+    import ezdxf
+
+    return isinstance(exc, ezdxf.DXFError)
+
+
+def expanded_size(doc, entities: Iterable, where: str, shown: str) -> int:
+    """Count the entities of ``entities`` with every block expanded, before anything is expanded.
+
+    A block's size is the sum over its entities of 1, plus for an INSERT the count of its grid
+    (MINSERT rows x columns) times its block's size; block sizes are computed once each,
+    iteratively (no recursion however deep the nesting).
+
+    Raises
+    ------
+    ScenarioError
+        More than :data:`~scenarios.limits.MAX_DXF_ENTITIES` entities (naming the INSERT that
+        brings the most), or a block that inserts itself (directly or through others).
+    """
+    sizes: dict[str, int] = {}
+    cap = MAX_DXF_ENTITIES + 1  # sizes saturate here: enough to refuse, and no huge numbers
+
+    def inserts(entities) -> list:
+        return [e for e in entities if e.dxftype() == "INSERT"]
+
+    def size_of(block_name: str) -> int:
+        """Return the block's expanded size, with an explicit stack over its nested blocks."""
+        key = block_name.upper()
+        if key in sizes:
+            return sizes[key]
+        visiting: list[str] = []
+        stack = [key]
+        while stack:
+            b = stack[-1]
+            if b in sizes:
+                stack.pop()
+                continue
+            layout = doc.blocks.get(b)
+            if layout is None:  # a missing block: the walk names the INSERT
+                sizes[b] = 0
+                stack.pop()
+                continue
+            pending = [i.dxf.get("name", "").upper() for i in inserts(layout)]
+            pending = [n for n in pending if n not in sizes]
+            if b not in visiting:
+                visiting.append(b)
+            cycle = next((n for n in pending if n in visiting), None)
+            if cycle is not None:
+                raise ScenarioError(f"{where}.file: {shown}: block {show(cycle)} inserts itself (through "
+                                    f"{' > '.join(visiting[visiting.index(cycle):] + [cycle])}): it expands "
+                                    f"without end, at most {MAX_DXF_ENTITIES} entities")
+            if pending:
+                stack.extend(pending)
+                continue
+            total = 0
+            for e in layout:
+                total += 1
+                if e.dxftype() == "INSERT":
+                    total += max(int(e.mcount), 1) * sizes.get(e.dxf.get("name", "").upper(), 0)
+                if total >= cap:
+                    total = cap
+                    break
+            sizes[b] = total
+            visiting.remove(b)
+            stack.pop()
+        return sizes[key]
+
+    total, worst, worst_n = 0, None, -1
+    for e in entities:
+        n = 1
+        if e.dxftype() == "INSERT":
+            n += max(int(e.mcount), 1) * size_of(e.dxf.get("name", ""))
+            if n > worst_n:
+                worst, worst_n = e, n
+        total += n
+        if total > MAX_DXF_ENTITIES:
+            what = (f"INSERT #{worst.dxf.get('handle')} on layer {show(worst.dxf.get('layer', '0'))} of block "
+                    f"{show(worst.dxf.get('name', ''))} expands to {_count(worst_n)} entities; "
+                    if worst is not None else "")
+            raise ScenarioError(f"{where}.file: {shown}: {what}the drawing has more than {MAX_DXF_ENTITIES} "
+                                f"entities with its blocks expanded, at most {MAX_DXF_ENTITIES}")
+    return total
 
 
 def drawing_layers(doc) -> dict[str, str]:
@@ -262,8 +481,10 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
     # Half the tolerance flattens arcs (at least to 1 mm), half simplifies the polygons, so
     # the result stays within ``simplify`` of the drawing.
     flat = max(0.5 * simplify, 1e-3) / factor
-    reader = _Reader(obst, mark, flat)
-    reader.walk(doc.modelspace(), None, 0)
+    msp = doc.modelspace()
+    expanded_size(doc, msp, where, shown)  # the budget, before anything is expanded
+    reader = _Reader(obst, mark, flat, factor, where, shown)
+    reader.walk(msp)
     found = reader.found
 
     rings = [r * factor for r in found.rings]

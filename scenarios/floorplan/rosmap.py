@@ -14,6 +14,9 @@ through cells the map knows are free.
 from __future__ import annotations
 
 import math
+import re
+import stat
+import struct
 import warnings
 from pathlib import Path
 
@@ -21,16 +24,72 @@ import numpy as np
 import shapely
 
 from scenarios.errors import ScenarioError
-from scenarios.fields import Table, show
+from scenarios.fields import Table, show, show_path
 from scenarios.floorplan import geometry
 from scenarios.floorplan.spec import FloorPlanData
 from scenarios.floorplan.trace import trace
+from scenarios.limits import MAX_MAP_PIXELS, MAX_NESTING, MAX_YAML_NODES
 
 MODES = ("trinary", "scale", "raw")
+# PBM/PGM/PPM: magic, then width and height, with comments and white space between.
+_PNM_HEADER = re.compile(rb"P[1-6](?:\s+|#[^\n]*\n)+(\d+)(?:\s+|#[^\n]*\n)+(\d+)")
+
+
+def _map_loader():
+    """PyYAML's safe loader reading numbers like ROS's yaml-cpp (YAML 1.2): ``5e-2`` is 0.05.
+
+    Under YAML 1.1 (PyYAML's) a float needs a dot, so ``resolution: 5e-2``, which map_server
+    reads as 0.05, would be the string "5e-2".
+    """
+    import yaml
+
+    class MapLoader(yaml.SafeLoader):
+        pass
+
+    MapLoader.add_implicit_resolver("tag:yaml.org,2002:float",
+                                    re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+                                    list("-+0123456789"))
+    return MapLoader
+
+
+def _expanded_nodes(text: str, loader, where: str, shown: str) -> None:
+    """Refuse a YAML text whose aliases expand it beyond MAX_YAML_NODES nodes, or nested too deep.
+
+    Counted on the parser's events (no document is built): each collection's size is the sum
+    of its items', an alias counts the size of its anchor's node.
+    """
+    import yaml
+
+    sizes: dict[str, int] = {}
+    stack = [[0, None]]  # open collections: [nodes so far, anchor]
+
+    def add(n: int) -> None:
+        stack[-1][0] += n
+        if stack[-1][0] > MAX_YAML_NODES:
+            raise ScenarioError(f"{where}.file: {shown}: more than {MAX_YAML_NODES} YAML nodes once its aliases "
+                                f"are expanded, at most {MAX_YAML_NODES}")
+
+    for ev in yaml.parse(text, Loader=loader):
+        if isinstance(ev, yaml.AliasEvent):
+            add(sizes.get(ev.anchor, 1))
+        elif isinstance(ev, yaml.ScalarEvent):
+            if ev.anchor:
+                sizes[ev.anchor] = 1
+            add(1)
+        elif isinstance(ev, yaml.CollectionStartEvent):
+            stack.append([1, ev.anchor])
+            if len(stack) > MAX_NESTING:
+                raise ScenarioError(f"{where}.file: {shown}: YAML nested more than {MAX_NESTING} deep, "
+                                    f"at most {MAX_NESTING}")
+        elif isinstance(ev, yaml.CollectionEndEvent):
+            n, anchor = stack.pop()
+            if anchor:
+                sizes[anchor] = n
+            add(n)
 
 
 def read_yaml(path: Path, where: str, shown: str) -> dict:
-    """Parse the map YAML at ``path`` into a dict; unreadable or malformed is one error line."""
+    """Parse the map YAML at ``path`` into a dict; unreadable, malformed or over budget is one error line."""
     import yaml
 
     try:
@@ -38,14 +97,38 @@ def read_yaml(path: Path, where: str, shown: str) -> dict:
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise ScenarioError(f"{where}.file: cannot read {shown}: {reason or exc}") from None
+    loader = _map_loader()
     try:
-        doc = yaml.safe_load(text)
+        _expanded_nodes(text, loader, where, shown)
+        doc = yaml.load(text, Loader=loader)  # noqa: S506 (a safe loader)
     except yaml.YAMLError as exc:
         first = str(exc).splitlines()[0] if str(exc) else "malformed"
         raise ScenarioError(f"{where}.file: {shown}: malformed YAML: {first}") from None
     if not isinstance(doc, dict):
         raise ScenarioError(f"{where}.file: {shown}: expected a map_server YAML mapping, got {show(doc)}")
     return doc
+
+
+def image_size(path: Path) -> tuple[int, int] | None:
+    """Width and height [pixels] from a PNG or PGM/PPM/PBM header, or None for another format.
+
+    Read from the first bytes alone, so that the size is known before anything is decoded.
+    """
+    with open(path, "rb") as f:
+        head = f.read(1024)
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
+        w, h = struct.unpack(">II", head[16:24])
+        return int(w), int(h)
+    m = _PNM_HEADER.match(head)
+    if m:
+        return int(m.group(1)), int(m.group(2))
+    return None
+
+
+def _check_pixels(t: Table, image_name: str, image_path: Path, w: int, h: int) -> None:
+    if w * h > MAX_MAP_PIXELS:
+        t.fail(t.key("image"), f"{show_path(image_path)} is {w} x {h} = {w * h:.3g} pixels, "
+               f"at most {MAX_MAP_PIXELS:.3g}", image_name)
 
 
 def shade(img) -> tuple[np.ndarray, np.ndarray]:
@@ -146,19 +229,36 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     if not image_path.is_absolute():
         image_path = path.parent / image_path  # map_server: relative to the YAML file
     try:
+        regular = stat.S_ISREG(image_path.stat().st_mode)  # a FIFO would block the read
+        size = image_size(image_path) if regular else None
+    except FileNotFoundError:
+        t.fail(t.key("image"), f"cannot read the map image {show_path(image_path)}: no such file", image_name)
+    except OSError as exc:
+        t.fail(t.key("image"), f"cannot read the map image {show_path(image_path)}: {exc.strerror or exc}",
+               image_name)
+    if not regular:
+        t.fail(t.key("image"), f"expected a map image file, {show_path(image_path)} is not a regular file",
+               image_name)
+    if size is not None:
+        _check_pixels(t, image_name, image_path, *size)
+    try:
         with warnings.catch_warnings():
             # A big site map is not a decompression bomb; Pillow's warning would be stray output.
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             with Image.open(image_path) as img:
+                _check_pixels(t, image_name, image_path, *img.size)  # header only: before decoding
                 img.load()  # decode now: a truncated file fails here, not later
                 occ_img = classify(img, mode, bool(negate), occupied_thresh, free_thresh)
+    except Image.DecompressionBombError:  # a format whose header we do not read: Pillow's own check
+        t.fail(t.key("image"), f"{show_path(image_path)} has more than {2 * Image.MAX_IMAGE_PIXELS:.3g} pixels, "
+               f"at most {MAX_MAP_PIXELS:.3g}", image_name)
     except FileNotFoundError:
-        t.fail(t.key("image"), f"cannot read the map image {image_path}: no such file", image_name)
+        t.fail(t.key("image"), f"cannot read the map image {show_path(image_path)}: no such file", image_name)
     except UnidentifiedImageError:
-        t.fail(t.key("image"), f"expected a PGM or PNG image, cannot read {image_path}", image_name)
-    except (OSError, ValueError, SyntaxError) as exc:
+        t.fail(t.key("image"), f"expected a PGM or PNG image, cannot read {show_path(image_path)}", image_name)
+    except (OSError, ValueError, SyntaxError, struct.error) as exc:
         # Pillow: "image file is truncated", a header whose size does not match the data, ...
-        t.fail(t.key("image"), f"cannot read the map image {image_path} ({exc})", image_name)
+        t.fail(t.key("image"), f"cannot read the map image {show_path(image_path)} ({exc})", image_name)
     h, w = occ_img.shape
     if h == 0 or w == 0:
         t.fail(t.key("image"), f"expected a non-empty image, {image_path} is {w} x {h}", image_name)
@@ -174,4 +274,4 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     if not all(math.isfinite(v) for v in extent):
         t.fail(t.key("origin"), "expected a finite map extent", list(origin))
     return FloorPlanData(obstacles=obstacles, markers=[], extent=extent, unit_factor=1.0, units="m",
-                        simplify=tol)
+                        simplify=tol, images=(image_path.resolve(),))

@@ -52,6 +52,8 @@ class FloorPlan:
     wall_thickness: float
     simplify: float
     extent: tuple[float, float, float, float]
+    files: tuple[Path, ...] = ()
+    """Every file read, absolute: the drawing, or the map YAML and its image."""
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,8 @@ class FloorPlanData:
     unit_factor: float = 1.0
     units: str = "m"
     simplify: float = 0.0
+    images: tuple[Path, ...] = ()
+    """Files read besides the one named (a ROS map's image), absolute."""
 
 
 # Unit names accepted by ``floorplan.units``, in metres per unit.

@@ -12,7 +12,8 @@ check that segments keep clear of obstacles:
 """
 
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
-from scenarios.routegraph.graph import GraphEdge, GraphNode, read_graph_file
+from scenarios.routegraph.file import read_graph_file
+from scenarios.routegraph.graph import GraphEdge, GraphNode
 from scenarios.routegraph.table import place_node_docks, portable_routes_text, read_node_dock, read_routes
 
 __all__ = ["GraphEdge", "GraphNode", "obstacle_geometry", "place_node_docks", "read_graph_file",

@@ -1,29 +1,28 @@
-"""Route graph files into a :class:`~scenarios.schema.RouteNetwork`.
+"""Route graph files into a :class:`~scenarios.route_network.RouteNetwork`.
 
 A graph file holds nodes with ids and positions and *directed* edges between them. The
 route network is undirected: every directed edge between the same two nodes (typically a
 pair of opposite edges, one per direction) becomes one segment that keeps all their ids,
-directions and properties (:class:`~scenarios.schema.RouteEdge`). Segments are straight
+directions and properties (:class:`~scenarios.route_network.RouteEdge`). Segments are straight
 between their nodes, as Nav2's route server drives them (an edge's own geometry is not used).
 
-The file's format is told by its content: a GeoJSON ``FeatureCollection`` is a Nav2 route
-graph (:mod:`scenarios.routegraph.nav2`), an object with ``layouts`` a VDA LIF file
-(:mod:`scenarios.routegraph.lif`).
+The file's format is told by its content (:mod:`scenarios.routegraph.file`): a GeoJSON
+``FeatureCollection`` is a Nav2 route graph (:mod:`scenarios.routegraph.nav2`), an object with
+``layouts`` a VDA LIF file (:mod:`scenarios.routegraph.lif`); both build on the elements here.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import show
+from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
-from scenarios.schema import Obstacle, RouteEdge, RouteNetwork, Workspace
+from scenarios.schema import Obstacle, Workspace
 
 
 @dataclass(frozen=True)
@@ -53,6 +52,8 @@ class GraphEdge:
     end: str
     properties: dict = field(default_factory=dict)
     key: str = ""
+    repeated_ok: bool = False
+    """The file's format lets this edge share its id with another (see :mod:`.nav2`)."""
 
 
 def fail(file: str, key: str, expected: str, value: Any = None, *, with_value: bool = True) -> None:
@@ -75,52 +76,6 @@ def finite_xy(file: str, key: str, value: Any, what: str) -> tuple[float, float]
     if not ok:
         fail(file, key, f"expected {what}", value)
     return float(value[0]), float(value[1])
-
-
-def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file: str,
-                    layout_key: str) -> tuple[list[GraphNode], list[GraphEdge], set[str]]:
-    """Read the nodes and directed edges of a Nav2 GeoJSON or VDA LIF file.
-
-    Returns the nodes, the edges and the ids of nodes that exist in the file outside the graph
-    read (a LIF file's other layouts; see ``known_elsewhere`` of :func:`build_network`).
-
-    Parameters
-    ----------
-    path : Path
-        The file.
-    shown : str
-        How errors name the file.
-    layout : str or None
-        LIF only: the ``layoutId`` to read (needed when the file has several layouts).
-    scenario_file, layout_key : str
-        Scenario file and key path of ``layout`` (``routes.layout``), for its errors.
-
-    Raises
-    ------
-    ScenarioError
-        Unreadable file, malformed JSON, an unknown format, or a bad value (naming file and key).
-    """
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{shown}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        data = json.loads(text, parse_constant=lambda c: fail(shown, "<json>", "expected finite numbers", c))
-    except json.JSONDecodeError as exc:
-        raise ScenarioError(f"{shown}: malformed JSON: {exc}") from None
-    from scenarios.routegraph import lif, nav2
-
-    if isinstance(data, dict) and data.get("type") == "FeatureCollection":
-        if layout is not None:
-            fail(scenario_file, layout_key, f"only for VDA LIF files ({shown} is a GeoJSON route graph)", layout)
-        nodes, edges = nav2.read(data, shown)
-        elsewhere: set[str] = set()
-    elif isinstance(data, dict) and "layouts" in data:
-        nodes, edges, elsewhere = lif.read(data, shown, layout, scenario_file, layout_key)
-    else:
-        raise ScenarioError(f"{shown}: expected a Nav2 route graph (a GeoJSON FeatureCollection) or a "
-                            "VDA LIF file (an object with \"layouts\")")
-    return nodes, edges, elsewhere
 
 
 def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown: str, *,
@@ -146,8 +101,8 @@ def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown:
     Raises
     ------
     ScenarioError
-        Duplicate ids, a node outside the workspace, an edge to an unknown node or from a node
-        to itself.
+        Duplicate ids (edge ids marked ``repeated_ok`` excepted), a node outside the workspace, an edge
+        to an unknown node or from a node to itself.
     """
     pos: dict[str, tuple[float, float]] = {}
     props: dict[str, dict] = {}
@@ -162,7 +117,7 @@ def build_network(nodes: Sequence[GraphNode], edges: Sequence[GraphEdge], shown:
     groups: dict[frozenset, list[GraphEdge]] = {}
     seen: set[str] = set()
     for e in edges:
-        if e.id in seen:
+        if e.id in seen and not e.repeated_ok:
             fail(shown, e.key, "expected a unique edge id", e.id)
         seen.add(e.id)
         for end, name in ((e.start, "start"), (e.end, "end")):

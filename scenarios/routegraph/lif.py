@@ -78,7 +78,9 @@ def other_layout_nodes(data: dict[str, Any], layout_index: int) -> set[str]:
     out: set[str] = set()
     for i, lay in enumerate(data.get("layouts", [])):
         if i != layout_index and isinstance(lay, dict):
-            out |= {str(n.get("nodeId")) for n in lay.get("nodes", []) if isinstance(n, dict)}
+            nodes = lay.get("nodes", [])
+            # another layout's nodes are only looked up: a malformed list there names no node
+            out |= {str(n.get("nodeId")) for n in nodes if isinstance(n, dict)} if isinstance(nodes, list) else set()
     return out
 
 

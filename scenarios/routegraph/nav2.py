@@ -5,12 +5,22 @@ A ``FeatureCollection`` whose ``Point`` features are nodes (``properties.id``, o
 and whose ``LineString``/``MultiLineString`` features are directed edges (``properties.id``,
 ``startid``, ``endid``, optional ``cost``, ``overridable``, ``metadata``, ``operations``, ...).
 Other geometries are ignored, as Nav2 ignores them. Every other property is kept.
+
+Nav2 asks for unique ids, but its own example graphs reuse edge ids (``turtlebot4_graph.geojson``
+of the depot world: six ids, each on two edges to different nodes) and its route server loads
+them. So does this reader: both edges are kept with the id as given (exports keep it too), and
+one :class:`~scenarios.errors.ScenarioWarning` names the repeated ids. Repeated node ids stay
+an error (an edge could not tell which node it meant).
 """
 
 from __future__ import annotations
 
+import warnings
+from collections import Counter
+from dataclasses import replace
 from typing import Any
 
+from scenarios.errors import ScenarioWarning
 from scenarios.routegraph.graph import GraphEdge, GraphNode, fail, finite_xy, graph_id
 
 EDGE_TYPES = ("LineString", "MultiLineString")
@@ -55,4 +65,10 @@ def read(data: dict[str, Any], shown: str) -> tuple[list[GraphNode], list[GraphE
             ends.append(graph_id(shown, f"{key}.properties.{name}", p[name]))
         rest = {k: v for k, v in p.items() if k not in ("id", "startid", "endid")}
         edges.append(GraphEdge(fid, ends[0], ends[1], rest, f"{key}.properties"))
+    counts = Counter(e.id for e in edges)
+    repeated = [i for i, c in counts.items() if c > 1]
+    if repeated:
+        warnings.warn(f"{shown}: features: repeated edge ids {', '.join(repeated)} (Nav2 asks for unique ids); "
+                      "each kept on all its edges", ScenarioWarning, stacklevel=2)
+        edges = [replace(e, repeated_ok=counts[e.id] > 1) for e in edges]
     return nodes, edges

@@ -16,10 +16,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from scenarios.fields import Table, show
+from scenarios.fields import Table, show, show_path
+from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
-from scenarios.routegraph.graph import build_network, read_graph_file
-from scenarios.schema import Dock, Obstacle, RouteEdge, RouteNetwork, Workspace
+from scenarios.routegraph.file import read_graph_file
+from scenarios.routegraph.graph import build_network
+from scenarios.schema import Dock, Obstacle, Workspace
 
 FreePoint = Callable[[Table, str, tuple, str], None]
 
@@ -65,14 +67,19 @@ def _from_file(t: Table, workspace, obstacles, radius, base_dir) -> RouteNetwork
             t.fail(t.key(other), "expected either routes.file or routes.nodes/segments, not both", t.data[other])
     name = t.string("file")
     path = Path(name) if Path(name).is_absolute() or base_dir is None else base_dir / name
-    if not path.is_file():
-        t.fail(t.key("file"), f"no such file {path}", name)
+    try:
+        regular = path.is_file()  # a FIFO or a device is not a graph file (reading it could block)
+    except OSError as exc:  # a name too long for the file system, ...
+        t.fail(t.key("file"), f"cannot read: {exc.strerror or exc}", name)
+    if not regular:
+        why = "not a regular file" if path.exists() else "no such file"
+        t.fail(t.key("file"), f"{why} {show_path(path)}", name)
     layout = t.string("layout") if t.has("layout") else None
     nodes, edges, elsewhere = read_graph_file(path, str(path), layout=layout, scenario_file=t.file,
                                               layout_key=t.key("layout"))
     net = build_network(nodes, edges, str(path), workspace=workspace, obstacles=obstacles, radius=radius,
                         known_elsewhere=elsewhere.__contains__)
-    return replace(net, layout=layout or "")
+    return replace(net, layout=layout or "", file=path.resolve())
 
 
 def _hand_written(t: Table, workspace, obstacles, radius, docks, free_point) -> RouteNetwork:

@@ -4,8 +4,9 @@ Each command lives in its own module ``sim/cli/<name>.py`` exposing ``register(s
 (which adds the parser and sets ``func``). Commands import their heavy dependencies inside
 ``func`` so that ``pefsim --help`` and ``pefsim list`` start fast.
 
-Errors derived from :class:`scenarios.PefsimError` become one line on stderr and exit code 2;
-anything else is a bug and shows its traceback.
+``pefsim`` alone prints the help, ``pefsim --version`` the installed version. Errors derived
+from :class:`scenarios.PefsimError` become one line on stderr and exit code 2; anything else is
+a bug and shows its traceback.
 """
 
 from __future__ import annotations
@@ -16,18 +17,12 @@ import json
 import sys
 from typing import Any
 
+from jit import compiled
 from scenarios import PefsimError, PlanningError
 
-COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "compile")
+COMMANDS = ("list", "map", "plan", "place", "run", "mc", "validate", "paper", "export", "watch", "worlds")
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
-
-#: Commands whose process ends without the interpreter's teardown once they succeeded, when run
-#: as the program (``argv`` None): freeing numba's and LLVM's objects module by module takes
-#: ~0.4 s of CPU, a fifth of a whole ``map``. They write their files through closed handles and
-#: start no process; a recording (``--rrd``) keeps the normal exit, as its writer may flush late.
-QUICK_EXIT = ("map", "plan")
-
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # argparse's own usage errors are bad input too
@@ -51,41 +46,23 @@ def _jsonable(o: Any) -> Any:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="pefsim", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="pefsim", description="Robot routes planned from a Position Error Function (PEF), "
+                                                "and checked in simulation. Each command takes --help.")
+    parser.add_argument("--version", action="version", version=f"pefsim {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    sub.required = True
     for name in COMMANDS:
         importlib.import_module(f"sim.cli.{name}").register(sub)
     return parser
 
 
-def _quick_exit(code: int) -> None:
-    """End the process now with ``code``: flush the standard streams, run the atexit handlers.
+def _version() -> str:
+    """Return the installed distribution's version (package metadata), or a note that it is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
 
-    Returns (and the caller exits normally) under a profiler or tracer (``cProfile``, coverage:
-    they write their results at the normal exit), or while a thread other than the PEF kernels'
-    idle pool is alive.
-    """
-    import atexit
-    import os
-    import threading
-
-    if sys.getprofile() is not None or sys.gettrace() is not None:
-        return
-    main_thread = threading.main_thread()
-    if any(t is not main_thread and not t.daemon and not t.name.startswith("pef-kernel")
-           for t in threading.enumerate()):
-        return
     try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-    except (BrokenPipeError, ValueError):
-        pass
-    run_exitfuncs = getattr(atexit, "_run_exitfuncs", None)
-    if run_exitfuncs is None:
-        return
-    run_exitfuncs()
-    os._exit(code)
+        return version("pefsim")
+    except PackageNotFoundError:
+        return "(not installed: run pip install -e .)"
 
 
 def _with_source(args: argparse.Namespace, exc: PefsimError) -> str:
@@ -96,14 +73,32 @@ def _with_source(args: argparse.Namespace, exc: PefsimError) -> str:
     return f"{scenario}: {message}"
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None, _default=None) -> None:
+    """Print pefsim's own warnings (:class:`scenarios.errors.ScenarioWarning`) as one line."""
+    from scenarios.errors import ScenarioWarning
+
+    if issubclass(category, ScenarioWarning):
+        print(f"pefsim: warning: {message}", file=sys.stderr if file is None else file)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
+    import functools
+    import warnings
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.command is None:  # ``pefsim`` alone: what it can do
+        parser.print_help()
+        return EXIT_OK
+    if not isinstance(warnings.showwarning, functools.partial):  # once per process
+        warnings.showwarning = functools.partial(_show_warning, _default=warnings.showwarning)
+    if argv is None:  # the program, not a caller in Python: a cold numba cache is said, once, at exit
+        compiled.announce_compiles()
     try:
         code = args.func(args)
         code = EXIT_OK if code is None else int(code)
-        if argv is None and args.command in QUICK_EXIT and not getattr(args, "rrd", None):
-            _quick_exit(code)
     except PefsimError as exc:
         print(f"pefsim: error: {_with_source(args, exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT

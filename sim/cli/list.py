@@ -12,12 +12,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import scenarios
+    import pefsim
     from sim.cli import print_json
 
     rows = []
-    for name in scenarios.builtin_names():
-        s = scenarios.load(name)
+    for name in pefsim.builtin_names():
+        s = pefsim.load(name)
         rows.append({"name": name, "size": list(s.workspace.size), "markers": len(s.markers),
                      "docks": len(s.docks), "tasks": len(s.tasks), "description": s.description})
     if args.json:

@@ -7,9 +7,7 @@ to: the figure with ``-o``, the arrays with ``--npz``, a recording with ``--rrd`
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from scenarios.errors import output_errors
 from sim.jsonable import json_number
 
 
@@ -23,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", type=float, metavar="V",
                    help="the motion-aware PEF: the promise of a fix ending at each cell, driven at V m/s "
                         "(ranges one after another, carried by odometry); default the paper's static PEF")
-    p.add_argument("-o", "--output", metavar="PNG", help="write the figure here")
+    p.add_argument("-o", "--output", metavar="FIG", help="write the figure here (.png, .pdf or .svg)")
     p.add_argument("--npz", metavar="FILE",
                    help="write arrays: tau (ny,nx) [m, inf = no fix], x (nx,), y (ny,) cell centres [m], "
                         "best (ny,nx,k) marker indices (-1 = none)")
@@ -38,7 +36,7 @@ def map_summary(pef_map, eps_max: float, resolution: float) -> dict:
 
     Parameters
     ----------
-    pef_map : planner.pef.map.PefMap
+    pef_map : planner.pef.result.PefMap
         The map.
     eps_max : float
         Allowed error [m].
@@ -72,50 +70,15 @@ def map_summary(pef_map, eps_max: float, resolution: float) -> dict:
     }
 
 
-def _write_npz(path: Path, pef_map) -> None:
-    import numpy as np
-
-
-    with output_errors(path, "write the map arrays"):
-        with open(path, "wb") as fh:  # a file object: numpy must not append ".npz" to the name
-            np.savez_compressed(fh, tau=pef_map.tau, x=pef_map.x, y=pef_map.y, best=pef_map.best)
-
-
-def _write_png(path: Path, scenario, pef_map, eps_max: float, k: int) -> None:
-    from sim.report.map_figure import plot_map
-
-    with output_errors(path, "write the figure"):
-        plot_map(scenario, pef_map, eps_max, path, k)
-
-
 def run(args: argparse.Namespace) -> int:
-    import scenarios
-    from planner.pef.map import PEF
+    import pefsim
     from sim.cli import print_json
 
-    sc = scenarios.load(args.scenario)
-    if args.rrd:
-        from sim.recording import check_writable
-
-        check_writable(args.rrd)
-    pef = PEF(sc, model=args.model)
-    resolution = args.resolution if args.resolution is not None else sc.planning.resolution
-    if args.speed is not None:
-        from planner.schedule.promise import moving_map
-
-        pef_map = moving_map(sc, pef, args.speed, resolution)
-    else:
-        pef_map = pef.grid(resolution)
+    sc = pefsim.load(args.scenario)
+    pef_map = pefsim.pef_map(sc, model=args.model, resolution=args.resolution, speed=args.speed,
+                             out=args.output, npz=args.npz, rrd=args.rrd)
     eps_max = sc.planning.eps_max
-    png = args.output
-    if args.npz is not None:
-        _write_npz(Path(args.npz), pef_map)
-    if png is not None:
-        _write_png(Path(png), sc, pef_map, eps_max, pef.k)
-    if args.rrd:
-        from sim.recording import write_static_rrd
-
-        write_static_rrd(args.rrd, sc, pef_map=pef_map)
+    resolution = args.resolution if args.resolution is not None else sc.planning.resolution
     summary = map_summary(pef_map, eps_max, resolution)
     summary["speed"] = args.speed
     if args.json:
@@ -123,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     ny, nx = summary["shape"]
     kind = "static" if args.speed is None else f"moving at {args.speed:g} m/s"
-    print(f"{sc.name}: PEF {summary['model']} model ({kind}), k = {pef.k}, {nx} x {ny} cells of "
+    print(f"{sc.name}: PEF {summary['model']} model ({kind}), k = {sc.sensor.markers_per_fix}, {nx} x {ny} cells of "
           f"{pef_map.cell_size[0]:.3g} x {pef_map.cell_size[1]:.3g} m")
     if not sc.markers:
         print("no markers: tau = inf everywhere (pefsim place finds where to put reflectors)")
@@ -134,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
               f"median {summary['tau_median'] * 1e3:.3g} mm, max {summary['tau_max'] * 1e3:.3g} mm")
     print(f"navigation region (tau < eps_max = {eps_max * 1e3:g} mm): "
           f"{100 * summary['fraction_navigable']:.1f} % of free space")
-    for path in (args.npz, png):
+    for path in (args.npz, args.output, args.rrd):
         if path is not None:
             print(f"wrote {path}")
     return 0

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,48 +31,24 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import scenarios
+    import pefsim
     from scenarios.errors import ScenarioError
     from sim.cli import print_json
-    from sim.montecarlo import engine as montecarlo
 
     if args.address and args.executor != "ray":
         raise ScenarioError(f"--address: needs --executor ray, got --executor {args.executor}")
-    scenario = scenarios.load(args.scenario)
-    from sim.episode.drive import check_markers
-
-    check_markers(scenario)  # before the output directory is made
-    rrd_every = args.rrd_every
-    if rrd_every > 0 and not _recording_available():
-        print("pefsim: warning: sim.recording is not available; --rrd-every ignored", file=sys.stderr)
-        rrd_every = 0
-    written: list = []
-
-    def write(summary) -> None:  # runs while the sweep still holds the directory's lock
-        from sim.report.page import write_report
-
-        written.append(write_report(summary.out, scenario))
-
-    summary = montecarlo.sweep(scenario, args.out, runs=args.runs, task=args.task, workers=args.workers,
-                               executor=args.executor, address=args.address, resume=args.resume,
-                               rrd_every=rrd_every, steps=args.steps, then=None if args.no_report else write)
-    report = written[0] if written else None
+    scenario = pefsim.load(args.scenario)
+    summary = pefsim.sweep(scenario, args.out, runs=args.runs, task=args.task, workers=args.workers,
+                           executor=args.executor, address=args.address, resume=args.resume,
+                           rrd_every=args.rrd_every, steps=args.steps, progress=None, report=not args.no_report)
     if args.json:
-        out = summary.to_dict()
-        out["report"] = str(report) if report else None
-        print_json(out)
+        print_json(summary.to_dict())
         return 0
-    print(format_summary(summary, report))
+    print(format_summary(summary))
     return 0
 
 
-def _recording_available() -> bool:
-    import importlib.util
-
-    return importlib.util.find_spec("sim.recording") is not None
-
-
-def format_summary(s, report: os.PathLike | None) -> str:
+def format_summary(s) -> str:
     """Format a :class:`~sim.montecarlo.engine.SweepSummary` as the lines ``pefsim mc`` prints."""
     lines = [f"{s.runs} runs in {s.out}: {s.ok} ok, {s.crashed} crashed, {s.reached} reached the goal, "
              f"{s.violation_runs} exceeded eps_max"]
@@ -91,6 +65,6 @@ def format_summary(s, report: os.PathLike | None) -> str:
         b = s.bytes_per_run
         lines.append(f"bytes per run: {b['total'] / 1e3:.1f} kB (steps {b['steps'] / 1e3:.1f} kB, --steps "
                      f"{s.steps}; fixes {b['fixes'] / 1e3:.1f} kB; runs {b['runs'] / 1e3:.1f} kB)")
-    if report:
-        lines.append(f"report: {report}")
+    if s.report:
+        lines.append(f"report: {s.report}")
     return "\n".join(lines)

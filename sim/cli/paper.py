@@ -52,32 +52,19 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import time
-    from pathlib import Path
-
+    import pefsim
     from sim.cli import print_json
-    from sim.paper.claims import Options
-    from sim.paper.html import write_page
-    from sim.paper.reproduce import reproduce
 
-    start = time.perf_counter()
-    options = Options(quick=args.quick, runs=args.runs, workers=args.workers)
-    claims = reproduce(Path(args.out), options, only=args.claims)
-    sections = []
-    if args.claims is None and not args.no_sections:
-        from sim.paper.redundancy import reproduce_redundancy
-
-        sections.append(reproduce_redundancy(Path(args.out), options))
-    seconds = time.perf_counter() - start
-    index = write_page(args.out, claims, options, seconds, sections)
+    page = pefsim.paper(args.out, quick=args.quick, runs=args.runs, workers=args.workers, claims=args.claims,
+                        sections=not args.no_sections)
     if args.json:
-        print_json({"out": str(args.out), "index": str(index), "quick": args.quick,
-                    "seconds": round(seconds, 1), "claims": [c.to_dict() for c in claims],
-                    "sections": [x.to_dict() for x in sections]})
+        print_json({"out": str(args.out), "index": str(page.index), "quick": args.quick,
+                    "seconds": round(page.seconds, 1), "claims": [c.to_dict() for c in page.claims],
+                    "sections": [x.to_dict() for x in page.sections]})
         return 0
-    for c in claims:
+    for c in page.claims:
         print(f"{c.id}. {c.title}: {c.verdict}")
-    for x in sections:
+    for x in page.sections:
         print(f"beside the claims: {x.title} ({x.seconds:.0f} s)")
-    print(f"report: {index} ({seconds:.0f} s)")
+    print(f"report: {page.index} ({page.seconds:.0f} s)")
     return 0

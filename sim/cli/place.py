@@ -3,6 +3,8 @@
 Prints the marker count, whether it is proven optimal (else the lower bound), and the markers.
 ``-o`` writes the scenario with these markers (loadable, covering every coverable point);
 ``--png`` draws the sites, chosen markers and points to cover; ``--json`` prints the result.
+With ``placement.existing = "keep"`` the scenario's markers stay and the listing marks which
+markers are new. The work is :func:`pefsim.place`; this module parses and prints.
 
 The layout is then checked with the planner: while a task has no admissible route (the drift
 between fixes needs room under eps_max), the cover is solved again for a tighter target
@@ -17,9 +19,6 @@ well. ``-o`` and ``--png`` are still written in that case (covering the coverabl
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
-
-from scenarios.errors import output_errors
 
 EPILOG = ("exit codes: 0 every point covered and every task plans; 2 bad input, some points cannot be "
           "covered by any candidate sites (listed under 'uncovered' with --json, else named in one error "
@@ -35,8 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", metavar="TOML", help="write the scenario with the placed markers")
     p.add_argument("--png", metavar="FILE", help="figure: candidate sites, chosen markers, points to cover")
     p.add_argument("--json", action="store_true",
-                   help="print markers (id, position), count, lower_bound, optimal, method, "
-                        "points, sites, uncovered ([x, y] points no sites can cover)")
+                   help="print markers (id, position, kind, facing_deg, new), kept and new ids, count and "
+                        "lower_bound (of the added markers), optimal, method, target, unplanned, points, sites, "
+                        "finest_spacing, uncovered ([x, y] points no sites can cover)")
     p.add_argument("--method", choices=("auto", "milp", "greedy"), default="auto",
                    help="auto: exact (cutting planes, local search, HiGHS MILP) for small instances, else "
                         "greedy: LP rounding and local search with the LP lower bound")
@@ -49,105 +49,54 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def summary(result, target: float | None = None, unplanned: tuple[str, ...] = ()) -> dict:
-    """Build the ``--json`` document of a placement (positions in metres)."""
-    return {
-        "target": target,
-        "unplanned": list(unplanned),
-        "count": int(result.count),
-        "lower_bound": int(result.lower_bound),
-        "optimal": bool(result.optimal),
-        "method": result.method,
-        "markers": [{"id": i, "position": [float(x), float(y)]} for i, (x, y) in result.markers],
-        "points": int(len(result.points)),
-        "sites": int(len(result.sites)),
-        "uncovered": [[float(x), float(y)] for x, y in result.uncovered],
-    }
-
-
-def _plot(path: Path, scenario, result) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
-
-    from sim.report.scene import draw_scene
-
-
-    w, h = scenario.workspace.size
-    fig = Figure(figsize=(8, 8 * h / w + 0.6))
-    ax = fig.add_subplot()
-    draw_scene(ax, scenario, labels=False)
-    pts, sites = result.points, result.sites
-    ax.plot(pts[:, 0], pts[:, 1], ".", ms=2, color="tab:blue", label=f"points to cover ({len(pts)})")
-    ax.plot(sites[:, 0], sites[:, 1], "o", ms=4, mfc="none", color="0.4",
-            label=f"candidate sites ({len(sites)})")
-    if len(result.uncovered):
-        u = result.uncovered
-        ax.plot(u[:, 0], u[:, 1], "x", ms=4, color="tab:red", label=f"uncoverable ({len(u)})")
-    for mid, (x, y) in result.markers:
-        ax.annotate(mid, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    if result.markers:
-        m = [p for _, p in result.markers]
-        ax.plot(*zip(*m, strict=True), "*", ms=14, color="tab:orange", mec="black",
-                label=f"markers ({len(m)})")
-    state = "optimal" if result.optimal else f"lower bound {result.lower_bound}"
-    ax.set_title(f"{scenario.name}: {result.count} markers ({state}), "
-                 f"eps_max = {scenario.planning.eps_max:g} m")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=8)
-    fig.tight_layout()
-    with output_errors(path, "write the figure"):
-        fig.savefig(path, dpi=120, bbox_inches="tight")
-
-
 def run(args: argparse.Namespace) -> int:
-    import scenarios
-    from planner.placement.placement import MILP_TIME_LIMIT, place, write_scenario_with_markers
-    from planner.placement.plannable import place_plannable
+    import pefsim
     from scenarios.errors import PlanningError
     from sim.cli import print_json
 
-    sc = scenarios.load(args.scenario)
-    limit = MILP_TIME_LIMIT if args.time_limit is None else args.time_limit
-    if not limit > 0:
-        raise PlanningError(f"--time-limit: expected a positive number of seconds, got {limit}")
-    if args.cover_only:
-        result, target, unplanned = place(sc, method=args.method, time_limit=limit), sc.planning.eps_max, ()
-    else:
-        pp = place_plannable(sc, method=args.method, time_limit=limit)
-        result, target, unplanned = pp.result, pp.target, pp.unplanned
-    written = []
-    written_toml = args.output is not None and result.count >= sc.sensor.markers_per_fix
-    if written_toml:
-        written.append(write_scenario_with_markers(sc, result, args.output))
-    if args.png is not None:
-        _plot(Path(args.png), sc, result)
-        written.append(args.png)
+    sc = pefsim.load(args.scenario)
+    result = pefsim.place(sc, method=args.method, out=args.output, png=args.png, plannable=not args.cover_only,
+                          time_limit=args.time_limit)
+    wrote_toml = args.output is not None and len(result.layout()) >= sc.sensor.markers_per_fix
     n_bad = len(result.uncovered)
     if args.json:
-        print_json(summary(result, target, unplanned))
-        return 2 if n_bad or unplanned else 0
+        print_json(result.summary())
+        return 2 if n_bad or result.unplanned else 0
     state = "optimal" if result.optimal else f"not proven optimal, lower bound {result.lower_bound}"
     n_pts = len(result.points)
-    print(f"{sc.name}: {result.count} markers ({state}; {result.method}) cover {n_pts - n_bad} of {n_pts} "
-          f"points under eps_max = {sc.planning.eps_max:g} m, from {len(result.sites)} candidate sites")
-    if target < sc.planning.eps_max:
-        print(f"cover target tightened to {target:g} m so that every task plans (the drift between "
+    eps = sc.planning.eps_max
+    what = (f"{len(result.kept)} markers kept, {result.count} added" if result.kept
+            else f"{result.count} markers")
+    print(f"{sc.name}: {what} ({state}; {result.method}) cover {n_pts - n_bad} of {n_pts} "
+          f"points under eps_max = {eps:g} m, from {len(result.sites)} candidate sites")
+    if result.finest_spacing is not None:
+        print(f"candidate sites refined to {result.finest_spacing:g} m where {sc.placement.spacing:g} m "
+              "left points uncovered")
+    if result.target < eps:
+        print(f"cover target tightened to {result.target:g} m so that every task plans (the drift between "
               f"fixes needs room under eps_max); the count and its bound are for that target")
-    for mid, (x, y) in result.markers:
-        print(f"  {mid:<5} {x:8.3f} {y:8.3f}")
-    for path in written:
-        print(f"wrote {path}")
+    new = set(result.new_ids)
+    for m in result.layout():
+        tag = "new" if result.kept and m.id in new else ("kept" if result.kept else "")
+        print(f"  {m.id:<5} {m.position[0]:8.3f} {m.position[1]:8.3f}  {tag}".rstrip())
+    if wrote_toml:
+        print(f"wrote {args.output}")
+    if args.png is not None:
+        print(f"wrote {args.png}")
     if n_bad:
         first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in result.uncovered[:3])
-        note = "; -o not written: no markers" if args.output and not written_toml else ""
-        hint = ("" if sc.placement.candidates else
-                f"; candidate sites lie placement.spacing = {sc.placement.spacing:g} m apart: a finer spacing"
-                + (", or posts (placement.marker_kind)," if sc.placement.marker_kind.value == "flat" else "")
-                + " may cover them")
+        note = "; -o not written: no markers" if args.output and not wrote_toml else ""
+        if sc.placement.candidates:
+            hint = ""
+        else:
+            finest = sc.placement.spacing if result.finest_spacing is None else result.finest_spacing
+            hint = (f"; candidate sites were sampled down to {finest:g} m apart"
+                    + (": posts (placement.marker_kind) may cover them" if sc.placement.marker_kind.value == "flat"
+                       else ""))
         raise PlanningError(f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
                             f"(first: {first}){hint}{note}")
-    if unplanned:
-        raise PlanningError(f"{len(unplanned)} of {len(sc.tasks)} tasks have no admissible route on the "
-                            f"placed markers, even with the cover target at {target:g} m: {unplanned[0]}")
+    if result.unplanned:
+        raise PlanningError(f"{len(result.unplanned)} of {len(sc.tasks)} tasks have no admissible route on the "
+                            f"placed markers, even with the cover target at {result.target:g} m: "
+                            f"{result.unplanned[0]}")
     return 0

@@ -15,7 +15,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--to", dest="goal", metavar="B", help="goal dock (default: the first task's)")
     p.add_argument("--free", action="store_true",
                    help="free-space grid search even if there is a route network")
-    p.add_argument("-o", "--output", metavar="PNG", help="write the figure here (nothing is written without it)")
+    p.add_argument("-o", "--output", metavar="FIG",
+                   help="write the figure here (.png, .pdf or .svg; nothing is written without it)")
     p.add_argument("--rrd", metavar="FILE",
                    help="write a rerun recording of the map, the candidate routes and the schedule")
     p.add_argument("--json", action="store_true", help="machine-readable output")
@@ -72,13 +73,11 @@ def _table(plan) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    import scenarios
-    from planner.pef.map import PEF
-    from planner.plan import plan_route
+    import pefsim
     from scenarios.errors import PlanningError
     from sim.cli import print_json
 
-    sc = scenarios.load(args.scenario)
+    sc = pefsim.load(args.scenario)
     start, goal = args.start, args.goal
     if (start is None) != (goal is None):
         raise PlanningError("give both --from and --to, or neither (then the first task is planned)")
@@ -86,22 +85,8 @@ def run(args: argparse.Namespace) -> int:
         if not sc.tasks:
             raise PlanningError(f"scenario {sc.name!r} has no tasks: give --from and --to")
         start, goal = sc.tasks[0].start, sc.tasks[0].goal
-    if args.rrd:
-        from sim.recording import check_writable
-
-        check_writable(args.rrd)
-    pef = PEF(sc)
-    plan = plan_route(sc, start, goal, free=True if args.free else None, pef=pef)
-    pef_map = pef.grid() if (args.output or args.rrd) else None
-    out = None
-    if args.output:
-        from sim.report.plan_figure import plot_plan  # matplotlib: only when a figure is asked for
-
-        out = plot_plan(sc, plan, pef_map, args.output)
-    if args.rrd:
-        from sim.recording import write_static_rrd
-
-        write_static_rrd(args.rrd, sc, pef_map=pef_map, plan=plan)
+    plan = pefsim.plan(sc, start=start, goal=goal, free=True if args.free else None, out=args.output,
+                       rrd=args.rrd)
     if args.json:
         print_json(plan_json(sc, plan))
         return 0
@@ -118,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"schedule: {len(sch.fixes)} fixes, {n_sw} marker switches, largest fix promise "
               f"{worst_fix * 1000:.2f} mm (moving fix), worst predicted error {sch.worst * 1000:.2f} mm; "
               f"{n_slow} fixes slowed down (+{sch.slowdown_time:.2f} s)")
-    if out is not None:
-        print(f"wrote {out}")
+    for path in (args.output, args.rrd):
+        if path is not None:
+            print(f"wrote {path}")
     return 0

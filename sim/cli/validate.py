@@ -1,7 +1,8 @@
 """``pefsim validate``: statistical validation of the PEF predictions against Monte-Carlo.
 
-Runs a sweep (or reads one with ``--from``), evaluates every check of :mod:`sim.validation.suite`
-and prints a table; exit 1 when a check fails, 0 when all pass or do not apply.
+Runs a sweep with :func:`pefsim.sweep` (or takes one with ``--from``), judges it with
+:func:`pefsim.validate` (every check of :mod:`sim.validation.suite`) and prints a table; exit 1
+when a check fails, 0 when all pass or do not apply.
 """
 
 from __future__ import annotations
@@ -57,27 +58,22 @@ def _check_args(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     import tempfile
 
-    import scenarios
+    import pefsim
     from sim.cli import EXIT_CHECK_FAILED, EXIT_OK, print_json
-    from sim.validation import suite as validation
 
     _check_args(args)
-    scenario = scenarios.load(args.scenario) if args.scenario is not None else None
-    alpha = args.alpha if args.alpha is not None else validation.DEFAULT_ALPHA
+    scenario = pefsim.load(args.scenario) if args.scenario is not None else None
     start = time.perf_counter()
     if args.from_dir is not None:
-        data = validation.load_sweep(args.from_dir, scenario)
+        report = pefsim.validate(args.from_dir, alpha=args.alpha, scenario=scenario)
         kept = args.from_dir
-    elif args.out is not None:
-        data = validation.sweep_and_load(scenario, args.out, runs=args.runs, workers=args.workers,
-                                         q_scale=args.q_scale or 1.0)
-        kept = args.out
     else:
         with tempfile.TemporaryDirectory(prefix="pefsim-validate-") as tmp:
-            data = validation.sweep_and_load(scenario, f"{tmp}/mc", runs=args.runs, workers=args.workers,
-                                             q_scale=args.q_scale or 1.0)
-        kept = None
-    report = validation.validate(data, alpha)
+            out = args.out if args.out is not None else f"{tmp}/mc"
+            swept = pefsim.sweep(scenario, out, runs=args.runs, workers=args.workers, q_scale=args.q_scale or 1.0,
+                                 progress=None, report=False)
+            report = pefsim.validate(swept, alpha=args.alpha, scenario=scenario)
+        kept = args.out
     wall = time.perf_counter() - start
     if args.json:
         out = report.to_dict()

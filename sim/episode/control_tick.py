@@ -8,7 +8,7 @@ the same compiled kernels the classes use (:func:`sim.physics.odometry.odometry_
 :mod:`estimators.motion_quantised`, :func:`sim.episode.follower.command_step`), so the two paths cannot
 drift apart. The objects stay the owners of their state: the kernel works on their arrays.
 
-numba caches ``_tick`` compiled with those kernels inlined; :func:`estimators.compiled.keep_fresh`
+numba caches ``_tick`` compiled with those kernels inlined; :func:`jit.compiled.keep_fresh`
 keys that cache on their files too, so an edit of any of them is compiled on the next import.
 """
 
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators import compiled
-from estimators.ekf import predict_step
+from estimators.predict import predict_step
+from jit import compiled
 from sim.episode.follower import command_step
 from sim.physics.odometry import odometry_step
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_var
+from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_var, turn_bound
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
 from sim.episode.types import FixLog
@@ -44,6 +44,7 @@ class _Pending:
     slots: list[int] = field(default_factory=list)
     fallback: int = -1   # the blocked slot whose fallback this fix measures, -1 for none
     beyond: bool = False
+    unplanned: bool = False  # started on a subset the plan named neither as the fix's nor as its fallback
 
 
 class FixRecorder:
@@ -76,6 +77,7 @@ class FixRecorder:
         self.blocked_markers = 0
         self._fallback_next = -1
         self._beyond_next = False
+        self._unplanned_next = False
         self._rows: list[dict] = []
         self._finished: list[tuple] = []  # fixes whose rows log() completes
         self._polygons: list[np.ndarray] = []
@@ -89,9 +91,9 @@ class FixRecorder:
         unseen and the schedule's fix (``fix``, a ``ScheduledFix``) names a fallback for it
         that the laser sees, that fallback (the fix is logged as a fallback fix); else the best
         visible subset by the PEF at the *estimated* position (the robot does not know the
-        truth); None if fewer than k markers are visible.
+        truth), logged as ``unplanned``; None if fewer than k markers are visible.
         """
-        self._fallback_next, self._beyond_next = -1, False
+        self._fallback_next, self._beyond_next, self._unplanned_next = -1, False, False
         if self.laser.sees_all(scheduled):  # the usual case: two rays, not M
             return list(scheduled)
         seen_sched = self.laser.visible_all(scheduled)
@@ -112,6 +114,8 @@ class FixRecorder:
             tau = float(self.pef.tau_subset(est_xy[None, :], np.array(sub))[0])
             if tau < best_tau:
                 best, best_tau = list(sub), tau
+        # a substitute: the plan named neither this subset for the fix nor a fallback of it
+        self._unplanned_next = True
         return best if best is not None else list(seen[: self.k])
 
     def start(self, subset: list[int], t: float, scheduled=None) -> None:
@@ -122,8 +126,9 @@ class FixRecorder:
         """
         mt = self.sensor.measurement_time
         self.pending = _Pending(markers=list(subset), due=[t + (j + 1) * mt for j in range(len(subset))],
-                                scheduled=scheduled, fallback=self._fallback_next, beyond=self._beyond_next)
-        self._fallback_next, self._beyond_next = -1, False
+                                scheduled=scheduled, fallback=self._fallback_next, beyond=self._beyond_next,
+                                unplanned=self._unplanned_next)
+        self._fallback_next, self._beyond_next, self._unplanned_next = -1, False, False
 
     @property
     def next_due(self) -> float:
@@ -206,22 +211,31 @@ class FixRecorder:
         carried = np.array(p.slots) < p.attempted - 1
         heading_var = max(heading_var_now, 0.0)  # the shift is turned with the filter's heading
         # The shift is itself measured: the fault area widens each range by a bound on the
-        # odometry error of its shift (DESIGN's set-membership view, applied to motion), and
+        # odometry error of its shift (the set-membership view of docs/design.md §1, applied to motion), and
         # the least-squares weights add its variance.
-        bearings, bearing_error = None, self.sensor.bearing_error
+        shift = np.where(carried, shift_bound(self.robot, travelled, math.sqrt(heading_var)), 0.0)
+        bearings, bearing_margin = None, None
         if p.bearings:
             # Each bearing was taken at its own heading: turn it into the frame of the last one
-            # by the dead-reckoned turn since, so that one heading (the filter's) serves all.
+            # by the dead-reckoned turn since, so that one heading serves all (the snapshot
+            # estimates it; the fault area needs none, only the bearings' differences).
             turned = np.array([float(dr_end[2]) - float(d[2]) for d in p.dr_at])
             bearings = np.array(p.bearings) - turned
-            # the filter's heading is not exact: widen the wedges by its 3-sigma bound
-            bearing_error += 3.0 * math.sqrt(max(heading_var_now, 0.0))
+            # An earlier bearing is off by the odometry's turn error, and by the angle its
+            # marker's shift error subtends at the range (>= r - rho) it was taken at. (The
+            # shift is turned into the world frame with the filter's heading, as the ranges'
+            # are: its 3-sigma part of shift_bound is ~ d 3 sigma / r rad, ~1e-5 against xi.)
+            reach = ranges - rho
+            subtends = np.full(len(idx), 0.5 * math.pi)    # a shift beyond the range: no bound
+            ok = reach > shift
+            subtends[ok] = np.arcsin(shift[ok] / reach[ok])
+            bearing_margin = np.where(carried, turn_bound(self.robot, travelled, turned, reads_over) + subtends, 0.0)
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
-                            bearings=bearings, bearing_error=bearing_error,
+                            bearings=bearings, bearing_error=self.sensor.bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
+                            bearing_margin=bearing_margin,
                             extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos),
-                            fault_margin=np.where(carried, shift_bound(self.robot, travelled, math.sqrt(heading_var)),
-                                                  0.0))
+                            fault_margin=shift)
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty
@@ -230,7 +244,7 @@ class FixRecorder:
             rho=rho.tolist() + [math.nan] * pad, true_position=truth,
             snapshot=snap.position, snapshot_cov=snap.covariance, fault_diameter=fa.diameter,
             contained=fa.contains(truth), nis=p.nis, n_accepted=p.accepted,
-            predicted_tau=self._promise(p), fallback=p.fallback >= 0, beyond=p.beyond))
+            predicted_tau=self._promise(p), fallback=p.fallback >= 0, beyond=p.beyond, unplanned=p.unplanned))
         self._polygons.append(fa.ring)
 
     def _promise(self, p: _Pending) -> float:
@@ -289,4 +303,4 @@ class FixRecorder:
             contained=col("contained", (), bool), predicted_tau=col("predicted_tau", ()),
             static_tau=self._static(markers, truth),
             nis=col("nis", ()), n_accepted=col("n_accepted", (), int), fallback=col("fallback", (), bool),
-            beyond_redundancy=col("beyond", (), bool))
+            beyond_redundancy=col("beyond", (), bool), unplanned=col("unplanned", (), bool))

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from estimators import compiled
+from jit import compiled
 
 # the plan's promise bounds this follower's tracking error from its design (planner.schedule.promise)
 from planner.schedule import promise as design

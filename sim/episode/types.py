@@ -101,6 +101,11 @@ class FixLog:
     beyond_redundancy : (F,) bool
         Blocked lines of sight left neither the scheduled subset nor its fallback: the robot
         improvised with the best visible subset, which the plan promised nothing for.
+    unplanned : (F,) bool
+        The fix measured a subset the plan did not schedule (neither the fix's subset nor its
+        fallback): a substitute, for blocked lines of sight (then ``beyond_redundancy`` too) or
+        because the laser did not see a marker the plan counted on. ``predicted_tau`` is then
+        the promise of what it measured, at the scheduled poses.
     """
 
     t: np.ndarray
@@ -119,6 +124,7 @@ class FixLog:
     n_accepted: np.ndarray
     fallback: np.ndarray | None = None
     beyond_redundancy: np.ndarray | None = None
+    unplanned: np.ndarray | None = None
 
 
 @dataclass

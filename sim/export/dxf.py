@@ -8,8 +8,13 @@ layers of its own:
   ``ID`` attribute, rotated by the marker's facing; a floor plan read with
   ``marker_layer = "PEFSIM-MARKERS"`` gives the same markers back;
 - ``PEFSIM-REGION``: the contour τ = ε_max as LWPOLYLINEs;
-- ``PEFSIM-ROUTES``: each route as an LWPOLYLINE with a TEXT label (and its id in XDATA,
-  application ``PEFSIM``).
+- ``PEFSIM-ROUTES``: each admissible route segment as an LWPOLYLINE (its id in XDATA,
+  application ``PEFSIM``) with a TEXT label: its edge ids and its worst τ along it in mm
+  (``max tau 12.3 mm``; ``no fix`` where some point has none);
+- ``PEFSIM-ROUTES-INADMISSIBLE``: the same for the segments the planner will not drive (τ or
+  clearance; drawn in red).
+
+Labels sit beside their segments and do not overlap (:mod:`sim.export.labels`).
 
 Everything is in the drawing's units and frame: a scenario point (x, y) [m] is
 (x, y) / unit_factor in the drawing. Entities already on these layers (a drawing exported
@@ -23,17 +28,21 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from ezdxf.enums import TextEntityAlignment
 
 from scenarios.errors import output_errors
 from scenarios.schema import Scenario
+from sim.export.labels import place_labels
 
 MARKER_LAYER = "PEFSIM-MARKERS"
 REGION_LAYER = "PEFSIM-REGION"
 ROUTE_LAYER = "PEFSIM-ROUTES"
+BAD_ROUTE_LAYER = "PEFSIM-ROUTES-INADMISSIBLE"
 OBSTACLE_LAYER = "PEFSIM-OBSTACLES"  # new drawings only: a copy keeps its own obstacles
 MARKER_BLOCK = "PEFSIM_REFLECTOR"
 APPID = "PEFSIM"
-_COLOURS = {MARKER_LAYER: 1, REGION_LAYER: 3, ROUTE_LAYER: 5, OBSTACLE_LAYER: 8}  # red, green, blue, grey
+_COLOURS = {MARKER_LAYER: 1, REGION_LAYER: 3, ROUTE_LAYER: 5, BAD_ROUTE_LAYER: 1,
+            OBSTACLE_LAYER: 8}  # red, green, blue, red, grey
 MARKER_SIZE = 0.1    # reflector symbol diameter [m]
 LABEL_HEIGHT = 0.25  # route label height [m]
 
@@ -90,8 +99,15 @@ def _obstacles(msp, scenario: Scenario, unit: float) -> None:
             msp.add_lwpolyline((np.asarray(ring) / unit).tolist(), close=True, dxfattribs=attribs)
 
 
+def route_label(rid: str, max_tau: float | None) -> str:
+    """Label of a route segment: its ids and worst τ in mm (just the ids when τ is not known)."""
+    if max_tau is None:
+        return str(rid)
+    return f"{rid} max tau {max_tau * 1000:.1f} mm" if math.isfinite(max_tau) else f"{rid} no fix"
+
+
 def write_dxf(scenario: Scenario, out_path: str | Path, *, region_contours: Sequence[np.ndarray],
-              route_lines: Sequence[tuple[str, np.ndarray]]) -> Path:
+              route_lines: Sequence[tuple[str, np.ndarray]], route_reports: Sequence | None = None) -> Path:
     """Write the scenario's drawing with reflectors, accuracy region and routes to ``out_path``.
 
     Parameters
@@ -105,6 +121,10 @@ def write_dxf(scenario: Scenario, out_path: str | Path, *, region_contours: Sequ
         its first is written closed.
     route_lines : sequence of (str, ndarray of shape (n, 2) [m])
         Route id and its polyline in the user frame.
+    route_reports : sequence of planner.routes.edges.SegmentReport, optional
+        The PEF along each route line (same order): its worst τ labels it and an inadmissible
+        one goes to ``PEFSIM-ROUTES-INADMISSIBLE``. Without them every line is labelled with
+        its id only, on ``PEFSIM-ROUTES``.
 
     Returns
     -------
@@ -127,7 +147,7 @@ def write_dxf(scenario: Scenario, out_path: str | Path, *, region_contours: Sequ
             continue
         if name not in doc.layers:
             doc.layers.add(name, color=colour)
-    _clear(doc, (MARKER_LAYER, REGION_LAYER, ROUTE_LAYER))
+    _clear(doc, (MARKER_LAYER, REGION_LAYER, ROUTE_LAYER, BAD_ROUTE_LAYER))
     msp = doc.modelspace()
     if new:
         _obstacles(msp, scenario, unit)
@@ -141,14 +161,22 @@ def write_dxf(scenario: Scenario, out_path: str | Path, *, region_contours: Sequ
         pts, closed = _open_or_closed(np.asarray(contour, dtype=float).reshape(-1, 2))
         if len(pts) >= 2:
             msp.add_lwpolyline((pts / unit).tolist(), close=closed, dxfattribs={"layer": REGION_LAYER})
-    for rid, line in route_lines:
+    lines, texts, layers = [], [], []
+    for i, (rid, line) in enumerate(route_lines):
         pts = np.asarray(line, dtype=float).reshape(-1, 2) / unit
         if len(pts) < 2:
             continue
-        poly = msp.add_lwpolyline(pts.tolist(), dxfattribs={"layer": ROUTE_LAYER})
+        rep = route_reports[i] if route_reports is not None else None
+        layer = ROUTE_LAYER if rep is None or rep.admissible else BAD_ROUTE_LAYER
+        poly = msp.add_lwpolyline(pts.tolist(), dxfattribs={"layer": layer})
         poly.set_xdata(APPID, [(1000, str(rid))])
-        msp.add_text(str(rid), height=LABEL_HEIGHT / unit,
-                     dxfattribs={"layer": ROUTE_LAYER}).set_placement(tuple(pts[0]))
+        lines.append(pts)
+        texts.append(route_label(rid, None if rep is None else rep.max_tau))
+        layers.append(layer)
+    height = LABEL_HEIGHT / unit
+    for text, layer, corner in zip(texts, layers, place_labels(lines, texts, height), strict=True):
+        msp.add_text(text, height=height, dxfattribs={"layer": layer}).set_placement(
+            corner, align=TextEntityAlignment.BOTTOM_LEFT)
     with output_errors(out, "write the DXF drawing"):
         doc.saveas(out)
     return out

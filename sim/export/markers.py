@@ -1,15 +1,20 @@
-"""Markers as CSV: ``id,x,y,x_mm,y_mm``, positions in the scenario's (the user's) frame."""
+"""Markers as CSV: ``id,x,y,x_mm,y_mm,kind,facing_deg``, positions in the scenario's (the user's) frame.
+
+``kind`` is ``post`` or ``flat``; ``facing_deg`` the direction a flat reflector faces
+(degrees, counter-clockwise from +x, in [0, 360)), empty when the marker has none.
+"""
 
 from __future__ import annotations
 
 import csv
 import io
+import math
 from pathlib import Path
 
 from scenarios.errors import output_errors
 from scenarios.schema import Scenario
 
-HEADER = ("id", "x", "y", "x_mm", "y_mm")
+HEADER = ("id", "x", "y", "x_mm", "y_mm", "kind", "facing_deg")
 
 
 def markers_csv(scenario: Scenario) -> str:
@@ -19,7 +24,8 @@ def markers_csv(scenario: Scenario) -> str:
     w.writerow(HEADER)
     for m in scenario.markers:
         x, y = m.position
-        w.writerow([m.id, f"{x:.6f}", f"{y:.6f}", f"{x * 1000:.3f}", f"{y * 1000:.3f}"])
+        facing = "" if m.facing is None else f"{math.degrees(m.facing) % 360.0:.6f}"
+        w.writerow([m.id, f"{x:.6f}", f"{y:.6f}", f"{x * 1000:.3f}", f"{y * 1000:.3f}", m.kind.value, facing])
     return buf.getvalue()
 
 

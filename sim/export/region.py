@@ -19,7 +19,7 @@ def region_contours(pef_map, eps_max: float, bounds: tuple[float, float, float, 
 
     Parameters
     ----------
-    pef_map : planner.pef.map.PefMap
+    pef_map : planner.pef.result.PefMap
         The PEF on cell centres ``x`` (nx,), ``y`` (ny,) with ``tau`` (ny, nx) [m].
     eps_max : float
         Allowed error [m], the contour level.

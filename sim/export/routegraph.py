@@ -7,9 +7,10 @@ and the node's other properties) and ``LineString`` edges, one per *directed* ed
 scenario's frame, which is the user's (``workspace.origin`` is where the workspace starts in it).
 
 Nav2 needs integer ids, unique across nodes and edges. A network whose ids are all such
-integers keeps them; otherwise (a LIF layout's string ids) nodes are renumbered 0, 1, ... and
+integers keeps them (an edge id its graph file repeated included: Nav2's own examples do it);
+otherwise (a LIF layout's string ids) nodes are renumbered 0, 1, ... and
 edges after them, in network order, and each original id is kept as ``source_id``. A
-hand-written network already has generated integer ids (:class:`scenarios.schema.RouteNetwork`).
+hand-written network already has generated integer ids (:class:`scenarios.route_network.RouteNetwork`).
 
 Every edge also carries the PEF along its segment (:mod:`planner.routes.edges`): ``max_tau``,
 ``mean_tau`` [m] (null when infinite: some point has no fix), ``min_visible`` (fewest markers
@@ -24,7 +25,8 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import output_errors
-from scenarios.schema import RouteNetwork, Scenario
+from scenarios.route_network import RouteNetwork
+from scenarios.schema import Scenario
 from sim.jsonable import json_number
 
 #: Properties the export computes; they replace any read from the graph file.
@@ -46,7 +48,10 @@ def export_ids(net: RouteNetwork) -> tuple[dict[str, int], list[list[int]], bool
     own_nodes = [net.node_ids.get(n, n) for n in net.nodes]
     own_edges = [list(e.ids) for e in net.edges]
     flat = own_nodes + [i for ids in own_edges for i in ids]
-    if all(i.isdecimal() for i in flat) and len({int(i) for i in flat}) == len(flat):
+    # an edge id the graph file itself repeats (Nav2's own examples do) is kept as given
+    node_set, edge_set = {int(i) for i in own_nodes if i.isdecimal()}, {int(i) for i in flat[len(own_nodes):]
+                                                                         if i.isdecimal()}
+    if (all(i.isdecimal() for i in flat) and len(node_set) == len(own_nodes) and not node_set & edge_set):
         return ({n: int(i) for n, i in zip(net.nodes, own_nodes, strict=True)},
                 [[int(i) for i in ids] for ids in own_edges], False)
     node_ids = {n: k for k, n in enumerate(net.nodes)}

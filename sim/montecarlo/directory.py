@@ -1,7 +1,7 @@
 """A sweep directory's settings (``sweep.json``), its checks before a sweep, and its repair on resume.
 
 ``sweep.json`` holds what must not change when a sweep is resumed (scenario name, task, run
-count, :class:`~sim.montecarlo.results.StepsMode`) and, after every sweep, the bytes per run
+count, :class:`~sim.montecarlo.steps.StepsMode`) and, after every sweep, the bytes per run
 of its parts. Directories of format 1 (before ``steps`` existed) kept every step.
 
 :func:`repair` reads every part of every finished run back before a resume. A part that does
@@ -22,7 +22,9 @@ from typing import Any
 from scenarios.errors import OutputError, output_errors
 from scenarios.schema import Scenario
 from sim.montecarlo import lock, parts, results
-from sim.montecarlo.results import FIX_SCHEMA, RUN_SCHEMA, STEP_SCHEMA, StepsMode, SweepLayout
+from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.rows import FIX_SCHEMA, RUN_SCHEMA, STEP_SCHEMA
+from sim.montecarlo.steps import StepsMode
 
 SWEEP_FORMAT = 2
 """2: ``steps`` mode and float32 step parts; 1: every step, float64."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import sys
 import tempfile
 import time
@@ -25,16 +26,19 @@ from typing import Any
 import numpy as np
 
 from scenarios.errors import PefsimError, ScenarioError
+from scenarios.limits import MAX_RUNS
 from scenarios.schema import Scenario
 from sim.montecarlo import directory, executors, lock, results
 from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
 from sim.montecarlo.executors import ExecutorKind
 from sim.montecarlo.progress import progress_bar
-from sim.montecarlo.results import RunRecord, StepsMode, SweepLayout
+from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.rows import fix_columns, run_row, step_columns
+from sim.montecarlo.steps import StepsMode, steps_mode
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
-           "default_api", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
+           "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
 
 
 @dataclass(frozen=True)
@@ -134,15 +138,15 @@ class RunContext:
             result = p.api.run_episode(p.scenario, task_index=spec.task, seed=spec.seed_sequence(),
                                        world=self._world(), prepared=p.prepared[spec.task])
         except PefsimError as exc:
-            row = results.run_row(spec.run, spec.seed_text, spec.task, None, 0.0, status=f"error: {exc}")
+            row = run_row(spec.run, spec.seed_text, spec.task, None, 0.0, status=f"error: {exc}")
             return RunRecord(spec.run, row, fatal=exc)
         except Exception as exc:  # any other exception is a bug in this run: record it, go on
             self._drop_world()  # it may be left in any state
             return RunContext.died(spec, _one_line(exc), time.perf_counter() - start)
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
-        row = results.run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
-        steps = results.step_columns(spec.run, result.steps, p.steps, result.fixes.t)
-        record = RunRecord(spec.run, row, steps, results.fix_columns(spec.run, result.fixes))
+        row = run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
+        steps = step_columns(spec.run, result.steps, p.steps, result.fixes.t)
+        record = RunRecord(spec.run, row, steps, fix_columns(spec.run, result.fixes))
         if spec.record:
             record.recording, record.warning = self._recording(result)
         return record
@@ -150,7 +154,7 @@ class RunContext:
     @staticmethod
     def died(spec: RunSpec, reason: str, wall_time: float | None = None) -> RunRecord:
         """Make the record of a run that crashed (or whose worker died) with ``reason``."""
-        return RunRecord(spec.run, results.run_row(spec.run, spec.seed_text, spec.task, None, wall_time,
+        return RunRecord(spec.run, run_row(spec.run, spec.seed_text, spec.task, None, wall_time,
                                                    status=f"crashed: {reason}"))
 
     def _recording(self, result: Any) -> tuple[bytes | None, str | None]:
@@ -197,10 +201,17 @@ def _one_line(exc: BaseException) -> str:
 
 # -- the sweep ----------------------------------------------------------------------------
 
-def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
-    """Raise a one-line PefsimError for a bad run count, task, worker count or recording period."""
+def check_runs(runs: int) -> None:
+    """Raise a one-line PefsimError unless 0 < ``runs`` <= MAX_RUNS (the file's own cap, montecarlo.runs)."""
     if runs <= 0:
         raise ScenarioError(f"--runs: expected a positive number of runs, got {runs}")
+    if runs > MAX_RUNS:  # a row per run in every table
+        raise ScenarioError(f"--runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
+
+
+def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
+    """Raise a one-line PefsimError for a bad run count, task, worker count or recording period."""
+    check_runs(runs)
     if not scenario.tasks:
         raise ScenarioError(f"{scenario.source}: tasks: expected at least one [[tasks]] entry to drive")
     if task is not None and not 0 <= task < len(scenario.tasks):
@@ -210,6 +221,15 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
         raise ScenarioError(f"--workers: expected a positive number, got {workers}")
     if rrd_every < 0:
         raise ScenarioError(f"--rrd-every: expected 0 (none) or a positive period, got {rrd_every}")
+
+
+def default_out(scenario: Scenario) -> Path:
+    """Return the default sweep directory ``mc-<name>``: a plain name in the working directory.
+
+    Every character of the scenario's name outside ``[A-Za-z0-9._-]`` becomes ``_``, so a name
+    holding ``/`` or ``..`` cannot lead the sweep out of the working directory.
+    """
+    return Path("mc-" + re.sub(r"[^A-Za-z0-9._-]", "_", scenario.name))
 
 
 def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None = None,
@@ -229,7 +249,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     scenario : Scenario
         Loaded from text (``scenario.text`` is kept as ``out/scenario.toml``).
     out : path, optional
-        Sweep directory; default ``mc-<scenario name>``.
+        Sweep directory; default :func:`default_out` (``mc-<scenario name>``).
     runs : int, optional
         Runs ``0 .. runs-1``; default the earlier sweep's count on resume, else ``scenario.montecarlo.runs``.
     task : int, optional
@@ -265,8 +285,10 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     kind = _executor_kind(executor)
     if kind is ExecutorKind.RAY:
         executors.import_ray()
-    out = Path(out if out is not None else f"mc-{scenario.name}")
-    wanted = None if steps is None else results.steps_mode(steps)
+    if runs is not None:
+        check_runs(runs)  # before the directory is made
+    out = Path(out) if out is not None else default_out(scenario)
+    wanted = None if steps is None else steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
     if runs is None:
         runs = int(settings.get("runs", scenario.montecarlo.runs))

@@ -1,8 +1,8 @@
 """How a sweep's Parquet parts are encoded on disk, read back (by column), and checked.
 
-Size (DESIGN section 5: steps are the bulk of a sweep). Per-step parts are stored lean:
+Size (`docs/design.md` §5: steps are the bulk of a sweep). Per-step parts are stored lean:
 
-- every float of :data:`~sim.montecarlo.results.STEP_SCHEMA` as float32, which keeps a
+- every float of :data:`~sim.montecarlo.rows.STEP_SCHEMA` as float32, which keeps a
   relative resolution of 2**-24 (6e-8): a position at 16 .. 32 m to 1.9 um (3.8 um at
   32 .. 64 m), an angle to 2.4e-7 rad, a time of 64 .. 128 s to 7.6 us (the control step is
   16.7 ms), a variance of 1e-6 m^2 to 6e-14 m^2, and errors, bounds and the NEES to 6e-8 of
@@ -52,9 +52,10 @@ class DamagedPartError(OutputError):
         super().__init__(f"{path}: does not read back ({reason})")
 
 
-LATER_COLUMNS = frozenset({"lost_guarantee", "excused"})
+LATER_COLUMNS = frozenset({"lost_guarantee", "excused", "unplanned"})
 """Columns added after sweeps were first written: a part without one reads back with it null
-(the runs' ``lost_guarantee``: not tested; the steps' ``excused``: nothing excused)."""
+(the runs' ``lost_guarantee``: not tested; the steps' ``excused``: nothing excused; the fixes'
+``unplanned``: not recorded)."""
 
 
 def lean(schema: pa.Schema) -> pa.Schema:

@@ -39,22 +39,13 @@ import pyarrow as pa
 
 from scenarios.errors import OutputError, output_errors
 from sim.montecarlo import parts
-from sim.montecarlo.rows import (  # noqa: F401  (re-exported: the schemas and row builders)
+from sim.montecarlo.rows import (
     FIX_SCHEMA,
     RUN_SCHEMA,
     STEP_SCHEMA,
     STEP_STORAGE,
-    TIMING_COLUMNS,
-    _all_step_columns,
-    _matrix,
-    _scalar,
     _table,
-    fix_columns,
-    fix_steps,
-    run_row,
-    step_columns,
 )
-from sim.montecarlo.steps import StepsMode, steps_mode  # noqa: F401  (re-exported)
 
 _PART = re.compile(r"^run-(\d+)\.parquet$")
 

@@ -72,6 +72,7 @@ FIX_SCHEMA = pa.schema([
     ("ranges", pa.list_(pa.float64())), ("rho", pa.list_(pa.float64())),
     ("fallback", pa.bool_()),            # measured the schedule's fallback subset
     ("beyond_redundancy", pa.bool_()),   # improvised: blocks left neither the subset nor its fallback
+    ("unplanned", pa.bool_()),           # measured a subset the plan did not schedule (null: not recorded)
 ])
 """One row per fix: true and snapshot positions [m], realised and predicted bounds [m], NIS."""
 
@@ -162,6 +163,8 @@ def fix_columns(run: int, fixes: FixLog) -> dict[str, np.ndarray]:
                      else np.asarray(fixes.fallback, dtype=bool).reshape(n)),
         "beyond_redundancy": (np.zeros(n, dtype=bool) if fixes.beyond_redundancy is None
                               else np.asarray(fixes.beyond_redundancy, dtype=bool).reshape(n)),
+        "unplanned": (np.zeros(n, dtype=bool) if fixes.unplanned is None
+                      else np.asarray(fixes.unplanned, dtype=bool).reshape(n)),
     }
 
 

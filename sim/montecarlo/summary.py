@@ -34,9 +34,11 @@ class SweepSummary:
     wall_time: float
     runs_per_minute: float | None
     steps: str = "all"
-    """The sweep's steps mode (:class:`~sim.montecarlo.results.StepsMode`)."""
+    """The sweep's steps mode (:class:`~sim.montecarlo.steps.StepsMode`)."""
     bytes_per_run: dict[str, int] = field(default_factory=dict)
     """Mean bytes per finished run of its ``runs``, ``steps`` and ``fixes`` parts, and ``total``."""
+    report: str | None = None
+    """The HTML report written into ``out`` (``pefsim mc``, :func:`pefsim.sweep`), None without one."""
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -46,18 +46,21 @@ class Section:
 
 def _layouts(out: Path, quick: bool) -> tuple[dict[int, scenarios.Scenario], dict[str, Any]]:
     """Place r = 0 and r = 1 on the reflector warehouse's sites; return the scenarios (files in ``out``)."""
-    from planner.placement.placement import place, write_scenario_with_markers
+    from planner.placement.placement import write_scenario_with_markers
+    from planner.placement.plannable import place_plannable
 
     base = scenarios.load(SCENARIO)
     bare = dataclasses.replace(base, markers=(), text="")
     layouts, counts = {}, {}
     for r in (0, 1):
         sc = dataclasses.replace(bare, planning=dataclasses.replace(bare.planning, redundancy=r))
-        res = place(sc, time_limit=5.0 if quick else 30.0)
+        # as pefsim place does: the cover target tightened until every task plans on the layout
+        res = place_plannable(sc, time_limit=5.0 if quick else 30.0).result
         path = write_scenario_with_markers(sc, res, out / f"layout-r{r}.toml")
         layouts[r] = scenarios.load(str(path))
         counts[f"r{r}"] = {"markers": res.count, "lower_bound": res.lower_bound, "optimal": res.optimal,
-                           "uncovered_points": int(len(res.uncovered)), "method": res.method}
+                           "uncovered_points": int(len(res.uncovered)), "method": res.method,
+                           "target_m": res.target}
     return layouts, counts
 
 

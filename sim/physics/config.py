@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
+from planner.pef.sight import REFLECTOR_RADIUS
 from scenarios.errors import SimulationError
 
 
@@ -43,7 +44,8 @@ class PhysicsConfig:
         Gap between the casters and the floor when the chassis is level [m]: the robot rests
         on its two wheels (full weight on the driven wheels), the casters only stop pitching.
     post_radius : float
-        Radius of the cylindrical marker posts [m].
+        Radius of the cylindrical marker posts [m]: the reflector's body of the planner's
+        line-of-sight rule (:data:`planner.pef.sight.REFLECTOR_RADIUS`).
     post_height : float
         Height of the marker posts [m].
     laser_height : float
@@ -62,7 +64,7 @@ class PhysicsConfig:
     wheel_width: float = 0.03
     wheel_mass_fraction: float = 0.05
     caster_clearance: float = 0.002
-    post_radius: float = 0.02
+    post_radius: float = REFLECTOR_RADIUS
     post_height: float = 1.0
     laser_height: float = 0.5
     wall_thickness: float = 0.2

@@ -5,9 +5,12 @@ above the robot and below the top of the marker posts. A marker is visible when 
 ``max_range`` and the first thing a ray from the laser to the marker's axis hits is its own
 post (or nothing): walls, obstacles and other markers' posts block it. A marker on a wall or
 obstacle face is therefore seen from the open side, where half its post stands out.
-Bullet's ray cast sees a post up to 1 mm fatter than ``post_radius`` for rays not along the
-world axes (its convex collision margin): a ray grazing another post within that band counts
-as blocked.
+Bullet's ray cast meets a body up to :data:`planner.pef.sight.CONTACT_REACH` before its surface
+(its convex collision margin): a ray that passes that close to a wall before it enters the
+marker's post stops on the wall. This is the physical half of the one line-of-sight rule of
+:mod:`planner.pef.sight`: the ray ends at the point the planner's segment ends at, a hit on the
+marker's own post counts as seen, and the plan counts only on lines of sight that clear
+everything else by more than the reach, with the robot anywhere within its margin.
 
 A flat marker (``normals[i]`` not zero) is seen only within ``spec.max_incidence`` of its
 normal, the planner's test (:func:`planner.pef.visibility.facing_ok`, repeated here in plain

@@ -14,8 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from estimators import compiled
 from estimators.motion import arc_step
+from jit import compiled
 from scenarios.schema import RobotSpec
 
 

@@ -139,7 +139,7 @@ def log_static(rec: rr.RecordingStream, scenario: Scenario, pef_map: Any = None,
         Target stream.
     scenario : scenarios.schema.Scenario
         Workspace, obstacles, markers (labelled with their ids) and docks.
-    pef_map : planner.pef.map.PefMap, optional
+    pef_map : planner.pef.result.PefMap, optional
         ``x`` (nx,), ``y`` (ny,) cell centres [m] and ``tau`` (ny, nx) [m]: logged as the
         heatmap ``world/pef`` and the ε_max contour ``world/region``.
     plan : planner.plan.Plan, optional

@@ -24,6 +24,14 @@ CANDIDATES = "world/routes/candidates"
 CHOSEN = "world/routes/chosen"
 PATH = "world/routes/path"
 SCHEDULE = "world/schedule"
+NETWORK = "world/routes/network"
+"""The route network's segments, coloured by their worst τ (``pefsim watch``)."""
+NETWORK_OK = "world/routes/network/admissible"
+NETWORK_BAD = "world/routes/network/inadmissible"
+NETWORK_NO_FIX = "world/routes/network/no_fix"
+"""Segments with a point of τ = ∞ (fewer than k markers in sight), drawn apart from finite τ."""
+TASKS = "world/tasks"
+"""A live view's plans, one subtree per task: ``world/tasks/<i>/routes/chosen``, ..."""
 
 # --- spatial, on the timeline ------------------------------------------------------------
 ROBOT_TRUE = "world/robot/true"
@@ -51,6 +59,15 @@ NIS = "metrics/nis"
 EVENTS = "events"
 SUMMARY = "summary"
 PLAN_TEXT = "plan"
+VIEW_TEXT = "view"
+"""A live view's summary: what was read, the plans and why a task has none."""
+
+
+def of_task(entity: str, task: int) -> str:
+    """Return the entity of a live view's task ``task`` for a plan entity (``world/...`` or ``plan``)."""
+    if entity.startswith(f"{WORLD}/"):
+        return f"{TASKS}/{task}/{entity[len(WORLD) + 1:]}"
+    return f"{entity}/{task}"
 
 STATIC_ENTITIES = (WORKSPACE, OBSTACLES, MARKERS, DOCKS)
 """Logged by :func:`sim.recording.log_static` for every scenario."""
@@ -75,6 +92,11 @@ CHOSEN_ROUTE = (80, 200, 255)
 PATH_ROUTE = (255, 255, 255)
 FIX_POINT = (255, 160, 0)
 SWITCH_POINT = (255, 60, 200)
+NO_FIX = (170, 60, 255)
+"""τ = ∞ (no fix possible): a colour off the finite τ ramp (green - yellow - red), not its worst end."""
+TAU_GOOD = (40, 200, 80)
+TAU_MID = (250, 210, 40)
+TAU_LIMIT = (230, 40, 40)
 TRUE = (60, 220, 90)
 ESTIMATE = (255, 140, 40)
 REGION_LINE = (255, 255, 255)

@@ -101,7 +101,7 @@ def rectangle_ring(width: float, height: float, origin: tuple[float, float] = (0
 def strip_polygons(positions: np.ndarray, marker_xy: np.ndarray, rho: np.ndarray) -> list[np.ndarray]:
     """Linearised fault areas: intersections of the strips ``|u_i . d| <= rho_i`` around each position.
 
-    This is the parallelogram of DESIGN section 1 for k = 2 and the centrally symmetric
+    This is the parallelogram of `docs/design.md` §1 for k = 2 and the centrally symmetric
     strip polygon for k > 2. Its vertices are the pairwise intersections of the strips'
     boundary lines that satisfy every strip. Same polygon as
     :func:`estimators.fault.linearized.strip_polygon` (the tests compare them), vectorised over

@@ -29,7 +29,7 @@ def _ui(points: float) -> float:
     return float(rr.Radius.ui_points(points))
 
 
-def log_scene(rec: rr.RecordingStream, scenario: Scenario) -> None:
+def log_scene(rec: rr.RecordingStream, scenario: Scenario, *, static: bool = True) -> None:
     """Log the view flip, workspace border, obstacles, markers (labelled) and docks.
 
     Parameters
@@ -38,17 +38,20 @@ def log_scene(rec: rr.RecordingStream, scenario: Scenario) -> None:
         Target stream.
     scenario : scenarios.schema.Scenario
         The world to draw.
+    static : bool
+        Log as static data (a recording's scene), or at the stream's current time (a live view's
+        update, :mod:`sim.recording.live`).
     """
-    rec.log(E.WORLD, VIEW_FLIP, static=True)
+    rec.log(E.WORLD, VIEW_FLIP, static=static)
     ws = scenario.workspace
     rec.log(E.WORKSPACE, rr.LineStrips2D([rectangle_ring(ws.width, ws.height, ws.origin)], colors=[E.GREY],
-                                         radii=_ui(E.THICK_LINE_PT)), static=True)
+                                         radii=_ui(E.THICK_LINE_PT)), static=static)
     rings = [closed_ring(r) for o in scenario.obstacles for r in o.rings()]  # outer faces and holes
     rec.log(E.OBSTACLES, rr.LineStrips2D(rings, colors=[E.OBSTACLE] * len(rings),
-                                         radii=_ui(E.THICK_LINE_PT)), static=True)
+                                         radii=_ui(E.THICK_LINE_PT)), static=static)
     rec.log(E.MARKERS, rr.Points2D(scenario.marker_positions(), labels=scenario.marker_ids(),
                                    colors=[E.MARKER], radii=_ui(E.BIG_POINT_PT), show_labels=True),
-            static=True)
+            static=static)
     flat = [m for m in scenario.markers if m.kind.value == "flat"]
     if flat:
         # the reflector's face across its normal, and the normal as long as the robot is wide
@@ -60,7 +63,7 @@ def log_scene(rec: rr.RecordingStream, scenario: Scenario) -> None:
                 rr.LineStrips2D(np.stack([xy - across, xy + across], axis=1), colors=[E.MARKER],
                                 radii=_ui(E.THICK_LINE_PT)),
                 rr.Arrows2D(origins=xy, vectors=n * size, colors=[E.MARKER], radii=_ui(E.LINE_PT)),
-                static=True)
+                static=static)
     docks_xy = np.array([d.position for d in scenario.docks], dtype=float).reshape(-1, 2)
     dock_yaw = np.array([d.pose[2] for d in scenario.docks], dtype=float)
     rec.log(E.DOCKS,
@@ -68,7 +71,7 @@ def log_scene(rec: rr.RecordingStream, scenario: Scenario) -> None:
                         radii=_ui(E.BIG_POINT_PT), show_labels=True),
             rr.Arrows2D(origins=docks_xy, vectors=heading_vectors(dock_yaw, 2.0 * scenario.robot.radius),
                         colors=[E.DOCK], radii=_ui(E.LINE_PT)),
-            static=True)
+            static=static)
 
 
 def pef_image_transform(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -98,18 +101,20 @@ def pef_image_transform(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.nd
     return translation, np.array([dx, dy, 1.0])
 
 
-def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float) -> None:
+def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float, *, static: bool = True) -> None:
     """Log the τ heatmap (``world/pef``) and the ε_max contour (``world/region``).
 
     Parameters
     ----------
     rec : rerun.RecordingStream
         Target stream.
-    pef_map : planner.pef.map.PefMap or alike
+    pef_map : planner.pef.result.PefMap or alike
         Needs ``x`` (nx,), ``y`` (ny,) cell centres [m] and ``tau`` (ny, nx) [m], inf where
         too few markers are visible.
     eps_max : float
         Allowed error [m]; the navigation region is ``{tau < eps_max}``.
+    static : bool
+        As in :func:`log_scene`.
     """
     x = np.asarray(pef_map.x, dtype=float)
     y = np.asarray(pef_map.y, dtype=float)
@@ -120,10 +125,10 @@ def log_pef_map(rec: rr.RecordingStream, pef_map: Any, eps_max: float) -> None:
     rec.log(E.PEF,
             rr.DepthImage(shown, meter=1.0, colormap="viridis", depth_range=(0.0, cap)),
             rr.Transform3D(translation=translation, scale=scale),
-            static=True)
+            static=static)
     lines = level_contours(x, y, tau, eps_max)
     rec.log(E.REGION, rr.LineStrips2D(lines, colors=[E.REGION_LINE] * len(lines),
-                                      radii=_ui(E.THICK_LINE_PT)), static=True)
+                                      radii=_ui(E.THICK_LINE_PT)), static=static)
 
 
 def plan_markdown(plan: Any) -> str:
@@ -151,7 +156,8 @@ def plan_markdown(plan: Any) -> str:
     return "\n".join(rows) + "\n"
 
 
-def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario) -> None:
+def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario, *, static: bool = True,
+             task: int | None = None, candidates: bool = True) -> None:
     """Log candidate routes, the chosen route, the reference path and the fix schedule.
 
     Parameters
@@ -165,29 +171,39 @@ def log_plan(rec: rr.RecordingStream, plan: Any, scenario: Scenario) -> None:
         ``.switch`` bool).
     scenario : scenarios.schema.Scenario
         For marker ids in the schedule's labels.
+    static : bool
+        As in :func:`log_scene`.
+    task : int, optional
+        Log under the task's own entities (:func:`sim.recording.entities.of_task`), so that the
+        plans of several tasks sit side by side; default the recording's single plan.
+    candidates : bool
+        Draw every candidate route (a live view of a route network leaves them out: the network
+        itself is drawn, coloured by τ, and the candidates' labels would pile up on it).
     """
+    at = (lambda entity: entity) if task is None else (lambda entity: E.of_task(entity, task))
     cands = list(plan.candidates or [])
-    rec.log(E.CANDIDATES,
-            rr.LineStrips2D([np.asarray(c.polyline, float) for c in cands],
-                            colors=[E.CANDIDATE_OK if c.admissible else E.CANDIDATE_BAD for c in cands],
-                            labels=[f"{c.id}{'' if c.admissible else ' (inadmissible)'}" for c in cands],
-                            radii=_ui(E.LINE_PT)),
-            static=True)
+    if candidates:
+        rec.log(at(E.CANDIDATES),
+                rr.LineStrips2D([np.asarray(c.polyline, float) for c in cands],
+                                colors=[E.CANDIDATE_OK if c.admissible else E.CANDIDATE_BAD for c in cands],
+                                labels=[f"{c.id}{'' if c.admissible else ' (inadmissible)'}" for c in cands],
+                                radii=_ui(E.LINE_PT)),
+                static=static)
     if plan.chosen is not None:
         chosen = cands[plan.chosen]
-        rec.log(E.CHOSEN, rr.LineStrips2D([np.asarray(chosen.polyline, float)], colors=[E.CHOSEN_ROUTE],
+        rec.log(at(E.CHOSEN), rr.LineStrips2D([np.asarray(chosen.polyline, float)], colors=[E.CHOSEN_ROUTE],
                                           labels=[f"chosen: {chosen.id}"], radii=_ui(E.THICK_LINE_PT)),
-                static=True)
+                static=static)
     if getattr(plan, "path", None) is not None:
-        rec.log(E.PATH, rr.LineStrips2D([np.asarray(plan.path, float)], colors=[E.PATH_ROUTE],
-                                        radii=_ui(E.LINE_PT)), static=True)
-    rec.log(E.PLAN_TEXT, rr.TextDocument(plan_markdown(plan), media_type="text/markdown"), static=True)
+        rec.log(at(E.PATH), rr.LineStrips2D([np.asarray(plan.path, float)], colors=[E.PATH_ROUTE],
+                                        radii=_ui(E.LINE_PT)), static=static)
+    rec.log(at(E.PLAN_TEXT), rr.TextDocument(plan_markdown(plan), media_type="text/markdown"), static=static)
     fixes = list(plan.schedule.fixes) if getattr(plan, "schedule", None) is not None else []
     ids = scenario.marker_ids()
-    rec.log(E.SCHEDULE,
+    rec.log(at(E.SCHEDULE),
             rr.Points2D(np.array([f.position for f in fixes], dtype=float).reshape(-1, 2),
                         colors=[E.SWITCH_POINT if f.switch else E.FIX_POINT for f in fixes],
                         radii=[_ui(E.BIG_POINT_PT if f.switch else E.POINT_PT) for f in fixes],
                         labels=["+".join(ids[i] for i in f.markers) + f" τ={1000 * f.tau:.1f} mm"
                                 + (" (switch)" if f.switch else "") for f in fixes]),
-            static=True)
+            static=static)

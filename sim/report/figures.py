@@ -179,7 +179,7 @@ def worst_error_map(scenario: Scenario, pef_map: Any, x: np.ndarray, y: np.ndarr
     ----------
     scenario : Scenario
         Workspace, obstacles and markers.
-    pef_map : planner.pef.map.PefMap or None
+    pef_map : planner.pef.result.PefMap or None
         The predicted map (``x``, ``y``, ``tau``); None draws the observed panel only.
     x, y, error : ndarray, shape (S,)
         True positions and errors of all steps [m].

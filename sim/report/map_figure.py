@@ -10,14 +10,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from planner.pef.map import PefMap
+from planner.pef.result import PefMap
 from scenarios.schema import Scenario
+from sim.report.figure_format import figure_format
 from sim.report.scene import NO_FIX_GREY, OBSTACLE_STYLE, draw_pef, draw_scene
 
 
 def plot_map(scenario: Scenario, pef_map: PefMap, eps_max: float, path: str | Path, k: int,
              dpi: int = 150) -> Path:
-    """Write the PEF map of ``scenario`` as a PNG.
+    """Write the PEF map of ``scenario`` as a figure (PNG, PDF or SVG by the extension of ``path``).
 
     Parameters
     ----------
@@ -28,7 +29,7 @@ def plot_map(scenario: Scenario, pef_map: PefMap, eps_max: float, path: str | Pa
     eps_max : float
         Allowed error [m]; its contour bounds the navigation region.
     path : str or Path
-        Output file (PNG).
+        Output file, written at exactly this path (:func:`~sim.report.figure_format.figure_format`).
     k : int
         Markers per fix (for the title).
     dpi : int
@@ -37,8 +38,10 @@ def plot_map(scenario: Scenario, pef_map: PefMap, eps_max: float, path: str | Pa
     Returns
     -------
     Path
-        ``path``. Raises ``OSError`` when it cannot be written.
+        ``path``. Raises ``OSError`` when it cannot be written, ``OutputError`` on an unknown
+        extension (before drawing).
     """
+    fmt = figure_format(path)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -79,7 +82,7 @@ def plot_map(scenario: Scenario, pef_map: PefMap, eps_max: float, path: str | Pa
     fig.legend(handles=handles, loc="outside lower center", ncols=5, fontsize=8, frameon=False)
     path = Path(path)
     try:
-        fig.savefig(path, dpi=dpi)
+        fig.savefig(path, dpi=dpi, format=fmt)
     finally:
         plt.close(fig)
     return path

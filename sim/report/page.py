@@ -21,7 +21,8 @@ from scenarios.errors import PefsimError, output_errors
 from scenarios.schema import Scenario
 from sim.montecarlo import results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
-from sim.montecarlo.results import StepsMode, SweepLayout
+from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.steps import StepsMode
 from sim.montecarlo.summary import succeeded, summarize
 from sim.report import figures as figs
 
@@ -222,7 +223,7 @@ def write_report(root: str | Path, scenario: Scenario | None = None, pef_map: An
         A sweep directory.
     scenario : Scenario, optional
         Default: parsed from ``root/scenario.toml``.
-    pef_map : planner.pef.map.PefMap, optional
+    pef_map : planner.pef.result.PefMap, optional
         Default: computed from the scenario (omitted from the map figure if the planner fails).
     """
     layout = SweepLayout(Path(root))

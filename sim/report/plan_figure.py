@@ -14,11 +14,12 @@ from matplotlib.lines import Line2D
 from planner.plan import Plan
 from scenarios.errors import output_errors
 from scenarios.schema import Scenario
+from sim.report.figure_format import figure_format
 from sim.report.scene import MARKER_STYLE, draw_pef, draw_scene
 
 
 def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path:
-    """Draw ``plan`` over the PEF map and save it as a PNG.
+    """Draw ``plan`` over the PEF map and save it (PNG, PDF or SVG by the extension of ``path``).
 
     Parameters
     ----------
@@ -26,10 +27,10 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
         Obstacles, markers, docks and the route network.
     plan : Plan
         From :func:`planner.plan.plan_route`.
-    pef_map : planner.pef.map.PefMap
+    pef_map : planner.pef.result.PefMap
         ``x`` (nx,), ``y`` (ny,), ``tau`` (ny, nx) [m].
     path : str or Path
-        Output file.
+        Output file, written at exactly this path (:func:`~sim.report.figure_format.figure_format`).
 
     Returns
     -------
@@ -39,8 +40,9 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
     Raises
     ------
     OutputError
-        If the file cannot be written.
+        If the extension is unknown (before drawing) or the file cannot be written.
     """
+    fmt = figure_format(path)
     w, h = scenario.workspace.size
     fig = Figure(figsize=(10.0, 10.0 * h / w * 0.85 + 1.2), dpi=110, layout="constrained")
     ax = fig.add_subplot()
@@ -85,5 +87,5 @@ def plot_plan(scenario: Scenario, plan: Plan, pef_map, path: str | Path) -> Path
               frameon=False)
     out = Path(path)
     with output_errors(out, "write the plan figure"):
-        fig.savefig(out)
+        fig.savefig(out, format=fmt)
     return out

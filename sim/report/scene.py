@@ -71,7 +71,7 @@ def draw_pef(ax, pef_map, eps_max: float, norm=None, cmap=None, contour: str = "
     Parameters
     ----------
     ax : matplotlib Axes
-    pef_map : planner.pef.map.PefMap
+    pef_map : planner.pef.result.PefMap
         ``x`` (nx,), ``y`` (ny,) cell centres, ``tau`` (ny, nx) [m], ``free`` (ny, nx).
     eps_max : float
         Allowed error [m].

@@ -1,4 +1,4 @@
-"""The validation checks (DESIGN section 6), pure functions of a sweep's tables.
+"""The validation checks (`docs/design.md` §6), pure functions of a sweep's tables.
 
 Each check has an applicability test (the reason it does not apply, or None) and an
 evaluation at a given false-alarm probability ``alpha``. Checks that cannot fail when the
@@ -72,17 +72,21 @@ def containment(data: SweepData, alpha: float, rng: np.random.Generator) -> Chec
     """Check that the true position lies in the realised exact fault area at every fix.
 
     The area intersects the annuli ``|r - r_i| <= rho_i + shift bound`` (the odometry bound of
-    carrying earlier ranges to the fix time), polygonised outwards within
-    ``1e-3 * min(rho)`` (:mod:`estimators.fault.exact`). Under the bounded model a miss is
-    impossible: any miss fails (false-alarm probability 0). An empty area (inconsistent
-    measurements) counts as a miss.
+    carrying earlier ranges to the fix time) and, with bearings, the heading-free regions of
+    the robot-frame bearings' pairwise differences (bound ``xi`` each, plus for an earlier
+    bearing the odometry's turn bound and the angle its shift bound subtends; no filter
+    heading enters), polygonised outwards within ``1e-3 * min(rho)``
+    (:mod:`estimators.fault.exact`). Under the bounded model a miss is impossible: any miss
+    fails (false-alarm probability 0). An empty area (inconsistent measurements) counts as a
+    miss.
     """
     fx = data.fixes
     n = len(fx)
     miss = ~fx.contained
     k = int(miss.sum())
     empty = int(np.sum(miss & ~np.isfinite(fx.fault_diameter)))
-    detail = (f"truth inside the realised exact fault area (rho + odometry shift bound, polygon "
+    bearings = ", heading-free bearing pairs" if data.scenario.sensor.uses_bearing else ""
+    detail = (f"truth inside the realised exact fault area (rho + odometry shift bound{bearings}, polygon "
               f"tolerance {DEFAULT_TOLERANCE_FRACTION:g}*min rho); a miss is impossible under bounded noise")
     if k:
         first = int(np.flatnonzero(miss)[0])
@@ -116,7 +120,10 @@ def bound(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResul
 
     tau is the model's fault-area diameter at the true position; the least-squares point of
     two ranges lies in the (centrally symmetric) linearised area, so its error is at most
-    tau / 2 (:mod:`sim.validation.null`; the model's worst case per fix is reported).
+    tau / 2 (:mod:`sim.validation.null`; the model's worst case per fix is reported). With
+    bearings the least-squares fix estimates the heading with the position and has more rows
+    than unknowns, so it need not lie in the area: the null model's worst case (reported)
+    states how far it may go.
     """
     use, ratio = _ratios(data)
     over = int(np.sum(ratio > 1.0))
@@ -136,7 +143,8 @@ def tightness(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckR
     """Check that the largest observed error / tau reaches the fraction f the model reaches.
 
     f is derived from ``alpha``: the null ratio of every fix is simulated at its own geometry
-    (uniform errors in ``+-rho``, linearised LS, :mod:`sim.validation.null`), and f is the
+    (uniform errors in ``+-rho``, and ``+-xi`` with the heading estimated alongside when the
+    sensor measures bearings, linearised LS, :mod:`sim.validation.null`), and f is the
     largest value with ``P(max over the fixes < f) <= alpha``. A bound that is far from tight
     (real errors much smaller than declared) fails.
     """
@@ -174,7 +182,8 @@ def _coverage_why_not(data: SweepData) -> str | None:
 def coverage(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
     """Check that the fraction of fixes inside their p-level snapshot ellipse matches p.
 
-    Inside: ``d^T C^-1 d <= chi2.ppf(p, 2)`` with d the snapshot error and C its covariance,
+    Inside: ``d^T C^-1 d <= chi2.ppf(p, 2)`` with d the snapshot error and C its covariance
+    (with bearings, the position block of the pose fix's, :mod:`estimators.snapshot`),
     ``p = planning.gdop_level``; two-sided Clopper-Pearson interval at ``alpha`` must hold p.
     """
     fx = data.fixes

@@ -20,16 +20,15 @@ from scenarios import loads
 from scenarios.errors import OutputError
 from scenarios.schema import Scenario
 from sim.jsonable import json_number
-from sim.montecarlo import results
+from sim.montecarlo import lock, results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
-from sim.montecarlo.results import StepsMode, SweepLayout
+from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
+from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.steps import StepsMode
 
 EPISODE_GATE_PROBABILITY = 0.999
 """The episode's ``Localizer`` gate (its default ``gate_probability``): a gated update's NIS is
 not stored, only that it exceeded ``chi2.ppf(0.999, 1)``."""
-NEGATIVE_CONTROL_JSON = "negative-control.json"
-"""Written into a sweep directory that ``pefsim validate --q-scale`` ran with a mis-tuned
-filter, so that a later ``--from`` says so (``{"q_scale": 0.01}``)."""
 
 
 class CheckStatus(str, Enum):
@@ -138,6 +137,9 @@ class FixTable:
     beyond : (F,) bool or None
         Improvised fixes: blocked lines of sight left neither the scheduled subset nor its
         fallback (the plan promised nothing for them).
+    unplanned : (F,) bool or None
+        Fixes that measured a subset the plan did not schedule; None where the sweep did not
+        record it (written before the column existed).
     """
 
     run: np.ndarray
@@ -154,6 +156,7 @@ class FixTable:
     markers: np.ndarray
     static_tau: np.ndarray | None = None
     beyond: np.ndarray | None = None
+    unplanned: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.run)
@@ -186,11 +189,11 @@ class StepTable:
 
 
 STEP_COLUMNS = ["run", "step", "nees"]
-"""The columns of :data:`sim.montecarlo.results.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
+"""The columns of :data:`sim.montecarlo.rows.STEP_SCHEMA` that :func:`load_sweep` reads (steps are many)."""
 FIX_COLUMNS = ["run", "fix", "true_x", "true_y", "snapshot_x", "snapshot_y", "snapshot_error",
                "snapshot_x_var", "snapshot_y_var", "snapshot_xy_cov", "fault_diameter", "predicted_tau",
-               "nis", "n_accepted", "contained", "markers", "beyond_redundancy"]
-"""The columns of :data:`sim.montecarlo.results.FIX_SCHEMA` that the checks read."""
+               "nis", "n_accepted", "contained", "markers", "beyond_redundancy", "unplanned"]
+"""The columns of :data:`sim.montecarlo.rows.FIX_SCHEMA` that the checks read."""
 
 
 @dataclass(frozen=True)
@@ -218,7 +221,7 @@ def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
 
 
 def run_table(runs: pa.Table) -> RunTable:
-    """Convert a ``runs`` table (:data:`sim.montecarlo.results.RUN_SCHEMA`) to a :class:`RunTable`."""
+    """Convert a ``runs`` table (:data:`sim.montecarlo.rows.RUN_SCHEMA`) to a :class:`RunTable`."""
     from sim.montecarlo.engine import succeeded
 
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)
@@ -230,7 +233,7 @@ def run_table(runs: pa.Table) -> RunTable:
 
 
 def fix_table(fixes: pa.Table, k: int) -> FixTable:
-    """Convert a ``fixes`` table (:data:`sim.montecarlo.results.FIX_SCHEMA`) to a :class:`FixTable`."""
+    """Convert a ``fixes`` table (:data:`sim.montecarlo.rows.FIX_SCHEMA`) to a :class:`FixTable`."""
     n = fixes.num_rows
 
     def col(name, dtype=float, fill=math.nan):
@@ -251,11 +254,13 @@ def fix_table(fixes: pa.Table, k: int) -> FixTable:
         markers=flat.astype(np.int64).reshape(n, width),
         static_tau=col("static_tau") if "static_tau" in fixes.column_names else None,
         beyond=(col("beyond_redundancy", bool, False) if "beyond_redundancy" in fixes.column_names
-                else np.zeros(n, dtype=bool)))
+                else np.zeros(n, dtype=bool)),
+        unplanned=(None if "unplanned" not in fixes.column_names or fixes.column("unplanned").null_count == n
+                   else col("unplanned", bool, False)))
 
 
 def step_table(steps: pa.Table) -> StepTable:
-    """Convert a ``steps`` table (at least :data:`STEP_COLUMNS` of :data:`sim.montecarlo.results.STEP_SCHEMA`)."""
+    """Convert a ``steps`` table (at least :data:`STEP_COLUMNS` of :data:`sim.montecarlo.rows.STEP_SCHEMA`)."""
     return StepTable(run=_np(steps, "run", np.int64, -1), step=_np(steps, "step", np.int64, -1),
                      nees=_np(steps, "nees", float, math.nan))
 
@@ -286,9 +291,14 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     Raises
     ------
     OutputError
-        Not a sweep directory, no finished run, or made from another scenario.
+        Not a sweep directory, locked by a live writer, no finished run, or made from another
+        scenario.
     """
     layout = SweepLayout(Path(directory))
+    try:
+        lock.check_free(layout.root)  # a sweep still being written is not yet the tables it will be
+    except OutputError as exc:
+        raise OutputError(f"{exc}: validate it once that sweep has finished") from None
     try:
         text = layout.scenario_toml.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):

@@ -1,6 +1,6 @@
 """Filter-consistency checks over the runs of a sweep: pooled NEES and Bar-Shalom's N-run tests.
 
-DESIGN section 6: the pooled NEES, and the N-run tests per step (NEES) and per fix (NIS).
+`docs/design.md` §6: the pooled NEES, and the N-run tests per step (NEES) and per fix (NIS).
 
 The statistics and their false-alarm derivations are in :mod:`estimators.nrun`. In short:
 

@@ -6,9 +6,12 @@ Under the declared model a fix's range errors are independent and uniform in ``+
 
     delta = L e,   L = (H^T W H)^-1 H^T W,   W = diag(1 / b_j^2),
 
-where ``e_j`` is uniform in ``+-b_j`` (``b = rho`` for a range row; a bearing row is the unit
-normal ``t_i`` turned by 90 degrees with ``b = r_i xi``). Writing ``A = L diag(b)``,
-``delta = A s`` with ``s`` uniform in the cube ``[-1, 1]^n``.
+where ``e_j`` is uniform in ``+-b_j`` (``b = rho`` for a range row). With bearings the fix
+estimates the heading too (:func:`estimators.snapshot.snapshot_fix`): the unknowns are
+``(x, y, theta)``, a range row is ``(u_i, 0)`` and a bearing row, scaled to metres, is
+``(t_i, -r_i)`` (``t_i`` the unit normal turned by 90 degrees, ``b = r_i xi``), and ``delta``
+is the position part of the solution. Writing ``A = L diag(b)``, ``delta = A s`` with ``s``
+uniform in the cube ``[-1, 1]^n``.
 
 What tau means per model, and why ``error <= tau`` follows:
 
@@ -24,8 +27,11 @@ What tau means per model, and why ``error <= tau`` follows:
   like the others but not a bound (not used here).
 
 The real fix also carries each earlier range to the fix time by odometry; that shift error
-is not in this null model. It only makes observed errors larger, so it cannot make the
-tightness check fail, and the ``bound`` check states it.
+is not in this null model, nor is the odometry's error in turning an earlier bearing into the
+last one's frame. They only make observed errors larger, so they cannot make the tightness
+check fail, and the ``bound`` check states it. (The realised fault area of a fix with
+bearings uses no heading at all, :mod:`estimators.fault.exact`; this model is of the
+least-squares point, which estimates the heading.)
 """
 
 from __future__ import annotations
@@ -68,18 +74,25 @@ def error_maps(marker_xy: np.ndarray, truth: np.ndarray, sensor: SensorSpec) -> 
     u = diff / r[..., None]
     rows, bounds = [u], [np.asarray(sensor.range_bound(r), dtype=float)]
     if sensor.uses_bearing:
-        rows.append(np.stack([-u[..., 1], u[..., 0]], axis=-1))
+        # The fix estimates the heading with the position (estimators.snapshot): a third
+        # column, the bearing residual r * d(beta) turning by -r per radian of heading.
+        rows = [np.concatenate([u, np.zeros_like(r)[..., None]], axis=-1),
+                np.stack([-u[..., 1], u[..., 0], -r], axis=-1)]
         bounds.append(r * sensor.bearing_error)
-    g = np.concatenate(rows, axis=1)              # (F, n, 2) unit normals
+    g = np.concatenate(rows, axis=1)              # (F, n, m) scaled rows, m = 2 or 3 unknowns
     b = np.concatenate(bounds, axis=1)            # (F, n) error bounds [m]
     gw = g / b[..., None] ** 2                    # W H, W = diag(1 / b^2)
     info = np.einsum("fni,fnj->fij", g, gw)       # H^T W H
-    det = info[:, 0, 0] * info[:, 1, 1] - info[:, 0, 1] ** 2
-    scale = np.einsum("fii->f", info) ** 2
+    # invertible in the position: the Schur complement of the heading (if any) is regular
+    pos = info[:, :2, :2]
+    if info.shape[1] == 3:
+        pos = pos - np.einsum("fi,fj->fij", info[:, :2, 2], info[:, :2, 2]) / info[:, 2, 2, None, None]
+    det = pos[:, 0, 0] * pos[:, 1, 1] - pos[:, 0, 1] ** 2
+    scale = np.einsum("fii->f", pos) ** 2
     ok = det > 1e-12 * scale
     inv = np.full_like(info, np.nan)
     inv[ok] = np.linalg.inv(info[ok])
-    lmap = np.einsum("fij,fnj->fin", inv, gw)     # L = (H^T W H)^-1 H^T W, (F, 2, n)
+    lmap = np.einsum("fij,fnj->fin", inv, gw)[:, :2]  # position rows of (H^T W H)^-1 H^T W, (F, 2, n)
     return lmap * b[:, None, :]
 
 

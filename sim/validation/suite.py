@@ -1,4 +1,4 @@
-"""Statistical validation of the PEF predictions against a Monte-Carlo sweep (DESIGN section 6).
+"""Statistical validation of the PEF predictions against a Monte-Carlo sweep (`docs/design.md` §6).
 
 :func:`validate` runs every check of :mod:`sim.validation.checks` on a :class:`SweepData`
 (:func:`load_sweep` reads one from a sweep directory) and returns a :class:`ValidationReport`.
@@ -22,8 +22,8 @@ from scenarios.errors import SimulationError
 from sim.validation.checks import CHECKS, Check
 from sim.validation.data import CheckResult, CheckStatus, SweepData, from_tables, load_sweep
 
-__all__ = ["CHECKS", "CheckResult", "CheckStatus", "SweepData", "ValidationReport", "episode_api",
-           "from_tables", "load_sweep", "sweep_and_load", "validate", "validation_rng"]
+__all__ = ["CHECKS", "CheckResult", "CheckStatus", "SweepData", "ValidationReport", "from_tables", "load_sweep",
+           "validate", "validation_rng"]
 
 DEFAULT_ALPHA = 0.01
 """Family false-alarm probability of ``pefsim validate``."""
@@ -129,60 +129,3 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
     return ValidationReport(scenario=data.scenario.name, source=data.source, runs=len(data.runs),
                             fixes=len(data.fixes), alpha=float(alpha), statistical=m,
                             alpha_per_check=per_check, q_scale=data.q_scale, checks=out)
-
-
-def episode_api(q_scale: float = 1.0):
-    """Return the sweep's episode functions, with the filter's process noise times ``q_scale``.
-
-    ``q_scale != 1`` is a negative control (a deliberately mis-tuned filter), nothing else.
-    """
-    from functools import partial
-
-    from sim.episode import drive as episode
-    from sim.montecarlo.engine import EpisodeApi, default_api
-
-    api = default_api()
-    if q_scale == 1.0:
-        return api
-    if not (q_scale > 0 and np.isfinite(q_scale)):
-        raise SimulationError(f"q_scale: expected a positive number, got {q_scale}")
-    return EpisodeApi(api.prepare, partial(episode.run_episode, q_scale=float(q_scale)), api.make_world,
-                      api.preload)
-
-
-def sweep_and_load(scenario, out, runs: int | None = None, workers: int | None = None,
-                   q_scale: float = 1.0, progress: bool | None = None) -> SweepData:
-    """Run a Monte-Carlo sweep of ``scenario`` into the new directory ``out`` and read it back.
-
-    Parameters
-    ----------
-    scenario : Scenario
-    out : path
-        A new (or empty) directory (:func:`sim.montecarlo.engine.sweep`).
-    runs : int, optional
-        Default ``scenario.montecarlo.runs``.
-    workers : int, optional
-        Default the CPU count.
-    q_scale : float
-        Filter process-noise factor (negative control; recorded in ``out`` so that a later
-        :func:`load_sweep` reports it).
-    progress : bool, optional
-        Progress bar; default when stderr is a terminal.
-
-    Returns
-    -------
-    SweepData
-    """
-    import json
-    from pathlib import Path
-
-    from sim.montecarlo import engine as montecarlo
-    from sim.montecarlo import results
-    from sim.validation.data import NEGATIVE_CONTROL_JSON
-
-    api = episode_api(q_scale)
-    montecarlo.sweep(scenario, out, runs=runs, workers=workers, api=api, progress=progress)
-    if q_scale != 1.0:
-        results.write_atomic(Path(out) / NEGATIVE_CONTROL_JSON,
-                             (json.dumps({"q_scale": float(q_scale)}) + "\n").encode("utf-8"))
-    return load_sweep(out, scenario)

@@ -168,7 +168,7 @@ def test_paper_eq14_jacobian_is_inverse_of_h(xy):
     Finding: with H the range Jacobian (rows u_1^T, u_2^T; H maps (dx, dy) -> (da, db)),
     J = [[a/m, -b/m], [a(m - x_R)/(m y_R), x_R b/(m y_R)]] equals H^-1 exactly (to rounding),
     entry by entry, with no transpose: rows of J are (dx, dy), columns are (da, db). So J maps
-    range errors to position errors, (dx, dy) = J (da, db) -- the DESIGN's "H^-1 is exactly
+    range errors to position errors, (dx, dy) = J (da, db) -- docs/design.md §1's "H^-1 is exactly
     the paper's J" holds, and eq. 14's "GDOP = J" is the Jacobian of the *inverse*
     measurement function (position from ranges). We also check that direction independently
     by differentiating the paper's eq. 1 (x, y from a, b) by finite differences.

@@ -15,7 +15,8 @@ from planner import plan
 from planner.pef.map import PEF
 from planner.routes import candidates, criteria
 from scenarios.errors import PlanningError
-from scenarios.schema import Dock, Obstacle, RouteNetwork, Weights
+from scenarios.route_network import RouteNetwork
+from scenarios.schema import Dock, Obstacle, Weights
 
 
 class FakePEF:

@@ -78,7 +78,9 @@ def test_block_insert_is_rotated_scaled_and_nested_and_takes_its_layer(hall):
     block = at(polys, 15.0, 15.9)
     assert block.area == pytest.approx(dr.BLOCK_AREA)
     assert block.bounds == pytest.approx((14.5, 14.0, 15.5, 16.0))  # 1 x 0.5 scaled 2, turned 90°
-    assert sorted(circles) == pytest.approx(sorted([((5.0, 5.0), 0.3), ((25.0, 15.0), 0.3), ((15.0, 17.0), 0.2)]))
+    # (x, y, r) flattened in sorted order: pytest.approx compares flat sequences only (pytest 9)
+    flat = [v for (x, y), r in sorted(circles) for v in (x, y, r)]
+    assert flat == pytest.approx([5.0, 5.0, 0.3, 15.0, 17.0, 0.2, 25.0, 15.0, 0.3])
 
 
 def test_text_dimension_and_other_layers_are_ignored(hall):

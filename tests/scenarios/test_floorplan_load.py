@@ -14,30 +14,9 @@ import scenarios
 from scenarios import ScenarioError
 from scenarios.floorplan import FloorPlanKind
 from tests.scenarios import drawings as dr
+from tests.scenarios.worlds import DXF, scenario_text
 
 ROOT = Path(__file__).resolve().parents[2]
-
-REST = """
-[[markers]]
-id = "M1"
-position = [3.0, 3.0]
-[[markers]]
-id = "M2"
-position = [3.5, 3.0]
-[sensor]
-[planning]
-eps_max = 0.05
-[[docks]]
-name = "A"
-pose = [3.0, 2.0, 0.0]
-"""
-
-
-def scenario_text(floorplan: str, extra: str = "") -> str:
-    return f'name = "fp"\n{extra}\n[floorplan]\n{floorplan}\n{REST}'
-
-
-DXF = 'file = "hall.dxf"\nobstacle_layers = ["A-WALL", "A-RACK", "S-COLS"]\nmarker_layer = "AGV-REFL"'
 
 
 @pytest.fixture()

@@ -9,48 +9,7 @@ import pytest
 
 import scenarios
 from scenarios import NoiseModel, PefModel, ScenarioError
-
-MINIMAL = """
-name = "mini"
-seed = 3
-[workspace]
-size = [10.0, 8.0]
-[[obstacles]]
-center = [5.0, 4.0]
-size = [2.0, 1.0]
-yaw_deg = 30.0
-[[markers]]
-id = "M1"
-position = [0.0, 0.0]
-[[markers]]
-id = "M2"
-position = [10.0, 0.0]
-[[markers]]
-id = "M3"
-position = [10.0, 8.0]
-[sensor]
-relative_error = 1e-4
-absolute_error = 0.001
-noise = "gaussian"
-bearing_error_deg = 0.5
-[sensor.actual]
-relative_error = 3e-4
-[robot]
-wheel_radius = 0.1
-[robot.actual]
-wheel_radius_error = 0.004
-[planning]
-eps_max = 0.05
-[[docks]]
-name = "A"
-pose = [1.0, 1.0, 90.0]
-[[docks]]
-name = "B"
-pose = [9.0, 7.0, 0.0]
-[[tasks]]
-from = "A"
-to = "B"
-"""
+from tests.scenarios.worlds import BAD, MINIMAL
 
 
 @pytest.mark.parametrize("name", scenarios.builtin_names())
@@ -98,49 +57,6 @@ def test_obstacle_corners_are_rotated():
     edge = c[1] - c[0]
     assert math.atan2(edge[1], edge[0]) == pytest.approx(math.radians(30))
     assert math.hypot(*edge) == pytest.approx(2.0)
-
-
-def _bad(old: str, new: str, count: int = 1) -> str:
-    assert old in MINIMAL, old
-    return MINIMAL.replace(old, new, count)
-
-
-BAD = [
-    # (label, toml text, regex the one-line message must match)
-    ("malformed", MINIMAL + "\n[workspace\n", r"^mini\.toml: malformed TOML"),
-    ("missing key", _bad('name = "mini"\n', ""), r"^mini\.toml: name: missing required key$"),
-    ("unknown key", _bad("seed = 3", "seed = 3\nsead = 4"), r"^mini\.toml: sead: unknown key, got 4$"),
-    ("unknown nested key", _bad("eps_max = 0.05", "eps_max = 0.05\nepsmax = 1"),
-     r"^mini\.toml: planning\.epsmax: unknown key"),
-    ("wrong type", _bad("eps_max = 0.05", 'eps_max = "small"'),
-     r'^mini\.toml: planning\.eps_max: expected a number, got "small"$'),
-    ("nan", _bad("relative_error = 1e-4", "relative_error = nan"),
-     r"^mini\.toml: sensor\.relative_error: expected a finite number, got nan$"),
-    ("negative error", _bad("absolute_error = 0.001", "absolute_error = -0.001"),
-     r"^mini\.toml: sensor\.absolute_error: expected a number >= 0, got -0\.001$"),
-    ("marker outside", _bad("position = [10.0, 8.0]", "position = [31.0, 2.0]"),
-     r"^mini\.toml: markers\[2\]\.position: expected \[x, y\] inside the workspace, got \[31\.0, 2\.0\]$"),
-    ("marker inside obstacle", _bad("position = [10.0, 8.0]", "position = [5.0, 4.0]"),
-     r"^mini\.toml: markers\[2\]\.position: expected \[x, y\] outside obstacles"),
-    ("dock outside", _bad("pose = [9.0, 7.0, 0.0]", "pose = [9.0, 9.0, 0.0]"),
-     r"^mini\.toml: docks\[1\]\.pose: expected .* inside the workspace, got \[9\.0, 9\.0, 0\.0\]$"),
-    ("dock inside obstacle", _bad("pose = [9.0, 7.0, 0.0]", "pose = [5.2, 4.1, 0.0]"),
-     r"^mini\.toml: docks\[1\]\.pose: expected .* outside obstacles"),
-    ("k too large", _bad('noise = "gaussian"', 'noise = "gaussian"\nmarkers_per_fix = 4'),
-     r"^mini\.toml: sensor\.markers_per_fix: expected at most the number of markers \(3\), got 4$"),
-    ("bad enum", _bad('noise = "gaussian"', 'noise = "laplace"'),
-     r'^mini\.toml: sensor\.noise: expected one of "uniform", "gaussian", got "laplace"$'),
-    ("bad vector", _bad("size = [10.0, 8.0]", "size = [10.0]"),
-     r"^mini\.toml: workspace\.size: expected \[width, height\] in metres, got \[10\.0\]$"),
-    ("unknown dock in task", _bad('to = "B"', 'to = "Z"'),
-     r'^mini\.toml: tasks\[0\]\.to: expected a dock name \(A, B\), got "Z"$'),
-    ("duplicate marker id", _bad('id = "M2"', 'id = "M1"'),
-     r'^mini\.toml: markers\[1\]\.id: expected a unique marker id, got "M1"$'),
-    ("bool is not a number", _bad("eps_max = 0.05", "eps_max = true"),
-     r"^mini\.toml: planning\.eps_max: expected a number, got true$"),
-    ("unknown key in actual", _bad("relative_error = 3e-4", "relative_eror = 3e-4"),
-     r"^mini\.toml: sensor\.actual\.relative_eror: unknown key"),
-]
 
 
 @pytest.mark.parametrize("label,text,pattern", BAD, ids=[b[0] for b in BAD])

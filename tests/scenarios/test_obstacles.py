@@ -12,7 +12,7 @@ from shapely.ops import unary_union
 import scenarios
 from scenarios import Obstacle, ScenarioError
 from scenarios.geometry import CIRCLE_SAGITTA, circle_vertices, convex_pieces
-from tests.scenarios.test_load import MINIMAL
+from tests.scenarios.worlds import MINIMAL
 
 U_SHAPE = "[[3.0, 2.0], [7.0, 2.0], [7.0, 6.0], [6.0, 6.0], [6.0, 3.0], [4.0, 3.0], [4.0, 6.0], [3.0, 6.0]]"
 
@@ -67,7 +67,7 @@ def test_a_circle_marker_or_dock_inside_a_polygon_is_rejected():
     ("polygon = [[0, 0], [4, 0], [4, 4], [0, 4]]\nholes = [[[1, 1], [3, 3], [3, 1], [1, 3]]]",
      r"obstacles\[1\]\.holes\[0\]: expected a simple polygon \(edges 0 and 2 cross\)"),
     ("polygon = [[0, 0], [4, 0], [4, 4]]\nradius = 1.0", r"obstacles\[1\]\.radius: not a key of a polygon obstacle"),
-    ("center = [1, 1]\nradius = 0.0", r"obstacles\[1\]\.radius: expected a radius in metres > 0, got 0\.0"),
+    ("center = [1, 1]\nradius = 0.0", r"obstacles\[1\]\.radius: expected a radius in metres >= 1e-09, got 0\.0"),
     ("center = [1, 1]\nradius = 1.0\nsize = [1, 1]", r"obstacles\[1\]\.size: not a key of a circle obstacle"),
     ("center = [1, 1]", r"obstacles\[1\]: expected center \+ size \[\+ yaw_deg\] \(a box\), center \+ radius"),
     ("center = [1, 1]\nholes = []", r"obstacles\[1\]\.holes: holes need a polygon"),

@@ -1,7 +1,7 @@
 """Tests of the exact fault area.
 
 Containment (with a negative control), the outer-approximation tolerance, agreement with
-the linearised parallelogram (DESIGN §1, paper eqs. 10 and 12) and its breakdown at large
+the linearised parallelogram (`docs/design.md` §1, paper eqs. 10 and 12) and its breakdown at large
 relative error, mirror resolution, empty sets.
 """
 
@@ -134,7 +134,7 @@ def test_polygon_is_an_outer_approximation_within_tolerance(use_bearings):
         assert np.sum(inside_poly & ~ok) <= 0.01 * np.sum(inside_poly)
 
 
-# --- exact vs linearised (DESIGN §1, paper eqs. 10 and 12) --------------------------------
+# --- exact vs linearised (`docs/design.md` §1, paper eqs. 10 and 12) --------------------------------
 #
 # Tolerance from the curvature. Away from the marker line the map p -> (a, b) = (|p - M1|,
 # |p - M2|) is a diffeomorphism with Jacobian determinant sin(alpha(a, b)), and the noise-free
@@ -167,7 +167,7 @@ def _triangle(markers, p):
 
 
 def _linearised(rho, sin_a, cos_a):
-    """DESIGN §1: parallelogram area and long diagonal of two strips."""
+    """`docs/design.md` §1: parallelogram area and long diagonal of two strips."""
     area = 4 * rho[0] * rho[1] / sin_a
     diag = 2 / sin_a * math.sqrt(rho[0] ** 2 + rho[1] ** 2 + 2 * rho[0] * rho[1] * cos_a)
     return area, diag

@@ -1,7 +1,9 @@
 """Flat reflectors and redundancy against an independent, slow evaluator of the same definitions.
 
 The evaluator below is plain Python with shapely: line of sight by intersecting the segment with
-the obstacle polygon shrunk a little, the incidence angle by ``atan2``, the parallelogram diagonal
+the obstacle polygon shrunk a little, and with it grown by the sight rule's margin unless the
+marker is mounted on it (:mod:`planner.pef.sight`), the incidence and mount wedges by their
+definition, the parallelogram diagonal
 by the paper's eq. 12, and tau_1 by brute force over *every* visible marker removed (not only the
 best subset's members, which is the shortcut the kernels take). Cells whose answer depends on a
 rounding (a segment grazing a corner, an angle within 1e-9 rad of the limit) are left out of the
@@ -15,65 +17,50 @@ import math
 
 import numpy as np
 import pytest
-from shapely.geometry import LineString, Point, box
+from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
 import scenarios
 from planner.pef.map import PEF
+from planner.pef.sight import sight_rule
 from planner.pef.visibility import scenario_visible_grid, scenario_visible_points
-
-TOML = """
-name = "flat-test"
-[workspace]
-size = [12.0, 8.0]
-[[obstacles]]
-center = [6.0, 4.0]
-size = [3.0, 1.0]
-[[markers]]
-id = "P1"
-position = [0.0, 0.0]
-[[markers]]
-id = "P2"
-position = [12.0, 8.0]
-[[markers]]
-id = "F1"
-position = [6.0, 3.5]
-kind = "flat"
-facing_deg = -90.0
-[[markers]]
-id = "F2"
-position = [0.0, 4.0]
-kind = "flat"
-facing_deg = 0.0
-[[markers]]
-id = "F3"
-position = [12.0, 2.0]
-kind = "flat"
-facing_deg = 180.0
-[[markers]]
-id = "F4"
-position = [6.0, 8.0]
-kind = "flat"
-facing_deg = -90.0
-[[markers]]
-id = "P3"
-position = [3.0, 8.0]
-[sensor]
-relative_error = 1e-3
-absolute_error = 0.002
-max_range = 11.0
-max_incidence_deg = 50.0
-[planning]
-eps_max = 0.05
-resolution = 0.25
-redundancy = REDUNDANCY
-"""
+from tests.scenarios.worlds import FLAT_TOML, flat_scenario
 
 OBSTACLE = box(4.5, 3.5, 7.5, 4.5)
 RES = 0.25
+RULE = sight_rule(0.05)   # the scenario's eps_max
+# every face with its outward normal (the obstacle's) or inward one (the workspace's sides)
+FACES = [(LineString([(4.5, 3.5), (7.5, 3.5)]), (0.0, -1.0)), (LineString([(7.5, 3.5), (7.5, 4.5)]), (1.0, 0.0)),
+         (LineString([(7.5, 4.5), (4.5, 4.5)]), (0.0, 1.0)), (LineString([(4.5, 4.5), (4.5, 3.5)]), (-1.0, 0.0)),
+         (LineString([(0.0, 0.0), (12.0, 0.0)]), (0.0, 1.0)), (LineString([(12.0, 0.0), (12.0, 8.0)]), (-1.0, 0.0)),
+         (LineString([(12.0, 8.0), (0.0, 8.0)]), (0.0, -1.0)), (LineString([(0.0, 8.0), (0.0, 0.0)]), (1.0, 0.0))]
 
 
-def _scenario(redundancy: int = 0, text: str = TOML) -> scenarios.Scenario:
-    return scenarios.loads(text.replace("REDUNDANCY", str(redundancy)), "flat-test.toml")
+def _body(at) -> Polygon:
+    """Return a marker's body as the kernels see it: the octagon circumscribing its radius."""
+    ang = math.pi / 8.0 + np.arange(8) * math.pi / 4.0
+    r = RULE.radius / math.cos(math.pi / 8.0)
+    return Polygon(np.asarray(at) + r * np.column_stack([np.cos(ang), np.sin(ang)]))
+
+
+def _blocks(body: Polygon, p, at) -> tuple[bool, bool]:
+    """Whether ``body`` blocks the line of sight from p to a marker at ``at``, and whether that is unsure."""
+    if body.buffer(RULE.grow, join_style=2).intersects(Point(at)):
+        # the marker's mount: the segment must not enter it
+        seg = LineString([p, at])
+        tight = seg.intersects(body.buffer(-1e-7, join_style=2))
+        loose = seg.intersects(body.buffer(-1e-4, join_style=2))
+        return tight, tight != loose
+    # some position within the margin sees the marker through the body grown by the reach: the
+    # fan from the marker over the disc of the margin meets it (the kernels widen the shadow's
+    # half-planes, a mitred superset: cells where the two differ, near the shadow's corners, are
+    # unsure)
+    grown = body.buffer(RULE.reach, join_style=2)
+    tight = Point(p).buffer(RULE.margin).union(Point(at)).convex_hull.intersects(grown)
+    mk = np.asarray(at)
+    far = [mk + (np.asarray(v) - mk) * 100.0 for v in grown.exterior.coords]
+    shadow = MultiPoint(list(grown.exterior.coords) + far).convex_hull
+    loose = shadow.buffer(RULE.margin, join_style=2, mitre_limit=1e6).contains(Point(p))
+    return tight, tight != loose
 
 
 def _visibility(sc, p, flat: bool = True):
@@ -85,19 +72,30 @@ def _visibility(sc, p, flat: bool = True):
     for m in sc.markers:
         mx, my = m.position
         dx, dy = p[0] - mx, p[1] - my
-        if math.hypot(dx, dy) > sc.sensor.max_range:
+        if math.hypot(dx, dy) > sc.sensor.max_range - RULE.margin:
             out.append(False)
             continue
-        seg = LineString([p, m.position])
-        tight = seg.intersects(OBSTACLE.buffer(-1e-7, join_style=2))
-        loose = seg.intersects(OBSTACLE.buffer(-1e-4, join_style=2))
-        ambiguous |= tight != loose
-        ok = not tight
+        mounted = OBSTACLE.buffer(RULE.grow, join_style=2).intersects(Point(m.position))
+        ok = True
+        # the obstacle, and the other markers' bodies (octagons around them)
+        for body in [OBSTACLE] + [_body(o.position) for o in sc.markers if o is not m]:
+            blocked, unsure = _blocks(body, p, m.position)
+            ok &= not blocked
+            ambiguous |= unsure
+        for line, (nx, ny) in FACES:
+            on_obstacle = line.within(OBSTACLE.boundary)
+            if line.distance(Point(m.position)) <= RULE.radius and (mounted or not on_obstacle):
+                # the mount wedge: p at least offset + slope r in front of the face
+                slack = dx * nx + dy * ny - RULE.offset - RULE.slope * math.hypot(dx, dy)
+                ambiguous |= abs(slack) < 1e-9
+                ok = ok and slack >= 0.0
         if ok and flat and m.kind is scenarios.MarkerKind.FLAT:
-            ang = abs(math.degrees(math.atan2(dx * math.sin(m.facing) - dy * math.cos(m.facing),
-                                              dx * math.cos(m.facing) + dy * math.sin(m.facing))))
-            ambiguous |= abs(ang - lim) < 1e-7
-            ok = ang <= lim
+            # the incidence wedge, at every point within the margin
+            cos_lim = math.cos(math.radians(lim))
+            slack = (dx * math.cos(m.facing) + dy * math.sin(m.facing) - RULE.margin * (1.0 + cos_lim)
+                     - cos_lim * math.hypot(dx, dy))
+            ambiguous |= abs(slack) < 1e-9
+            ok = ok and slack >= 0.0
         out.append(ok)
     return out, ambiguous
 
@@ -147,12 +145,12 @@ def _agree(fast, slow, amb) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def slow():
-    sc = _scenario()
+    sc = flat_scenario()
     return {r: _slow_map(sc, r) for r in (0, 1)} | {"posts": _slow_map(sc, 0, flat=False)}
 
 
 def test_flat_markers_parse_with_their_normals():
-    sc = _scenario()
+    sc = flat_scenario()
     assert [m.kind.value for m in sc.markers] == ["post", "post", "flat", "flat", "flat", "flat", "post"]
     n = sc.marker_normals()
     assert n[0] == pytest.approx([0.0, 0.0])
@@ -167,22 +165,22 @@ def test_flat_markers_parse_with_their_normals():
     ('facing_deg = -90.0\nkind2 = 1\n', r"kind2"),
 ])
 def test_flat_marker_without_facing_or_unknown_key_is_one_line_error(bad, match):
-    text = TOML.replace('facing_deg = -90.0\n[[markers]]\nid = "P3"', bad + '[[markers]]\nid = "P3"', 1)
+    text = FLAT_TOML.replace('facing_deg = -90.0\n[[markers]]\nid = "P3"', bad + '[[markers]]\nid = "P3"', 1)
     with pytest.raises(scenarios.ScenarioError, match=match):
-        _scenario(text=text)
+        flat_scenario(text=text)
 
 
 def test_bad_incidence_and_redundancy_values_name_key_and_value():
     with pytest.raises(scenarios.ScenarioError, match=r"sensor\.max_incidence_deg.*95"):
-        _scenario(text=TOML.replace("max_incidence_deg = 50.0", "max_incidence_deg = 95.0"))
+        flat_scenario(text=FLAT_TOML.replace("max_incidence_deg = 50.0", "max_incidence_deg = 95.0"))
     with pytest.raises(scenarios.ScenarioError, match=r"planning\.redundancy.*-1"):
-        _scenario(-1)
+        flat_scenario(-1)
     with pytest.raises(scenarios.ScenarioError, match=r"sensor\.block_probability.*1\.5"):
-        _scenario(text=TOML.replace("[planning]", "block_probability = 1.5\n[planning]"))
+        flat_scenario(text=FLAT_TOML.replace("[planning]", "block_probability = 1.5\n[planning]"))
 
 
 def test_grid_and_points_visibility_agree_with_flat_markers():
-    sc = _scenario()
+    sc = flat_scenario()
     pm = PEF(sc).grid(RES)
     vis_g, _ = scenario_visible_grid(sc, pm.x, pm.y)
     pts = np.column_stack([np.tile(pm.x, pm.y.size), np.repeat(pm.y, pm.x.size)])
@@ -195,7 +193,7 @@ def test_grid_and_points_visibility_agree_with_flat_markers():
 
 def test_flat_pef_map_agrees_with_slow_evaluator_cell_by_cell(slow):
     tau, amb = slow[0]
-    pm = PEF(_scenario()).grid(RES)
+    pm = PEF(flat_scenario()).grid(RES)
     assert amb.mean() < 0.02
     bad = _agree(pm.tau, tau, amb)
     assert not bad.any(), f"{bad.sum()} cells differ, first at {np.argwhere(bad)[:3].tolist()}"
@@ -206,21 +204,21 @@ def test_flat_pef_map_agrees_with_slow_evaluator_cell_by_cell(slow):
 
 def test_redundancy_1_map_agrees_with_brute_force_over_every_marker_removed(slow):
     tau1, amb = slow[1]
-    pm = PEF(_scenario(1)).grid(RES)
+    pm = PEF(flat_scenario(1)).grid(RES)
     assert pm.redundancy == 1
     bad = _agree(pm.tau, tau1, amb)
     assert not bad.any(), f"{bad.sum()} cells differ, first at {np.argwhere(bad)[:3].tolist()}"
     # the points path gives the same tau_1
     pts = np.column_stack([np.tile(pm.x, pm.y.size), np.repeat(pm.y, pm.x.size)])
-    assert np.array_equal(PEF(_scenario(1)).at(pts).tau.reshape(pm.tau.shape), pm.tau)
+    assert np.array_equal(PEF(flat_scenario(1)).at(pts).tau.reshape(pm.tau.shape), pm.tau)
     # negative control: the plain map is not tau_1 (the check would catch a no-op redundancy)
     tau0, _ = slow[0]
-    assert _agree(PEF(_scenario(0)).grid(RES).tau, tau1, amb).sum() > 20
-    assert np.array_equal(pm.tau_plain, PEF(_scenario(0)).grid(RES).tau)
+    assert _agree(PEF(flat_scenario(0)).grid(RES).tau, tau1, amb).sum() > 20
+    assert np.array_equal(pm.tau_plain, PEF(flat_scenario(0)).grid(RES).tau)
 
 
 def test_fallback_subset_avoids_its_blocked_marker_and_gives_the_tau_without_it():
-    sc = _scenario(1)
+    sc = flat_scenario(1)
     pef = PEF(sc)
     pts = np.array([[2.0, 2.0], [9.0, 6.5], [6.0, 1.0], [1.0, 6.0]])
     r = pef.at(pts)
@@ -238,7 +236,7 @@ def test_fallback_subset_avoids_its_blocked_marker_and_gives_the_tau_without_it(
 
 
 def test_redundancy_2_is_the_worst_over_every_pair_removed():
-    sc = _scenario(2)
+    sc = flat_scenario(2)
     pts = np.array([[2.0, 2.0], [9.0, 6.5], [6.0, 1.0], [3.0, 6.0], [10.0, 1.0]])
     got = PEF(sc).at(pts).tau
     for n, p in enumerate(pts):
@@ -252,7 +250,7 @@ def test_redundancy_2_is_the_worst_over_every_pair_removed():
 def test_tau_subset_of_every_pair_agrees_with_the_slow_evaluator_incidence_included():
     # the schedule scores its candidate subsets with tau_subset: a flat marker outside its
     # incidence wedge must give inf there too, or the plan schedules markers the laser cannot see
-    sc = _scenario()
+    sc = flat_scenario()
     pef = PEF(sc)
     xs, ys = np.meshgrid(np.arange(0.3, 12.0, 0.7), np.arange(0.3, 8.0, 0.7))
     pts = np.column_stack([xs.ravel(), ys.ravel()])
@@ -274,7 +272,7 @@ def test_tau_subset_of_every_pair_agrees_with_the_slow_evaluator_incidence_inclu
 
 
 def test_tau_subset_sees_flat_markers_only_within_their_incidence_limit():
-    sc = _scenario()
+    sc = flat_scenario()
     pef = PEF(sc)
     pm = pef.grid(RES)
     pts = np.column_stack([np.tile(pm.x, pm.y.size), np.repeat(pm.y, pm.x.size)])

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from planner.pef import kernels, pairs
-from planner.pef.gridtiles import blocks_points_local, parallelogram_grid
-from planner.pef.map import grid_centres
+from planner.pef.gridtiles import parallelogram_grid
+from planner.pef.pointblocks import blocks_points_local
+from planner.pef.result import grid_centres
 from planner.pef.visibility import visible_grid, visible_points
 
 REL, AB = 6.7e-5, 0.002
@@ -69,7 +70,7 @@ def test_points_kernel_on_seen_markers_equals_the_full_one():
 
 def _general_grid(pef, res):
     """Return PEF.grid's general path (full (M, ny, nx) visibility, the redundancy recursion)."""
-    from planner.pef.map import PefResult
+    from planner.pef.result import PefResult
     from planner.pef.visibility import scenario_visible_grid
 
     x, y = grid_centres(pef.scenario.workspace.size, res, pef.scenario.workspace.origin)

@@ -197,7 +197,8 @@ def test_exact_and_parallelogram_agree_at_small_noise():
     """
     sc = scenarios.load("paper-two-markers")
     exact, par = PEF(sc, model="exact"), PEF(sc, model="parallelogram")
-    pts = np.array([[1.0, 1.5], [2.5, 2.5], [4.0, 3.0], [0.5, 4.5], [2.5, 0.8], [4.6, 4.6]])
+    # points from which the sight rule sees both markers
+    pts = np.array([[1.0, 1.5], [2.5, 2.5], [4.0, 3.0], [1.2, 4.0], [2.5, 0.8], [3.8, 4.2]])
     te, tp = exact.tau_subset(pts, [0, 1]), par.tau_subset(pts, [0, 1])
     for p, e, d in zip(pts, te, tp, strict=True):
         r = np.hypot(*(p - exact.markers).T)

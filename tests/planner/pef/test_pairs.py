@@ -18,7 +18,8 @@ import pytest
 import scenarios
 from estimators.fault.linearized import parallelogram
 from planner.pef import pairs as pef_pairs
-from planner.pef.map import PEF, grid_centres
+from planner.pef.map import PEF
+from planner.pef.result import grid_centres
 from planner.pef.scalar import diagonal_of_offsets
 from planner.pef.visibility import scenario_visible_grid
 

@@ -7,7 +7,7 @@ import numpy as np
 import scenarios
 from planner.placement.placement import PlacementResult, write_scenario_with_markers
 from tests.scenarios import drawings as dr
-from tests.scenarios.test_floorplan_load import DXF, scenario_text
+from tests.scenarios.worlds import DXF, scenario_text
 
 
 def test_placed_scenario_replaces_the_drawings_markers(tmp_path):

@@ -138,8 +138,11 @@ def test_uncoverable_points_are_reported():
     np.testing.assert_array_equal(res.uncovered, pts[~coverable])
 
 
-@pytest.mark.parametrize("name, method, kind", [("paper-docks", "auto", "flat"), ("warehouse", "greedy", "post"),
-                                                ("warehouse", "greedy", "flat")])
+@pytest.mark.parametrize("name, method, kind", [
+    ("paper-docks", "auto", "flat"),
+    # posts on the warehouse: every face and corner a site, the big cover (a minute and more)
+    pytest.param("warehouse", "greedy", "post", marks=pytest.mark.e2e),
+    ("warehouse", "greedy", "flat")])
 def test_builtin_routes_really_covered(name, method, kind):
     sc = scenarios.load(name)
     sc = dataclasses.replace(sc, placement=dataclasses.replace(sc.placement, marker_kind=MarkerKind(kind)))
@@ -147,7 +150,11 @@ def test_builtin_routes_really_covered(name, method, kind):
     # flat sites on the warehouse's rack faces see the narrow aisles only at steep incidence:
     # the aisles' middles have no good pair of them (posts cover everything)
     assert len(res.uncovered) == 0 or (name, kind) == ("warehouse", "flat")
-    assert len(res.uncovered) < 0.02 * len(res.points)
+    # what is reported uncovered no pair of candidate sites covers (under the sight rule of
+    # planner.pef.sight a flat site is not counted on near its incidence limit or along its face:
+    # 114 of 1212 route points of the warehouse's aisles, 9 %)
+    if len(res.uncovered):
+        assert np.all(PEF(with_markers(sc, res.sites)).at(res.uncovered).tau >= sc.planning.eps_max)
     assert res.count >= res.lower_bound >= sc.sensor.markers_per_fix
     placed = placement.scenario_with_markers(sc, res)
     assert {m.kind.value for m in placed.markers} == {kind}
@@ -186,14 +193,17 @@ def test_written_scenario_loads_and_keeps_the_rest(tmp_path):
     out = placement.write_scenario_with_markers(sc, res, tmp_path / "placed.toml")
     back = scenarios.load(out)
     assert [(m.id, m.position) for m in back.markers] == res.markers
-    same = dataclasses.replace(back, markers=sc.markers, source=sc.source, text=sc.text)
+    # only the markers and the description (which named the source's own markers) change
+    assert back.description.startswith(f"{sc.name} with {res.count} markers placed by pefsim place")
+    same = dataclasses.replace(back, markers=sc.markers, source=sc.source, text=sc.text, description=sc.description)
     assert same == sc
     # a modified copy (no longer its source text) is written from the object itself
     changed = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.03),
                                   robot_actual=dataclasses.replace(sc.robot, wheel_radius_error=0.004))
     out2 = placement.write_scenario_with_markers(changed, res, tmp_path / "changed.toml")
     back2 = scenarios.load(out2)
-    restored = dataclasses.replace(back2, markers=sc.markers, source=sc.source, text=sc.text)
+    restored = dataclasses.replace(back2, markers=sc.markers, source=sc.source, text=sc.text,
+                                   description=sc.description)
     assert restored == dataclasses.replace(changed, text=sc.text)
 
 
@@ -220,3 +230,31 @@ def test_a_cover_over_more_sites_than_a_pef_can_pair():
     # negative control: a PEF over all the sites refuses them
     with pytest.raises(PlanningError, match="subsets to score"):
         PEF(placement._site_scenario(sc, sites), k=2)
+
+
+def exhaustive_robust(sc, points, sites):
+    """Smallest site subsets whose redundancy-1 PEF (any one marker blocked) is under eps where it can be."""
+    eps = sc.planning.eps_max
+    coverable = PEF(with_markers(sc, sites), redundancy=1).at(points).tau < eps
+    for size in range(3, len(sites) + 1):
+        for subset in itertools.combinations(range(len(sites)), size):
+            tau = PEF(with_markers(sc, sites[list(subset)]), redundancy=1).at(points[coverable]).tau
+            if np.all(tau < eps):
+                return size, coverable
+    return None, coverable
+
+
+@pytest.mark.parametrize("seed, eps", [(1, 0.03), (2, 0.02), (3, 0.03)])
+def test_redundancy_1_exact_count_equals_exhaustive_search(seed, eps):
+    # the redundancy-1 cutting planes (right-hand sides one higher) are exact: the MILP proves
+    # the count the exhaustive search over the PEF's own tau_1 finds, and its bound meets it
+    sc = tiny(eps=eps)
+    sc = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, redundancy=1))
+    pts = free_points(sc, 30, seed)
+    best, coverable = exhaustive_robust(sc, pts, SITES)
+    assert best is not None and coverable.any()
+    exact = placement.place(sc, points=pts, sites=SITES, method="milp")
+    assert exact.count == best and exact.lower_bound == best and exact.optimal
+    np.testing.assert_array_equal(exact.uncovered, pts[~coverable])
+    tau = PEF(placement.scenario_with_markers(sc, exact), redundancy=1).at(pts[coverable]).tau
+    assert np.all(tau < eps)

@@ -10,7 +10,7 @@ import pytest
 
 from planner.routes import network
 from scenarios.errors import PlanningError
-from scenarios.schema import RouteNetwork
+from scenarios.route_network import RouteNetwork
 
 
 def random_network(rng: np.random.Generator, n: int, p: float) -> RouteNetwork:

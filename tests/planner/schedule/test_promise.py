@@ -203,8 +203,9 @@ def test_the_promise_holds_for_a_start_up_to_a_control_tick_late():
     # control tick late (1.7 cm at 1 m/s) realises more than POLYGON_TOLERANCE over the area at
     # the planned poses. predict's bound covers every start up to START_LAG late.
     sc = scenarios.load("warehouse-reflectors")
-    pair = (38, 43)
-    m = sc.marker_positions()[list(pair)]
+    at = sc.marker_positions()
+    pair = tuple(int(np.flatnonzero(np.all(at == p, axis=1))[0]) for p in ([14.0, 10.0], [14.0, 12.0]))
+    m = at[list(pair)]
     assert m.tolist() == [[14.0, 10.0], [14.0, 12.0]]
     path = np.array([[16.0, 11.0], [12.0, 11.0]])
     speed = np.full(2, 1.0)

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from sim.cli import main
-from tests.scenarios.test_load import BAD, MINIMAL
+from tests.scenarios.worlds import BAD, MINIMAL
 
 
 @pytest.mark.parametrize("label,text,pattern", BAD, ids=[b[0] for b in BAD])

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
-
-import pytest
 
 import scenarios
 from sim import cli
 from sim.montecarlo import results
 from sim.montecarlo.engine import sweep
+from sim.montecarlo.rows import TIMING_COLUMNS
 from tests.sim.montecarlo import fake_episode as fe
 
 
@@ -56,7 +54,6 @@ def test_ray_missing_tells_how_to_install(capsys, tmp_path, monkeypatch):
     assert not (tmp_path / "r").exists()
 
 
-@pytest.mark.skipif(importlib.util.find_spec("sim.episode.drive") is None, reason="sim.episode.drive not written yet")
 def test_real_sweep_end_to_end(capsys, tmp_path):
     """The real episode through the CLI on 2 workers, then in-process: identical files."""
     out = tmp_path / "real"
@@ -72,7 +69,7 @@ def test_real_sweep_end_to_end(capsys, tmp_path):
 
     serial = tmp_path / "serial"
     sweep(scenarios.load("paper-two-markers"), serial, runs=2, workers=1, progress=False)
-    for read in (lambda d: results.read_runs(d).drop(list(results.TIMING_COLUMNS)), results.read_steps,
+    for read in (lambda d: results.read_runs(d).drop(list(TIMING_COLUMNS)), results.read_steps,
                  results.read_fixes):
         a, b = read(out), read(serial)
         for col in a.column_names:

@@ -66,6 +66,7 @@ def two_markers(tmp_path_factory):
     return out, code, json.loads(buf.getvalue())
 
 
+@pytest.mark.e2e  # a real sweep; the checks and their negative controls run on tables in tests/sim/validation
 def test_paper_two_markers_passes(two_markers):
     _, code, report = two_markers
     assert code == 0, report["failed"]
@@ -73,6 +74,7 @@ def test_paper_two_markers_passes(two_markers):
     assert report["runs"] == 20 and report["alpha_per_check"] == pytest.approx(0.01 / 6)
 
 
+@pytest.mark.e2e  # a real sweep; the checks and their negative controls run on tables in tests/sim/validation
 @pytest.mark.parametrize(("name", "runs"), [("paper-docks", 10), ("warehouse", 6)])
 def test_builtin_scenario_passes(capsys, tmp_path, name, runs):
     code, report = _validate(capsys, [name, "--runs", str(runs), "--workers", "2"])
@@ -81,8 +83,8 @@ def test_builtin_scenario_passes(capsys, tmp_path, name, runs):
     assert report["sweep"] is None  # a temporary sweep
 
 
-def test_from_directory_reproduces_the_verdicts_and_prints_a_table(capsys, two_markers):
-    out, _, report = two_markers
+def test_from_directory_reproduces_the_verdicts_and_prints_a_table(capsys, small_validated_sweep):
+    out, _, report = small_validated_sweep
     code, again = _validate(capsys, ["--from", str(out)])
     assert code == 0
     assert again["checks"] == report["checks"]  # same tables, same seeded null model
@@ -96,8 +98,8 @@ def test_from_directory_reproduces_the_verdicts_and_prints_a_table(capsys, two_m
     assert code == (0 if passed else 1) and (passed or "FAILED: " in text)
 
 
-def test_from_rejects_another_scenario_and_sweep_flags(capsys, two_markers):
-    out = str(two_markers[0])
+def test_from_rejects_another_scenario_and_sweep_flags(capsys, small_validated_sweep):
+    out = str(small_validated_sweep[0])
     _bad(capsys, ["paper-docks", "--from", out], "was made from another scenario")
     _bad(capsys, ["--from", out, "--runs", "3"], "--runs: not with --from")
     _bad(capsys, ["--from", out, "--q-scale", "0.1"], "--q-scale: not with --from")
@@ -114,6 +116,7 @@ def test_bad_input_exits_2(capsys, tmp_path):
     _bad(capsys, ["paper-docks", "--out", str(tmp_path / "full")], "output directory is not empty")
 
 
+@pytest.mark.e2e  # a real sweep; the checks and their negative controls run on tables in tests/sim/validation
 def test_negative_control_sensor_three_times_noisier(capsys, tmp_path):
     scenario = _variant(tmp_path, "paper-two-markers",
                         "[sensor.actual]\nrelative_error = 2.0e-4\nabsolute_error = 0.0003\n")
@@ -127,6 +130,7 @@ def test_negative_control_sensor_three_times_noisier(capsys, tmp_path):
     assert {"containment", "nis"} <= set(report["failed"])
 
 
+@pytest.mark.e2e  # a real sweep; the checks and their negative controls run on tables in tests/sim/validation
 def test_negative_control_filter_with_too_little_process_noise(capsys, tmp_path):
     out = tmp_path / "mc"
     code, report = _validate(capsys, ["paper-two-markers", "--runs", "6", "--workers", "2",
@@ -141,6 +145,7 @@ def test_negative_control_filter_with_too_little_process_noise(capsys, tmp_path)
     assert code == 1 and "NEGATIVE CONTROL" in text and "FAILED: " in text and "nees" in text
 
 
+@pytest.mark.e2e  # a real sweep; the checks and their negative controls run on tables in tests/sim/validation
 def test_gaussian_coverage_and_its_negative_control(capsys, tmp_path):
     gauss = ('noise = "uniform"', 'noise = "gaussian"')
     code, report = _validate(capsys, [_variant(tmp_path, "paper-two-markers", "", gauss), "--runs", "12",

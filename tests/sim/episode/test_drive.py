@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import subprocess
 import sys
 
@@ -12,8 +11,12 @@ import pytest
 import scenarios
 from sim.episode.drive import prepare, run_episode
 from sim.export.tum import read_tum
+from tests.sim.episode.digest import digest
 
-TASKS = [(name, i) for name in scenarios.builtin_names() for i in range(len(scenarios.load(name).tasks))]
+#: episodes on the big floors (a hall, the warehouse's second task and its reflector variant): the e2e tier
+LONG_TASKS = {("hall", 0), ("hall", 1), ("warehouse-reflectors", 0), ("warehouse-reflectors", 1), ("warehouse", 1)}
+TASKS = [pytest.param(name, i, id=f"{name}-{i}", marks=[pytest.mark.e2e] if (name, i) in LONG_TASKS else [])
+         for name in scenarios.builtin_names() for i in range(len(scenarios.load(name).tasks))]
 
 
 @pytest.fixture(scope="module")
@@ -28,15 +31,7 @@ def prepared():
     return get
 
 
-def digest(result) -> str:
-    h = hashlib.sha256()
-    for a in (result.steps.t, result.steps.true_pose, result.steps.est_pose, result.steps.est_cov,
-              result.fixes.ranges, result.fixes.snapshot, result.fixes.markers):
-        h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
-
-
-@pytest.mark.parametrize("name,task", TASKS, ids=[f"{n}-{t}" for n, t in TASKS])
+@pytest.mark.parametrize("name,task", TASKS)
 def test_every_builtin_task_reaches_its_goal(prepared, name, task):
     s, p = prepared(name, task)
     r = run_episode(s, task, seed=11, prepared=p)
@@ -69,12 +64,13 @@ def test_same_seed_same_arrays_after_world_reset(prepared):
 SCRIPT = """
 import hashlib, numpy as np, scenarios
 from sim.episode.drive import run_episode
-from tests.sim.episode.test_drive import digest
+from tests.sim.episode.digest import digest
 r = run_episode(scenarios.load("paper-two-markers"), 0, seed=np.random.SeedSequence(5, spawn_key=(2,)))
 print(digest(r))
 """
 
 
+@pytest.mark.e2e  # two new processes, each importing everything and driving an episode
 def test_same_seed_same_arrays_in_fresh_processes():
     out = [subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, check=True).stdout
            for _ in range(2)]

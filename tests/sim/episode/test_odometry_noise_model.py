@@ -34,8 +34,8 @@ import pytest
 
 import scenarios
 from estimators import consistency
-from estimators.ekf import predict_step
 from estimators.motion import arc_step
+from estimators.predict import predict_step
 from sim.episode.drive import CONTROL_STEPS, episode_localizer
 from sim.physics.config import PhysicsConfig
 from sim.physics.odometry import (

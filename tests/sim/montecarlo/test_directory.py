@@ -24,6 +24,16 @@ from scenarios.errors import OutputError, SimulationError
 from sim.montecarlo import lock, results
 from sim.montecarlo.engine import sweep
 from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.rows import (
+    FIX_SCHEMA,
+    RUN_SCHEMA,
+    STEP_SCHEMA,
+    TIMING_COLUMNS,
+    _table,
+    fix_columns,
+    run_row,
+    step_columns,
+)
 from sim.validation import suite as validation
 from tests.sim.montecarlo import fake_episode as fe
 
@@ -54,7 +64,7 @@ def clean(tmp_path_factory, scenario):
 
 
 def _tables(root):
-    return (results.read_runs(root).drop(list(results.TIMING_COLUMNS)), results.read_steps(root),
+    return (results.read_runs(root).drop(list(TIMING_COLUMNS)), results.read_steps(root),
             results.read_fixes(root))
 
 
@@ -335,17 +345,17 @@ def test_a_directory_of_format_1_reads_exactly_and_resumes(tmp_path, scenario):
     for run in range(3):
         seed = np.random.SeedSequence(scenario.seed, spawn_key=(run,))
         episodes[run] = result = fe.run_episode(scenario, 0, seed)
-        row = results.run_row(run, f"SeedSequence({scenario.seed}, spawn_key=({run},))", 0, result.summary, 0.1)
-        for folder, table in ((layout.steps_dir, results._table(results.step_columns(run, result.steps),
-                                                                  results.STEP_SCHEMA)),
-                              (layout.fixes_dir, results._table(results.fix_columns(run, result.fixes),
-                                                                  results.FIX_SCHEMA)),
-                              (layout.runs_dir, pa.Table.from_pylist([row], schema=results.RUN_SCHEMA))):
+        row = run_row(run, f"SeedSequence({scenario.seed}, spawn_key=({run},))", 0, result.summary, 0.1)
+        for folder, table in ((layout.steps_dir, _table(step_columns(run, result.steps),
+                                                                  STEP_SCHEMA)),
+                              (layout.fixes_dir, _table(fix_columns(run, result.fixes),
+                                                                  FIX_SCHEMA)),
+                              (layout.runs_dir, pa.Table.from_pylist([row], schema=RUN_SCHEMA))):
             pq.write_table(table, layout.part(folder, run), compression="zstd")  # the format-1 writer
     summary = sweep(scenario, out, runs=5, workers=1, api=fe.API, resume=True, progress=False)
     assert summary.executed == 2 and summary.steps == "all"
     steps = results.read_steps(out)
-    assert steps.schema == results.STEP_SCHEMA and set(steps["run"].to_pylist()) == set(range(5))
+    assert steps.schema == STEP_SCHEMA and set(steps["run"].to_pylist()) == set(range(5))
     for run, result in episodes.items():
         got = steps.filter(steps["run"].to_numpy() == run)["error"].to_numpy()
         np.testing.assert_array_equal(got, result.steps.error)  # float64 as written, not rounded

@@ -29,6 +29,7 @@ from sim.montecarlo import engine as montecarlo
 from sim.montecarlo import results
 from sim.montecarlo.engine import sweep
 from sim.montecarlo.results import SweepLayout
+from sim.montecarlo.rows import TIMING_COLUMNS
 from tests.sim.montecarlo import fake_episode as fe
 
 REPO = Path(__file__).resolve().parents[3]
@@ -42,7 +43,7 @@ def two_tasks():
 
 
 def _tables(root):
-    runs = results.read_runs(root).drop(list(results.TIMING_COLUMNS))
+    runs = results.read_runs(root).drop(list(TIMING_COLUMNS))
     return runs, results.read_steps(root), results.read_fixes(root)
 
 

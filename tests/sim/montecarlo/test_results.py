@@ -10,6 +10,7 @@ import scenarios
 from scenarios.errors import OutputError
 from sim.montecarlo import results
 from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.rows import RUN_SCHEMA, STEP_SCHEMA, _table, fix_columns, run_row, step_columns
 from tests.sim.montecarlo import fake_episode as fe
 
 
@@ -21,8 +22,8 @@ def scenario():
 def _record(scenario, run: int) -> tuple[RunRecord, object]:
     seed = np.random.SeedSequence(scenario.seed, spawn_key=(run,))
     result = fe.run_episode(scenario, 0, seed)
-    row = results.run_row(run, f"seed {run}", 0, result.summary, 0.5)
-    rec = RunRecord(run, row, results.step_columns(run, result.steps), results.fix_columns(run, result.fixes))
+    row = run_row(run, f"seed {run}", 0, result.summary, 0.5)
+    rec = RunRecord(run, row, step_columns(run, result.steps), fix_columns(run, result.fixes))
     return rec, result
 
 
@@ -33,12 +34,12 @@ def test_round_trip_keeps_every_value(tmp_path, scenario):
     results.write_record(layout, rec)
 
     runs = results.read_runs(tmp_path)
-    assert runs.num_rows == 1 and runs.schema == results.RUN_SCHEMA
+    assert runs.num_rows == 1 and runs.schema == RUN_SCHEMA
     row = runs.to_pylist()[0]
     for key in ("rmse", "max_error", "violations", "reached", "mean_nees"):
         assert row[key] == result.summary[key]
     steps = results.read_steps(tmp_path)
-    assert steps.schema == results.STEP_SCHEMA  # read back as float64 whatever the storage
+    assert steps.schema == STEP_SCHEMA  # read back as float64 whatever the storage
 
     def f32(a):  # steps are stored as float32: exactly the episode's values rounded to it
         return np.asarray(a).astype(np.float32)
@@ -60,7 +61,7 @@ def test_round_trip_keeps_every_value(tmp_path, scenario):
 def test_crashed_row_has_nulls_and_no_step_parts(tmp_path):
     layout = SweepLayout(tmp_path)
     layout.make_dirs()
-    row = results.run_row(0, "s", 1, None, None, status="crashed: ValueError: x")
+    row = run_row(0, "s", 1, None, None, status="crashed: ValueError: x")
     results.write_record(layout, RunRecord(0, row))
     got = results.read_runs(tmp_path).to_pylist()[0]
     assert got["status"] == "crashed: ValueError: x" and got["rmse"] is None and got["reached"] is None
@@ -78,7 +79,7 @@ def test_empty_fix_log_is_written(tmp_path, scenario):
                     snapshot_cov=np.zeros((0, 2, 2)),
                     fault_diameter=np.zeros(0), fault_polygons=[], contained=np.zeros(0, bool),
                     predicted_tau=np.zeros(0), static_tau=np.zeros(0), nis=np.zeros(0), n_accepted=np.zeros(0, int))
-    rec.fixes = results.fix_columns(0, empty)
+    rec.fixes = fix_columns(0, empty)
     results.write_record(layout, rec)
     assert results.read_fixes(tmp_path).num_rows == 0
     assert results.read_runs(tmp_path).num_rows == 1
@@ -91,7 +92,7 @@ def test_unfinished_parts_are_ignored_then_cleaned(tmp_path, scenario):
     results.write_record(layout, done)
     # A run killed after its steps part but before its runs part, and a half-written temp file:
     half, _ = _record(scenario, 1)
-    pq.write_table(results._table(half.steps, results.STEP_SCHEMA), layout.part(layout.steps_dir, 1))
+    pq.write_table(_table(half.steps, STEP_SCHEMA), layout.part(layout.steps_dir, 1))
     (layout.runs_dir / ".run-000002.parquet.tmp123").write_bytes(b"PAR1 trunc")
 
     assert results.finished_runs(layout) == {0}
@@ -146,11 +147,14 @@ def test_parts_written_before_a_column_was_added_read_back_with_it_null(tmp_path
     layout.make_dirs()
     rec, _ = _record(scenario, 0)
     results.write_record(layout, rec)
-    for folder, name in ((layout.runs_dir, "lost_guarantee"), (layout.steps_dir, "excused")):
+    for folder, name in ((layout.runs_dir, "lost_guarantee"), (layout.steps_dir, "excused"),
+                         (layout.fixes_dir, "unplanned")):
         path = layout.part(folder, 0)
         pq.write_table(pq.read_table(path).drop_columns([name]), path)
     runs, steps = results.read_runs(tmp_path), results.read_steps(tmp_path)
     assert runs.column("lost_guarantee").null_count == 1 and steps.column("excused").null_count == steps.num_rows
+    fixes = results.read_fixes(tmp_path)
+    assert fixes.num_rows > 0 and fixes.column("unplanned").null_count == fixes.num_rows
     assert steps.column("certified").null_count == 0
     path = layout.part(layout.steps_dir, 0)
     pq.write_table(pq.read_table(path).drop_columns(["certified"]), path)

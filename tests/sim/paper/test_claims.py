@@ -1,14 +1,17 @@
 """``pefsim paper``: the page, the figures, the numbers, and verdicts that follow the numbers.
 
-One quick report is built once per module (all seven claims, 3 Monte-Carlo runs); the negative
-controls re-run claims 1, 3, 5 and 6 in quick mode with a deliberately wrong model and check
-that the verdict changes, so a verdict cannot be a hard-coded string.
+The fast tier reproduces claims 1, 2, 3, 5 and 6 once per module in quick mode (no episode); the
+negative controls re-run claims 1, 3, 5 and 6 with a deliberately wrong model and check that the
+verdict changes, so a verdict cannot be a hard-coded string. The whole page (all seven claims,
+claim 7's Monte-Carlo runs, the section beside them) is built once in the e2e tier.
 """
 
 from __future__ import annotations
 
 import base64
+import contextlib
 import html
+import io
 import json
 import math
 import re
@@ -30,9 +33,6 @@ QUICK = Options(quick=True, workers=2)
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("paper") / "report"
-    import contextlib
-    import io
-
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         code = main(["paper", "--quick", "--workers", "2", "--out", str(out), "--json"])
@@ -41,12 +41,25 @@ def report(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def claims(report):
-    return {c["id"]: c for c in report[1]["claims"]}
+def claims(tmp_path_factory):
+    """Claims 1, 2, 3, 5 and 6 in quick mode: geometry and the PEF, no episode."""
+    out = tmp_path_factory.mktemp("claims") / "report"
+    buf = io.StringIO()  # a module-scoped fixture cannot use capsys
+    with contextlib.redirect_stdout(buf):
+        code = main(["paper", "--quick", "--claims", "1,2,3,5,6", "--workers", "1", "--out", str(out), "--json"])
+    assert code == 0
+    return {c["id"]: c for c in json.loads(buf.getvalue())["claims"]}
 
 
-def test_page_embeds_every_figure_and_verdict(report, claims):
+@pytest.fixture(scope="module")
+def claim7(report):
+    return {c["id"]: c for c in report[1]["claims"]}[7]
+
+
+@pytest.mark.e2e  # the whole page: seven claims, Monte-Carlo runs, the section beside them
+def test_page_embeds_every_figure_and_verdict(report):
     out, data = report
+    claims = {c["id"]: c for c in data["claims"]}
     assert sorted(claims) == [1, 2, 3, 4, 5, 6, 7]
     page = (out / "index.html").read_text(encoding="utf-8")
     embedded = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
@@ -107,8 +120,9 @@ def test_claim6_paper_jacobian_is_the_inverse_of_h(claims):
     assert claims[6]["numbers"]["paper_J_norm_vs_gdop_max_rel_dev"] < 1e-12
 
 
-def test_claim7_counts_are_consistent(claims):
-    n = claims[7]["numbers"]
+@pytest.mark.e2e  # claim 7 drives real episodes
+def test_claim7_counts_are_consistent(claim7):
+    n = claim7["numbers"]
     assert n["runs"] == 3 and 0 <= n["under_eps_max"] <= 3
     lo, hi = n["ci95"]
     assert lo <= n["fraction"] <= hi
@@ -119,12 +133,30 @@ def test_claim7_counts_are_consistent(claims):
     assert n["moving_kept_frac"] == 1.0 and n["moving_max_ratio"] <= 1.0 + POLYGON_TOLERANCE
 
 
-def test_claim7_verdict_turns_on_the_motion_aware_promise(claims):
+#: claim 7's numbers as a sweep of 3 runs reports them (synthetic: the verdict's logic alone)
+CLAIM7 = {"ci95": [0.29, 1.0], "under_eps_max": 3, "runs": 3, "fraction": 1.0, "success_target": 0.95,
+          "max_error_over_eps_max": 0.4, "max_predicted_over_eps_max": 0.9, "steps_within_predicted_frac": 1.0,
+          "fixes": 150, "static_kept_frac": 0.3, "static_max_ratio": 1.6, "moving_kept_frac": 1.0,
+          "moving_max_ratio": 1.0}
+
+
+def test_claim7_verdict_turns_on_the_motion_aware_promise():
     from sim.paper.pef import verdict_planned_route
 
-    n = dict(claims[7]["numbers"], under_eps_max=3, runs=3, fraction=1.0)
+    n = dict(CLAIM7)
     assert verdict_planned_route(n)[0].startswith("holds only when the PEF describes the moving fix")
     # negative control: a promise broken at some fix is no longer the condition under which it holds
+    assert not verdict_planned_route(dict(n, moving_kept_frac=0.98))[0].startswith("holds only when the PEF")
+    # and a route that failed runs with a CI under the target does not hold
+    assert verdict_planned_route(dict(n, under_eps_max=0, ci95=[0.0, 0.7]))[0] == DOES_NOT_HOLD
+
+
+@pytest.mark.e2e  # claim 7 drives real episodes
+def test_claim7_verdict_on_the_real_runs_turns_on_the_motion_aware_promise(claim7):
+    from sim.paper.pef import verdict_planned_route
+
+    n = dict(claim7["numbers"], under_eps_max=3, runs=3, fraction=1.0)
+    assert verdict_planned_route(n)[0].startswith("holds only when the PEF describes the moving fix")
     assert not verdict_planned_route(dict(n, moving_kept_frac=0.98))[0].startswith("holds only when the PEF")
 
 
@@ -198,6 +230,7 @@ def test_route_figure_draws_a_crashed_run(tmp_path):
     assert path.read_bytes().startswith(PNG_SIGNATURE)
 
 
+@pytest.mark.e2e  # the section drives real episodes
 def test_redundancy_section_beside_the_claims(report):
     out, data = report
     (sec,) = data["sections"]

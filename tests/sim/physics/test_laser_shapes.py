@@ -10,7 +10,7 @@ from shapely.geometry import LineString, Point
 from shapely.ops import unary_union
 
 import scenarios
-from planner.pef.visibility import scenario_visible_points
+from planner.pef.visibility import scenario_visible_points, visible_points
 from sim.physics.laser import LaserSensor
 from sim.physics.world import PhysicsWorld
 
@@ -78,13 +78,16 @@ def test_laser_agrees_with_the_planner_on_polygons_holes_and_circles():
             p = rng.uniform([0.3, 0.3], [15.7, 9.7]) if checked % 4 else rng.uniform([9.3, 4.3], [11.7, 6.7])
             if solid.distance(Point(p)) < 0.3 or _ambiguous(sc, p, markers, post_r):
                 continue
-            vis, _ = scenario_visible_points(sc, p[None])
+            # the margin-free geometry is the laser's, away from grazing rays (the ambiguity test)
+            vis, _ = visible_points(p[None], markers, sc.obstacle_pieces(), sc.sensor.max_range, sc.workspace.bounds)
+            usable, _ = scenario_visible_points(sc, p[None])
             # Another marker's post blocks the ray too (the planner does not know posts).
             posts = np.array([[LineString([p, m]).distance(Point(o)) < post_r for j, o in enumerate(markers) if j != i]
                               for i, m in enumerate(markers)]).any(axis=1)
             w.reset((p[0], p[1], rng.uniform(-math.pi, math.pi)))
             got = laser.visible_all()
             assert got.tolist() == (vis[:, 0] & ~posts).tolist(), f"at {p}"
+            assert not np.any(usable[:, 0] & ~got), f"at {p}: the plan's rule counts on what the laser does not see"
             counts += got
             in_hole += shapely.contains_xy(shapely.box(9, 4, 12, 7), *p)
             checked += 1

@@ -6,7 +6,6 @@ import math
 import os
 import subprocess
 import sys
-from collections import defaultdict
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,6 +21,7 @@ from sim.episode.types import EpisodeResult, FixLog, StepLog
 from sim.recording import entities as E
 from sim.recording import episode as recording_episode
 from sim.recording.geometry import covariance_ellipses, level_contours, strip_polygons
+from tests.sim.recording.readback import Readback
 
 
 @pytest.fixture(autouse=True)
@@ -119,33 +119,6 @@ def synthetic_pef_map(scenario) -> SimpleNamespace:
 
 # --------------------------------------------------------------------------------------------
 # reading back
-
-
-class Readback:
-    """All chunks of a recording's data store, grouped by entity path (without leading '/')."""
-
-    def __init__(self, path) -> None:
-        self.reader = RrdReader(path)
-        self.chunks = defaultdict(list)
-        for chunk in self.reader.store().stream().to_chunks():
-            self.chunks[chunk.entity_path.lstrip("/")].append(chunk)
-
-    def column(self, entity: str, component: str, timeline: str | None = E.TIMELINE):
-        """Rows of ``component`` over all chunks of ``entity``, sorted by time; (times_ns, rows)."""
-        times, rows = [], []
-        for chunk in self.chunks[entity]:
-            batch = chunk.to_record_batch()
-            if component not in batch.schema.names:
-                continue
-            values = batch.column(component).to_pylist()
-            if timeline is not None and timeline in batch.schema.names:
-                ts = batch.column(timeline).cast("int64").to_numpy()
-            else:
-                ts = np.zeros(len(values), dtype=np.int64)
-            times.extend(ts)
-            rows.extend(values)
-        order = np.argsort(np.asarray(times), kind="stable")
-        return np.asarray(times)[order], [rows[i] for i in order]
 
 
 @pytest.fixture(scope="module")
@@ -370,11 +343,12 @@ def test_strip_polygon_of_two_markers_is_the_papers_parallelogram():
         x, y = ring[:-1, 0], ring[:-1, 1]
         area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
         assert len(ring) == 5
-        assert area == pytest.approx(4 * r[0] * r[1] / s, rel=1e-9)  # DESIGN eq. (paper eq. 10)
+        assert area == pytest.approx(4 * r[0] * r[1] / s, rel=1e-9)  # docs/design.md §1 (paper eq. 10)
 
 
 def test_local_strip_polygons_agree_with_estimators_linearized():
-    linearized = pytest.importorskip("estimators.fault.linearized")
+    from estimators.fault import linearized
+
     rng = np.random.default_rng(3)
     pos = rng.uniform(2, 8, size=(10, 2))
     mk = rng.uniform(0, 10, size=(10, 3, 2))

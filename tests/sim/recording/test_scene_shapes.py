@@ -10,8 +10,7 @@ from matplotlib.figure import Figure
 
 from sim.recording.geometry import rectangle_ring
 from sim.report.scene import OBSTACLE_STYLE, draw_scene
-from tests.planner.test_plan_shapes import hall
-from tests.test_origin import shifted
+from tests.scenarios.worlds import hall, shifted
 
 
 def _pixel(fig, ax, p) -> np.ndarray:
@@ -50,7 +49,7 @@ def test_the_workspace_is_drawn_at_its_origin():
 def test_the_recording_holds_every_ring_of_every_obstacle_in_the_users_frame(tmp_path):
     from sim import recording
     from sim.recording import entities as E
-    from tests.sim.recording.test_episode_recording import Readback
+    from tests.sim.recording.readback import Readback
 
     sc = hall()
     back = Readback(recording.write_static_rrd(tmp_path / "static.rrd", sc))
@@ -69,10 +68,10 @@ def test_the_recording_holds_every_ring_of_every_obstacle_in_the_users_frame(tmp
 def test_flat_reflectors_are_drawn_facing_out_in_figures_and_recordings(tmp_path):
     from sim import recording
     from sim.recording import entities as E
-    from tests.planner.pef.test_flat_redundancy import _scenario
-    from tests.sim.recording.test_episode_recording import Readback
+    from tests.scenarios.worlds import flat_scenario
+    from tests.sim.recording.readback import Readback
 
-    sc = _scenario()
+    sc = flat_scenario()
     flat = [m for m in sc.markers if m.kind.value == "flat"]
     back = Readback(recording.write_static_rrd(tmp_path / "static.rrd", sc))
     _, vectors = back.column(E.MARKER_FACING, "Arrows2D:vectors", timeline=None)

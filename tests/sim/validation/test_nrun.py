@@ -17,10 +17,11 @@ import pytest
 import scenarios
 from sim.montecarlo import results
 from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.rows import STEP_SCHEMA, fix_columns, run_row
 from sim.validation import suite as validation
 from sim.validation.suite import CheckStatus
 from tests.estimators import synthetic_kf as kf
-from tests.sim.validation.test_suite import FIXES_PER_RUN, _fix_log
+from tests.sim.validation.synthetic_fixes import FIXES_PER_RUN, fix_log
 
 RUNS = 60
 
@@ -36,13 +37,13 @@ def _write(root, c: float, seed: int = 1):
     for run in range(RUNS):
         nees = sw.nees[run][np.isfinite(sw.nees[run])] / c
         k = nees.size
-        steps = {name: np.zeros(k) for name in results.STEP_SCHEMA.names}
+        steps = {name: np.zeros(k) for name in STEP_SCHEMA.names}
         steps.update(run=np.full(k, run), step=np.arange(k), t=np.arange(k) * kf.DT, nees=nees)
-        log = _fix_log(sc, rng, 1.0)
+        log = fix_log(sc, rng, 1.0)
         log.nis[:] = np.nan_to_num(sw.nis[run], nan=2.0) / c
-        row = results.run_row(run, f"s{run}", 0, {"reached": True, "violations": 0, "fixes": FIXES_PER_RUN,
+        row = run_row(run, f"s{run}", 0, {"reached": True, "violations": 0, "fixes": FIXES_PER_RUN,
                                                   "mean_nees": float(nees.mean())}, 0.1)
-        results.write_record(layout, RunRecord(run, row, steps, results.fix_columns(run, log)))
+        results.write_record(layout, RunRecord(run, row, steps, fix_columns(run, log)))
     return validation.load_sweep(root)
 
 

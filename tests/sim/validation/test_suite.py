@@ -13,6 +13,7 @@ fails a given check with probability at most 0.002 per seed.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import json
 import math
@@ -22,18 +23,20 @@ import pytest
 from scipy import optimize, stats
 
 import scenarios
-from estimators.snapshot import snapshot_fix
 from planner.pef.map import PEF
 from scenarios.errors import OutputError, SimulationError
-from sim.episode.types import FixLog
 from sim.montecarlo import results
+from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
 from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.rows import FIX_SCHEMA, RUN_SCHEMA, fix_columns, run_row
 from sim.validation import null
 from sim.validation import suite as validation
-from sim.validation.data import EPISODE_GATE_PROBABILITY, NEGATIVE_CONTROL_JSON
+from sim.validation.data import EPISODE_GATE_PROBABILITY
+from sim.validation.promise import promise
 from sim.validation.suite import CheckStatus
+from tests.sim.validation.synthetic_fixes import FIXES_PER_RUN, fix_log
 
-RUNS, FIXES_PER_RUN, NEES_STEPS = 5, 60, 50
+RUNS, NEES_STEPS = 5, 50
 PASS, FAIL, NA = CheckStatus.PASS, CheckStatus.FAIL, CheckStatus.NOT_APPLICABLE
 
 
@@ -41,38 +44,6 @@ def _scenario(noise: str = "uniform"):
     base = scenarios.load("paper-two-markers")
     text = base.text.replace('noise = "uniform"', f'noise = "{noise}"')
     return scenarios.loads(text, source=f"{noise}.toml")
-
-
-def _fix_log(scenario, rng, error_scale: float) -> FixLog:
-    """Make fixes along the paper's route A -> B with range errors ``error_scale`` times the model's."""
-    sensor = scenario.sensor
-    mk = scenario.marker_positions()
-    truth = np.linspace([1.0, 1.5], [4.0, 3.0], FIXES_PER_RUN) + rng.normal(0.0, 0.05, (FIXES_PER_RUN, 2))
-    tau = PEF(scenario).tau_subset(truth, np.array([0, 1]))
-    cols = {k: [] for k in ("ranges", "rho", "snapshot", "cov", "diam", "contained", "polys")}
-    for p in truth:
-        r = np.hypot(*(p - mk).T)
-        rho = sensor.range_bound(r)
-        if sensor.noise is scenarios.NoiseModel.UNIFORM:
-            e = rng.uniform(-1.0, 1.0, 2) * rho
-        else:
-            e = rng.normal(0.0, 1.0, 2) * rho / 3.0
-        z = r + error_scale * e
-        fix = snapshot_fix(mk, z, rho, prior=p + 0.01, noise=sensor.noise)
-        cols["ranges"].append(z)
-        cols["rho"].append(rho)
-        cols["snapshot"].append(fix.position)
-        cols["cov"].append(fix.covariance)
-        cols["diam"].append(fix.fault_area.diameter)
-        cols["contained"].append(fix.fault_area.contains(p))
-        cols["polys"].append(np.zeros((0, 2)))
-    n = FIXES_PER_RUN
-    return FixLog(t=np.arange(n) * 0.2, markers=np.tile([0, 1], (n, 1)), ranges=np.array(cols["ranges"]),
-                  rho=np.array(cols["rho"]), true_position=truth, snapshot=np.array(cols["snapshot"]),
-                  snapshot_cov=np.array(cols["cov"]), fault_diameter=np.array(cols["diam"]),
-                  fault_polygons=cols["polys"], contained=np.array(cols["contained"]),
-                  predicted_tau=tau, static_tau=tau,
-                  nis=np.zeros(n), n_accepted=np.full(n, 2))
 
 
 def write_sweep(root, scenario, seed: int, error_scale: float = 1.0, nees_scale: float = 1.0,
@@ -87,12 +58,12 @@ def write_sweep(root, scenario, seed: int, error_scale: float = 1.0, nees_scale:
     layout.make_dirs()
     results.write_atomic(layout.scenario_toml, scenario.text.encode())
     for run in range(RUNS):
-        log = _fix_log(scenario, rng, error_scale)
+        log = fix_log(scenario, rng, error_scale)
         log.nis[:] = nis_scale * rng.chisquare(1, (FIXES_PER_RUN, 2)).sum(axis=1)
         summary = {"reached": True, "violations": int(run < failed_runs), "fixes": FIXES_PER_RUN,
                    "mean_nees": nees_scale * rng.chisquare(3, NEES_STEPS).mean()}
-        row = results.run_row(run, f"s{run}", 0, summary, 0.1)
-        results.write_record(layout, RunRecord(run, row, None, results.fix_columns(run, log)))
+        row = run_row(run, f"s{run}", 0, summary, 0.1)
+        results.write_record(layout, RunRecord(run, row, None, fix_columns(run, log)))
     return validation.load_sweep(root)
 
 
@@ -191,9 +162,24 @@ def test_plan_fails_when_too_few_runs_stay_under_eps_max(tmp_path):
     assert plan.values["ci"][1] == pytest.approx(upper)
 
 
+def test_a_fix_on_an_unplanned_subset_breaks_the_promise_and_an_old_sweep_is_not_judged_on_it(tmp_path):
+    # a substitute for a marker the laser did not see (no line of sight blocked) did not keep the
+    # plan, however small its realised area; a sweep written before the column reads it as null
+    data = write_sweep(tmp_path / "mc", _scenario(), seed=1)
+    assert data.fixes.unplanned is not None and not data.fixes.unplanned.any()
+    marked = np.zeros(len(data.fixes), dtype=bool)
+    marked[3] = True
+    judged = dataclasses.replace(data, fixes=dataclasses.replace(data.fixes, unplanned=marked))
+    res = promise(judged, 0.01, np.random.default_rng(0))
+    assert res.status is CheckStatus.FAIL and res.values["unplanned"] == 1 and res.values["broken"] == 1
+    old = dataclasses.replace(data, fixes=dataclasses.replace(data.fixes, unplanned=None))
+    res = promise(old, 0.01, np.random.default_rng(0))
+    assert res.status is CheckStatus.PASS and res.values["unplanned"] is None and "not recorded" in res.detail
+
+
 def test_empty_sweep_is_not_applicable_never_pass():
     sc = _scenario()
-    data = validation.from_tables(sc, results.RUN_SCHEMA.empty_table(), results.FIX_SCHEMA.empty_table())
+    data = validation.from_tables(sc, RUN_SCHEMA.empty_table(), FIX_SCHEMA.empty_table())
     report = validation.validate(data)
     assert all(c.status is NA for c in report.checks)
     assert report.statistical == 0 and report.alpha_per_check is None and report.passed
@@ -217,7 +203,7 @@ def test_gate_probability_is_the_localizers_default():
 
 def test_bad_alpha_and_bad_directories(tmp_path, uniform_model):
     sc = _scenario()
-    data = validation.from_tables(sc, results.RUN_SCHEMA.empty_table(), results.FIX_SCHEMA.empty_table())
+    data = validation.from_tables(sc, RUN_SCHEMA.empty_table(), FIX_SCHEMA.empty_table())
     for bad in (0.0, 1.0, -0.1, math.nan):
         with pytest.raises(SimulationError, match="alpha"):
             validation.validate(data, alpha=bad)

@@ -1,38 +1,39 @@
-"""Compiled kernels: numba only when needed, ahead-of-time code where built, never stale code.
+"""Compiled kernels: numba only when needed, its on-disk cache, never stale code.
 
 Every kernel of pefsim is defined with :func:`njit` instead of ``numba.njit``. That returns a
-:class:`Kernel`, which compiles nothing and does not import numba. Its first call picks the code:
-
-- the **ahead-of-time** build (``pefsim compile``, :mod:`estimators.aot`) when the kernel was
-  declared with ``aot=SIGNATURE`` and the build holds it for the sources it was built from;
-- otherwise numba's JIT (:func:`jit`): numba is imported, every kernel becomes a numba
-  dispatcher, and each module's names that held a :class:`Kernel` are rebound to its dispatcher,
-  so a kernel compiled from then on finds its callees as numba functions, as it would have with
-  ``numba.njit`` itself.
+:class:`Kernel`, which compiles nothing and does not import numba. Its first call runs
+:func:`jit`: numba is imported, every kernel becomes a numba dispatcher, and each module's names
+that held a :class:`Kernel` are rebound to its dispatcher, so a kernel compiled from then on finds
+its callees as numba functions, as it would have with ``numba.njit`` itself.
 
 Why: importing numba and loading one cached kernel cost 1.4-2.0 s on our hosts (numba's
-type registries, and scipy.linalg for its BLAS check), most of a whole ``pefsim map`` or
-``plan`` on a big hall. With the ahead-of-time build those commands never import numba.
+type registries, and scipy.linalg for its BLAS check); a command that runs no kernel (``pefsim
+list``, ``--help``, reading a sweep's tables) should not pay it.
 
 numba caches a compiled function beside its own source file (``cache=True``) and throws the
 cache away when that file changes. A kernel that calls kernels of other files compiles their
 code into its own, so after an edit of one of *those* files the caller's cache would still run
 the old code. :func:`keep_fresh`, called at the end of a module that defines cached kernels,
 keys each of them on the sources of every module whose kernels it reaches, or whose constants
-it reads (found from the names its code uses, transitively): when their hash differs from the one stored beside the
-cache, the kernel's cache is flushed, and numba compiles it afresh on first use. For a module of
-:class:`Kernel` objects this happens in :func:`jit`, when they become dispatchers.
+it reads (found from the names its code uses, transitively): when their hash differs from the one
+stored beside the cache, the kernel's cache is flushed, and numba compiles it afresh on first use.
+For a module of :class:`Kernel` objects this happens in :func:`jit`, when they become dispatchers.
 
 It costs one hash of a few source files per module. Where the cache directory cannot be written
 numba does not cache either, and nothing is stored.
+
+The first run on a machine compiles every kernel it calls (tens of seconds for a whole episode);
+:func:`announce_compiles` makes a program say so once, on stderr, when it ends.
 """
 
 from __future__ import annotations
 
+import atexit
 import functools
 import hashlib
 import sys
 import threading
+import time
 import types
 from collections.abc import Callable
 from pathlib import Path
@@ -44,14 +45,17 @@ _lock = threading.RLock()
 _kernels: list[Kernel] = []
 _fresh_pending: list[str] = []
 _jitted = False
+#: ids of the dispatchers of kernels with ``cache=True``
+_cached: set[int] = set()
+_timer = None  # the numba listener of _compile_timer, once jit() ran
+_announce = False
 
 
 class Kernel:
     """A kernel defined with :func:`njit`, compiled on its first call.
 
-    Calling it runs the ahead-of-time code when there is a fresh build of it, else numba's
-    dispatcher (after :func:`jit`). Other attributes (``py_func``, ``signatures``, ...) are
-    the dispatcher's, and reading them calls :func:`jit`.
+    Calling it runs numba's dispatcher (after :func:`jit`). Other attributes (``signatures``,
+    ...) are the dispatcher's, and reading them calls :func:`jit`.
 
     Attributes
     ----------
@@ -59,21 +63,18 @@ class Kernel:
         The Python function.
     options : dict
         The ``numba.njit`` options.
-    aot : str or None
-        The numba signature it is built with ahead of time, or None (JIT only).
     """
 
-    def __init__(self, py_func: Callable, options: dict, aot: str | None):
+    def __init__(self, py_func: Callable, options: dict):
         self.py_func = py_func
         self.options = options
-        self.aot = aot
         self._fn: Callable | None = None
         self._dispatcher: Any = None
         functools.update_wrapper(self, py_func)
 
     @property
     def key(self) -> str:
-        """``module.qualname``: the name of the kernel in the ahead-of-time build."""
+        """``module.qualname`` of the kernel."""
         return f"{self.py_func.__module__}.{self.py_func.__qualname__}"
 
     def __call__(self, *args):
@@ -83,20 +84,11 @@ class Kernel:
         return fn(*args)
 
     def resolve(self) -> Callable:
-        """Return the code a call runs: the ahead-of-time function, or numba's dispatcher."""
+        """Return the code a call runs: numba's dispatcher (calls :func:`jit` the first time)."""
         with _lock:
             if self._fn is None:
-                fn = None
-                if self.aot is not None:
-                    from estimators import aot
-
-                    built = aot.function(self.key, self.aot)
-                    if built is not None:
-                        fn = _checked(built, *aot.array_arguments(self.key), self)
-                if fn is None:
-                    jit()
-                    fn = self._dispatcher
-                self._fn = fn
+                jit()
+                self._fn = self._dispatcher
             return self._fn
 
     def __getattr__(self, name: str):
@@ -112,50 +104,17 @@ class Kernel:
         return f"<pefsim kernel {self.key}>"
 
 
-def _checked(built: Callable, nargs: int, arrays: tuple, integers: tuple, kernel: Kernel) -> Callable:
-    """``built``, called only with the arguments of its signature; numba's dispatcher for any others.
-
-    The built code reads whatever array it is given as its signature's dtype and layout (an
-    int64 array as float64, a strided view as contiguous, a list as memory: a crash; and it writes
-    into a read-only array, where numba refuses to), so each call checks its arrays first (about
-    0.3 us each), and that its integer arguments are integers (it would truncate a float). Other
-    arguments (another dtype, layout, type or count) go to numba's dispatcher, which compiles for
-    them, as ``numba.njit`` would.
-    """
-    import numpy as np
-
-    wanted = tuple((i, np.dtype(dt), nd, c) for i, dt, nd, c in arrays)
-
-    def call(*args):
-        if len(args) == nargs:
-            for i, dt, nd, contiguous in wanted:
-                a = args[i]
-                if type(a) is not np.ndarray or a.dtype != dt or a.ndim != nd or not a.flags.writeable or (
-                        contiguous and not a.flags.c_contiguous):
-                    break
-            else:
-                if all(isinstance(args[i], (int, np.integer)) for i in integers):
-                    return built(*args)
-        jit()
-        return kernel._dispatcher(*args)
-
-    return call
-
-
 def _by_name(module: str, qualname: str):
     import importlib
 
     return getattr(importlib.import_module(module), qualname)
 
 
-def njit(*args, aot: str | None = None, **options):
+def njit(*args, **options):
     """``numba.njit`` without numba until the kernel runs (see the module docstring).
 
     Parameters
     ----------
-    aot : str, optional
-        A numba signature (``"float64(float64[::1], int64)"``): the kernel is built ahead of time
-        with it by ``pefsim compile``. The arrays a caller passes must match it (dtype, layout).
     **options
         ``numba.njit`` options (``cache``, ``nogil``, ``error_model``, ...).
 
@@ -165,12 +124,10 @@ def njit(*args, aot: str | None = None, **options):
     """
     def wrap(fn: Callable):
         with _lock:
-            kernel = Kernel(fn, options, aot)
+            kernel = Kernel(fn, options)
             _kernels.append(kernel)
             if _jitted:  # defined after jit(): its module gets the dispatcher, as the others did
-                import numba
-
-                kernel._dispatcher = numba.njit(**options)(fn)
+                _dispatch(kernel)
                 return kernel._dispatcher
             return kernel
 
@@ -179,30 +136,23 @@ def njit(*args, aot: str | None = None, **options):
     return wrap
 
 
-def kernels() -> list[Kernel]:
-    """Every :class:`Kernel` defined so far, in definition order."""
-    return list(_kernels)
-
-
-def jitted() -> bool:
-    """Whether :func:`jit` has run in this process (numba imported, the kernels dispatchers)."""
-    return _jitted
-
-
 def jit() -> None:
     """Turn every :class:`Kernel` into a numba dispatcher, and every name bound to one into it.
 
-    Runs once per process, on the first call of a kernel that has no ahead-of-time code. The
-    :class:`Kernel` objects themselves stay callable (an ahead-of-time kernel keeps its code).
+    Runs once per process, on the first call of a kernel. The :class:`Kernel` objects themselves
+    stay callable (they call their dispatcher).
     """
-    global _jitted
+    global _jitted, _timer
     with _lock:
         if _jitted:
             return
-        import numba
+        from numba.core import event
 
+        # numba announces each compilation it does (a cache miss) as this event, nested ones inside
+        _timer = _compile_timer()
+        event.register("numba:compile", _timer)
         for k in _kernels:
-            k._dispatcher = numba.njit(**k.options)(k.py_func)
+            _dispatch(k)
         _jitted = True
         swap = {id(k): k._dispatcher for k in _kernels}
         # names of modules (ours, tests, scripts) that imported a kernel, as well as its own module
@@ -216,6 +166,71 @@ def jit() -> None:
         for name in _fresh_pending:
             _flush_stale(name)
         _fresh_pending.clear()
+
+
+def _dispatch(kernel: Kernel) -> None:
+    import numba
+
+    kernel._dispatcher = numba.njit(**kernel.options)(kernel.py_func)
+    if kernel.options.get("cache"):
+        _cached.add(id(kernel._dispatcher))
+
+
+def _compile_timer():
+    """Make a numba event listener that adds up the seconds numba spends compiling our cached kernels.
+
+    Only the outermost compilation counts (a kernel compiles its callees inside its own); numba
+    compiles under one global lock, so the events of two threads do not interleave. A kernel
+    numba does not cache, or someone else's, compiles on every run and is not counted.
+    """
+    from numba.core import event
+
+    class CompileTimer(event.Listener):
+        def __init__(self):
+            self.seconds = 0.0
+            self._depth = 0
+            self._t0 = 0.0
+
+        def on_start(self, event) -> None:
+            if self._depth == 0:
+                if id(event.data["dispatcher"]) not in _cached:
+                    return
+                self._t0 = time.perf_counter()
+            self._depth += 1
+
+        def on_end(self, event) -> None:
+            if self._depth == 0:
+                return
+            self._depth -= 1
+            if self._depth == 0:
+                self.seconds += time.perf_counter() - self._t0
+
+    return CompileTimer()
+
+
+def compile_seconds() -> float:
+    """Seconds this process spent compiling cached kernels of :func:`njit` (0.0 on a warm cache)."""
+    return 0.0 if _timer is None else _timer.seconds
+
+
+def announce_compiles() -> None:
+    """Say once on stderr, when the program ends, that it compiled the kernels and how long it took.
+
+    Nothing is said where every kernel came from numba's cache, nor by a worker process.
+    """
+    global _announce
+    with _lock:
+        if not _announce:
+            _announce = True
+            atexit.register(_say_compiled)
+
+
+def _say_compiled() -> None:
+    import multiprocessing
+
+    if compile_seconds() > 0.0 and multiprocessing.parent_process() is None:
+        print(f"pefsim: compiled the kernels once ({_timer.seconds:.0f} s); later runs use numba's cache",
+              file=sys.stderr)
 
 
 def _code_names(code: types.CodeType) -> set[str]:
@@ -249,7 +264,7 @@ def _callees(dispatcher) -> list:
 
 
 #: top-level packages whose modules' constants a kernel may freeze into its code
-_OWN_PACKAGES = ("estimators", "planner", "sim", "scenarios")
+_OWN_PACKAGES = ("jit", "estimators", "planner", "sim", "scenarios")
 
 
 @functools.cache

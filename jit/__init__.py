@@ -1,0 +1,1 @@
+"""numba for pefsim: kernels compiled on first use, cached on disk, never stale (:mod:`jit.compiled`)."""

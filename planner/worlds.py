@@ -1,0 +1,156 @@
+"""Random honest worlds that plan: draw (:mod:`scenarios.worlds`), choose eps_max, redraw until every task plans.
+
+World ``index`` of root ``seed`` draws from its own generator,
+``numpy.random.default_rng(SeedSequence(seed, spawn_key=(index,)))`` (the children
+``SeedSequence(seed).spawn(n)`` would give), so it does not depend on how many worlds are drawn,
+and the same ``(seed, index)`` gives the same text byte for byte.
+
+eps_max is chosen from the world: each task is first planned with a loose eps_max
+(``LOOSE_EPS``) to find the route's achievable error, the largest tau along the chosen route
+or promise of its scheduled fixes; eps_max is the drawn factor (``scenarios.worlds.EPS_FACTOR_RANGE``) times the
+largest over the tasks, rounded up to 0.1 mm. The world is then planned for real; when a task
+has no admissible route (the drift between fixes needs more room than the factor left), the
+factor grows by ``FACTOR_STEP`` up to ``FACTOR_TRIES`` times, and after that, or when a route has
+no finite error at all, the world is redrawn from the same generator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+
+import scenarios
+from planner.plan import plan_route, plan_task
+from scenarios.errors import PlanningError, ScenarioError
+from scenarios.worlds import draw_world
+
+LOOSE_EPS = 0.1
+"""eps_max [m] of the first plan, which only asks for the chosen route's largest tau.
+
+Loose against every error a drawn world achieves (millimetres to a few centimetres), but not
+unbounded: the plan's line-of-sight margin grows with eps_max (:mod:`planner.pef.sight`), and at
+0.1 m it stays narrow beside the drawn corridors (2.5 m and wider); at 50 m no marker was usable."""
+FACTOR_STEP = 1.5
+"""Growth of the eps_max factor when a task does not plan."""
+FACTOR_TRIES = 3
+"""eps_max factors tried before the world is redrawn."""
+MAX_ATTEMPTS = 25
+"""Draws tried for one world before giving up (PlanningError)."""
+
+
+@dataclass(frozen=True)
+class PlannedWorld:
+    """A drawn world every task of which plans.
+
+    Attributes
+    ----------
+    name : str
+        The scenario's name (``random-<seed>-<index>``).
+    text : str
+        The scenario TOML, with a header comment saying its seed and what was drawn.
+    scenario : scenarios.Scenario
+        ``text`` loaded.
+    attempts : int
+        Draws it took (1 = the first draw planned).
+    summary : tuple of str
+        What was drawn, as in the header.
+    path : pathlib.Path or None
+        Where the text was written (set by ``pefsim.worlds`` with ``out``).
+    """
+
+    name: str
+    text: str
+    scenario: scenarios.Scenario
+    attempts: int
+    summary: tuple[str, ...]
+    path: Path | None = None
+
+
+def world_rng(seed: int, index: int) -> np.random.Generator:
+    """World ``index``'s generator under root ``seed`` (independent of how many are drawn)."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
+
+
+def _with_eps(data: dict, eps: float, source: str) -> scenarios.Scenario:
+    data["planning"]["eps_max"] = eps
+    return scenarios.from_dict(data, source=source)
+
+
+def _achievable(data: dict, source: str) -> float:
+    """Return the achievable error [m] of a drawn world's tasks.
+
+    Over the tasks, the largest tau along the route chosen under a loose eps_max, or the largest promise of its
+    scheduled fixes (a moving fix, measured marker after
+    marker, promises more than the static tau: up to 4x it with k = 4), whichever is larger.
+    """
+    sc = _with_eps(data, LOOSE_EPS, source)
+    worst = 0.0
+    for task in sc.tasks:
+        p = plan_route(sc, task.start, task.goal)
+        promises = [f.predicted_tau for f in p.schedule.fixes]
+        worst = max(worst, float(p.candidates[p.chosen].max_tau), *promises)
+    return worst
+
+
+def _plans(sc: scenarios.Scenario) -> bool:
+    try:
+        for i in range(len(sc.tasks)):
+            plan_task(sc, i)
+    except PlanningError:
+        return False
+    return True
+
+
+def plannable_world(seed: int, index: int) -> PlannedWorld:
+    """Draw world ``index`` of root ``seed``, redrawing until every task plans.
+
+    Parameters
+    ----------
+    seed : int
+        Root seed (>= 0).
+    index : int
+        The world's number (>= 0).
+
+    Returns
+    -------
+    PlannedWorld
+
+    Raises
+    ------
+    PlanningError
+        ``MAX_ATTEMPTS`` draws in a row did not plan (a defect of the generator).
+    """
+    rng = world_rng(seed, index)
+    name = f"random-{seed}-{index:03d}"
+    source = f"{name}.toml"
+    for attempt in range(1, MAX_ATTEMPTS + 1):
+        drawn = draw_world(rng, name)
+        try:
+            tau = _achievable(drawn.data, source)
+        except PlanningError:
+            continue
+        if not math.isfinite(tau) or tau <= 0.0:
+            continue
+        factor = drawn.eps_factor
+        for _ in range(FACTOR_TRIES):
+            eps = math.ceil(factor * tau * 1e4) / 1e4
+            try:
+                sc = _with_eps(drawn.data, eps, source)
+            except ScenarioError:
+                break
+            if _plans(sc):
+                summary = (*drawn.summary,
+                           f"eps_max {eps * 1000:g} mm = {factor:.3g} x {tau * 1000:.3g} mm, the achievable "
+                           "error (largest tau or fix promise at cruising speed) along the chosen routes")
+                header = [f"# pefsim worlds --seed {seed}: world {index}, drawn from numpy "
+                          f"SeedSequence({seed}, spawn_key=({index},)), draw {attempt} (the ones before "
+                          "did not plan)"] + [f"#   {line}" for line in summary]
+                text = "\n".join(header) + "\n" + tomli_w.dumps(drawn.data)
+                return PlannedWorld(name=name, text=text, scenario=scenarios.loads(text, source=source),
+                                    attempts=attempt, summary=summary)
+            factor *= FACTOR_STEP
+    raise PlanningError(f"world {index} of seed {seed}: no draw planned in {MAX_ATTEMPTS} attempts")

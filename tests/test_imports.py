@@ -1,0 +1,108 @@
+"""The house rules on imports, read statically from the sources with :mod:`ast`.
+
+Every ``import`` counts, also those inside functions or under ``TYPE_CHECKING`` (lazy imports
+are still dependencies): the module graph has no cycle, and no package imports one above it
+(``jit`` < ``scenarios`` < ``estimators`` < ``planner`` < ``sim`` < ``pefsim`` < ``sim.cli``).
+The command line lives in ``sim/cli/`` but is the program on top of the library: a thin layer
+over ``pefsim`` (``docs/design.md`` §2), so it is the one part of ``sim`` above ``pefsim``.
+"""
+
+from __future__ import annotations
+
+import ast
+import itertools
+from pathlib import Path
+
+import networkx as nx
+
+ROOT = Path(__file__).resolve().parents[1]
+LAYERS = ("jit", "scenarios", "estimators", "planner", "sim", "pefsim", "sim.cli")
+"""Lowest first: a package may import only its own modules and those of packages before it."""
+PACKAGES = ("jit", "scenarios", "estimators", "planner", "sim", "pefsim")
+"""The root packages scanned."""
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    found = {}
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")) if (ROOT / package).is_dir() else ():
+            found[_module_name(path)] = path
+    return found
+
+
+def _resolve(name: str, modules: dict[str, Path]) -> str | None:
+    """Return the project module ``name`` refers to (a module, or the package holding a name), else None."""
+    while name:
+        if name in modules:
+            return name
+        name = name.rpartition(".")[0]
+    return None
+
+
+def _imports(module: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """Project modules ``module`` imports anywhere in its body (top level, functions, conditionals)."""
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            # ``from pkg import mod`` imports the submodule pkg.mod when there is one
+            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
+        else:
+            continue
+        for name in names:
+            target = _resolve(name, modules)
+            if target is not None and target != module:
+                out.add(target)
+    return out
+
+
+def _graph() -> nx.DiGraph:
+    modules = _modules()
+    g = nx.DiGraph()
+    g.add_nodes_from(modules)
+    for module, path in modules.items():
+        g.add_edges_from((module, target) for target in _imports(module, path, modules))
+    return g
+
+
+def _layer(module: str) -> int:
+    """Index in :data:`LAYERS` of the innermost layer holding ``module``."""
+    return max(i for i, layer in enumerate(LAYERS) if module == layer or module.startswith(layer + "."))
+
+
+def test_the_scan_sees_lazy_and_relative_imports():
+    g = _graph()
+    assert g.number_of_nodes() > 100
+    assert g.has_edge("pefsim", "planner.placement.placement")  # inside a function
+    assert g.has_edge("sim.cli.map", "pefsim")
+
+
+def test_no_import_cycle():
+    g = _graph()
+    cycles = [sorted(c) for c in itertools.islice(nx.simple_cycles(g), 10)]  # any length
+    assert cycles == [], "import cycles: " + "; ".join(" <-> ".join(c) for c in cycles[:10])
+
+
+def test_no_package_imports_a_higher_one():
+    upward = sorted(f"{a} imports {b}" for a, b in _graph().edges if _layer(b) > _layer(a))
+    assert upward == [], "\n".join(upward)
+
+
+def test_a_negative_control_of_the_scan():
+    g = _graph()
+    g.add_edge("scenarios", "pefsim")  # what the rules forbid must be seen
+    assert not nx.is_directed_acyclic_graph(g)
+    assert _layer("pefsim") > _layer("scenarios") and _layer("sim.cli.map") > _layer("pefsim") > _layer("sim.report")
