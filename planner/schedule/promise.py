@@ -143,8 +143,8 @@ class Level:
     speed: np.ndarray
 
 
-def local_speed(s_v: np.ndarray, speed: np.ndarray, s: np.ndarray, reach: float) -> np.ndarray:
-    """Largest planned vertex speed within ``reach`` of each arc length ``s`` [m/s].
+def local_speed(s_v: np.ndarray, speed: np.ndarray, s: np.ndarray, reach) -> np.ndarray:
+    """Largest planned vertex speed within ``reach`` (float or array like ``s``) of each arc length ``s`` [m/s].
 
     Between vertices the speed changes monotonically (constant acceleration), so the largest
     over a stretch is that of the vertices bracketing it.
@@ -165,6 +165,19 @@ def local_speed(s_v: np.ndarray, speed: np.ndarray, s: np.ndarray, reach: float)
         m = lvl == q
         out[m] = np.maximum(table[q][lo[m]], table[q][hi[m] - 2 ** q + 1])
     return out
+
+
+def speed_reach(s_v: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Arc length around a planned point whose planned speeds bound the robot's there [m].
+
+    The follower commands the planned speed of the path vertex nearest its estimate
+    (:mod:`sim.episode.follower`), which is within ``off`` (estimate error plus tracking bound)
+    of the true position, so within ``off`` plus one vertex spacing along the path; it changes
+    its speed at most at :data:`FOLLOWER_MAX_ACCEL`, the rate the planned profile is limited to
+    (:func:`planner.routes.smoothing.acceleration_limited`), so it keeps to the profile up to
+    one control period (``FOLLOWER_MAX_ACCEL START_LAG``, added by the caller).
+    """
+    return np.asarray(off, dtype=float) + float(np.max(np.diff(s_v), initial=0.0))
 
 
 def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -234,7 +247,7 @@ def chord_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarr
 
 
 def pose_bound(scenario: Scenario, path: np.ndarray, s_v: np.ndarray, speed: np.ndarray,
-               s_m: np.ndarray, still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               s_m: np.ndarray, estimate, still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Bounds on a fix's true measurement positions and carried travel (module docstring).
 
     Parameters
@@ -244,6 +257,9 @@ def pose_bound(scenario: Scenario, path: np.ndarray, s_v: np.ndarray, speed: np.
         Path vertices [m], their arc length [m] and planned speeds [m/s].
     s_m : ndarray, shape (F, k)
         Planned arc length of each measurement [m].
+    estimate : float or ndarray, shape (F,)
+        Bound on the estimate's error while each fix is taken [m] (module docstring, "Derived
+        promise": what the plan certifies there).
     still : ndarray of bool, shape (F,), optional
         Fixes taken at standstill (on the dock before departure): no tracking, lag or travel.
 
@@ -257,12 +273,11 @@ def pose_bound(scenario: Scenario, path: np.ndarray, s_v: np.ndarray, speed: np.
     s_m = np.asarray(s_m, dtype=float)
     k = s_m.shape[-1]
     mt = scenario.sensor.measurement_time
-    spacing = float(np.max(np.diff(s_v), initial=0.0))
-    reach = LOOKAHEAD_MIN + LOOKAHEAD_GAIN * float(np.max(speed, initial=0.0)) + spacing
-    v = local_speed(s_v, speed, s_m, reach)
+    est = np.broadcast_to(np.asarray(estimate, dtype=float), s_m.shape[:-1])[..., None]
+    track = tracking_bound(path, s_v, speed, s_m)
+    v = local_speed(s_v, speed, s_m, speed_reach(s_v, est + track)) + FOLLOWER_MAX_ACCEL * START_LAG
     t_rel = mt * np.arange(1, k + 1)
-    delta = (tracking_bound(path, s_v, speed, s_m) + scenario.planning.eps_max + v * START_LAG
-             + 0.5 * FOLLOWER_MAX_ACCEL * t_rel**2)
+    delta = track + est + v * START_LAG + 0.5 * FOLLOWER_MAX_ACCEL * t_rel**2
     travel = np.max(v, axis=-1, keepdims=True) * mt * (k - 1 - np.arange(k))
     if still is not None:
         delta[still] = scenario.planning.eps_max
@@ -297,7 +312,8 @@ def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: np.n
     return tau, flip
 
 
-def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray, k: int) -> list[Level]:
+def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray, k: int,
+           estimate) -> list[Level]:
     """Promises of every candidate fix at each speed level (module docstring).
 
     Parameters
@@ -313,6 +329,8 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
         Static PEF of each subset over each fix's stretch [m]: inf where not visible.
     k : int
         Markers per fix.
+    estimate : float or ndarray, shape (n,)
+        Bound on the estimate's error while a fix started at each sample is taken [m].
 
     Returns
     -------
@@ -331,7 +349,8 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
     still[0] = True  # the standstill fix before departure
     s_m = tr.kin.s_at(tr.t_start[:, None] + mt * np.arange(1, k + 1))
     s_m[0] = 0.0
-    delta, travel = pose_bound(scenario, path, s_path, tr.kin.v, s_m, still)
+    est = np.broadcast_to(np.asarray(estimate, dtype=float), (n,))
+    delta, travel = pose_bound(scenario, path, s_path, tr.kin.v, s_m, est, still)
     tau, flip = _parallelogram(scenario, markers, subsets, tr.xy_m, delta, travel, visible)
     out.append(Level(tau, flip, np.full(n, np.nan)))
     v_plan = np.diff(tr.kin.s_at(tr.t_start[:, None] + np.array([0.0, k * mt])), axis=1)[:, 0] / (k * mt)
@@ -345,22 +364,22 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
         s_m = tr.s[:, None] + v[:, None] * mt * np.arange(1, k + 1)[None, :]
         at = np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1)
         # the speed profile a slowed fix will get: capped at v over its stretch (slowed_speeds)
-        delta, travel = _slowed_bound(scenario, path, s_path, s_m, v)
+        delta, travel = _slowed_bound(scenario, path, s_path, s_m, v, est)
         tau, flip = _parallelogram(scenario, markers, subsets, at, delta, travel, visible & slower[None, :])
         out.append(Level(tau, flip, np.where(slower, v, np.nan)))
     return out
 
 
-def _slowed_bound(scenario, path, s_path, s_m, v):
+def _slowed_bound(scenario, path, s_path, s_m, v, estimate):
     """:func:`pose_bound` of fixes driven at no more than ``v`` (n,) over their stretch (``slowed_speeds``)."""
     k = s_m.shape[1]
     mt = scenario.sensor.measurement_time
     t_rel = mt * np.arange(1, k + 1)
     spacing = float(np.max(np.diff(s_path), initial=0.0))
     look = np.maximum(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * v) + spacing
-    delta = (settle_bound(path, s_path, s_m, look[:, None] * np.ones((1, k))) + scenario.planning.eps_max
-             + v[:, None] * START_LAG + 0.5 * FOLLOWER_MAX_ACCEL * t_rel**2)
-    travel = v[:, None] * mt * (k - 1 - np.arange(k))[None, :]
+    delta = (settle_bound(path, s_path, s_m, look[:, None] * np.ones((1, k))) + estimate[:, None]
+             + (v[:, None] + FOLLOWER_MAX_ACCEL * START_LAG) * START_LAG + 0.5 * FOLLOWER_MAX_ACCEL * t_rel**2)
+    travel = (v[:, None] + FOLLOWER_MAX_ACCEL * START_LAG) * mt * (k - 1 - np.arange(k))[None, :]
     return delta, travel
 
 
@@ -393,7 +412,7 @@ def slowed_speeds(s_v: np.ndarray, speed: np.ndarray, slow: list[tuple[float, fl
 
 
 def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.ndarray,
-            subsets: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray, Kinematics]:
+            subsets: list[tuple[int, ...]], estimate) -> tuple[np.ndarray, np.ndarray, Kinematics]:
     """Promise of each chosen fix at the final speed profile (module docstring, "Derived promise").
 
     Parameters
@@ -407,6 +426,9 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
         Arc length where each fix starts [m]; a fix at 0 is taken at standstill.
     subsets : list of tuple of int
         Each fix's markers in measurement order.
+    estimate : float or ndarray, shape (F,)
+        Bound on the estimate's error while each fix is taken [m]: what the plan certifies there
+        (:func:`planner.schedule.schedule.make_schedule` computes it along the schedule).
 
     Returns
     -------
@@ -435,7 +457,8 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
     poses = np.stack([np.interp(s_m, s_v, path[:, 0]), np.interp(s_m, s_v, path[:, 1])], axis=-1)
     if len(starts) == 0 or k == 0:
         return np.full(len(starts), np.inf), poses, kin
-    delta, travel = pose_bound(scenario, path, s_v, speed, s_m, still)
+    est = np.broadcast_to(np.asarray(estimate, dtype=float), starts.shape)
+    delta, travel = pose_bound(scenario, path, s_v, speed, s_m, est, still)
     pred = _bounded(scenario, markers[np.asarray(subsets)], poses, delta, travel)
     return pred, poses, kin
 

@@ -57,6 +57,11 @@ from planner.schedule.search import StretchError, Windows, search
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
+ESTIMATE_ROUNDS = 4
+"""Rounds of computing the promises from the estimate errors the plan certifies and those from the
+promises (:func:`certified_estimate`), until every fix's is at least what the plan certifies;
+if they do not settle, every fix keeps ``eps_max`` (the search's bound)."""
+
 
 @dataclass(frozen=True)
 class ScheduledFix:
@@ -285,7 +290,7 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         both = np.vstack([tr.xy, tr.xy_c])
         tau = np.asarray(pef.tau_subset(both, np.asarray(subsets)), dtype=float)
     tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
-    lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
+    lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
           else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
     limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
 
@@ -299,11 +304,26 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         chosen, level = search(pl, taus, limit, k, policy, switch_tolerance)
     starts = np.array([j for j, _, _ in chosen])
     fix_level = level[starts].copy()
-    pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k)
     # a fallback's area is in force until the next fix completes, as the fix's own
     margin = np.array([pl.err_at_completion(starts[i], 0.0, starts[i + 1]) for i in range(len(starts) - 1)]
                       + [pl.err_at_end(starts[-1], 0.0)])
-    fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin)
+    # The search scored every candidate with eps_max as the estimate's error (what the windows
+    # keep every error under), so these promises bound the final ones; then each fix gets the
+    # error the plan certifies where it is taken (promise.py, "Derived promise").
+    est = np.full(len(starts), eps)
+    for _ in range(ESTIMATE_ROUNDS):
+        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
+                                                 est)
+        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
+        cert = certified_estimate(pl, starts, pred, fb, fb_tau, scenario.planning.redundancy > 0)
+        if np.all(cert <= est):
+            break
+        est = cert if cert.max() < eps else np.maximum(est, cert)
+    else:
+        est = np.full(len(starts), eps)  # not settled: the search's bound, which holds whatever the chain
+        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
+                                                 est)
+        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
     if scenario.planning.redundancy > 0:
         holes = [i for i in range(len(starts))
                  if not all(fb[i]) and not _covered_without(pl, starts, pred, fb, fb_tau, i)]
@@ -346,6 +366,33 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                     worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
 
 
+def certified_estimate(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list, fb_tau: list,
+                       redundant: bool) -> np.ndarray:
+    """Bound on the estimate's error while each fix is taken, as the plan certifies it [m], shape (F,).
+
+    The error the fix before leaves until this fix completes: its promise, or the largest of its
+    fallbacks' (a blocked line of sight makes the robot take one), plus the drift since it
+    started (:meth:`Windows.err_at_completion`). With redundancy, the fix before may also be
+    lost altogether where it has no fallback for some marker; the one before it then stays in
+    force (:func:`_covered_without`; the calibrated dock, promise 0, before the first). The
+    first fix is taken at standstill on the dock: ``eps_max`` (:func:`planner.schedule.promise.pose_bound`
+    does not use it there).
+
+    This bounds the estimate's error by induction along the schedule: it holds when the fixes
+    before kept their promises and the drift bound held.
+    """
+    n = len(starts)
+    out = np.full(n, pl.eps)
+    weakest = [max([float(pred[i]), *[t for t in fb_tau[i] if math.isfinite(t)]]) for i in range(n)]
+    for i in range(1, n):
+        e = pl.err_at_completion(starts[i - 1], weakest[i - 1], starts[i])
+        if redundant and not all(fb[i - 1]):
+            j, tau = (starts[i - 2], weakest[i - 2]) if i >= 2 else (0, 0.0)
+            e = max(e, pl.err_at_completion(j, tau, starts[i]))
+        out[i] = e
+    return out
+
+
 def _covered_without(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list, fb_tau: list, i: int) -> bool:
     """Whether the plan keeps the error under eps_max with fix ``i`` not taken at all.
 
@@ -369,7 +416,7 @@ def _fix_speeds(kin, s0: np.ndarray, k: int, mt: float) -> np.ndarray:
     return speed
 
 
-def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
+def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k, estimate):
     """Slow the chosen fixes down until each exact promise is under ``limit``.
 
     The search scores fixes with the construction's parallelogram; the exact promise
@@ -385,9 +432,13 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
         for i, (j, _, _) in enumerate(chosen):
             if fix_level[i] > 0:
                 vf = float(lv[fix_level[i]].speed[j])
-                slow.append((float(tr.s[j]), float(tr.s[j]) + vf * k * mt * 1.01, vf))
+                a, b = float(tr.s[j]), float(tr.s[j]) + vf * k * mt * 1.01
+                # the robot's speed follows the planned one near its estimate (promise.speed_reach)
+                off = float(np.max(estimate)) + float(np.max(promise.tracking_bound(path, s_v, v, np.array([a, b]))))
+                reach = float(promise.speed_reach(s_v, off))
+                slow.append((a - reach, b + reach, vf))
         v_new = promise.slowed_speeds(s_v, v, slow)
-        pred, poses, kin = promise.predict(scenario, path, v_new, tr.s[[j for j, _, _ in chosen]], order)
+        pred, poses, kin = promise.predict(scenario, path, v_new, tr.s[[j for j, _, _ in chosen]], order, estimate)
         bad = np.flatnonzero(~(pred < limit))
         if len(bad) == 0:
             return pred, poses, kin, v_new, order
