@@ -49,16 +49,27 @@ Derived promise (issue 23)
       tracking bound is the part of this list that is argued from the follower's geometry and
       checked on it, not proved (a closed-loop simulation of the follower in the planner would
       replace it);
-    - the estimate's error the follower steers by, and that decides when a fix starts: the plan
-      keeps the certified error (promise plus drift) under ``eps_max``, so ``eps_max``;
+    - the estimate's error the follower steers by, and that decides when a fix starts: the
+      error the plan itself certifies while the fix is taken, i.e. the previous fix's promise
+      (the largest of its fallbacks' where it has any; with redundancy also the fix before it,
+      when the previous one may be lost) plus the drift bound from its start until this fix
+      completes (:func:`planner.schedule.schedule.certified_estimate`). The schedule's search
+      scores candidates with ``eps_max`` (every certified error is under it), then recomputes
+      the chosen fixes' promises with the certified errors until each is at least what the
+      promises before it certify (a post-fixed point: the promises only shrink);
     - the start lag: a fix starts at the first control tick past its planned start, and each
       range at the physics step it falls due, up to :data:`START_LAG` late, at the planned speed
-      (the follower never commands more than the path's vertex speed near ``s``);
+      near the robot (:func:`speed_reach`: the follower commands the planned speed of the vertex
+      nearest its estimate, and keeps to the acceleration-limited profile);
     - the speed: within a fix (``k measurement_time``, tens of ms) the follower changes its
       speed at most at :data:`FOLLOWER_MAX_ACCEL`: ``FOLLOWER_MAX_ACCEL t^2 / 2`` along the path.
 
     The dead-reckoned travel over which an earlier range is carried is bounded by that speed
-    times the time. Assumptions: the filter's heading std at a fix is no larger than
+    times the time. Assumptions: the estimate's error while a fix is taken is within what the
+    plan certifies there, which holds by induction along the schedule when the fixes before
+    kept their promises, the filter's estimate lay in the realised area (as the plan's
+    predicted error ``promise + drift`` assumes) and the drift bound held (the calibrated dock
+    starts the induction); the filter's heading std at a fix is no larger than
     ``planning.heading_std_deg`` (a larger one is a broken promise the check reports), noise
     within its declared bound, the follower :mod:`sim.episode.follower` with this module's
     lookahead and acceleration (it reads them from here).

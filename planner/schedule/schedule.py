@@ -81,9 +81,9 @@ class ScheduledFix:
     switch : bool
         The subset differs from the previous fix's (always False for the first fix).
     predicted_tau : float
-        The fix's promise: fault-area diameter of the moving fix the robot makes, its ranges
-        measured one after another at ``poses`` and carried to the last one by odometry
-        (:mod:`planner.schedule.promise`) [m].
+        The fix's promise: a bound on the fault-area diameter of the moving fix the robot makes,
+        its ranges measured one after another near ``poses`` and carried to the last one by
+        odometry, over every pose the robot may take (:mod:`planner.schedule.promise`) [m].
     speed : float
         Mean planned speed over the fix [m/s] (0 for the standstill fix before departure).
     slowed : bool
@@ -96,6 +96,9 @@ class ScheduledFix:
         measurement order (:mod:`planner.schedule.fallback`); () when there is none.
     fallback_tau : tuple of float
         The promise of each fallback [m] (inf where there is none).
+    estimate : float
+        Bound on the estimate's error while the fix is taken, which its promises assume: what
+        the plan certifies there (:func:`certified_estimate`) [m].
     """
 
     s: float
@@ -109,6 +112,7 @@ class ScheduledFix:
     poses: tuple[tuple[float, float], ...] = ()
     fallbacks: tuple[tuple[int, ...], ...] = ()
     fallback_tau: tuple[float, ...] = ()
+    estimate: float = math.nan
 
 
 @dataclass(frozen=True, eq=False)
@@ -311,14 +315,14 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     # keep every error under), so these promises bound the final ones; then each fix gets the
     # error the plan certifies where it is taken (promise.py, "Derived promise").
     est = np.full(len(starts), eps)
-    for _ in range(ESTIMATE_ROUNDS):
+    for r in range(ESTIMATE_ROUNDS):
         pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
                                                  est)
         fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
         cert = certified_estimate(pl, starts, pred, fb, fb_tau, scenario.planning.redundancy > 0)
-        if np.all(cert <= est):
-            break
-        est = cert if cert.max() < eps else np.maximum(est, cert)
+        if r > 0 and np.all(cert <= est):
+            break  # every promise assumes at least what the promises before it certify
+        est = cert if np.all(cert[1:] < eps) else np.maximum(est, cert)  # cert[0]: the dock's fix, eps_max
     else:
         est = np.full(len(starts), eps)  # not settled: the search's bound, which holds whatever the chain
         pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
@@ -347,7 +351,7 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                      markers=order[i], tau=float(tau_s[c, j]), switch=i > 0 and c != chosen[i - 1][1],
                      predicted_tau=float(pred[i]), speed=float(fix_speed[i]),
                      slowed=bool(fix_level[i] > 0), poses=tuple(tuple(map(float, q)) for q in poses[i]),
-                     fallbacks=fb[i], fallback_tau=fb_tau[i])
+                     fallbacks=fb[i], fallback_tau=fb_tau[i], estimate=float(est[i]))
         for i, (j, c, _) in enumerate(chosen))
     completes = tr.c[starts]
     active = np.maximum(np.searchsorted(completes, tr.s, side="left") - 1, 0)

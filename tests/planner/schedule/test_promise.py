@@ -210,7 +210,7 @@ def test_the_promise_holds_for_a_start_up_to_a_control_tick_late():
     path = np.array([[16.0, 11.0], [12.0, 11.0]])
     speed = np.full(2, 1.0)
     start, mt = 1.7, sc.sensor.measurement_time
-    pred, poses, _ = predict(sc, path, speed, np.array([0.0, start]), [pair, pair])
+    pred, poses, _ = predict(sc, path, speed, np.array([0.0, start]), [pair, pair], 0.0)
     np.testing.assert_allclose(poses[1], [[16.0 - start - mt, 11.0], [16.0 - start - 2 * mt, 11.0]], atol=1e-9)
     assert np.all(poses[0] == path[0])  # the standstill fix at s = 0 does not move
 

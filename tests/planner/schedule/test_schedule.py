@@ -13,7 +13,7 @@ import scenarios
 from estimators.fault.carried import promised_fault_area
 from planner.pef.map import PEF
 from planner.schedule.drift import drift_bound
-from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
+from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG, predict
 from planner.schedule.schedule import Schedule, make_schedule
 from scenarios.errors import PlanningError
 
@@ -123,10 +123,18 @@ def independent_check(sc, pef, path, speed, sched: Schedule):
         end = comp[i + 1] if i + 1 < len(fixes) else s_v[-1]
         s = np.append(np.arange(comp[i], end, FINE), end)
         turned = turned_between(path, f.s, s)
-        err = tau + drift_bound(sc.robot, s - f.s, turned)
+        err = f.predicted_tau + drift_bound(sc.robot, s - f.s, turned)  # the promise (>= tau) is what holds
         worst = max(worst, float(err.max()))
         if i > 0:
             assert f.switch == (set(f.markers) != set(fixes[i - 1].markers))
+            # the estimate's error the promise assumes covers what the fix before certifies
+            # until this one completes (its weakest promise plus the drift since it started)
+            prev = fixes[i - 1]
+            weakest = max([prev.predicted_tau, *[t for t in prev.fallback_tau if math.isfinite(t)]])
+            cert = weakest + float(drift_bound(sc.robot, np.array([comp[i] - prev.s]),
+                                               turned_between(path, prev.s, np.array([comp[i]])))[0])
+            assert f.estimate >= cert * (1 - 1e-9), f"fix {i}: estimate {f.estimate} below the certified {cert}"
+            assert f.estimate < sc.planning.eps_max
     return worst
 
 
@@ -144,6 +152,23 @@ def test_schedule_keeps_error_under_eps(warehouse, policy):
     # the schedule's own worst is the same quantity, sampled more coarsely
     assert sched.worst == pytest.approx(worst, rel=0.02)
     assert all(0 <= m < len(sc.markers) for f in sched.fixes for m in f.markers)
+
+
+def test_promises_assume_the_estimate_error_the_plan_certifies(warehouse):
+    """Each promise is the bound at the fix's certified estimate error: below the one at eps_max."""
+    sc, pef = warehouse
+    path = dense(route(sc, ["A", "C", "e1", "e2", "B"]))
+    sched = make_schedule(sc, pef, path)
+    fixes = sched.fixes
+    starts = np.array([f.s for f in fixes])
+    subsets = [f.markers for f in fixes]
+    est = np.array([f.estimate for f in fixes])
+    assert np.all(np.isfinite(est)) and np.all(est[1:] < sc.planning.eps_max)
+    again, _, _ = predict(sc, path, sched.speed, starts, subsets, est)
+    np.testing.assert_allclose(again, [f.predicted_tau for f in fixes], rtol=1e-12)
+    # negative control: eps_max as every fix's estimate error (the previous construction) promises more
+    at_eps, _, _ = predict(sc, path, sched.speed, starts, subsets, sc.planning.eps_max)
+    assert np.all(at_eps[1:] > again[1:])
 
 
 def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(warehouse):
