@@ -106,3 +106,22 @@ def test_a_negative_control_of_the_scan():
     g.add_edge("scenarios", "pefsim")  # what the rules forbid must be seen
     assert not nx.is_directed_acyclic_graph(g)
     assert _layer("pefsim") > _layer("scenarios") and _layer("sim.cli.map") > _layer("pefsim") > _layer("sim.report")
+
+
+def _test_module_imports(text: str) -> list[str]:
+    """Names of test modules (``test_*``) that ``text`` imports from."""
+    found = []
+    for node in ast.walk(ast.parse(text)):
+        names = ([node.module or ""] if isinstance(node, ast.ImportFrom)
+                 else [a.name for a in node.names] if isinstance(node, ast.Import) else [])
+        found += [n for n in names if n.split(".")[-1].startswith("test_")]
+    return found
+
+
+def test_test_modules_share_helpers_not_each_other():
+    """Helpers shared by tests live in conftest.py or helper modules, never in another test module."""
+    offenders = {str(p.relative_to(ROOT)): names for p in sorted((ROOT / "tests").rglob("test_*.py"))
+                 if (names := _test_module_imports(p.read_text()))}
+    assert not offenders, offenders
+    assert _test_module_imports("from tests.sim.test_random_worlds import over_promise") == [
+        "tests.sim.test_random_worlds"]  # the scan sees what it forbids

@@ -2,14 +2,14 @@
 
 For the marker in slot q of a fix's subset, the fallback is the candidate subset without that
 marker whose static PEF over the fix's stretch is lowest (the best subset without it, as in
-:attr:`planner.pef.result.PefResult.fallback`); its promise is the moving fix's fault area of that
-subset at the same start and speed (:func:`planner.schedule.promise.predict`). A fix whose
+:attr:`planner.pef.result.PefResult.fallback`); its promise is the bound on the moving fix's fault
+area of that subset at the same start and speed (:func:`planner.schedule.promise.predict`). A fix whose
 marker has no fallback (no other visible subset, or none whose promise passes the test of a
 scheduled fix) names an empty one: with that marker blocked the robot improvises with the best
 visible subset (beyond what the plan promises) or, with fewer than k visible, dead-reckons on.
 
 A fallback passes the test of a scheduled fix: its promise is under ``eps_max / (1 +
-PROMISE_TOLERANCE)``, and its promise plus the drift until the next fix completes (``margin``;
+POLYGON_TOLERANCE)``, and its promise plus the drift until the next fix completes (``margin``;
 the fallback's area stays in force that long) is under ``eps_max``. Without the second part a
 fallback could promise 29 mm and leave the robot at 33 mm before the next fix (``warehouse-
 reflectors``, 19 of 405 fallbacks): the plan's redundancy would not hold for a moving robot.
@@ -31,7 +31,7 @@ CANDIDATES = 4
 
 def fallbacks(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.ndarray,
               orders: list[tuple[int, ...]], subsets: list[tuple[int, ...]], tau_s: np.ndarray,
-              start_idx: np.ndarray, margin: np.ndarray | None = None,
+              start_idx: np.ndarray, margin: np.ndarray | None = None, estimate=None,
               ) -> tuple[list[tuple[tuple[int, ...], ...]], list[tuple[float, ...]]]:
     """Fallback subset and its promise for every marker of every fix.
 
@@ -55,6 +55,9 @@ def fallbacks(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: n
     margin : ndarray, shape (F,), optional
         Drift bound from each fix's start until the next fix completes (the end of the path
         for the last) [m]; None: 0.
+    estimate : float or ndarray, shape (F,), optional
+        Bound on the estimate's error while each fix is taken [m], as for the fix itself
+        (:func:`planner.schedule.promise.predict`); None: ``eps_max``.
 
     Returns
     -------
@@ -67,7 +70,8 @@ def fallbacks(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: n
     n_fix = len(orders)
     margin = np.zeros(n_fix) if margin is None else np.asarray(margin, dtype=float).reshape(n_fix)
     eps = scenario.planning.eps_max
-    limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
+    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
+    est = np.broadcast_to(np.asarray(eps if estimate is None else estimate, dtype=float), (n_fix,))
     subs = [[() for _ in range(k)] for _ in orders]
     taus = [[math.inf] * k for _ in orders]
     if not orders:
@@ -92,7 +96,8 @@ def fallbacks(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: n
         if not tries:
             break
         cand = [tuple(int(x) for x in subsets[rank[q][0][i, r]]) for i, q in tries]
-        pred, _, _ = promise.predict(scenario, path, speed, np.asarray(starts, float)[[i for i, _ in tries]], cand)
+        rows = [i for i, _ in tries]
+        pred, _, _ = promise.predict(scenario, path, speed, np.asarray(starts, float)[rows], cand, est[rows])
         pending = []
         for (i, q), sub, p in zip(tries, cand, pred, strict=True):
             if p < limit and p + margin[i] < eps:

@@ -3,37 +3,89 @@
 A fix started at arc length ``s_j`` measures its k markers one after another, the m-th
 ``(m + 1) * measurement_time`` after the start, while the robot drives on; the earlier ranges
 are carried to the last one by odometry (:mod:`estimators.fault.carried`). The fix's promise,
-``predicted_tau``, is the diameter of the fault area of that construction on noise-free
-ranges at the planned positions: :func:`estimators.fault.carried.promised_fault_area`, the code the
-simulation uses for the realised fault area.
+``predicted_tau``, bounds the diameter of the fault area the simulation realises for that
+construction (:func:`estimators.fault.carried.promised_fault_area`'s, from measured ranges at the
+true positions), over every true pose the robot may take (below, "Derived promise").
 
-The schedule searches over thousands of candidate starts, so it scores them with the
-construction's parallelogram (:func:`estimators.fault.carried.promised_parallelogram_best`, k = 2;
-for other k the static PEF of the stretch), and :func:`predict` then computes the exact
-promise of the fixes it chose.
+The schedule searches over thousands of candidate starts with the same bound (k = 2, both
+measurement orders; for other k the static PEF of the stretch), and :func:`predict` computes
+it for the fixes it chose (for every k).
+
+Not covered here: a fix that lost a marker mid-fix is promised by ``sim.episode.fixes`` the
+construction of the markers it did measure at the planned poses, without this bound (only with
+``sensor.block_probability``; issue 23 item 3 is reworking those fixes).
 
 Slowing down for a fix
     The shift of an earlier range grows with speed, so a fix that breaks its promise at
     cruising speed may keep it slower. :data:`SPEED_LEVELS` are the speeds tried (fractions of
     the planned speed, then ``planning.min_fix_speed``); :func:`slowed_speeds` caps the path's
     vertex speeds over the fix's stretch and lets the robot brake and speed up again at the
-    planner's acceleration limit. A fix that breaks its promise even at the minimum speed is
+    planner's acceleration limit. Slower, the follower's lookahead (its corner cut), the start
+    lag and the carried travel shrink too, so a corner that makes the promise too large at
+    cruising speed is taken slower. A fix that breaks its promise even at the minimum speed is
     not usable.
 
-Promise tolerance
-    The realised area differs from the promise through noise (the annuli move by the range
-    errors, the arcs' curvature changes the corners) and the robot being a little off its
-    planned pose and speed: :data:`PROMISE_TOLERANCE` (2 %). A fix is usable when its promise,
-    times ``1 + PROMISE_TOLERANCE``, is under ``eps_max``, so that the realised area is too.
+Derived promise (issue 23)
+    The robot does not measure at the planned poses: it drives on its *estimate* with a
+    pure-pursuit follower and starts a fix when the estimate passes the planned start. The
+    promise is therefore a bound on the realised fault area over every fix whose true
+    measurement positions lie within ``Δ_i`` of the planned ones
+    (:func:`estimators.fault.perturbed.perturbed_diameters`: the marker directions turn by at
+    most ``asin((Δ_i + shift bound) / r_i)``, the bands widen by ``Re Δ_i``, the annuli's curvature
+    over the area is bounded by its sagitta, and the parallelogram, or for k > 2 the strip
+    polygon, is taken at its worst). :func:`pose_bound` states ``Δ_i`` as the sum of
+
+    - the follower's tracking error on the path, :func:`tracking_bound`: pure pursuit steers
+      towards the path point one lookahead ``L = max(LOOKAHEAD_MIN, LOOKAHEAD_GAIN v)`` (plus one
+      vertex spacing) ahead, so it drives on the chords of the path of arc length ``L``: its
+      distance from the path is taken as the largest distance of ``path(s)`` from a chord of
+      arc length ``L`` over it (0 on a straight; in a corner it grows with the heading change
+      within ``L``, so the heading change of a fix taken in a corner enters here). Leaving a
+      corner it swings wide and settles back over a few lookaheads (its yaw rate and yaw
+      acceleration are limited), by no more than it cut the turn: the bound at ``s`` is the
+      largest chord bound over the :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``.
+      That factor is measured on the follower (corridor world: 9.5 cm wide at a 90 deg corner,
+      back within 1.5 cm 2.5 m later, every fix's true offset at most 0.46 of its bound): the
+      tracking bound is the part of this list that is argued from the follower's geometry and
+      checked on it, not proved (a closed-loop simulation of the follower in the planner would
+      replace it);
+    - the estimate's error the follower steers by, and that decides when a fix starts: the
+      error the plan itself certifies while the fix is taken, i.e. the previous fix's promise
+      (the largest of its fallbacks' where it has any; with redundancy also the fix before it,
+      when the previous one may be lost) plus the drift bound from its start until this fix
+      completes (:func:`planner.schedule.schedule.certified_estimate`). The schedule's search
+      scores candidates with ``eps_max`` (every certified error is under it), then recomputes
+      the chosen fixes' promises with the certified errors until each is at least what the
+      promises before it certify (a post-fixed point: the promises only shrink);
+    - the start lag: a fix starts at the first control tick past its planned start, and each
+      range at the physics step it falls due, up to :data:`START_LAG` late, at the planned speed
+      near the robot (:func:`speed_reach`: the follower commands the planned speed of the vertex
+      nearest its estimate, and keeps to the acceleration-limited profile);
+    - the speed: within a fix (``k measurement_time``, tens of ms) the follower changes its
+      speed at most at :data:`FOLLOWER_MAX_ACCEL`: ``FOLLOWER_MAX_ACCEL t^2 / 2`` along the path.
+
+    The dead-reckoned travel over which an earlier range is carried is bounded by that speed
+    times the time. Assumptions: the estimate's error while a fix is taken is within what the
+    plan certifies there, which holds by induction along the schedule when the fixes before
+    kept their promises, the filter's estimate lay in the realised area (as the plan's
+    predicted error ``promise + drift`` assumes) and the drift bound held (the calibrated dock
+    starts the induction); the filter's heading std at a fix is no larger than
+    ``planning.heading_std_deg`` (a larger one is a broken promise the check reports), noise
+    within its declared bound, the follower :mod:`sim.episode.follower` with this module's
+    lookahead and acceleration (it reads them from here).
+
+Polygon tolerance
+    The simulation's fault area is a polygon reaching up to ``tol = DEFAULT_TOLERANCE_FRACTION
+    min(rho)`` beyond the exact arcs (:mod:`estimators.fault.exact`), so its diameter up to
+    ``2 tol`` beyond the exact one. Every strip of the bound's polygon holds the disc of radius
+    ``min(h) >= min(rho)``, so the promise ``d >= 2 min(rho)`` and ``2 tol <= f d``:
+    :data:`POLYGON_TOLERANCE` ``= f = DEFAULT_TOLERANCE_FRACTION``. A fix is usable when its
+    promise times ``1 + POLYGON_TOLERANCE`` is under ``eps_max``; nothing else is tolerated.
 
 Start lag
     The robot starts a fix at its first control tick past the planned start, and takes each
-    range at the first physics step it falls due: up to :data:`START_LAG` later than planned.
-    Where the promise changes fast along the path (two markers a metre away on either side:
-    the angle between them changes by degrees per centimetre), those 2 cm of travel move the
-    realised area by more than the tolerance (a fallback fix of ``warehouse-reflectors``
-    realised 1.037x its promise at the planned poses). :func:`predict` therefore promises the
-    largest fault area over starts :data:`START_LAGS` after the planned one.
+    range at the first physics step it falls due: up to :data:`START_LAG` later than planned
+    (``sim.episode.drive`` checks its own control and physics periods against it).
 
 Bearings
     The promise counts ranges only. A fix that also measures bearings realises the same
@@ -54,9 +106,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.fault.carried import promised_diameters, promised_parallelogram_best
-from planner.routes.smoothing import acceleration_limited
-from planner.schedule.pathtime import Kinematics, Track, positions_at
+from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
+from estimators.fault.perturbed import perturbed_diameters
+from planner.routes.smoothing import MAX_ACCEL, acceleration_limited
+from planner.schedule.pathtime import Kinematics, Track
 from scenarios.schema import Scenario
 
 SPEED_LEVELS = (1.0, 0.5, 0.25)
@@ -64,13 +117,22 @@ SPEED_LEVELS = (1.0, 0.5, 0.25)
 MAX_SUBSETS = 400
 """Above this many k-subsets of path-visible markers, only the PEF's pointwise-best subsets
 along the path are considered (cost: one ``tau_subset`` call per subset)."""
-PROMISE_TOLERANCE = 0.02
-"""Relative excess of a realised fault-area diameter over its promise the validation allows."""
+POLYGON_TOLERANCE = DEFAULT_TOLERANCE_FRACTION
+"""Relative excess of a realised (polygonised) fault-area diameter over its promise: the
+polygon's reach beyond the exact arcs (module docstring, "Polygon tolerance")."""
+LOOKAHEAD_MIN = 0.3
+"""The path follower's shortest lookahead [m] (``sim.episode.follower.PurePursuit`` reads it)."""
+LOOKAHEAD_GAIN = 0.8
+"""The path follower's lookahead per speed [s]."""
+SETTLE_LOOKAHEADS = 3.0
+"""Length, in lookaheads, over which the follower settles back onto the path after a turn: it
+leaves a 90 deg corner of the corridor world (lookahead 0.8 m + 0.1 m vertex spacing) 9.5 cm
+wide and is back within 1.5 cm 2.5 m later. Measured on the follower, not derived (below)."""
+FOLLOWER_MAX_ACCEL = MAX_ACCEL
+"""The path follower's limit on the change of its speed [m/s^2] (the planner's own)."""
 START_LAG = 1.0 / 48.0
 """Latest a fix may start after its planned time [s]: one control period and one physics step
 (the simulation's 60 Hz control at 240 Hz physics; ``sim.episode.drive`` checks its own)."""
-START_LAGS = (0.0, 0.5 * START_LAG, START_LAG)
-"""Start delays [s] over which :func:`predict` takes the largest promise."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,27 +154,177 @@ class Level:
     speed: np.ndarray
 
 
-def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: list[np.ndarray],
-                   where: np.ndarray) -> tuple:
+def local_speed(s_v: np.ndarray, speed: np.ndarray, s: np.ndarray, reach) -> np.ndarray:
+    """Largest planned vertex speed within ``reach`` (float or array like ``s``) of each arc length ``s`` [m/s].
+
+    Between vertices the speed changes monotonically (constant acceleration), so the largest
+    over a stretch is that of the vertices bracketing it.
+    """
+    s = np.asarray(s, dtype=float)
+    v = np.asarray(speed, dtype=float)
+    lo = np.clip(np.searchsorted(s_v, s - reach, side="right") - 1, 0, len(v) - 1)
+    hi = np.clip(np.searchsorted(s_v, s + reach, side="left"), 0, len(v) - 1)
+    # sparse table of running maxima: O(N log N) once, O(1) per query
+    table = [v]
+    while 2 ** len(table) <= len(v):
+        w = 2 ** (len(table) - 1)
+        table.append(np.maximum(table[-1][:-w], table[-1][w:]))
+    n = hi - lo + 1
+    lvl = np.floor(np.log2(np.maximum(n, 1))).astype(np.int64)
+    out = np.empty(s.shape)
+    for q in np.unique(lvl).tolist():
+        m = lvl == q
+        out[m] = np.maximum(table[q][lo[m]], table[q][hi[m] - 2 ** q + 1])
+    return out
+
+
+def speed_reach(s_v: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Arc length around a planned point whose planned speeds bound the robot's there [m].
+
+    The follower commands the planned speed of the path vertex nearest its estimate
+    (:mod:`sim.episode.follower`), which is within ``off`` (estimate error plus tracking bound)
+    of the true position, so within ``off`` plus one vertex spacing along the path; it changes
+    its speed at most at :data:`FOLLOWER_MAX_ACCEL`, the rate the planned profile is limited to
+    (:func:`planner.routes.smoothing.acceleration_limited`), so it keeps to the profile up to
+    one control period (``FOLLOWER_MAX_ACCEL START_LAG``, added by the caller).
+    """
+    return np.asarray(off, dtype=float) + float(np.max(np.diff(s_v), initial=0.0))
+
+
+def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Bound on the follower's distance from the path at arc length ``s`` (module docstring) [m].
+
+    Parameters
+    ----------
+    path : ndarray, shape (N, 2)
+        Path vertices [m].
+    s_v : ndarray, shape (N,)
+        Their arc length [m].
+    speed : ndarray, shape (N,)
+        Planned vertex speeds [m/s].
+    s : ndarray, any shape
+        Arc lengths [m].
+
+    Returns
+    -------
+    numpy.ndarray, same shape as ``s``
+        Largest distance of ``path(s)`` from a chord ``path(a) path(a + L)`` with
+        ``a <= s <= a + L``, ``L`` the lookahead at the local speed plus one vertex spacing [m].
+    """
+    s = np.asarray(s, dtype=float)
+    spacing = float(np.max(np.diff(s_v), initial=0.0))
+    reach = LOOKAHEAD_MIN + LOOKAHEAD_GAIN * float(np.max(speed, initial=0.0)) + spacing
+    look = np.maximum(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * local_speed(s_v, speed, s, reach)) + spacing
+    return settle_bound(path, s_v, s, look)
+
+
+def settle_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarray) -> np.ndarray:
+    """Return the follower's tracking bound: its chord bound, or the largest one it settles from [m].
+
+    The largest :func:`chord_bound` over ``[s - SETTLE_LOOKAHEADS look, s]``: leaving a turn the
+    follower swings out by no more than it cut the turn, and is back within a few lookaheads.
+    """
+    s = np.asarray(s, dtype=float)
+    look = np.broadcast_to(np.asarray(look, dtype=float), s.shape)
+    back = s[..., None] - SETTLE_LOOKAHEADS * look[..., None] * np.linspace(0.0, 1.0, 25)
+    return np.max(chord_bound(path, s_v, back, np.broadcast_to(look[..., None], back.shape)), axis=-1)
+
+
+def chord_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarray) -> np.ndarray:
+    """Largest distance of ``path(s)`` from a chord ``path(a) path(a + look)``, ``a <= s <= a + look`` [m].
+
+    Parameters
+    ----------
+    path, s_v : ndarray, shape (N, 2), (N,)
+        Path vertices and their arc length [m].
+    s, look : ndarray, same shape
+        Arc lengths and chord lengths (along the path) [m].
+    """
+    s = np.asarray(s, dtype=float)
+    look = np.broadcast_to(np.asarray(look, dtype=float), s.shape)
+    frac = np.linspace(0.0, 1.0, 33)
+    a = s[..., None] - look[..., None] * frac
+    b = a + look[..., None]
+
+    def at(q):
+        return np.stack([np.interp(q, s_v, path[:, 0]), np.interp(q, s_v, path[:, 1])], axis=-1)
+
+    pa, pb, x = at(a), at(b), at(s)[..., None, :]
+    ab = pb - pa
+    ab2 = np.sum(ab * ab, axis=-1)
+    w = np.clip(np.sum((x - pa) * ab, axis=-1) / np.where(ab2 > 0, ab2, 1.0), 0.0, 1.0)
+    d = x - (pa + w[..., None] * ab)
+    return np.max(np.hypot(d[..., 0], d[..., 1]), axis=-1)
+
+
+def pose_bound(scenario: Scenario, path: np.ndarray, s_v: np.ndarray, speed: np.ndarray,
+               s_m: np.ndarray, estimate, still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on a fix's true measurement positions and carried travel (module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    path, s_v, speed : ndarray, shape (N, 2), (N,), (N,)
+        Path vertices [m], their arc length [m] and planned speeds [m/s].
+    s_m : ndarray, shape (F, k)
+        Planned arc length of each measurement [m].
+    estimate : float or ndarray, shape (F,)
+        Bound on the estimate's error while each fix is taken [m] (module docstring, "Derived
+        promise": what the plan certifies there).
+    still : ndarray of bool, shape (F,), optional
+        Fixes taken at standstill (on the dock before departure): no tracking, lag or travel.
+
+    Returns
+    -------
+    delta : numpy.ndarray, shape (F, k)
+        Bound on ``|true - planned|`` of each measurement position [m].
+    travel : numpy.ndarray, shape (F, k)
+        Bound on the travel from each measurement to the fix's last [m].
+    """
+    s_m = np.asarray(s_m, dtype=float)
+    k = s_m.shape[-1]
+    mt = scenario.sensor.measurement_time
+    est = np.broadcast_to(np.asarray(estimate, dtype=float), s_m.shape[:-1])[..., None]
+    track = tracking_bound(path, s_v, speed, s_m)
+    v = local_speed(s_v, speed, s_m, speed_reach(s_v, est + track)) + FOLLOWER_MAX_ACCEL * START_LAG
+    t_rel = mt * np.arange(1, k + 1)
+    delta = track + est + v * START_LAG + 0.5 * FOLLOWER_MAX_ACCEL * t_rel**2
+    travel = np.max(v, axis=-1, keepdims=True) * mt * (k - 1 - np.arange(k))
+    if still is not None:
+        delta[still] = scenario.planning.eps_max
+        travel[still] = 0.0
+    return delta, travel
+
+
+def _bounded(scenario: Scenario, markers: np.ndarray, poses: np.ndarray, delta: np.ndarray,
+             travel: np.ndarray) -> np.ndarray:
+    """:func:`perturbed_diameters` with the scenario's sensor, robot and heading std."""
+    return perturbed_diameters(scenario.sensor, scenario.robot, markers, poses, delta, travel,
+                               scenario.planning.heading_std)
+
+
+def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: np.ndarray, delta: np.ndarray,
+                   travel: np.ndarray, where: np.ndarray) -> tuple:
     """Best-order k = 2 promise (C, n) and whether the reversed order won.
 
-    ``poses`` lists the measurement positions (n, 2, 2) of each start lag scored; each order's
-    promise is its largest over them. Only the entries of ``where`` (C, n) are scored (a subset
-    not visible over a stretch never takes a fix there); elsewhere the promise is inf and
-    ``flipped`` False.
+    ``poses`` (n, 2, 2), ``delta`` and ``travel`` (n, 2) are the measurement positions and their
+    bounds of a fix started at each sample. Only the entries of ``where`` (C, n) are scored (a
+    subset not visible over a stretch never takes a fix there); elsewhere the promise is inf
+    and ``flipped`` False.
     """
     c, j = np.nonzero(where)
-    sens, rob, hs = scenario.sensor, scenario.robot, scenario.planning.heading_std
-    pairs = np.asarray(subsets, dtype=np.int64)
-    best, flipped = promised_parallelogram_best(sens, rob, markers, pairs, np.stack(poses), c, j, hs)
+    pairs = np.asarray(subsets, dtype=np.int64)[c]
+    fwd = _bounded(scenario, markers[pairs], poses[j], delta[j], travel[j])
+    rev = _bounded(scenario, markers[pairs[:, ::-1]], poses[j], delta[j], travel[j])
     tau = np.full(where.shape, np.inf)
     flip = np.zeros(where.shape, dtype=bool)
-    tau[c, j] = best
-    flip[c, j] = flipped
+    tau[c, j] = np.minimum(fwd, rev)
+    flip[c, j] = rev < fwd
     return tau, flip
 
 
-def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray, k: int) -> list[Level]:
+def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray, k: int,
+           estimate) -> list[Level]:
     """Promises of every candidate fix at each speed level (module docstring).
 
     Parameters
@@ -128,6 +340,8 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
         Static PEF of each subset over each fix's stretch [m]: inf where not visible.
     k : int
         Markers per fix.
+    estimate : float or ndarray, shape (n,)
+        Bound on the estimate's error while a fix started at each sample is taken [m].
 
     Returns
     -------
@@ -141,27 +355,43 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
     markers = scenario.marker_positions()
     out = []
     mt = scenario.sensor.measurement_time
-    # scored at the planned start and START_LAG later (predict's extremes)
-    late = positions_at(tr.kin, tr.kin.s_v, path, tr.t_start[:, None] + START_LAG + mt * np.arange(1, k + 1))
-    late[0] = path[0]  # the standstill fix before departure does not lag
-    tau, flip = _parallelogram(scenario, markers, subsets, [tr.xy_m, late], visible)
+    s_path = tr.kin.s_v
+    still = np.zeros(n, dtype=bool)
+    still[0] = True  # the standstill fix before departure
+    s_m = tr.kin.s_at(tr.t_start[:, None] + mt * np.arange(1, k + 1))
+    s_m[0] = 0.0
+    est = np.broadcast_to(np.asarray(estimate, dtype=float), (n,))
+    delta, travel = pose_bound(scenario, path, s_path, tr.kin.v, s_m, est, still)
+    tau, flip = _parallelogram(scenario, markers, subsets, tr.xy_m, delta, travel, visible)
     out.append(Level(tau, flip, np.full(n, np.nan)))
     v_plan = np.diff(tr.kin.s_at(tr.t_start[:, None] + np.array([0.0, k * mt])), axis=1)[:, 0] / (k * mt)
     v_plan[0] = 0.0
-    s_path = tr.kin.s_v
     for f in (*SPEED_LEVELS[1:], None):
         v = np.full(n, scenario.planning.min_fix_speed) if f is None else f * v_plan
         v = np.maximum(v, scenario.planning.min_fix_speed)
         slower = v < v_plan * (1.0 - 1e-9)
         if not slower.any():
             continue
-        at = []
-        for lag in (0.0, START_LAG):
-            s_m = tr.s[:, None] + v[:, None] * (lag + mt * np.arange(1, k + 1)[None, :])
-            at.append(np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1))
-        tau, flip = _parallelogram(scenario, markers, subsets, at, visible & slower[None, :])
+        s_m = tr.s[:, None] + v[:, None] * mt * np.arange(1, k + 1)[None, :]
+        at = np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1)
+        # the speed profile a slowed fix will get: capped at v over its stretch (slowed_speeds)
+        delta, travel = _slowed_bound(scenario, path, s_path, s_m, v, est)
+        tau, flip = _parallelogram(scenario, markers, subsets, at, delta, travel, visible & slower[None, :])
         out.append(Level(tau, flip, np.where(slower, v, np.nan)))
     return out
+
+
+def _slowed_bound(scenario, path, s_path, s_m, v, estimate):
+    """:func:`pose_bound` of fixes driven at no more than ``v`` (n,) over their stretch (``slowed_speeds``)."""
+    k = s_m.shape[1]
+    mt = scenario.sensor.measurement_time
+    t_rel = mt * np.arange(1, k + 1)
+    spacing = float(np.max(np.diff(s_path), initial=0.0))
+    look = np.maximum(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * v) + spacing
+    delta = (settle_bound(path, s_path, s_m, look[:, None] * np.ones((1, k))) + estimate[:, None]
+             + (v[:, None] + FOLLOWER_MAX_ACCEL * START_LAG) * START_LAG + 0.5 * FOLLOWER_MAX_ACCEL * t_rel**2)
+    travel = (v[:, None] + FOLLOWER_MAX_ACCEL * START_LAG) * mt * (k - 1 - np.arange(k))[None, :]
+    return delta, travel
 
 
 def slowed_speeds(s_v: np.ndarray, speed: np.ndarray, slow: list[tuple[float, float, float]]) -> np.ndarray:
@@ -193,8 +423,8 @@ def slowed_speeds(s_v: np.ndarray, speed: np.ndarray, slow: list[tuple[float, fl
 
 
 def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.ndarray,
-            subsets: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray, Kinematics]:
-    """Exact promise of each chosen fix at the final speed profile.
+            subsets: list[tuple[int, ...]], estimate) -> tuple[np.ndarray, np.ndarray, Kinematics]:
+    """Promise of each chosen fix at the final speed profile (module docstring, "Derived promise").
 
     Parameters
     ----------
@@ -207,20 +437,24 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
         Arc length where each fix starts [m]; a fix at 0 is taken at standstill.
     subsets : list of tuple of int
         Each fix's markers in measurement order.
+    estimate : float or ndarray, shape (F,)
+        Bound on the estimate's error while each fix is taken [m]: what the plan certifies there
+        (:func:`planner.schedule.schedule.make_schedule` computes it along the schedule).
 
     Returns
     -------
     predicted_tau : numpy.ndarray, shape (F,)
-        Largest fault-area diameter of each fix's construction over starts :data:`START_LAGS`
-        late [m] (inf when empty or not defined).
+        Bound on the realised fault-area diameter of each fix over the poses within
+        :func:`pose_bound` of the planned ones [m] (inf when none is defined).
     poses : numpy.ndarray, shape (F, k, 2)
-        Planned position at each measurement (no lag) [m].
+        Planned position at each measurement [m].
     kin : Kinematics
         Arc length against time of ``speed``.
     """
     seg = np.hypot(*np.diff(path, axis=0).T)
     s_v = np.concatenate([[0.0], np.cumsum(seg)])
-    kin = Kinematics(s_v, np.asarray(speed, dtype=float))
+    speed = np.asarray(speed, dtype=float)
+    kin = Kinematics(s_v, speed)
     k = len(subsets[0]) if subsets else 0
     mt = scenario.sensor.measurement_time
     starts = np.asarray(starts, dtype=float)
@@ -229,22 +463,15 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
     # fallbacks pass only the fixes that have one)
     still = starts <= 0.0
     markers = scenario.marker_positions()
-    out = np.full(len(starts), -np.inf)
-    for n, lag in enumerate(START_LAGS):
-        s_m = kin.s_at(t0[:, None] + lag + mt * np.arange(1, k + 1)[None, :])
-        s_m[still] = 0.0
-        at = np.stack([np.interp(s_m, s_v, path[:, 0]), np.interp(s_m, s_v, path[:, 1])], axis=-1)
-        if n == 0:
-            poses = at
-        # a standstill fix does not lag; an empty area stays none
-        rows = np.arange(len(subsets)) if n == 0 else np.flatnonzero(~still & np.isfinite(out))
-        if rows.size == 0:
-            continue
-        diameter, empty = promised_diameters(scenario.sensor, scenario.robot, markers[np.asarray(subsets)[rows]],
-                                             at[rows], scenario.planning.heading_std)
-        for i, d, e in zip(rows.tolist(), diameter.tolist(), empty.tolist(), strict=True):
-            out[i] = max(out[i], d) if not e else np.inf
-    return np.where(out == -np.inf, np.inf, out), poses, kin
+    s_m = kin.s_at(t0[:, None] + mt * np.arange(1, k + 1)[None, :])
+    s_m[still] = 0.0
+    poses = np.stack([np.interp(s_m, s_v, path[:, 0]), np.interp(s_m, s_v, path[:, 1])], axis=-1)
+    if len(starts) == 0 or k == 0:
+        return np.full(len(starts), np.inf), poses, kin
+    est = np.broadcast_to(np.asarray(estimate, dtype=float), starts.shape)
+    delta, travel = pose_bound(scenario, path, s_v, speed, s_m, est, still)
+    pred = _bounded(scenario, markers[np.asarray(subsets)], poses, delta, travel)
+    return pred, poses, kin
 
 
 def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None = None):

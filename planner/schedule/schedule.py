@@ -9,7 +9,7 @@ where fix ``i`` starts at ``s_i`` and completes at ``c_i`` (it measures its ``k`
 after another, ``k * measurement_time`` seconds, while the robot moves on), and ``tau_i`` is its
 promise ``predicted_tau``: the fault-area diameter of that moving fix, its earlier ranges
 carried to the last by odometry (:mod:`planner.schedule.promise`). A fix is admissible when its promise
-is under ``eps_max / (1 + PROMISE_TOLERANCE)``.
+is under ``eps_max / (1 + POLYGON_TOLERANCE)``.
 
 Slowing down (the paper's compromise between speed and accuracy)
     Where no fix is admissible at the planned speed, the fix is taken slower (its earlier ranges
@@ -62,6 +62,11 @@ BlockRisk = Callable[[np.ndarray, np.ndarray], np.ndarray]
 """``block(s, xy) -> (M, n)``: probability that each marker's line of sight is hidden at arc lengths
 ``s`` [m], positions ``xy`` [m]."""
 
+ESTIMATE_ROUNDS = 4
+"""Rounds of computing the promises from the estimate errors the plan certifies and those from the
+promises (:func:`certified_estimate`), until every fix's is at least what the plan certifies;
+if they do not settle, every fix keeps ``eps_max`` (the search's bound)."""
+
 
 @dataclass(frozen=True)
 class ScheduledFix:
@@ -81,9 +86,9 @@ class ScheduledFix:
     switch : bool
         The subset differs from the previous fix's (always False for the first fix).
     predicted_tau : float
-        The fix's promise: fault-area diameter of the moving fix the robot makes, its ranges
-        measured one after another at ``poses`` and carried to the last one by odometry
-        (:mod:`planner.schedule.promise`) [m].
+        The fix's promise: a bound on the fault-area diameter of the moving fix the robot makes,
+        its ranges measured one after another near ``poses`` and carried to the last one by
+        odometry, over every pose the robot may take (:mod:`planner.schedule.promise`) [m].
     speed : float
         Mean planned speed over the fix [m/s] (0 for the standstill fix before departure).
     slowed : bool
@@ -96,6 +101,9 @@ class ScheduledFix:
         measurement order (:mod:`planner.schedule.fallback`); () when there is none.
     fallback_tau : tuple of float
         The promise of each fallback [m] (inf where there is none).
+    estimate : float
+        Bound on the estimate's error while the fix is taken, which its promises assume: what
+        the plan certifies there (:func:`certified_estimate`) [m].
     """
 
     s: float
@@ -109,6 +117,7 @@ class ScheduledFix:
     poses: tuple[tuple[float, float], ...] = ()
     fallbacks: tuple[tuple[int, ...], ...] = ()
     fallback_tau: tuple[float, ...] = ()
+    estimate: float = math.nan
 
 
 @dataclass(frozen=True, eq=False)
@@ -320,9 +329,9 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         both = np.vstack([tr.xy, tr.xy_c])
         tau = np.asarray(pef.tau_subset(both, np.asarray(subsets)), dtype=float)
     tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
-    lv = (promise.levels(scenario, subsets, tr, path, tau_s, k) if np.isfinite(tau_s).any()
+    lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
           else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
-    limit = eps / (1.0 + promise.PROMISE_TOLERANCE)
+    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
     risky = None
     if block is not None:
         risky = _subset_risk(block, subsets, tr) > block_limit
@@ -338,11 +347,26 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         chosen, level = search(pl, taus, limit, k, policy, switch_tolerance)
     starts = np.array([j for j, _, _ in chosen])
     fix_level = level[starts].copy()
-    pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k)
     # a fallback's area is in force until the next fix completes, as the fix's own
     margin = np.array([pl.err_at_completion(starts[i], 0.0, starts[i + 1]) for i in range(len(starts) - 1)]
                       + [pl.err_at_end(starts[-1], 0.0)])
-    fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin)
+    # The search scored every candidate with eps_max as the estimate's error (what the windows
+    # keep every error under), so these promises bound the final ones; then each fix gets the
+    # error the plan certifies where it is taken (promise.py, "Derived promise").
+    est = np.full(len(starts), eps)
+    for r in range(ESTIMATE_ROUNDS):
+        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
+                                                 est)
+        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
+        cert = certified_estimate(pl, starts, pred, fb, fb_tau, scenario.planning.redundancy > 0)
+        if r > 0 and np.all(cert <= est):
+            break  # every promise assumes at least what the promises before it certify
+        est = cert if np.all(cert[1:] < eps) else np.maximum(est, cert)  # cert[0]: the dock's fix, eps_max
+    else:
+        est = np.full(len(starts), eps)  # not settled: the search's bound, which holds whatever the chain
+        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
+                                                 est)
+        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
     judged = np.full(len(starts), scenario.planning.redundancy > 0)
     if risky is not None and protect:
         judged |= risky[[c for _, c, _ in chosen], starts]
@@ -371,7 +395,7 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                      markers=order[i], tau=float(tau_s[c, j]), switch=i > 0 and c != chosen[i - 1][1],
                      predicted_tau=float(pred[i]), speed=float(fix_speed[i]),
                      slowed=bool(fix_level[i] > 0), poses=tuple(tuple(map(float, q)) for q in poses[i]),
-                     fallbacks=fb[i], fallback_tau=fb_tau[i])
+                     fallbacks=fb[i], fallback_tau=fb_tau[i], estimate=float(est[i]))
         for i, (j, c, _) in enumerate(chosen))
     completes = tr.c[starts]
     active = np.maximum(np.searchsorted(completes, tr.s, side="left") - 1, 0)
@@ -388,6 +412,33 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                            (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
     return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
                     worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
+
+
+def certified_estimate(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list, fb_tau: list,
+                       redundant: bool) -> np.ndarray:
+    """Bound on the estimate's error while each fix is taken, as the plan certifies it [m], shape (F,).
+
+    The error the fix before leaves until this fix completes: its promise, or the largest of its
+    fallbacks' (a blocked line of sight makes the robot take one), plus the drift since it
+    started (:meth:`Windows.err_at_completion`). With redundancy, the fix before may also be
+    lost altogether where it has no fallback for some marker; the one before it then stays in
+    force (:func:`_covered_without`; the calibrated dock, promise 0, before the first). The
+    first fix is taken at standstill on the dock: ``eps_max`` (:func:`planner.schedule.promise.pose_bound`
+    does not use it there).
+
+    This bounds the estimate's error by induction along the schedule: it holds when the fixes
+    before kept their promises and the drift bound held.
+    """
+    n = len(starts)
+    out = np.full(n, pl.eps)
+    weakest = [max([float(pred[i]), *[t for t in fb_tau[i] if math.isfinite(t)]]) for i in range(n)]
+    for i in range(1, n):
+        e = pl.err_at_completion(starts[i - 1], weakest[i - 1], starts[i])
+        if redundant and not all(fb[i - 1]):
+            j, tau = (starts[i - 2], weakest[i - 2]) if i >= 2 else (0, 0.0)
+            e = max(e, pl.err_at_completion(j, tau, starts[i]))
+        out[i] = e
+    return out
 
 
 def _covered_without(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list, fb_tau: list, i: int) -> bool:
@@ -413,7 +464,7 @@ def _fix_speeds(kin, s0: np.ndarray, k: int, mt: float) -> np.ndarray:
     return speed
 
 
-def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
+def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k, estimate):
     """Slow the chosen fixes down until each exact promise is under ``limit``.
 
     The search scores fixes with the construction's parallelogram; the exact promise
@@ -429,9 +480,13 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
         for i, (j, _, _) in enumerate(chosen):
             if fix_level[i] > 0:
                 vf = float(lv[fix_level[i]].speed[j])
-                slow.append((float(tr.s[j]), float(tr.s[j]) + vf * k * mt * 1.01, vf))
+                a, b = float(tr.s[j]), float(tr.s[j]) + vf * k * mt * 1.01
+                # the robot's speed follows the planned one near its estimate (promise.speed_reach)
+                off = float(np.max(estimate)) + float(np.max(promise.tracking_bound(path, s_v, v, np.array([a, b]))))
+                reach = float(promise.speed_reach(s_v, off))
+                slow.append((a - reach, b + reach, vf))
         v_new = promise.slowed_speeds(s_v, v, slow)
-        pred, poses, kin = promise.predict(scenario, path, v_new, tr.s[[j for j, _, _ in chosen]], order)
+        pred, poses, kin = promise.predict(scenario, path, v_new, tr.s[[j for j, _, _ in chosen]], order, estimate)
         bad = np.flatnonzero(~(pred < limit))
         if len(bad) == 0:
             return pred, poses, kin, v_new, order
@@ -444,5 +499,5 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k):
                     f"no measurement schedule keeps the error under eps_max = {scenario.planning.eps_max:.4g} m: "
                     f"the fix at s = {tr.s[j]:.2f} m ({x:.2f}, {y:.2f}) promises {pred[i]:.4g} m even at "
                     f"{scenario.planning.min_fix_speed:g} m/s (limit {limit:.4g} m = eps_max / "
-                    f"{1 + promise.PROMISE_TOLERANCE:g})", (float(tr.s[j]), float(tr.s[j]) + 0.1))
+                    f"{1 + promise.POLYGON_TOLERANCE:g})", (float(tr.s[j]), float(tr.s[j]) + 0.1))
             fix_level[i] = slower[0]

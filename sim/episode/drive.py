@@ -25,7 +25,7 @@ import numpy as np
 
 from planner.pef.map import PEF
 from planner.plan import Plan
-from planner.schedule.promise import PROMISE_TOLERANCE, START_LAG
+from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
 from scenarios import PlanningError, Scenario, SimulationError
 from scenarios.schema import PefModel
 from sim.episode.certify import certified_bound, lost_markers, single_failure_excused
@@ -352,7 +352,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         planned = ~np.asarray(fix_log.beyond_redundancy, bool) & np.isfinite(fix_log.predicted_tau)
         excused = single_failure_excused(steps.t, at[:, 0], at[:, 1] > 0.5, fix_log.t, planned,
                                          k * scenario.sensor.measurement_time)
-        lost_guarantee = int(np.sum((certified > scenario.planning.eps_max * (1.0 + PROMISE_TOLERANCE)) & ~excused))
+        lost_guarantee = int(np.sum((certified > scenario.planning.eps_max * (1.0 + POLYGON_TOLERANCE)) & ~excused))
         steps.excused = excused
     goal = np.array(scenario.dock(task.goal).position)
     reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=

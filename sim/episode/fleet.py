@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner.fleet.plan import FleetPlan, FleetRobotPlan, plan_fleet, zones_of
-from planner.schedule.promise import PROMISE_TOLERANCE, START_LAG
+from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
 from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode.certify import certified_bound, lost_markers, single_failure_excused
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
@@ -357,7 +357,7 @@ class _Robot:
             planned = ~np.asarray(fix_log.beyond_redundancy, bool) & np.isfinite(fix_log.predicted_tau)
             excused = single_failure_excused(steps.t, at[:, 0], at[:, 1] > 0.5, fix_log.t, planned,
                                              k * sc.sensor.measurement_time)
-            lost_guarantee = int(np.sum((certified > sc.planning.eps_max * (1.0 + PROMISE_TOLERANCE)) & ~excused))
+            lost_guarantee = int(np.sum((certified > sc.planning.eps_max * (1.0 + POLYGON_TOLERANCE)) & ~excused))
             steps.excused = excused
         goal = np.array(scenario.dock(self.rp.plans[-1].goal).position)
         reached = bool(self.finished and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=

@@ -14,6 +14,9 @@ import numpy as np
 
 from jit import compiled
 
+# the plan's promise bounds this follower's tracking error from its design (planner.schedule.promise)
+from planner.schedule import promise as design
+
 
 class FollowerCommand(NamedTuple):
     """One control output: forward speed ``v`` [m/s], yaw rate ``omega`` [rad/s], ``done``.
@@ -63,10 +66,10 @@ class PurePursuit:
     speed: np.ndarray
     max_speed: float
     max_yaw_rate: float
-    max_accel: float = 0.5
+    max_accel: float = design.FOLLOWER_MAX_ACCEL
     max_yaw_accel: float = 2.0
-    lookahead_min: float = 0.3
-    lookahead_gain: float = 0.8
+    lookahead_min: float = design.LOOKAHEAD_MIN
+    lookahead_gain: float = design.LOOKAHEAD_GAIN
     goal_tolerance: float = 0.05
     rotate_in_place_above: float = math.radians(60.0)
     window: int = 40

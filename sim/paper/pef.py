@@ -302,11 +302,12 @@ def _guarantee(mc_dir: Path, n: int) -> dict:
     """Measure the set-membership guarantee at every fix, under the static PEF and under the promise.
 
     A fix keeps a prediction when its realised fault-area diameter is within it, allowing the
-    promise check's tolerance (:mod:`sim.validation.promise`: 2 % and twice the polygonisation
-    tolerance).
+    promise check's tolerance (:mod:`sim.validation.promise`: the polygons' reach beyond the
+    arcs, ``POLYGON_TOLERANCE`` of the promise; the static PEF also gets twice the polygonisation
+    tolerance, its prediction being exact).
     """
     from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
-    from planner.schedule.promise import PROMISE_TOLERANCE
+    from planner.schedule.promise import POLYGON_TOLERANCE
     from sim.montecarlo import results
 
     fx = results.read_fixes(mc_dir, columns=["run", "fault_diameter", "predicted_tau", "static_tau", "rho"])
@@ -318,7 +319,7 @@ def _guarantee(mc_dir: Path, n: int) -> dict:
     for name, col in (("static", "static_tau"), ("moving", "predicted_tau")):
         tau = np.asarray(fx.column(col).to_numpy(zero_copy_only=False), float)[sel]
         real = np.isfinite(d) & np.isfinite(tau) & (tau > 0)
-        kept = real & (d <= (1.0 + PROMISE_TOLERANCE) * tau + slack)
+        kept = real & (d <= (1.0 + POLYGON_TOLERANCE) * tau + slack)
         out[f"{name}_kept_frac"] = float(kept.sum() / max(np.isfinite(d).sum(), 1))
         out[f"{name}_max_ratio"] = float(np.max(d[real] / tau[real], initial=0.0))
     return out
@@ -337,7 +338,7 @@ def verdict_planned_route(numbers: dict) -> tuple[str, str]:
            f"{numbers['max_error_over_eps_max']:.2f} ε_max, the plan's largest predicted bound "
            f"{numbers['max_predicted_over_eps_max']:.2f} ε_max, and the error stayed within the predicted "
            f"bound at {numbers['steps_within_predicted_frac']:.1%} of the steps. The set-membership "
-           f"guarantee per fix (realised fault-area diameter within the prediction, 2 % tolerance), over "
+           f"guarantee per fix (realised fault-area diameter within the prediction, polygon tolerance), over "
            f"{numbers['fixes']} fixes of the moving robot: the paper's static PEF holds at "
            f"{numbers['static_kept_frac']:.1%} (realised up to {numbers['static_max_ratio']:.2f} × it), the "
            f"motion-aware promise at {numbers['moving_kept_frac']:.1%} (up to "

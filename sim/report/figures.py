@@ -15,7 +15,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from planner.schedule.promise import PROMISE_TOLERANCE
+from planner.schedule.promise import POLYGON_TOLERANCE
 from scenarios.schema import Scenario
 from sim.report.scene import draw_pef, draw_scene, pef_extent
 
@@ -90,12 +90,13 @@ def error_cdf(step_error: np.ndarray, step_tau: np.ndarray, run_max_error: np.nd
 
 
 def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_diameter: np.ndarray,
-                tolerance: float = PROMISE_TOLERANCE) -> Figure:
+                tolerance: float = POLYGON_TOLERANCE) -> Figure:
     """Per fix: the snapshot error and the realised fault-area diameter against the plan's promise.
 
-    The promise is the fault-area diameter of the moving fix the plan made (ranges one after
-    another at the planned poses, carried by odometry): the same construction as the realised
-    area, so the right panel compares like with like. Points above y = x exceed the promise.
+    The promise bounds the fault-area diameter of the moving fix the robot makes (ranges one
+    after another, carried by odometry) over every pose it may take near the planned ones
+    (:mod:`planner.schedule.promise`): the same construction as the realised area, so the right
+    panel compares like with like. Points above y = x exceed the promise.
 
     Parameters
     ----------
@@ -104,7 +105,7 @@ def fix_scatter(predicted_tau: np.ndarray, snapshot_error: np.ndarray, fault_dia
         fault-area diameter [m].
     tolerance : float
         Relative excess of a realised diameter over its promise that still keeps it (the
-        promise check's, :data:`planner.schedule.promise.PROMISE_TOLERANCE`).
+        promise check's, :data:`planner.schedule.promise.POLYGON_TOLERANCE`).
     """
     fig = Figure(figsize=(11, 4.6))
     axes = fig.subplots(1, 2)

@@ -1,19 +1,21 @@
 """The promise check: every realised fix within what the plan promised for it (`docs/design.md` §6).
 
-The plan promises each fix the fault-area diameter of the moving fix the robot makes
-(:mod:`planner.schedule.promise`): noise-free ranges at the planned poses, carried to the fix time with
-the odometry bound, the largest for a start up to ``START_LAG`` (one control tick) late. The
-simulation builds the realised fault area of the same construction from the measured ranges
-(:mod:`estimators.fault.carried`). Under bounded (uniform) noise the two differ only through
+The plan promises each fix a bound on the fault-area diameter of the moving fix the robot makes
+(:mod:`planner.schedule.promise`): the worst over every true pose within the stated bounds of the
+planned ones (tracking error, estimate error, start lag, speed; the construction and its
+assumptions are that module's docstring). The simulation builds the realised fault area of the
+same construction from the measured ranges (:mod:`estimators.fault.carried`). Under bounded
+(uniform) noise the realised exact area is within the promise; what remains is
 
 - the polygonisation: the realised polygon reaches up to ``tol = DEFAULT_TOLERANCE_FRACTION *
-  min(rho)`` beyond its arcs, so its diameter up to ``2 tol`` beyond the exact one;
-- noise, curvature and the robot's pose and speed being a little off the plan:
-  ``planner.schedule.promise.PROMISE_TOLERANCE`` (2 %), the margin the planner keeps under ``eps_max``;
-- the filter's heading std exceeding the one the plan assumed (``planning.heading_std_deg``):
-  that is a broken promise, and what the check is there to catch.
+  min(rho)`` beyond its arcs, so its diameter up to ``2 tol`` beyond the exact one, at most
+  ``planner.schedule.promise.POLYGON_TOLERANCE`` times the promise (the margin the planner
+  keeps under ``eps_max``);
+- the filter's heading std exceeding the one the plan assumed (``planning.heading_std_deg``), or
+  the robot beyond the stated bounds: that is a broken promise, and what the check is there
+  to catch.
 
-So a fix passes when ``fault_diameter <= (1 + PROMISE_TOLERANCE) * predicted_tau + 2 tol`` and
+So a fix passes when ``fault_diameter <= (1 + POLYGON_TOLERANCE) * predicted_tau`` and
 ``fault_diameter < eps_max``. A fix without a finite promise fails. The check is
 deterministic (false-alarm probability 0), like containment. Fixes the robot improvised because
 blocked lines of sight (``sensor.block_probability``) left neither the scheduled subset nor its
@@ -32,7 +34,7 @@ import math
 import numpy as np
 
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
-from planner.schedule.promise import PROMISE_TOLERANCE, START_LAG
+from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
 from scenarios.schema import NoiseModel, PefModel
 from sim.jsonable import json_number
 from sim.validation.data import CheckResult, CheckStatus, SweepData
@@ -53,11 +55,7 @@ def promise_why_not(data: SweepData) -> str | None:
 
 def promise_allowance(data: SweepData) -> np.ndarray:
     """Largest realised diameter each fix may have under its promise, shape (F,) [m]."""
-    fx = data.fixes
-    rho = data.scenario.sensor.range_bound(np.linalg.norm(
-        fx.true_xy[:, None, :] - data.scenario.marker_positions()[np.maximum(fx.markers, 0)], axis=2))
-    tol = DEFAULT_TOLERANCE_FRACTION * np.min(np.where(fx.markers >= 0, rho, np.inf), axis=1)
-    return (1.0 + PROMISE_TOLERANCE) * fx.predicted_tau + 2.0 * tol
+    return (1.0 + POLYGON_TOLERANCE) * data.fixes.predicted_tau
 
 
 def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
@@ -77,9 +75,10 @@ def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRes
     worst = float(np.nanmax(ratio)) if np.isfinite(ratio).any() else math.nan
     broken = no_promise | over | over_eps | unplanned
     bad = int(np.sum(broken))
-    detail = (f"realised fault-area diameter <= (1 + {PROMISE_TOLERANCE:g}) x the plan's promise (moving fix at the "
-              f"planned poses, started up to {START_LAG:.3g} s late) + 2 x polygon tolerance "
-              f"({DEFAULT_TOLERANCE_FRACTION:g} min rho), and < eps_max = "
+    detail = (f"realised fault-area diameter <= (1 + {POLYGON_TOLERANCE:g}) x the plan's promise (the worst over the "
+              f"poses within the follower's tracking bound, the estimate error the plan certifies at the fix and "
+              f"a start up to {START_LAG:.3g} s late; the factor is the polygons' reach "
+              f"{DEFAULT_TOLERANCE_FRACTION:g} min rho beyond the arcs), and < eps_max = "
               f"{eps:g} m; {int(no_promise.sum())} fixes without a promise, {int(over.sum())} over it, "
               f"{int(over_eps.sum())} at or over eps_max; "
               + (f"{int(unplanned.sum())} on a subset the plan did not schedule (no line of sight blocked); "
@@ -90,9 +89,9 @@ def promise(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRes
         detail += f"; first in run {int(fx.run[first])}"
     return CheckResult("promise", CheckStatus.FAIL if bad else CheckStatus.PASS,
                        f"max ratio {worst:.4g}, {bad}/{d.size} broken",
-                       f"<= {1 + PROMISE_TOLERANCE:g} x promise and < eps_max", 0.0, detail,
+                       f"<= {1 + POLYGON_TOLERANCE:g} x promise and < eps_max", 0.0, detail,
                        {"max_ratio": json_number(worst), "broken": bad, "fixes": int(d.size),
                         "without_promise": int(no_promise.sum()), "over_promise": int(over.sum()),
                         "over_eps_max": int(over_eps.sum()), "max_diameter": float(d.max()) if d.size else None,
                         "unplanned": int(unplanned.sum()) if fx.unplanned is not None else None,
-                        "tolerance": PROMISE_TOLERANCE})
+                        "tolerance": POLYGON_TOLERANCE})

@@ -16,9 +16,8 @@ import numpy as np
 import pytest
 
 import pefsim
-from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
-from planner.schedule.promise import PROMISE_TOLERANCE
 from planner.worlds import plannable_world
+from tests.sim.world_checks import fix_table_complete, over_promise
 
 pytestmark = pytest.mark.e2e  # drawing three worlds and driving six episodes takes minutes: the e2e tier
 
@@ -64,8 +63,8 @@ def test_same_seed_same_bytes_whatever_the_count(drawn):
 WORLDS = [pytest.param(i, id=KINDS[i]) for i in range(COUNT)]
 
 PROMISE_DEFECT = pytest.mark.xfail(strict=True, reason=(
-    "issue 23 item 2 (branch promise): the promise is computed at the planned poses with an untuned "
-    "PROMISE_TOLERANCE = 2 %; fixes through the comb's 90-degree corners realise more than it"))
+    "issue 23 item 2: fixes through the comb's 90-degree corners realised more than the old promise "
+    "(planned poses and an untuned 2 % tolerance); to be rechecked against the derived promise"))
 PROMISE_WORLDS = [WORLDS[0], WORLDS[1], pytest.param(2, id=KINDS[2], marks=PROMISE_DEFECT)]
 
 
@@ -87,18 +86,12 @@ def test_episodes_finish_with_consistent_fix_rows(drawn, episodes, i):
         assert np.isfinite(fx.predicted_tau).all()
 
 
-def _fix_table_complete(r) -> bool:
-    """Every scheduled fix is taken (a row), merged into a later one (the laser was busy), failed or unreached."""
-    s = r.summary
-    return s["fixes"] + s["merged_fixes"] + s["skipped_fixes"] + s["unreached_fixes"] == s["scheduled_fixes"]
-
-
 @pytest.mark.parametrize("i", WORLDS)
 def test_every_scheduled_fix_is_accounted_for(drawn, episodes, i):
     """Every scheduled fix is accounted for; a finished episode leaves none unreached."""
     w, results = _results(drawn, episodes, i)
     for r in results:
-        assert _fix_table_complete(r) and r.summary["unreached_fixes"] == 0, (w.name, r.seed, r.summary)
+        assert fix_table_complete(r) and r.summary["unreached_fixes"] == 0, (w.name, r.seed, r.summary)
 
 
 @pytest.mark.parametrize("i", WORLDS)
@@ -110,25 +103,11 @@ def test_containment_under_bounded_noise(drawn, episodes, i):
         assert missed.size == 0, f"{w.name} seed {r.seed}: fixes {missed[:5].tolist()} miss the true position"
 
 
-def _over_promise(r) -> np.ndarray:
-    """Return the fixes whose realised fault area exceeds the promise's allowance or eps_max.
-
-    Improvised ones are left out.
-    """
-    fx = r.fixes
-    beyond = fx.beyond_redundancy if fx.beyond_redundancy is not None else np.zeros(len(fx.t), bool)
-    tol = DEFAULT_TOLERANCE_FRACTION * np.min(np.where(fx.markers >= 0, fx.rho, np.inf), axis=1)
-    d = fx.fault_diameter
-    real = np.isfinite(d) & ~beyond
-    over = real & ((d > (1.0 + PROMISE_TOLERANCE) * fx.predicted_tau + 2.0 * tol) | (d >= r.eps_max))
-    return np.flatnonzero(over)
-
-
 @pytest.mark.parametrize("i", PROMISE_WORLDS)
 def test_promise_under_bounded_noise(drawn, episodes, i):
     w, results = _results(drawn, episodes, i)
     for r in results:
-        over = _over_promise(r)
+        over = over_promise(r)
         ratio = r.fixes.fault_diameter[over] / r.fixes.predicted_tau[over]
         assert over.size == 0, f"{w.name} seed {r.seed}: fixes {over[:5].tolist()} over their promise, x{ratio[:5]}"
 
@@ -138,7 +117,7 @@ def test_promise_check_catches_a_broken_promise(drawn, episodes):
     _, worlds = drawn
     r = episodes[worlds[0].name][0]
     shrunk = replace(r, fixes=replace(r.fixes, predicted_tau=0.9 * r.fixes.predicted_tau))
-    assert _over_promise(shrunk).size > 0
+    assert over_promise(shrunk).size > 0
 
 
 def test_cli_bad_count_is_one_line_and_writes_nothing(tmp_path, capsys):

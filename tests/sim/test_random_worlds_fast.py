@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import pefsim
-from tests.sim.test_random_worlds import _fix_table_complete, _over_promise
+from tests.sim.world_checks import fix_table_complete, over_promise
 
 SEED = 1
 COUNT = 3
@@ -42,10 +42,10 @@ def test_small_worlds_keep_what_cannot_fail_by_chance(small_worlds):
     for w, r in small_worlds:
         s = r.summary
         assert s["reached"], (w.name, s)
-        assert s["fixes"] > 0 and _fix_table_complete(r) and s["unreached_fixes"] == 0, (w.name, s)
+        assert s["fixes"] > 0 and fix_table_complete(r) and s["unreached_fixes"] == 0, (w.name, s)
         missed = np.flatnonzero(~r.fixes.contained)
         assert missed.size == 0, f"{w.name}: fixes {missed[:5].tolist()} miss the true position"
-        over = _over_promise(r)
+        over = over_promise(r)
         ratio = r.fixes.fault_diameter[over] / r.fixes.predicted_tau[over]
         assert over.size == 0, f"{w.name}: fixes {over[:5].tolist()} over their promise, x{ratio[:5]}"
 

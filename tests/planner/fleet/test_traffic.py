@@ -17,7 +17,7 @@ from planner.fleet.summary import summarize
 from planner.fleet.traffic import block_limit
 from scenarios import loads
 from sim import cli
-from tests.sim.episode.test_fleet_episode import CROSS
+from tests.sim.fleets import CROSS
 
 
 @pytest.fixture(scope="module")

@@ -53,7 +53,8 @@ def test_every_fallback_keeps_its_promise_until_the_next_fix(reflectors):
     # the promises are the construction's, recomputed fix by fix
     pick = present[:: max(1, len(present) // 25)]
     pred, _, _ = promise.predict(sc, plan.path, plan.schedule.speed,
-                                 np.array([fixes[i].s for i, _ in pick]), [fixes[i].fallbacks[q] for i, q in pick])
+                                 np.array([fixes[i].s for i, _ in pick]), [fixes[i].fallbacks[q] for i, q in pick],
+                                 np.array([fixes[i].estimate for i, _ in pick]))
     np.testing.assert_allclose(pred, [fixes[i].fallback_tau[q] for i, q in pick], rtol=1e-9)
 
 

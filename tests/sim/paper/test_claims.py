@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from estimators.fault.linearized import unit_rows
+from planner.schedule.promise import POLYGON_TOLERANCE
 from sim.cli import main
 from sim.paper import geometry as geo
 from sim.paper import pef as paper_pef
@@ -129,7 +130,7 @@ def test_claim7_counts_are_consistent(claim7):
     # the moving robot breaks the paper's static PEF and keeps the motion-aware promise
     assert n["fixes"] > 100
     assert n["static_kept_frac"] < 0.5 < n["static_max_ratio"] - 0.2
-    assert n["moving_kept_frac"] == 1.0 and n["moving_max_ratio"] <= 1.02
+    assert n["moving_kept_frac"] == 1.0 and n["moving_max_ratio"] <= 1.0 + POLYGON_TOLERANCE
 
 
 #: claim 7's numbers as a sweep of 3 runs reports them (synthetic: the verdict's logic alone)
