@@ -42,25 +42,65 @@ def _body(at) -> Polygon:
     return Polygon(np.asarray(at) + r * np.column_stack([np.cos(ang), np.sin(ang)]))
 
 
-def _blocks(body: Polygon, p, at) -> tuple[bool, bool]:
-    """Whether ``body`` blocks the line of sight from p to a marker at ``at``, and whether that is unsure."""
+def _blocker(body: Polygon, at):
+    """What ``body`` needs to decide, for any p, whether it blocks the sight of a marker at ``at``.
+
+    The shapes depend on the body and the marker only, so they are built once per pair (buffers
+    are what costs) and :func:`_blocks` tests a point against them.
+    """
     if body.buffer(RULE.grow, join_style=2).intersects(Point(at)):
         # the marker's mount: the segment must not enter it
-        seg = LineString([p, at])
-        tight = seg.intersects(body.buffer(-1e-7, join_style=2))
-        loose = seg.intersects(body.buffer(-1e-4, join_style=2))
-        return tight, tight != loose
+        return "mount", body.buffer(-1e-7, join_style=2), body.buffer(-1e-4, join_style=2)
     # some position within the margin sees the marker through the body grown by the reach: the
     # fan from the marker over the disc of the margin meets it (the kernels widen the shadow's
     # half-planes, a mitred superset: cells where the two differ, near the shadow's corners, are
     # unsure)
     grown = body.buffer(RULE.reach, join_style=2)
-    tight = Point(p).buffer(RULE.margin).union(Point(at)).convex_hull.intersects(grown)
     mk = np.asarray(at)
     far = [mk + (np.asarray(v) - mk) * 100.0 for v in grown.exterior.coords]
     shadow = MultiPoint(list(grown.exterior.coords) + far).convex_hull
-    loose = shadow.buffer(RULE.margin, join_style=2, mitre_limit=1e6).contains(Point(p))
+    return "shadow", grown, shadow.buffer(RULE.margin, join_style=2, mitre_limit=1e6)
+
+
+def _blocks(blocker, p, at, fan) -> tuple[bool, bool]:
+    """Whether a body blocks the line of sight from p to a marker at ``at``, and whether that is unsure.
+
+    ``blocker`` is the body's :func:`_blocker`; ``fan`` the convex hull of the disc of the margin
+    around p and the marker.
+    """
+    kind, a, b = blocker
+    if kind == "mount":
+        seg = LineString([p, at])
+        tight = seg.intersects(a)
+        loose = seg.intersects(b)
+        return tight, tight != loose
+    tight = fan.intersects(a)
+    loose = b.contains(Point(p))
     return tight, tight != loose
+
+
+_GEOMETRY: dict = {}
+
+
+def _geometry(sc) -> list[tuple]:
+    """Per marker: whether it is mounted on the obstacle, its blockers, and the faces whose wedge applies.
+
+    Memoised on the markers' positions (every scenario of this module has the same markers).
+    """
+    key = tuple(tuple(m.position) for m in sc.markers)
+    if key not in _GEOMETRY:
+        out = []
+        for m in sc.markers:
+            mounted = OBSTACLE.buffer(RULE.grow, join_style=2).intersects(Point(m.position))
+            # the obstacle, and the other markers' bodies (octagons around them)
+            blockers = [_blocker(body, m.position)
+                        for body in [OBSTACLE] + [_body(o.position) for o in sc.markers if o is not m]]
+            faces = [normal for line, normal in FACES
+                     if line.distance(Point(m.position)) <= RULE.radius
+                     and (mounted or not line.within(OBSTACLE.boundary))]
+            out.append((blockers, faces))
+        _GEOMETRY[key] = out
+    return _GEOMETRY[key]
 
 
 def _visibility(sc, p, flat: bool = True):
@@ -69,26 +109,24 @@ def _visibility(sc, p, flat: bool = True):
     if OBSTACLE.intersects(Point(p)):
         return [False] * len(sc.markers), False
     lim = math.degrees(sc.sensor.max_incidence)
-    for m in sc.markers:
+    disc = Point(p).buffer(RULE.margin)
+    for m, (blockers, faces) in zip(sc.markers, _geometry(sc)):
         mx, my = m.position
         dx, dy = p[0] - mx, p[1] - my
         if math.hypot(dx, dy) > sc.sensor.max_range - RULE.margin:
             out.append(False)
             continue
-        mounted = OBSTACLE.buffer(RULE.grow, join_style=2).intersects(Point(m.position))
         ok = True
-        # the obstacle, and the other markers' bodies (octagons around them)
-        for body in [OBSTACLE] + [_body(o.position) for o in sc.markers if o is not m]:
-            blocked, unsure = _blocks(body, p, m.position)
+        fan = disc.union(Point(m.position)).convex_hull
+        for blocker in blockers:
+            blocked, unsure = _blocks(blocker, p, m.position, fan)
             ok &= not blocked
             ambiguous |= unsure
-        for line, (nx, ny) in FACES:
-            on_obstacle = line.within(OBSTACLE.boundary)
-            if line.distance(Point(m.position)) <= RULE.radius and (mounted or not on_obstacle):
-                # the mount wedge: p at least offset + slope r in front of the face
-                slack = dx * nx + dy * ny - RULE.offset - RULE.slope * math.hypot(dx, dy)
-                ambiguous |= abs(slack) < 1e-9
-                ok = ok and slack >= 0.0
+        for nx, ny in faces:
+            # the mount wedge: p at least offset + slope r in front of the face
+            slack = dx * nx + dy * ny - RULE.offset - RULE.slope * math.hypot(dx, dy)
+            ambiguous |= abs(slack) < 1e-9
+            ok = ok and slack >= 0.0
         if ok and flat and m.kind is scenarios.MarkerKind.FLAT:
             # the incidence wedge, at every point within the margin
             cos_lim = math.cos(math.radians(lim))
@@ -255,6 +293,7 @@ def test_tau_subset_of_every_pair_agrees_with_the_slow_evaluator_incidence_inclu
     xs, ys = np.meshgrid(np.arange(0.3, 12.0, 0.7), np.arange(0.3, 8.0, 0.7))
     pts = np.column_stack([xs.ravel(), ys.ravel()])
     looks = [_visibility(sc, p) for p in pts]
+    looks_posts = [_visibility(sc, p, flat=False)[0] for p in pts]
     wedge_only = 0
     for a, b in itertools.combinations(range(len(sc.markers)), 2):
         got = pef.tau_subset(pts, np.array([a, b]))
@@ -265,7 +304,7 @@ def test_tau_subset_of_every_pair_agrees_with_the_slow_evaluator_incidence_inclu
             want = _diagonal(sc, p, a, b) if vis[a] and vis[b] else math.inf
             # (collinear pairs are 1e13 one way and inf the other: both past any eps_max)
             assert min(got[n], 1e6) == pytest.approx(min(want, 1e6), rel=1e-5), (a, b, p)
-            posts, _ = _visibility(sc, p, flat=False)
+            posts = looks_posts[n]
             wedge_only += bool(posts[a] and posts[b] and not (vis[a] and vis[b]))
     # the incidence limit decides many of these: the check would catch a tau_subset that ignores it
     assert wedge_only > 50

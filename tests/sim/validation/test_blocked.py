@@ -30,7 +30,10 @@ def _validate(capsys, argv):
 def test_same_seed_same_blocks_and_the_block_stream_leaves_the_others_alone():
     sc = scenarios.load("warehouse-reflectors")
     ss = np.random.SeedSequence(7, spawn_key=(3,))
-    a, b = run_episode(sc, 0, seed=ss), run_episode(sc, 0, seed=ss)
+    # the first 20 simulated seconds of the route (1200 of its 2900 steps: some 40 blocked lines
+    # of sight and 20 fallback fixes) hold every claim below; the whole route is the e2e sweep's
+    cut = 20.0
+    a, b = run_episode(sc, 0, seed=ss, time_limit=cut), run_episode(sc, 0, seed=ss, time_limit=cut)
     for key in ("blocked_markers", "fallback_fixes", "failed_fixes", "fixes", "max_error", "certified_max"):
         assert a.summary[key] == b.summary[key], key
     assert np.array_equal(a.fixes.markers, b.fixes.markers)
@@ -38,7 +41,7 @@ def test_same_seed_same_blocks_and_the_block_stream_leaves_the_others_alone():
     # every fallback fix measured the schedule's fallback of one of its fix's markers
     assert a.fixes.fallback.sum() == a.summary["fallback_fixes"]
     clear = dataclasses.replace(sc, sensor_actual=dataclasses.replace(sc.sensor_actual, block_probability=0.0))
-    c = run_episode(clear, 0, seed=ss)
+    c = run_episode(clear, 0, seed=ss, time_limit=cut)
     assert c.summary["blocked_markers"] == 0 and c.summary["fallback_fixes"] == 0
     # the start pose comes from its own stream: the same with and without blocking
     assert np.array_equal(a.steps.true_pose[0], c.steps.true_pose[0])
