@@ -43,7 +43,7 @@ def _body(at) -> Polygon:
 
 
 def _blocker(body: Polygon, at):
-    """What ``body`` needs to decide, for any p, whether it blocks the sight of a marker at ``at``.
+    """Return what ``body`` needs to decide, for any p, whether it blocks the sight of a marker at ``at``.
 
     The shapes depend on the body and the marker only, so they are built once per pair (buffers
     are what costs) and :func:`_blocks` tests a point against them.

@@ -15,7 +15,11 @@ from tests.sim.episode.digest import digest
 
 #: episodes on the big floors (a hall, the warehouse's second task and its reflector variant): the e2e tier
 LONG_TASKS = {("hall", 0), ("hall", 1), ("warehouse-reflectors", 0), ("warehouse-reflectors", 1), ("warehouse", 1)}
-TASKS = [pytest.param(name, i, id=f"{name}-{i}", marks=[pytest.mark.e2e] if (name, i) in LONG_TASKS else [])
+#: a fleet's tasks driven one robot at a time: the e2e tier (tests/sim/episode/test_fleet_episode.py drives the
+#: fleet itself, a crossing in the fast tier)
+FLEETS = {name for name in scenarios.builtin_names() if scenarios.load(name).robots}
+TASKS = [pytest.param(name, i, id=f"{name}-{i}",
+                      marks=[pytest.mark.e2e] if (name, i) in LONG_TASKS or name in FLEETS else [])
          for name in scenarios.builtin_names() for i in range(len(scenarios.load(name).tasks))]
 
 
