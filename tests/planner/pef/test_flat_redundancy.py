@@ -110,7 +110,7 @@ def _visibility(sc, p, flat: bool = True):
         return [False] * len(sc.markers), False
     lim = math.degrees(sc.sensor.max_incidence)
     disc = Point(p).buffer(RULE.margin)
-    for m, (blockers, faces) in zip(sc.markers, _geometry(sc)):
+    for m, (blockers, faces) in zip(sc.markers, _geometry(sc), strict=True):
         mx, my = m.position
         dx, dy = p[0] - mx, p[1] - my
         if math.hypot(dx, dy) > sc.sensor.max_range - RULE.margin:
