@@ -10,14 +10,19 @@ import pytest
 
 from planner.fleet.plan import chain, plan_fleet
 from planner.fleet.zones import DEFAULT_MARGIN
-from scenarios import PlanningError, load
+from scenarios import PlanningError, load, loads
+from tests.sim.fleets import CROSS
 
 
-@pytest.fixture(scope="module")
-def fleet():
-    # chaining, timeline and clearance do not depend on the traffic-aware schedule (40 s on this floor;
-    # tests/planner/fleet/test_traffic.py covers it on a two-robot crossing)
-    return load("warehouse-fleet"), plan_fleet(load("warehouse-fleet"), traffic=False)
+@pytest.fixture(scope="module", params=["cross", pytest.param("warehouse-fleet", marks=pytest.mark.e2e)])
+def fleet(request):
+    """A fleet and its plan: two robots crossing on a 12 m floor (fast), the built-in's three (~30 s: e2e).
+
+    Chaining, timeline and clearance do not depend on the traffic-aware schedule
+    (tests/planner/fleet/test_traffic.py plans the crossing both ways).
+    """
+    sc = loads(CROSS, source="cross.toml") if request.param == "cross" else load(request.param)
+    return sc, plan_fleet(sc, traffic=False)
 
 
 def test_each_robot_drives_its_tasks_from_dock_to_dock(fleet):
@@ -64,6 +69,7 @@ def test_chain_joins_at_the_dock_once():
     assert s.tolist() == [0, 1, 2, 3] and speed.tolist() == [1, 1, 0, 0] and offsets.tolist() == [0, 2]
 
 
+@pytest.mark.e2e  # plans two of the built-in's robots (~30 s); tests/planner/fleet/test_zones.py refuses it fast
 def test_a_dock_on_another_robots_path_is_refused_in_one_line():
     from dataclasses import replace
 

@@ -73,28 +73,37 @@ def _misses(sc: scenarios.Scenario, poses: np.ndarray, vis: np.ndarray, margin: 
     return bad
 
 
+#: the big floors' plans (a PEF map and every task each, ~15 s): the e2e tier; the corridor below keeps a
+#: positive and a negative control in the fast tier
+BIG = {"hall", "warehouse-reflectors"}
+
+
 @pytest.fixture(scope="module")
 def planned():
-    """Each built-in's scenario and sampled planned poses, every task."""
+    """Each built-in's scenario and sampled planned poses, every task (planned when first asked for)."""
     out = {}
-    for name in BUILT_INS:
-        sc = pefsim.load(name)
-        poses = [_path_poses(pefsim.plan(sc, t)) for t in range(len(sc.tasks))]
-        out[name] = (sc, np.vstack(poses))
-    return out
+
+    def get(name):
+        if name not in out:
+            sc = pefsim.load(name)
+            poses = [_path_poses(pefsim.plan(sc, t)) for t in range(len(sc.tasks))]
+            out[name] = (sc, np.vstack(poses))
+        return out[name]
+    return get
 
 
-@pytest.mark.parametrize("name", BUILT_INS)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=[pytest.mark.e2e] if n in BIG else []) for n in BUILT_INS])
 def test_the_laser_sees_every_line_of_sight_the_plan_counts_on(planned, name):
-    sc, poses = planned[name]
+    sc, poses = planned(name)
     vis, free = scenario_visible_points(sc, poses[:, :2])
     assert free.all() and vis.any(axis=0).mean() > 0.5  # not vacuous: markers counted on along the path
     bad = _misses(sc, poses, vis, scenario_sight_rule(sc).margin)
     assert not bad, f"{len(bad)} lines of sight the plan counts on and the laser does not see, first {bad[:3]}"
 
 
+@pytest.mark.e2e
 def test_negative_control_the_margin_free_rule_counts_on_what_the_laser_does_not_see(planned):
-    sc, poses = planned["hall"]
+    sc, poses = planned("hall")
     # the rule before issue 23: segment against the shrunk pieces, no margin, no mount wedge
     vis, _ = visible_points(poses[:, :2], sc.marker_positions(), sc.obstacle_pieces(), sc.sensor.max_range,
                             sc.workspace.bounds, sc.marker_normals(), sc.sensor.max_incidence)
