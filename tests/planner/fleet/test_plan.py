@@ -16,7 +16,7 @@ from tests.sim.fleets import CROSS
 
 @pytest.fixture(scope="module", params=["cross", pytest.param("warehouse-fleet", marks=pytest.mark.e2e)])
 def fleet(request):
-    """A fleet and its plan: two robots crossing on a 12 m floor (fast), the built-in's three (~30 s: e2e).
+    """Return a fleet and its plan: two robots crossing on a 12 m floor (fast), the built-in's three (~30 s: e2e).
 
     Chaining, timeline and clearance do not depend on the traffic-aware schedule
     (tests/planner/fleet/test_traffic.py plans the crossing both ways).
