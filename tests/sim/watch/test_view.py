@@ -30,29 +30,29 @@ def test_moved_marker_window_equals_whole_map(name):
     sc = load(name)
     sc = dataclasses.replace(sc, sensor=dataclasses.replace(sc.sensor, max_range=min(sc.workspace.size) / 3))
     builder = ViewBuilder()
-    first = builder.build(sc)
+    first = builder.build_map(sc)
     assert first.map_work == "computed"
     before = first.pef_map.tau.copy()  # the builder updates its map in place
     x0, y0 = sc.markers[0].position
     moved = _moved(sc, 0, (x0 + 0.7, y0) if x0 + 0.7 < sc.workspace.size[0] else (x0 - 0.7, y0))
-    view = builder.build(moved)
+    view = builder.build_map(moved)
     assert view.map_work == "window"
     whole = PEF(moved).grid()
     assert np.array_equal(view.pef_map.tau, whole.tau)
     assert np.array_equal(view.pef_map.best, whole.best)
     # negative control: the old map is not the new one (reusing it unchanged would fail the check above)
     assert not np.array_equal(before, whole.tau)
-    assert builder.build(moved).map_work == "reused"  # the same markers again: nothing to compute
+    assert builder.build_map(moved).map_work == "reused"  # the same markers again: nothing to compute
 
 
 def test_other_changes_compute_the_whole_map():
     sc = load("warehouse")
     builder = ViewBuilder()
-    builder.build(sc)
+    builder.build_map(sc)
     fewer = dataclasses.replace(sc, markers=sc.markers[:-1])
-    assert builder.build(fewer).map_work == "computed"
+    assert builder.build_map(fewer).map_work == "computed"
     wider = dataclasses.replace(fewer, sensor=dataclasses.replace(fewer.sensor, max_range=fewer.sensor.max_range + 1))
-    assert builder.build(wider).map_work == "computed"
+    assert builder.build_map(wider).map_work == "computed"
 
 
 def test_map_first_then_plans():
