@@ -62,10 +62,6 @@ def test_same_seed_same_bytes_whatever_the_count(drawn):
 
 WORLDS = [pytest.param(i, id=KINDS[i]) for i in range(COUNT)]
 
-PROMISE_DEFECT = pytest.mark.xfail(strict=True, reason=(
-    "issue 23 item 2: fixes through the comb's 90-degree corners realised more than the old promise "
-    "(planned poses and an untuned 2 % tolerance); to be rechecked against the derived promise"))
-PROMISE_WORLDS = [WORLDS[0], WORLDS[1], pytest.param(2, id=KINDS[2], marks=PROMISE_DEFECT)]
 
 
 def _results(drawn, episodes, i):
@@ -103,7 +99,7 @@ def test_containment_under_bounded_noise(drawn, episodes, i):
         assert missed.size == 0, f"{w.name} seed {r.seed}: fixes {missed[:5].tolist()} miss the true position"
 
 
-@pytest.mark.parametrize("i", PROMISE_WORLDS)
+@pytest.mark.parametrize("i", WORLDS)
 def test_promise_under_bounded_noise(drawn, episodes, i):
     w, results = _results(drawn, episodes, i)
     for r in results:
