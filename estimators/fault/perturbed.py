@@ -25,7 +25,7 @@ Construction (every step an inequality, no linearisation left unbounded):
    away from 90 deg: with ``|a - a_plan| <= beta_1 + beta_2`` its largest value is at the end of
    that interval farthest from 90 deg. For k > 2 strips, turning normal i by ``beta_i`` moves
    the strip's edge by at most ``beta_i D`` over ``B(c, D)``: ``F`` lies in the strip polygon of
-   the planned normals with half-widths ``h_i + beta_i D`` (:func:`strip_polygon`'s diameter).
+   the planned normals with half-widths ``h_i + beta_i D`` (:func:`strip_diameters`).
 5. **Closing the ball.** If the polygon's diameter ``d`` is below ``D``, the polygon (it holds
    ``c``) lies inside ``B(c, d)``, so the component of ``F`` through ``c`` cannot reach the
    sphere ``|p - c| = D``: ``diam F <= d``. :func:`perturbed_diameters` finds such a ``D`` by
@@ -43,7 +43,7 @@ import math
 import numpy as np
 
 from estimators.fault.carried import shift_bound
-from estimators.fault.linearized import strip_polygon
+from estimators.fault.linearized import strip_diameters
 from scenarios.schema import RobotSpec, SensorSpec
 
 BALL_STEPS = 12
@@ -121,8 +121,7 @@ def perturbed_diameters(sensor: SensorSpec, robot: RobotSpec, markers, poses, de
             h = rho + ball[:, None] ** 2 / (4.0 * (r_lo - ball[:, None])) + beta * ball[:, None]
             good = np.all(r_lo - ball[:, None] > 0.0, axis=1) & ok
             d = np.full(n_fix, np.inf)
-            for i in np.flatnonzero(good).tolist():  # a schedule's chosen fixes: a few hundred
-                d[i] = strip_polygon(u[i], h[i]).diameter
+            d[good] = strip_diameters(u[good], h[good])
             return d
 
     ball = np.where(ok, diameter(np.zeros(n_fix)), np.inf)

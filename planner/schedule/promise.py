@@ -102,12 +102,14 @@ Bearings
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from estimators.fault.perturbed import perturbed_diameters
+from jit import compiled
 from planner.routes.smoothing import MAX_ACCEL, acceleration_limited
 from planner.schedule.pathtime import Kinematics, Track
 from scenarios.schema import Scenario
@@ -221,13 +223,11 @@ def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.n
 def settle_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarray) -> np.ndarray:
     """Return the follower's tracking bound: its chord bound, or the largest one it settles from [m].
 
-    The largest :func:`chord_bound` over ``[s - SETTLE_LOOKAHEADS look, s]``: leaving a turn the
-    follower swings out by no more than it cut the turn, and is back within a few lookaheads.
+    The largest :func:`chord_bound` over ``[s - SETTLE_LOOKAHEADS look, s]`` (25 points): leaving a
+    turn the follower swings out by no more than it cut the turn, and is back within a few
+    lookaheads.
     """
-    s = np.asarray(s, dtype=float)
-    look = np.broadcast_to(np.asarray(look, dtype=float), s.shape)
-    back = s[..., None] - SETTLE_LOOKAHEADS * look[..., None] * np.linspace(0.0, 1.0, 25)
-    return np.max(chord_bound(path, s_v, back, np.broadcast_to(look[..., None], back.shape)), axis=-1)
+    return _chords(path, s_v, s, look, SETTLE_LOOKAHEADS, np.linspace(0.0, 1.0, 25))
 
 
 def chord_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarray) -> np.ndarray:
@@ -240,21 +240,45 @@ def chord_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarr
     s, look : ndarray, same shape
         Arc lengths and chord lengths (along the path) [m].
     """
+    return _chords(path, s_v, s, look, 0.0, np.zeros(1))
+
+
+def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
+    """Return the largest :func:`chord_bound` at ``s - reach look back_j`` over ``j``, shape of ``s`` [m]."""
     s = np.asarray(s, dtype=float)
     look = np.broadcast_to(np.asarray(look, dtype=float), s.shape)
-    frac = np.linspace(0.0, 1.0, 33)
-    a = s[..., None] - look[..., None] * frac
-    b = a + look[..., None]
+    out = np.empty(s.shape)
+    path = np.asarray(path, dtype=float)
+    _chords_kernel(np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]),
+                   np.ascontiguousarray(s_v, dtype=float), np.ascontiguousarray(s).ravel(),
+                   np.ascontiguousarray(look).ravel(), float(reach), back, np.linspace(0.0, 1.0, 33), out.reshape(-1))
+    return out
 
-    def at(q):
-        return np.stack([np.interp(q, s_v, path[:, 0]), np.interp(q, s_v, path[:, 1])], axis=-1)
 
-    pa, pb, x = at(a), at(b), at(s)[..., None, :]
-    ab = pb - pa
-    ab2 = np.sum(ab * ab, axis=-1)
-    w = np.clip(np.sum((x - pa) * ab, axis=-1) / np.where(ab2 > 0, ab2, 1.0), 0.0, 1.0)
-    d = x - (pa + w[..., None] * ab)
-    return np.max(np.hypot(d[..., 0], d[..., 1]), axis=-1)
+@compiled.njit(cache=True)
+def _chords_kernel(px, py, s_v, s, look, reach, back, frac, out):
+    # Thousands of fixes x 25 settle points x 33 chords: as numpy temporaries this was most of a
+    # plan's time. Same operations in the same order as the vectorised form it replaced.
+    nb, nf = back.size, frac.size
+    a = np.empty(nb * nf)
+    for i in range(s.size):
+        q = s[i] - reach * look[i] * back
+        for j in range(nb):
+            for f in range(nf):
+                a[j * nf + f] = q[j] - look[i] * frac[f]
+        b = a + look[i]
+        xx, xy = np.interp(q, s_v, px), np.interp(q, s_v, py)
+        pax, pay = np.interp(a, s_v, px), np.interp(a, s_v, py)
+        abx, aby = np.interp(b, s_v, px) - pax, np.interp(b, s_v, py) - pay
+        best = -np.inf
+        for j in range(nb):
+            for f in range(nf):
+                m = j * nf + f
+                ab2 = abx[m] * abx[m] + aby[m] * aby[m]
+                w = ((xx[j] - pax[m]) * abx[m] + (xy[j] - pay[m]) * aby[m]) / (ab2 if ab2 > 0 else 1.0)
+                w = min(max(w, 0.0), 1.0)
+                best = max(best, math.hypot(xx[j] - (pax[m] + w * abx[m]), xy[j] - (pay[m] + w * aby[m])))
+        out[i] = best
 
 
 def pose_bound(scenario: Scenario, path: np.ndarray, s_v: np.ndarray, speed: np.ndarray,

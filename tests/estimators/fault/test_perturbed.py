@@ -110,3 +110,19 @@ def test_negative_controls_exceed(scenario, case):
     # ... and poses well outside the set break the derived one
     assert beyond > bound * (1.0 + POLYGON_TOLERANCE)
     assert within <= bound * (1.0 + POLYGON_TOLERANCE)
+
+
+def test_strip_diameters_are_the_strip_polygons_diameters():
+    """The batched diameter is strip_polygon's, bit for bit; unbounded polygons are inf."""
+    from estimators.fault.linearized import strip_diameters, strip_polygon
+
+    rng = np.random.default_rng(5)
+    for s in (2, 3, 6):
+        ang = rng.uniform(0.0, 2.0 * math.pi, (50, s))
+        normals = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+        half = rng.uniform(1e-3, 0.1, (50, s))
+        normals[0], half[0] = normals[0, :1], half[0, :1]  # one strip repeated: unbounded
+        got = strip_diameters(normals, half)
+        assert np.array_equal(got, [strip_polygon(n, h).diameter for n, h in zip(normals, half, strict=True)])
+        assert got[0] == math.inf and np.all(np.isfinite(got[1:]))
+    assert strip_diameters(np.zeros((0, 3, 2)), np.zeros((0, 3))).shape == (0,)

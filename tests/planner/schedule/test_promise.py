@@ -19,7 +19,15 @@ from estimators.fault.carried import (
 from estimators.fault.exact import exact_fault_area
 from planner.pef.map import PEF
 from planner.plan import plan_task
-from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG, moving_map, predict
+from planner.schedule.promise import (
+    POLYGON_TOLERANCE,
+    SETTLE_LOOKAHEADS,
+    START_LAG,
+    chord_bound,
+    moving_map,
+    predict,
+    settle_bound,
+)
 from scenarios.errors import PlanningError
 
 
@@ -222,3 +230,30 @@ def test_the_promise_holds_for_a_start_up_to_a_control_tick_late():
     assert pred[1] >= max(late) * (1 - 1e-9)
     # negative control: at the planned poses alone the promise is broken by a late start
     assert max(late) > (1 + POLYGON_TOLERANCE) * area(0.0)
+
+
+def test_chord_bound_is_the_distance_from_the_chords_shapely_measures():
+    """chord_bound: the largest distance of path(s) from the 33 chords path(a) path(a + look) over it."""
+    from shapely.geometry import LineString, Point
+
+    rng = np.random.default_rng(11)
+    path = np.cumsum(rng.normal(size=(30, 2)), axis=0)
+    s_v = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
+    s = rng.uniform(0.0, s_v[-1], 40)
+    look = rng.uniform(0.3, 3.0, 40)
+
+    def at(q):
+        return np.interp(q, s_v, path[:, 0]), np.interp(q, s_v, path[:, 1])
+
+    got = chord_bound(path, s_v, s, look)
+    want = [max(Point(at(si)).distance(LineString([at(a), at(a + li)])) for a in si - li * np.linspace(0, 1, 33))
+            for si, li in zip(s, look, strict=True)]
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    assert np.all(got > 0.0)  # a random walk turns at every vertex: no chord lies on the path
+    # on a straight path every chord is the path itself (to rounding, 1e-15 of its 10 m)
+    line = np.column_stack([np.linspace(0.0, 10.0, 11), np.zeros(11)])
+    assert np.max(chord_bound(line, np.linspace(0.0, 10.0, 11), s % 9.0, look)) < 1e-13
+    # settle_bound is the largest chord bound over the settle window behind s
+    back = s[:, None] - SETTLE_LOOKAHEADS * look[:, None] * np.linspace(0.0, 1.0, 25)
+    np.testing.assert_array_equal(settle_bound(path, s_v, s, look),
+                                  chord_bound(path, s_v, back, np.repeat(look[:, None], 25, axis=1)).max(axis=1))

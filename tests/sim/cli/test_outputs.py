@@ -111,12 +111,6 @@ def test_validate_from_a_sweep_being_written_says_so(capsys, tmp_path):
         pefsim.validate(out, scenario="paper-two-markers")  # unlocked: read as usual (and judged)
 
 
-@pytest.fixture(scope="module")
-def hall_plan() -> str:
-    """``pefsim plan hall``'s text (a module-scoped fixture cannot use capsys)."""
-    return _plan_text("hall")
-
-
 def _plan_text(name: str) -> str:
     import contextlib
     import io
@@ -133,16 +127,17 @@ def test_plan_counts_every_fix_it_slows_down():
     ``paper-two-markers`` slows its route down (the hall, where whole stretches were slowed,
     no longer is under the line-of-sight rule).
     """
-    hall_plan = _plan_text("paper-two-markers")
-    chosen = next(line for line in hall_plan.splitlines() if "CHOSEN" in line)
+    text = _plan_text("paper-two-markers")
+    chosen = next(line for line in text.splitlines() if "CHOSEN" in line)
     slow_column = float(chosen.split()[6])
-    m = re.search(r"; (\d+) fixes slowed down \(\+([\d.]+) s\)", hall_plan)
-    assert m, hall_plan
+    m = re.search(r"; (\d+) fixes slowed down \(\+([\d.]+) s\)", text)
+    assert m, text
     assert float(m.group(2)) == slow_column > 0 and int(m.group(1)) > 0
 
 
-def test_plan_notes_give_tau_in_the_table_unit(hall_plan):
-    notes = [line for line in hall_plan.splitlines() if "inadmissible: tau" in line]
+def test_plan_notes_give_tau_in_the_table_unit():
+    """The notes of inadmissible routes give tau in mm, as the table does."""
+    notes = [line for line in _plan_text("warehouse").splitlines() if "inadmissible: tau" in line]
     assert notes
     for line in notes:
         max_tau_mm = float(line.split()[4])  # the max tau [mm] column

@@ -18,7 +18,7 @@ import pytest
 import scenarios
 from planner.schedule.promise import POLYGON_TOLERANCE
 from sim import cli
-from sim.episode.drive import run_episode
+from sim.episode.drive import prepare, run_episode
 from sim.montecarlo import results
 
 
@@ -33,7 +33,8 @@ def test_same_seed_same_blocks_and_the_block_stream_leaves_the_others_alone():
     # the first 20 simulated seconds of the route (1200 of its 2900 steps: some 40 blocked lines
     # of sight and 20 fallback fixes) hold every claim below; the whole route is the e2e sweep's
     cut = 20.0
-    a, b = run_episode(sc, 0, seed=ss, time_limit=cut), run_episode(sc, 0, seed=ss, time_limit=cut)
+    prepared = prepare(sc, 0)  # planned once: blocking is drawn while driving, the plan does not depend on it
+    a, b = (run_episode(sc, 0, seed=ss, time_limit=cut, prepared=prepared) for _ in range(2))
     for key in ("blocked_markers", "fallback_fixes", "failed_fixes", "fixes", "max_error", "certified_max"):
         assert a.summary[key] == b.summary[key], key
     assert np.array_equal(a.fixes.markers, b.fixes.markers)
@@ -41,7 +42,7 @@ def test_same_seed_same_blocks_and_the_block_stream_leaves_the_others_alone():
     # every fallback fix measured the schedule's fallback of one of its fix's markers
     assert a.fixes.fallback.sum() == a.summary["fallback_fixes"]
     clear = dataclasses.replace(sc, sensor_actual=dataclasses.replace(sc.sensor_actual, block_probability=0.0))
-    c = run_episode(clear, 0, seed=ss, time_limit=cut)
+    c = run_episode(clear, 0, seed=ss, time_limit=cut, prepared=prepared)
     assert c.summary["blocked_markers"] == 0 and c.summary["fallback_fixes"] == 0
     # the start pose comes from its own stream: the same with and without blocking
     assert np.array_equal(a.steps.true_pose[0], c.steps.true_pose[0])
