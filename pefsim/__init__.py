@@ -530,9 +530,9 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
     """
     import dataclasses
 
+    from scenarios import ScenarioError
     from sim.episode.drive import check_markers
     from sim.montecarlo.engine import sweep as _sweep
-    from scenarios import ScenarioError
     from sim.montecarlo.negative_control import check_q_scale, mark, read_mark, scaled_api
 
     sc = _scenario(scenario)

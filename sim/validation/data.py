@@ -6,7 +6,6 @@ checks in :mod:`sim.validation.checks` are pure functions of it.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field, replace
 from enum import Enum

@@ -87,7 +87,8 @@ class ValidationReport:
     def to_dict(self) -> dict[str, Any]:
         return {"scenario": self.scenario, "source": self.source, "runs": self.runs, "fixes": self.fixes,
                 "alpha": self.alpha, "statistical_checks": self.statistical,
-                "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "alone": self.alone, "passed": self.passed,
+                "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "alone": self.alone,
+                "passed": self.passed,
                 "failed": self.failed, "checks": [c.to_dict() for c in self.checks]}
 
 

@@ -111,3 +111,25 @@ def test_validate_from_refuses_alone(capsys, tmp_path):
     code = cli.main(["validate", "--from", str(tmp_path), "--alone"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "--alone: not with --from" in err[0]
+
+
+@pytest.mark.e2e  # plans the fleet both ways (~5 min) and drives it 3 runs each
+@pytest.mark.parametrize(("alone", "plan"), [(False, "pass"), (True, "FAIL")])
+def test_the_fleet_planned_alone_breaks_the_plan_check(capsys, alone, plan):
+    """The built-in fleet keeps the plan's promise with the traffic-aware schedule, not without it.
+
+    Planned alone, robots r1 and r2 count on reflectors the others hide at the crossings (8 and
+    2 scheduled lines of sight a run, some without a fallback) and lose their certified bound in
+    every run; r3 drives clear of them. 3 runs are 9 robot runs, 3 of them successful: the
+    Clopper-Pearson upper bound at alpha / 6 (0.00167) is 0.82, below the 0.95 target (2 runs,
+    2/6, would give 0.89). Traffic-aware, all 9 succeed (upper bound 1). The seeds are the
+    scenario's own, so the verdicts are reproducible.
+    """
+    argv = ["validate", "warehouse-fleet", "--runs", "3", "--workers", "1", "--json"] + (["--alone"] if alone else [])
+    code = cli.main(argv)
+    report = json.loads(capsys.readouterr().out)
+    status = {c["name"]: c["status"] for c in report["checks"]}
+    assert report["alone"] is alone
+    assert status["plan"] == plan and code == (1 if alone else 0), report["failed"]
+    # the fault areas stay honest either way: what breaks is the schedule's reliance on hidden reflectors
+    assert status["containment"] == status["promise"] == "pass"
