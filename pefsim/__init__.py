@@ -485,7 +485,7 @@ def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: 
 def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, runs: int | None = None,
           workers: int | None = None, task: int | None = None, executor: str = "local", address: str | None = None,
           resume: bool = False, rrd_every: int = 0, steps: str | None = None, q_scale: float = 1.0,
-          progress: bool | None = False, report: bool = True) -> SweepSummary:
+          alone: bool = False, progress: bool | None = False, report: bool = True) -> SweepSummary:
     """Run a Monte-Carlo sweep into ``out`` (written run by run; ``resume`` completes it).
 
     Parameters
@@ -514,6 +514,9 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
     q_scale : float
         NEGATIVE CONTROL ONLY: the filter's process noise times ``q_scale`` (1: as declared);
         the directory records it (:mod:`sim.montecarlo.negative_control`).
+    alone : bool
+        NEGATIVE CONTROL ONLY, fleets: plan each robot's measurement schedule as if it drove alone
+        (no traffic prediction; :func:`plan_fleet` with ``traffic=False``); the directory records it.
     progress : bool or None
         Show a progress bar; None: when stderr is a terminal.
     report : bool
@@ -527,18 +530,26 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
     """
     import dataclasses
 
+    from scenarios import ScenarioError
     from sim.episode.drive import check_markers
     from sim.montecarlo.engine import sweep as _sweep
-    from sim.montecarlo.negative_control import check_q_scale, mark, scaled_api
+    from sim.montecarlo.negative_control import check_q_scale, mark, read_mark, scaled_api
 
     sc = _scenario(scenario)
     check_markers(sc)  # before the output directory is made
     q_scale = check_q_scale(q_scale)
+    alone = bool(alone)
+    if alone and not sc.is_fleet:
+        raise ScenarioError(f"{sc.source}: alone: {sc.name} is not a fleet scenario (no [[robots]])")
+    control = q_scale != 1.0 or alone
+    if resume and out is not None and Path(out).is_dir() and read_mark(out) != (q_scale, alone):
+        raise ScenarioError(f"{out}: resume: its runs were made with (q_scale, alone) = {read_mark(out)}, "
+                            f"not {(q_scale, alone)}")
     written: list[Path] = []
 
     def then(summary: SweepSummary) -> None:  # while the sweep still holds the directory's lock
-        if q_scale != 1.0:
-            mark(summary.out, q_scale)
+        if control:
+            mark(summary.out, q_scale, alone)
         if report:
             from sim.report.page import write_report
 
@@ -546,7 +557,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
 
     summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
                      resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
-                     api=scaled_api(q_scale, sc.is_fleet) if q_scale != 1.0 else None, then=then)
+                     api=scaled_api(q_scale, sc.is_fleet, alone) if control else None, then=then)
     return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
 

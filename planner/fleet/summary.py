@@ -107,3 +107,26 @@ def summarize(scenario: Scenario, fleet) -> list[RobotSummary]:
             fixes_per_m_near=n_near / near_len if near_len > 0 else float("nan"),
             fixes_per_m_far=n_far / far_len if far_len > 0 else float("nan")))
     return out
+
+
+def fleet_density(summaries: list[RobotSummary]) -> tuple[float, float]:
+    """Scheduled fixes per metre of the whole fleet where the others are and elsewhere [1/m].
+
+    Pooled over the robots: fixes near the others over the length near them, likewise
+    elsewhere (the places are the same with traffic on and off, :data:`NEAR`), so that the
+    traffic-aware and the alone schedules compare. NaN where the length is 0.
+
+    Parameters
+    ----------
+    summaries : list of RobotSummary
+
+    Returns
+    -------
+    near, far : float
+    """
+    near_len = sum(s.near_length for s in summaries)
+    far_len = sum(s.far_length for s in summaries)
+    # each robot's count is its density times its length (NaN where its length is 0: no fixes there)
+    near = sum(s.fixes_per_m_near * s.near_length for s in summaries if s.near_length > 0)
+    far = sum(s.fixes_per_m_far * s.far_length for s in summaries if s.far_length > 0)
+    return (near / near_len if near_len > 0 else float("nan"), far / far_len if far_len > 0 else float("nan"))

@@ -25,6 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="per-step rows to keep: every control step (all, the default), the steps at fix "
                         "times (fixes: the N-run NEES test then does not apply), or none; --resume keeps "
                         "the sweep's choice")
+    p.add_argument("--alone", action="store_true",
+                   help="NEGATIVE CONTROL ONLY, fleets: plan each robot's measurement schedule as if it drove "
+                        "alone (no traffic prediction); the directory records it")
     p.add_argument("--no-report", action="store_true", help="skip report.html")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
@@ -40,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
     scenario = pefsim.load(args.scenario)
     summary = pefsim.sweep(scenario, args.out, runs=args.runs, task=args.task, workers=args.workers,
                            executor=args.executor, address=args.address, resume=args.resume,
-                           rrd_every=args.rrd_every, steps=args.steps, progress=None, report=not args.no_report)
+                           rrd_every=args.rrd_every, steps=args.steps, alone=args.alone, progress=None,
+                           report=not args.no_report)
     if args.json:
         print_json(summary.to_dict())
         return 0

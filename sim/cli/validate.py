@@ -32,6 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--q-scale", type=float, default=None, metavar="Q",
                    help="NEGATIVE CONTROL ONLY: multiply the filter's process noise by Q (1 = as "
                         "declared) to see the consistency checks fail on a mis-tuned filter")
+    p.add_argument("--alone", action="store_true",
+                   help="NEGATIVE CONTROL ONLY, fleets: plan each robot's measurement schedule as if it drove "
+                        "alone (no traffic prediction) to see the plan check fail when the others are ignored")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=run)
 
@@ -41,7 +44,7 @@ def _check_args(args: argparse.Namespace) -> None:
 
     if args.from_dir is not None:
         given = (("--runs", args.runs), ("--out", args.out), ("--workers", args.workers),
-                 ("--q-scale", args.q_scale))
+                 ("--q-scale", args.q_scale), ("--alone", args.alone or None))
         stray = [flag for flag, value in given if value is not None]
         if stray:
             raise ScenarioError(f"{stray[0]}: not with --from (the sweep in {args.from_dir} is already run)")
@@ -71,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         with tempfile.TemporaryDirectory(prefix="pefsim-validate-") as tmp:
             out = args.out if args.out is not None else f"{tmp}/mc"
             swept = pefsim.sweep(scenario, out, runs=args.runs, workers=args.workers, q_scale=args.q_scale or 1.0,
-                                 progress=None, report=False)
+                                 alone=args.alone, progress=None, report=False)
             report = pefsim.validate(swept, alpha=args.alpha, scenario=scenario)
         kept = args.out
     wall = time.perf_counter() - start
@@ -91,6 +94,9 @@ def format_report(report, kept: str | None, wall: float) -> str:
              f"{wall:.1f} s)"]
     if report.q_scale != 1.0:
         lines.append(f"NEGATIVE CONTROL: the filter's process noise was multiplied by {report.q_scale:g}")
+    if report.alone:
+        lines.append("NEGATIVE CONTROL: each robot's measurement schedule was planned as if it drove alone "
+                     "(no traffic prediction)")
     if report.alpha_per_check is not None:
         lines.append(f"family alpha {report.alpha:g} over {report.statistical} statistical checks: "
                      f"{report.alpha_per_check:.3g} each (Bonferroni)")

@@ -11,7 +11,8 @@ robots share the physics steps and the control ticks. At each control tick a rob
   footprint);
 * starts its scheduled fixes as a single robot does; before a fix it checks which scheduled
   markers another robot's body hides (the fix's note: ``FixLog.notes``, a ``FixNote``: marker
-  index -> robot, and the plan's probability of it).
+  index -> robot, and the plan's probability of it), and every other line of sight within range
+  a robot hides there (``FixNote.sight_hidden``: what the laser would see without the robots).
   Those lines of sight count as blocked for the fix, as ``sensor.block_probability``'s do: the
   robot measures the schedule's fallback, or improvises beyond what the plan promised
   (``beyond_redundancy``), and the single-failure test (runs column ``lost_guarantee``) judges
@@ -240,6 +241,8 @@ class _Robot:
             if m not in drawn and not laser.visible(m) and m in laser.blocked_by:
                 hidden[int(m)] = laser.blocked_by[m]
         self.robot_blocked += len(hidden)
+        # every line of sight the others hide here, not only the scheduled ones (fixes table)
+        sight = laser.hidden_by_robots()
         laser.blocked = drawn | frozenset(hidden)
         # the single-failure test counts every line of sight lost at the fix, whoever blocked it
         self.attempts.append((t, lost_markers(laser.blocked, sched.markers, sched.fallbacks) > 1))
@@ -247,7 +250,7 @@ class _Robot:
         if subset is None:
             fixes.skipped += 1
         else:
-            fixes.start(subset, t, sched, note=FixNote(hidden, self.p_fix[f]))
+            fixes.start(subset, t, sched, note=FixNote(hidden, self.p_fix[f], sight))
             self.last_fix_start = t
         self.next_fix = f + 1
 

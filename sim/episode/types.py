@@ -144,10 +144,16 @@ class FixNote:
     p_block_robot : float
         The plan's probability that another robot hides at least one of the scheduled markers
         at the fix start (:attr:`planner.fleet.exposure.RobotBlocking.p_fix`); NaN: none made.
+    sight_hidden : dict of int to int
+        Every marker, scheduled or not, whose line of sight another robot's body hid at the fix
+        start while the laser would have seen it without the robots (in range, facing, no wall on
+        the way: :meth:`sim.physics.laser.LaserSensor.hidden_by_robots`), to that robot's index.
+        ``hidden`` is its part among the scheduled markers.
     """
 
     hidden: dict[int, int]
     p_block_robot: float = math.nan
+    sight_hidden: dict[int, int] = field(default_factory=dict)
 
 
 @dataclass

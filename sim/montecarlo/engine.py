@@ -69,11 +69,12 @@ class EpisodeApi:
     """Modules worth importing once before workers start (see :mod:`sim.montecarlo.executors`)."""
 
 
-def fleet_api() -> EpisodeApi:
+def fleet_api(traffic: bool = True) -> EpisodeApi:
     """Return the real episode API of a fleet scenario: ``sim.episode.fleet`` in a fleet world.
 
     Its ``prepare`` plans the whole fleet (whatever the task index) and its ``run_episode``
-    returns a :class:`~sim.episode.fleet.FleetResult`.
+    returns a :class:`~sim.episode.fleet.FleetResult`. ``traffic`` False plans each robot's
+    measurement schedule as if it drove alone (:func:`sim.episode.fleet.prepare_fleet`).
     """
     from functools import partial
 
@@ -81,7 +82,7 @@ def fleet_api() -> EpisodeApi:
     from sim.physics.world import PhysicsWorld
 
     def prepare(scenario, task_index=0):
-        return fleet.prepare_fleet(scenario)
+        return fleet.prepare_fleet(scenario, traffic=traffic)
 
     def run(scenario, task_index=0, seed=0, world=None, prepared=None, q_scale=1.0):
         return fleet.run_fleet_episode(scenario, seed=seed, world=world, prepared=prepared, q_scale=q_scale)

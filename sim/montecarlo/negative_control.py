@@ -1,9 +1,10 @@
-"""A sweep run with a deliberately mis-tuned filter, and the mark it leaves in its directory.
+"""A sweep run with a deliberately wrong model, and the mark it leaves in its directory.
 
 ``pefsim validate --q-scale Q`` multiplies the filter's process noise by ``Q`` to show that the
-consistency checks fail on a filter that is wrong (a negative control, nothing else). The sweep
-directory then holds :data:`NEGATIVE_CONTROL_JSON`, so that validating it later (``--from``)
-says what it was.
+consistency checks fail on a filter that is wrong; ``pefsim validate --alone`` plans a fleet's
+measurement schedules as if each robot drove alone (no traffic prediction) to show that the plan
+check fails when the others are ignored (negative controls, nothing else). The sweep directory
+then holds :data:`NEGATIVE_CONTROL_JSON`, so that validating it later (``--from``) says what it was.
 """
 
 from __future__ import annotations
@@ -13,12 +14,12 @@ import math
 from functools import partial
 from pathlib import Path
 
-from scenarios.errors import SimulationError
+from scenarios.errors import OutputError, SimulationError
 from sim.montecarlo.engine import EpisodeApi, default_api, fleet_api
 from sim.montecarlo.results import write_atomic
 
 NEGATIVE_CONTROL_JSON = "negative-control.json"
-"""Written into a sweep directory run with a mis-tuned filter (``{"q_scale": 0.01}``)."""
+"""Written into a sweep directory run as a negative control (``{"q_scale": 0.01, "alone": false}``)."""
 
 
 def check_q_scale(q_scale: float) -> float:
@@ -28,7 +29,7 @@ def check_q_scale(q_scale: float) -> float:
     return float(q_scale)
 
 
-def scaled_api(q_scale: float, fleet: bool = False) -> EpisodeApi:
+def scaled_api(q_scale: float, fleet: bool = False, alone: bool = False) -> EpisodeApi:
     """Return the real episode API with the filter's process noise times ``q_scale``.
 
     Parameters
@@ -37,6 +38,8 @@ def scaled_api(q_scale: float, fleet: bool = False) -> EpisodeApi:
         Process-noise factor (> 0); 1 is the filter as declared.
     fleet : bool
         The API of a fleet scenario (:func:`~sim.montecarlo.engine.fleet_api`): every robot's filter.
+    alone : bool
+        A fleet's schedules planned as if each robot drove alone (``fleet_api(traffic=False)``).
 
     Returns
     -------
@@ -45,7 +48,9 @@ def scaled_api(q_scale: float, fleet: bool = False) -> EpisodeApi:
     """
     from sim.episode import drive as episode
 
-    api = fleet_api() if fleet else default_api()
+    if alone and not fleet:
+        raise SimulationError("alone: planning as if alone is for a fleet scenario ([[robots]])")
+    api = fleet_api(traffic=not alone) if fleet else default_api()
     q_scale = check_q_scale(q_scale)
     if q_scale == 1.0:
         return api
@@ -53,7 +58,28 @@ def scaled_api(q_scale: float, fleet: bool = False) -> EpisodeApi:
                       api.make_world, api.preload)
 
 
-def mark(directory: str | Path, q_scale: float) -> None:
-    """Record in sweep ``directory`` that its runs used a filter with process noise times ``q_scale``."""
+def mark(directory: str | Path, q_scale: float, alone: bool = False) -> None:
+    """Record in sweep ``directory`` its filter's process noise factor and whether the fleet was planned alone."""
     write_atomic(Path(directory) / NEGATIVE_CONTROL_JSON,
-                 (json.dumps({"q_scale": float(q_scale)}) + "\n").encode("utf-8"))
+                 (json.dumps({"q_scale": float(q_scale), "alone": bool(alone)}) + "\n").encode("utf-8"))
+
+
+def read_mark(directory: str | Path) -> tuple[float, bool]:
+    """Return ``(q_scale, alone)`` of sweep ``directory``: ``(1.0, False)`` without a mark.
+
+    Raises
+    ------
+    OutputError
+        The mark is unreadable.
+    """
+    control = Path(directory) / NEGATIVE_CONTROL_JSON
+    if not control.exists():
+        return 1.0, False
+    try:
+        doc = json.loads(control.read_text(encoding="utf-8"))
+        alone = doc.get("alone", False)
+        if not isinstance(alone, bool):
+            raise TypeError(alone)
+        return float(doc["q_scale"]), alone
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        raise OutputError(f"{control}: unreadable; expected {{\"q_scale\": <number>, \"alone\": <bool>}}") from None

@@ -92,10 +92,16 @@ FLEET_FIX_SCHEMA = pa.schema([*FIX_SCHEMA, pa.field("robot", pa.string()),
                               pa.field("blocked_by_robot", pa.string()),       # scheduled marker ids robots hid
                               pa.field("blocked_by_robot_count", pa.int32()),
                               pa.field("blocking_robots", pa.string()),       # which robot hid each of them
-                              pa.field("p_block_robot", pa.float64())])       # the plan's probability of a hidden one
-"""A fleet sweep's fixes table: :data:`FIX_SCHEMA` plus the robot and the lines of sight other robots
-hid at the fix start (comma-joined marker ids, and the robots that hid them, in the same order), and
-the plan's probability that a robot hides at least one scheduled marker at the fix start (NaN: none)."""
+                              pa.field("p_block_robot", pa.float64()),        # the plan's probability of a hidden one
+                              pa.field("sight_blocked_by_robot", pa.string()),  # every marker id robots hid
+                              pa.field("sight_blocked_by_robot_count", pa.int32())])
+"""A fleet sweep's fixes table: :data:`FIX_SCHEMA` plus the robot and the scheduled lines of sight other
+robots hid at the fix start (``blocked_by_robot``: comma-joined marker ids, ``blocking_robots``: the robots
+that hid them, in the same order; ``blocked_by_robot_count``: how many), the plan's probability that a
+robot hides at least one scheduled marker at the fix start (NaN: none), and every line of sight, scheduled
+or not, that another robot hid at the fix start where the laser would have seen the marker without the
+robots (``sight_blocked_by_robot``, ``sight_blocked_by_robot_count``: in range, facing, no wall on the
+way; :meth:`sim.physics.laser.LaserSensor.hidden_by_robots`)."""
 
 
 @dataclass(frozen=True)
@@ -213,8 +219,8 @@ def fleet_fix_columns(run: int, fixes: FixLog, robot: str, marker_ids: list[str]
     """Per-fix columns of :data:`FLEET_FIX_SCHEMA`: :func:`fix_columns` plus the robot and what robots hid.
 
     ``fixes.notes[f]`` (a :class:`~sim.episode.types.FixNote`) maps each scheduled marker another
-    robot hid at fix f's start to that robot's index and carries the plan's blocking probability
-    (:mod:`sim.episode.fleet`).
+    robot hid at fix f's start to that robot's index, likewise every marker in sight a robot hid,
+    and carries the plan's blocking probability (:mod:`sim.episode.fleet`).
     """
     cols = fix_columns(run, fixes)
     n = len(fixes.t)
@@ -226,6 +232,9 @@ def fleet_fix_columns(run: int, fixes: FixLog, robot: str, marker_ids: list[str]
     cols["blocked_by_robot"] = np.array([",".join(marker_ids[m] for m, _ in h) for h in hidden], dtype=object)
     cols["blocked_by_robot_count"] = np.array([len(h) for h in hidden], dtype=np.int32)
     cols["blocking_robots"] = np.array([",".join(robot_names[j] for _, j in h) for h in hidden], dtype=object)
+    sight = [sorted(note.sight_hidden) if note is not None else [] for note in notes]
+    cols["sight_blocked_by_robot"] = np.array([",".join(marker_ids[m] for m in h) for h in sight], dtype=object)
+    cols["sight_blocked_by_robot_count"] = np.array([len(h) for h in sight], dtype=np.int32)
     return cols
 
 

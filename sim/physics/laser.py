@@ -191,6 +191,39 @@ class LaserSensor:
         self.blocked_by.pop(i, None)
         return bool(hit[0] == -1 or hit[0] == self._own_post[i])
 
+    def hidden_by_robots(self) -> dict[int, int]:
+        """Every line of sight another robot's body hides now: marker index -> that robot's index.
+
+        A marker counts when the laser would see it without the robots (within max range, in its
+        incidence wedge, not blocked for the fix (:attr:`blocked`), no wall or post on the way) and
+        another robot's body is on its ray. Reflectors above every robot are never hidden. Empty
+        outside a fleet world.
+
+        Returns
+        -------
+        dict of int to int
+            Marker index -> index of the first robot body on its ray.
+        """
+        if self._masks is None:
+            return {}
+        x0, y0, _ = self.robot.true_pose_tuple()
+        x, y = float(x0) - self._x0, float(y0) - self._y0
+        start = [x, y, self.height]
+        bare = -1 ^ robots_group(len(self.world.body_ids))  # the same ray through every robot
+        out = {}
+        for i, target in enumerate(self._targets):
+            if i in self.blocked or math.hypot(target[0] - x, target[1] - y) > self.spec.max_range \
+                    or not self._facing(i, x, y):
+                continue
+            hit = pb.rayTest(start, target, collisionFilterMask=self._masks[i], physicsClientId=self.world.client)[0]
+            other = self._bodies.get(hit[0])
+            if other is None:
+                continue
+            clear = pb.rayTest(start, target, collisionFilterMask=bare, physicsClientId=self.world.client)[0][0]
+            if clear == -1 or clear == self._own_post[i]:
+                out[i] = other
+        return out
+
     def sees_all(self, indices) -> bool:
         """Tell whether every marker of ``indices`` is visible now (stops at the first that is not).
 

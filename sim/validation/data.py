@@ -6,7 +6,6 @@ checks in :mod:`sim.validation.checks` are pure functions of it.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field, replace
 from enum import Enum
@@ -22,7 +21,7 @@ from scenarios.schema import Scenario
 from sim.jsonable import json_number
 from sim.montecarlo import lock, results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
-from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON
+from sim.montecarlo.negative_control import read_mark
 from sim.montecarlo.results import SweepLayout
 from sim.montecarlo.steps import StepsMode
 
@@ -214,7 +213,8 @@ class SweepData:
     ``q_scale`` is the filter's process-noise factor the sweep ran with (1 = the declared
     model; anything else is a negative control). ``steps`` is None when the sweep has no
     per-step table (the N-run NEES test then does not apply); ``steps_mode`` is how many
-    step rows the sweep kept (``pefsim mc --steps``: all, fixes or none).
+    step rows the sweep kept (``pefsim mc --steps``: all, fixes or none). ``alone``: a fleet's
+    schedules were planned as if each robot drove alone (a negative control).
     """
 
     scenario: Scenario
@@ -224,6 +224,7 @@ class SweepData:
     q_scale: float = 1.0
     steps: StepTable | None = None
     steps_mode: str = "all"
+    alone: bool = False
 
 
 def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
@@ -346,13 +347,7 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     runs = results.read_runs(layout.root)
     if runs.num_rows == 0:
         raise OutputError(f"{directory}: holds no finished run")
-    q_scale = 1.0
-    control = layout.root / NEGATIVE_CONTROL_JSON
-    if control.exists():
-        try:
-            q_scale = float(json.loads(control.read_text(encoding="utf-8"))["q_scale"])
-        except (OSError, ValueError, KeyError, TypeError):
-            raise OutputError(f"{control}: unreadable; expected {{\"q_scale\": <number>}}") from None
+    q_scale, alone = read_mark(layout.root)
     # A directory assembled by hand may lack sweep.json: it then holds whatever steps it has.
     mode = stored_steps_mode(read_settings(layout.root) if layout.sweep_json.exists() else {})
     # Only a sweep of every step feeds the N-run NEES test (the only reader of steps here), so
@@ -362,4 +357,4 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     blocking = FLEET_BLOCKING_COLUMNS if stored.is_fleet else []
     data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet + blocking),
                        source=str(directory), q_scale=q_scale, steps=steps)
-    return replace(data, steps_mode=mode.value)
+    return replace(data, steps_mode=mode.value, alone=alone)

@@ -52,6 +52,8 @@ class ValidationReport:
     q_scale : float
         The filter's process-noise factor of the sweep (1 unless a negative control).
     checks : list of CheckResult
+    alone : bool
+        A fleet sweep whose schedules were planned as if each robot drove alone (a negative control).
     """
 
     scenario: str
@@ -63,6 +65,7 @@ class ValidationReport:
     alpha_per_check: float | None
     q_scale: float
     checks: list[CheckResult]
+    alone: bool = False
 
     @property
     def failed(self) -> list[str]:
@@ -84,7 +87,8 @@ class ValidationReport:
     def to_dict(self) -> dict[str, Any]:
         return {"scenario": self.scenario, "source": self.source, "runs": self.runs, "fixes": self.fixes,
                 "alpha": self.alpha, "statistical_checks": self.statistical,
-                "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "passed": self.passed,
+                "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "alone": self.alone,
+                "passed": self.passed,
                 "failed": self.failed, "checks": [c.to_dict() for c in self.checks]}
 
 
@@ -128,4 +132,4 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
             out.append(c.evaluate(data, per_check if c.statistical else 0.0, rng))
     return ValidationReport(scenario=data.scenario.name, source=data.source, runs=len(data.runs),
                             fixes=len(data.fixes), alpha=float(alpha), statistical=m,
-                            alpha_per_check=per_check, q_scale=data.q_scale, checks=out)
+                            alpha_per_check=per_check, q_scale=data.q_scale, checks=out, alone=data.alone)

@@ -9,6 +9,7 @@ blocking probability exceeds the limit has a fallback for each marker (or none i
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -61,6 +62,21 @@ def test_pefsim_plan_prints_each_robot_of_a_fleet(tmp_path, capsys):
     assert cli.main(["plan", str(path), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["traffic"] and [r["name"] for r in doc["robots"]] == ["east", "north"]
+    assert set(doc["fleet"]) == {"fixes_per_m_near", "fixes_per_m_far"}
     assert cli.main(["plan", str(path), "--alone"]) == 0
     out = capsys.readouterr().out
     assert "as if it drove alone" in out and "east" in out and "E blocked fixes" in out
+    assert any(line.startswith("fleet ") for line in out.splitlines())
+
+
+def test_the_fleet_density_pools_the_robots_fixes_over_their_lengths():
+    from planner.fleet.summary import RobotSummary, fleet_density
+
+    def robot(near_len, far_len, n_near, n_far):
+        return RobotSummary("r", [], n_near + n_far, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, near_len, far_len,
+                            n_near / near_len if near_len else math.nan, n_far / far_len)
+
+    # 10 fixes on 2 m near and 30 on 10 m elsewhere; the second robot never comes near the others
+    near, far = fleet_density([robot(2.0, 4.0, 10, 20), robot(0.0, 6.0, 0, 10)])
+    assert near == pytest.approx(5.0) and far == pytest.approx(3.0)
+    assert math.isnan(fleet_density([robot(0.0, 6.0, 0, 10)])[0])

@@ -27,7 +27,9 @@ def _fleet_record(scenario, run: int, names: list[str]) -> RunRecord:
     rows, steps, fixes = [], [], []
     for j, name in enumerate(names):
         result = fe.run_episode(scenario, 0, np.random.SeedSequence(scenario.seed, spawn_key=(run, j)))
-        result.fixes.notes = [FixNote({0: 1 - j} if f % 3 == 0 else {}, 0.25) for f in range(len(result.fixes.t))]
+        result.fixes.notes = [FixNote({0: 1 - j} if f % 3 == 0 else {}, 0.25,
+                                      {0: 1 - j, 2: 1 - j} if f % 3 == 0 else {3: 1 - j})
+                              for f in range(len(result.fixes.t))]
         rows.append(run_row(run, f"seed {run}", 0, {**result.summary, "robot": name, "wait_time": 1.5 * j,
                                                      "robot_blocked": 2, "collisions": 0}, 0.5,
                             schema=FLEET_RUN_SCHEMA))
@@ -58,6 +60,13 @@ def test_a_fleet_sweep_round_trips_a_row_per_robot(tmp_path):
     # robot a's hidden line of sight was hidden by b and the other way round
     pairs = set(zip(hid.column("robot").to_pylist(), hid.column("blocking_robots").to_pylist(), strict=True))
     assert pairs == {("a", "b"), ("b", "a")}
+    # every line of sight a robot hid, scheduled or not: the scheduled one and two more
+    ids = sc.marker_ids()
+    sight = fixes.column("sight_blocked_by_robot").to_pylist()
+    count = fixes.column("sight_blocked_by_robot_count").to_numpy()
+    hidden = fixes.column("blocked_by_robot_count").to_numpy()
+    assert set(sight) == {f"{ids[0]},{ids[2]}", ids[3]}
+    assert np.all(count == np.where(hidden > 0, 2, 1))
     s = summarize(tmp_path, 0.95)
     assert (s.runs, s.robots, s.collisions) == (6, 2, 0) and "robots" in s.to_dict()
 

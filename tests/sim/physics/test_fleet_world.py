@@ -74,6 +74,26 @@ def test_a_robot_between_hides_only_reflectors_below_its_top():
         assert [laser.visible(i) for i in range(3)] == [True, True, True] and laser.blocked_by == {}
 
 
+def test_every_line_of_sight_a_robot_hides_is_named_walls_first():
+    with world(extra="[[obstacles]]\ncenter = [14.0, 3.0]\nsize = [0.4, 0.4]") as w:
+        w.reset_fleet([(2.0, 3.0, 0.0), (10.0, 3.0, 0.0)])
+        laser = LaserSensor(w, w.scenario.sensor_actual, w.scenario.marker_positions(), robot=0)
+        # the wall behind the blocker hides the low reflector anyway: not the robot's doing
+        assert laser.hidden_by_robots() == {}
+    with world() as w:
+        w.reset_fleet([(2.0, 3.0, 0.0), (10.0, 3.0, 0.0)])
+        laser = LaserSensor(w, w.scenario.sensor_actual, w.scenario.marker_positions(), robot=0)
+        assert laser.hidden_by_robots() == {0: 1}     # only the low one, by the blocker
+        laser.blocked = frozenset({0})                  # blocked for the fix already: not counted again
+        assert laser.hidden_by_robots() == {}
+        laser.blocked = frozenset()
+        w.reset_fleet([(2.0, 3.0, 0.0), (10.0, 1.0, 0.0)])
+        assert laser.hidden_by_robots() == {}
+    one = loads(TEXT.format(extra="").split("[[robots]]")[0], source="row.toml")
+    with PhysicsWorld(one) as w:                        # a single robot's world: nobody to hide anything
+        assert LaserSensor(w, one.sensor_actual, one.marker_positions()).hidden_by_robots() == {}
+
+
 def test_a_low_robot_hides_nothing_above_it():
     # a 0.25 m robot under the ray from a 0.5 m laser to the 0.3 m reflector 17 m away: the ray
     # is 0.5 - 0.2 * 8 / 17 = 0.41 m high above it
