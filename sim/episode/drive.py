@@ -294,7 +294,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                 world.step(max(due_step - world.steps, 0))
                 read_odometry()
                 # every control tick reads the odometry once: n of them so far
-                fixes.measure_due(odo.pose, pose_now(), world.time, n + counts["reads"])
+                fixes.measure_due(odo.pose, pose_now(), world.time, n + counts["reads"], odo.slip_weight)
             else:
                 world.step(end - world.steps)
 

@@ -37,6 +37,7 @@ class _Pending:
     bearings: list[float] = field(default_factory=list)
     dr_at: list[tuple[float, float, float]] = field(default_factory=list)
     reads_at: list[int | None] = field(default_factory=list)
+    weight_at: list[float | None] = field(default_factory=list)
     nis: float = 0.0
     accepted: int = 0
     scheduled: object = None
@@ -138,13 +139,17 @@ class FixRecorder:
 
     # -- measuring -----------------------------------------------------------------------
 
-    def measure_due(self, dr_pose: np.ndarray, true_pose, t: float, reads: int | None = None) -> None:
+    def measure_due(self, dr_pose: np.ndarray, true_pose, t: float, reads: int | None = None,
+                    slip_weight: float | None = None) -> None:
         """Take the measurement that is due now (the caller has predicted the EKF up to ``t``).
 
         ``true_pose`` is the robot's true pose now (x, y, theta), a tuple or an array.
 
         ``reads`` counts the odometry reads so far (any origin): the shifts' slip variance
         depends on how many increments they span (None: counted as one, an upper bound).
+        ``slip_weight`` is the odometry's :attr:`~sim.physics.odometry.WheelOdometry.slip_weight`
+        now: with it the slip variance of a shift is exact for reads of any spacing (None: the
+        ``reads`` count, as if the increments were equal).
         """
         p = self.pending
         slot = p.attempted
@@ -172,10 +177,12 @@ class FixRecorder:
             p.ranges.append(m.measured_range)
             p.dr_at.append(tuple(map(float, dr_pose)))  # floats: no numpy between physics steps
             p.reads_at.append(reads)
+            p.weight_at.append(slip_weight)
         if not p.markers:
-            self._finish(dr_pose, true_pose, t, reads)
+            self._finish(dr_pose, true_pose, t, reads, slip_weight)
 
-    def _finish(self, dr_end: np.ndarray, true_pose, t: float, reads: int | None) -> None:
+    def _finish(self, dr_end: np.ndarray, true_pose, t: float, reads: int | None,
+                slip_weight: float | None = None) -> None:
         p, self.pending = self.pending, None
         if len(p.measured) < 2:
             self.skipped += 1  # a marker vanished behind an obstacle mid-fix: no fix
@@ -185,10 +192,10 @@ class FixRecorder:
         # ~40 small numpy calls cost 3-4 times what they cost in one loop (a fifth of an
         # episode's non-physics time). Nothing in the episode reads them.
         self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x,
-                               self.loc.heading_var))
+                               self.loc.heading_var, slip_weight))
 
     def _complete(self, p: _Pending, dr_end: tuple, true_pose: tuple, t: float, reads: int | None,
-                  x_est: np.ndarray, heading_var_now: float) -> None:
+                  x_est: np.ndarray, heading_var_now: float, slip_weight: float | None = None) -> None:
         """Compute a finished fix's snapshot, fault area and promise, with the filter as it was then."""
         idx = np.array(p.measured)
         # Dead reckoning drifts in heading without bound; only its displacement over the fix is
@@ -207,6 +214,8 @@ class FixRecorder:
             along_cos.append(((sx - mx) * ux + (sy - my) * uy) / norm if norm > 0.0 else 1.0)
         reads_over = (None if reads is None or None in p.reads_at
                       else np.array([reads - at for at in p.reads_at], dtype=float))
+        weight_over = (None if slip_weight is None or None in p.weight_at
+                       else np.array([slip_weight - at for at in p.weight_at], dtype=float))
         ranges = np.array(p.ranges)
         rho = self.sensor.measured_range_bound(ranges)  # the declared bound holds at the true range
         # every range but one taken at the fix time is carried (unchanged encoders included)
@@ -236,7 +245,8 @@ class FixRecorder:
                             bearings=bearings, bearing_error=self.sensor.bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
                             bearing_margin=bearing_margin,
-                            extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos),
+                            extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos,
+                                                slip_weight=weight_over),
                             fault_margin=shift)
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)

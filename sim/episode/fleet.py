@@ -482,4 +482,5 @@ def _advance(world, robots, dt_phys: float) -> None:
         for d, r in due:
             if d <= world.steps:
                 r.read_odometry()
-                r.fixes.measure_due(r.odo.pose, r.body.true_pose_tuple(), world.time, r.n + r.counts["reads"])
+                r.fixes.measure_due(r.odo.pose, r.body.true_pose_tuple(), world.time, r.n + r.counts["reads"],
+                                    r.odo.slip_weight)

@@ -63,8 +63,10 @@ def integrate_arc(pose: np.ndarray, d_left: float, d_right: float, wheel_base: f
                              float(wheel_base)))
 
 
-# WheelOdometry.state (float64, shape (6,)): encoder counts, dead-reckoned pose, next slip normal.
-TICKS_LEFT, TICKS_RIGHT, POSE_X, POSE_Y, POSE_THETA, NEXT_NORMAL = range(6)
+# WheelOdometry.state (float64, shape (7,)): encoder counts, dead-reckoned pose, next slip normal,
+# and the running sum of (d_left^2 + d_right^2) / 4 over the reads [m^2] (SLIP_WEIGHT: the wheels'
+# mean travel has slip variance slip_std^2 times its increase, whatever the reads' spacing).
+TICKS_LEFT, TICKS_RIGHT, POSE_X, POSE_Y, POSE_THETA, NEXT_NORMAL, SLIP_WEIGHT = range(7)
 # WheelOdometry.params (float64, shape (4,)).
 METRES_PER_TICK, TICKS_PER_REV, SLIP_STD, WHEEL_BASE = range(4)
 
@@ -77,8 +79,8 @@ def odometry_step(state, params, normals, angle_left, angle_right):
 
     Parameters
     ----------
-    state : ndarray, shape (6,)
-        :attr:`WheelOdometry.state` (indices ``TICKS_LEFT`` ... ``NEXT_NORMAL``); updated.
+    state : ndarray, shape (7,)
+        :attr:`WheelOdometry.state` (indices ``TICKS_LEFT`` ... ``SLIP_WEIGHT``); updated.
     params : ndarray, shape (4,)
         :attr:`WheelOdometry.params` (indices ``METRES_PER_TICK`` ... ``WHEEL_BASE``).
     normals : ndarray, shape (B,)
@@ -100,6 +102,7 @@ def odometry_step(state, params, normals, angle_left, angle_right):
     d_left = (ticks_left - state[TICKS_LEFT]) * params[METRES_PER_TICK]
     d_right = (ticks_right - state[TICKS_RIGHT]) * params[METRES_PER_TICK]
     state[TICKS_LEFT], state[TICKS_RIGHT] = ticks_left, ticks_right
+    state[SLIP_WEIGHT] += 0.25 * (d_left * d_left + d_right * d_right)
     slip = params[SLIP_STD]
     if slip > 0.0:
         k = int(state[NEXT_NORMAL])
@@ -141,7 +144,7 @@ class WheelOdometry:
         self._rng = rng
         self.params = np.array([2.0 * math.pi * spec.wheel_radius / spec.encoder_ticks,
                                 float(spec.encoder_ticks), self.slip_std, spec.wheel_base])
-        self.state = np.zeros(6)
+        self.state = np.zeros(7)
         self.normals = np.zeros(2)
         if self.slip_std > 0.0:
             self.refill()
@@ -175,6 +178,16 @@ class WheelOdometry:
     def pose(self) -> np.ndarray:
         """Dead-reckoned pose (x [m], y [m], theta [rad], theta unwrapped), shape (3,)."""
         return self.state[POSE_X:POSE_THETA + 1].copy()
+
+    @property
+    def slip_weight(self) -> float:
+        """Running sum over the reads of ``(d_left^2 + d_right^2) / 4`` [m^2] (wheel travel per read).
+
+        The slip of the wheels' mean travel between two reads of it has variance
+        ``slip_std^2`` times its increase: unequal reads (a fix's measurements fall between
+        control ticks) weigh more than ``d^2 / (2 n)`` for ``n`` equal ones.
+        """
+        return float(self.state[SLIP_WEIGHT])
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed
