@@ -91,7 +91,9 @@ def blocking(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRe
     runs = np.unique(_runs_of(data)[ok], return_inverse=True)[1]
     robot = np.asarray(fx.run, dtype=np.int64)[ok] % max(len(data.scenario.robots), 1)
     # one scheduled fix: one robot's rows of one predicted probability (the plan's, the same every run)
-    fix_of = np.unique(np.column_stack([robot.astype(float), p]), axis=0, return_inverse=True)[1].reshape(-1)
+    # numbered as np.unique(rows (robot, p), axis=0) would, at a tenth of its cost
+    p_rank = np.unique(p, return_inverse=True)[1].reshape(-1)
+    fix_of = np.unique(robot * (int(p_rank.max(initial=0)) + 1) + p_rank, return_inverse=True)[1].reshape(-1)
     n_runs = int(runs.max(initial=-1)) + 1
     groups = _bins(p)
     kinds = _tests(p, groups)

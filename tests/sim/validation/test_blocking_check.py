@@ -42,12 +42,12 @@ def _profile(rng: np.random.Generator) -> np.ndarray:
     return p
 
 
-def _table(scenario, seed: int, scale: float = 1.0) -> SweepData:
-    """Make a fleet sweep of RUNS runs whose true blocking probabilities are ``scale`` x the predicted."""
+def _table(scenario, seed: int, scale: float = 1.0, runs: int = RUNS) -> SweepData:
+    """Make a fleet sweep of ``runs`` runs whose true blocking probabilities are ``scale`` x the predicted."""
     rng = np.random.default_rng(seed)
     pred = [_profile(rng) / scale for _ in range(ROBOTS)]
     unit, p_col, obs = [], [], []
-    for run in range(RUNS):
+    for run in range(runs):
         for r in range(ROBOTS):
             true = np.clip(pred[r] * scale, 0.0, 1.0)
             # one uniform per crossing (a connected stretch of p > 0): the crossing's timing
@@ -56,17 +56,17 @@ def _table(scenario, seed: int, scale: float = 1.0) -> SweepData:
             unit.append(np.full(FIXES, run * ROBOTS + r))
             p_col.append(pred[r])
             obs.append(draw < true)
-    n = RUNS * ROBOTS * FIXES
+    n = runs * ROBOTS * FIXES
     z = np.zeros(n)
-    fixes = FixTable(run=np.concatenate(unit), fix=np.tile(np.arange(FIXES), RUNS * ROBOTS),
+    fixes = FixTable(run=np.concatenate(unit), fix=np.tile(np.arange(FIXES), runs * ROBOTS),
                      true_xy=np.zeros((n, 2)), snapshot_xy=np.zeros((n, 2)), snapshot_cov=np.zeros((n, 2, 2)),
                      snapshot_error=z, predicted_tau=np.ones(n), contained=np.ones(n, bool), fault_diameter=z, nis=z,
                      n_accepted=np.zeros(n, np.int64), markers=np.zeros((n, 2), np.int64),
                      p_block_robot=np.concatenate(p_col), robot_blocked=np.concatenate(obs))
-    units = np.arange(RUNS * ROBOTS)
-    runs = RunTable(run=units, ok=np.ones(len(units), bool), succeeded=np.ones(len(units), bool),
-                    mean_nees=np.full(len(units), 3.0))
-    return SweepData(scenario=scenario, runs=runs, fixes=fixes)
+    units = np.arange(runs * ROBOTS)
+    table = RunTable(run=units, ok=np.ones(len(units), bool), succeeded=np.ones(len(units), bool),
+                     mean_nees=np.full(len(units), 3.0))
+    return SweepData(scenario=scenario, runs=table, fixes=fixes)
 
 
 def test_calibrated_predictions_pass(fleet_scenario):
@@ -93,7 +93,7 @@ def test_false_alarms_stay_within_alpha(fleet_scenario):
 
 
 def test_applies_only_to_fleet_tables_and_joins_the_suite(fleet_scenario):
-    data = _table(fleet_scenario, 3)
+    data = _table(fleet_scenario, 3, runs=20)  # the whole suite judges it: a small sweep
     assert blocking_why_not(data) is None
     bare = SweepData(scenario=data.scenario, runs=data.runs,
                      fixes=FixTable(**{**data.fixes.__dict__, "p_block_robot": None, "robot_blocked": None}))
