@@ -52,7 +52,8 @@ def _variant(tmp_path, name: str, extra: str, replace: tuple[str, str] = ("", ""
 
 
 UNIFORM_BUILTIN = {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
-                   "nees": PASS, "nis": PASS, "nees_nrun": PASS, "nis_nrun": PASS, "plan": PASS}
+                   "nees": PASS, "nis": PASS, "nees_nrun": PASS, "nis_nrun": PASS, "plan": PASS,
+                   "blocking": NA}  # a lone robot: no robot blocks its lines of sight
 
 
 @pytest.fixture(scope="module")
@@ -155,7 +156,7 @@ def test_gaussian_coverage_and_its_negative_control(capsys, tmp_path):
     # with 12 runs the thinned per-step NEES may keep fewer than 10 steps (then not applicable)
     assert status.pop("nees_nrun") in (PASS, NA)
     assert status == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
-                      "nees": PASS, "nis": PASS, "nis_nrun": PASS, "plan": PASS}
+                      "nees": PASS, "nis": PASS, "nis_nrun": PASS, "plan": PASS, "blocking": NA}
     noisy = _variant(tmp_path, "paper-two-markers", "[sensor.actual]\nrelative_error = 2.0e-4\n"
                      "absolute_error = 0.0003\n", gauss)
     code, report = _validate(capsys, [noisy, "--runs", "6", "--workers", "2"])
