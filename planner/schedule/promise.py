@@ -258,27 +258,39 @@ def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
 @compiled.njit(cache=True)
 def _chords_kernel(px, py, s_v, s, look, reach, back, frac, out):
     # Thousands of fixes x 25 settle points x 33 chords: as numpy temporaries this was most of a
-    # plan's time. Same operations in the same order as the vectorised form it replaced.
+    # plan's time. Same operations in the same order as the vectorised form it replaced; the
+    # path is interpolated for a chunk of fixes at a time (np.interp computes its slopes once a
+    # call, over the whole path: a call per fix costs that many times over on a long path).
     nb, nf = back.size, frac.size
-    a = np.empty(nb * nf)
-    for i in range(s.size):
-        q = s[i] - reach * look[i] * back
-        for j in range(nb):
-            for f in range(nf):
-                a[j * nf + f] = q[j] - look[i] * frac[f]
-        b = a + look[i]
-        xx, xy = np.interp(q, s_v, px), np.interp(q, s_v, py)
-        pax, pay = np.interp(a, s_v, px), np.interp(a, s_v, py)
-        abx, aby = np.interp(b, s_v, px) - pax, np.interp(b, s_v, py) - pay
-        best = -np.inf
-        for j in range(nb):
-            for f in range(nf):
-                m = j * nf + f
-                ab2 = abx[m] * abx[m] + aby[m] * aby[m]
-                w = ((xx[j] - pax[m]) * abx[m] + (xy[j] - pay[m]) * aby[m]) / (ab2 if ab2 > 0 else 1.0)
-                w = min(max(w, 0.0), 1.0)
-                best = max(best, math.hypot(xx[j] - (pax[m] + w * abx[m]), xy[j] - (pay[m] + w * aby[m])))
-        out[i] = best
+    chunk = 64
+    q = np.empty(chunk * nb)
+    a = np.empty(chunk * nb * nf)
+    b = np.empty(chunk * nb * nf)
+    for i0 in range(0, s.size, chunk):
+        n = min(chunk, s.size - i0)
+        for i in range(n):
+            for j in range(nb):
+                qj = s[i0 + i] - reach * look[i0 + i] * back[j]
+                q[i * nb + j] = qj
+                for f in range(nf):
+                    m = (i * nb + j) * nf + f
+                    a[m] = qj - look[i0 + i] * frac[f]
+                    b[m] = a[m] + look[i0 + i]
+        xx, xy = np.interp(q[:n * nb], s_v, px), np.interp(q[:n * nb], s_v, py)
+        pax, pay = np.interp(a[:n * nb * nf], s_v, px), np.interp(a[:n * nb * nf], s_v, py)
+        abx = np.interp(b[:n * nb * nf], s_v, px) - pax
+        aby = np.interp(b[:n * nb * nf], s_v, py) - pay
+        for i in range(n):
+            best = -np.inf
+            for j in range(nb):
+                r = i * nb + j
+                for f in range(nf):
+                    m = r * nf + f
+                    ab2 = abx[m] * abx[m] + aby[m] * aby[m]
+                    w = ((xx[r] - pax[m]) * abx[m] + (xy[r] - pay[m]) * aby[m]) / (ab2 if ab2 > 0 else 1.0)
+                    w = min(max(w, 0.0), 1.0)
+                    best = max(best, math.hypot(xx[r] - (pax[m] + w * abx[m]), xy[r] - (pay[m] + w * aby[m])))
+            out[i0 + i] = best
 
 
 def pose_bound(scenario: Scenario, path: np.ndarray, s_v: np.ndarray, speed: np.ndarray,
