@@ -97,9 +97,13 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     heading : float, optional
         Robot heading [rad], required with ``bearings``: where the estimated heading starts
         (the fault area does not use it).
-    extra_var : ndarray, shape (k,), optional
+    extra_var : ndarray, shape (k,) or (k, k), optional
         Variance added to each range's error variance in the weights and the covariance
-        [m^2] (e.g. the odometry error of carrying a range taken earlier to the fix time).
+        [m^2] (e.g. the odometry error of carrying a range taken earlier to the fix time); a
+        (k, k) matrix is the covariance of these extra errors (shared between ranges, e.g.
+        shifts with a common end): the weights use its diagonal, so the position is the same,
+        and ``covariance`` is the covariance of that weighted estimate under the whole matrix,
+        ``P + P H^T W C_off W H P`` with ``C_off`` its off-diagonal part.
     fault_margin : ndarray, shape (k,), optional
         Added to ``rho`` for the fault area only [m] (a bound on the same extra error).
     bearing_margin : ndarray, shape (k,), optional
@@ -119,8 +123,13 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
         raise ValueError(f"snapshot_fix: ranges {meas.shape} and rho {rho.shape} must be ({k},)")
     # std is linear in the bound: one factor per noise model
     std = rho * _std_per_bound(noise)
+    shared = None
     if extra_var is not None:
-        std = np.sqrt(std**2 + np.asarray(extra_var, dtype=float))
+        extra = np.asarray(extra_var, dtype=float)
+        if extra.ndim == 2:
+            shared = extra - np.diag(np.diag(extra))
+            extra = np.diag(extra)
+        std = np.sqrt(std**2 + extra)
     robot_frame = None
     if bearings is not None:
         if heading is None:
@@ -128,13 +137,16 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
         robot_frame = np.asarray(bearings, dtype=float)
         std = np.concatenate([std, np.full(k, bearing_std(float(bearing_error), noise))])
         sol = solve_pose(markers, meas, robot_frame, std, np.r_[prior, float(heading)])
-        covariance = _pose_position_covariance(sol.jacobian, std)
+        covariance = _pose_position_covariance(sol.jacobian, std, shared)
     else:
         sol = solve_position(markers, meas, std, prior)
         if _across_marker_line(sol.position, prior, markers):
             # Both mirror points fit equally well; the prior decides (`docs/design.md` §1).
             sol = solve_position(markers, meas, std, reflect_across_marker_line(sol.position, markers))
         covariance = _covariance(sol.jacobian, std)
+        if shared is not None and np.isfinite(covariance).all():
+            g = covariance @ (sol.jacobian / (std * std)[:, None]).T     # (2, k): the estimate's gain
+            covariance = covariance + g @ shared @ g.T
 
     fault_rho = rho if fault_margin is None else rho + np.asarray(fault_margin, dtype=float)
     if robot_frame is None:
@@ -176,11 +188,13 @@ def _covariance(jacobian, std):
     return np.array([[c / det, -b / det], [-b / det, a / det]])
 
 
-def _pose_position_covariance(jacobian, std):
+def _pose_position_covariance(jacobian, std, shared=None):
     """Position block (2, 2) [m^2] of the pose's ``(H^T W H)^-1``; ``inf`` where (near) singular.
 
     The inverse of the Schur complement ``A - b b^T / c`` of the heading in the information
     matrix ``[[A, b], [b^T, c]]``: what the position keeps once the heading is estimated too.
+    ``shared`` (k, k), the off-diagonal covariance of the ranges' errors (the first k rows of
+    ``jacobian``), adds ``G shared G^T`` with ``G`` the position rows of the estimate's gain.
     """
     jw = jacobian / std[:, None]
     info = jw.T @ jw
@@ -189,4 +203,9 @@ def _pose_position_covariance(jacobian, std):
     det = a * c - b * b
     if not det > 1e-14 * (a + c) ** 2:
         return np.full((2, 2), math.inf)
-    return np.array([[c / det, -b / det], [-b / det, a / det]])
+    cov = np.array([[c / det, -b / det], [-b / det, a / det]])
+    if shared is None:
+        return cov
+    k = shared.shape[0]
+    g = np.linalg.solve(info, (jw / std[:, None]).T)[:2, :k]   # position rows of (J^T W J)^-1 J^T W
+    return cov + g @ shared @ g.T

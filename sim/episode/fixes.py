@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_var, turn_bound
+from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_cov, turn_bound
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
 from sim.episode.types import FixLog
@@ -38,6 +38,8 @@ class _Pending:
     dr_at: list[tuple[float, float, float]] = field(default_factory=list)
     reads_at: list[int | None] = field(default_factory=list)
     weight_at: list[float | None] = field(default_factory=list)
+    # the filter's heading, its variance and the dead-reckoned heading before the fix's first update
+    heading0: tuple[float, float, float] | None = None
     nis: float = 0.0
     accepted: int = 0
     scheduled: object = None
@@ -153,6 +155,8 @@ class FixRecorder:
         """
         p = self.pending
         slot = p.attempted
+        if p.heading0 is None:
+            p.heading0 = (float(self.loc.x[2]), self.loc.heading_var, float(dr_pose[2]))
         p.attempted += 1
         i = p.markers.pop(0)
         p.due.pop(0)
@@ -191,27 +195,33 @@ class FixRecorder:
         # the episode: between physics steps the interpreter runs from cold caches, and these
         # ~40 small numpy calls cost 3-4 times what they cost in one loop (a fifth of an
         # episode's non-physics time). Nothing in the episode reads them.
-        self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x,
-                               self.loc.heading_var, slip_weight))
+        self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x, slip_weight))
 
     def _complete(self, p: _Pending, dr_end: tuple, true_pose: tuple, t: float, reads: int | None,
-                  x_est: np.ndarray, heading_var_now: float, slip_weight: float | None = None) -> None:
+                  x_est: np.ndarray, slip_weight: float | None = None) -> None:
         """Compute a finished fix's snapshot, fault area and promise, with the filter as it was then."""
         idx = np.array(p.measured)
         # Dead reckoning drifts in heading without bound; only its displacement over the fix is
-        # trusted, turned into the world frame with the filter's heading. (A fix has a few
-        # measurements: plain floats, numpy's per-call cost would dominate.)
+        # trusted, turned into the world frame with the filter's heading from before the fix's
+        # first update: the heading after them has been corrected with these same ranges, so its
+        # error is correlated with their noise, which the snapshot's covariance cannot describe
+        # (on random-7-008 that made d^T C^-1 d 0.05 too large on average, 0.08 at 0.8 m/s and
+        # more; issue 23). The heading's error is common to every shift: shift_cov carries it.
+        # (A fix has a few measurements: plain floats, numpy's per-call cost would dominate.)
+        heading0, heading_var0, dr_heading0 = p.heading0
         at = np.array([[float(d[0]), float(d[1])] for d in p.dr_at])
         shifted, travelled = carry(self.markers[idx], at, (float(dr_end[0]), float(dr_end[1])),
-                                   float(x_est[2]) - float(dr_end[2]))
-        # each shift's direction against its range's (from the shifted marker to the estimate)
+                                   heading0 - dr_heading0)
+        # each shift's direction against its range's (from the shifted marker to the estimate):
+        # the cosine, and the shift's signed component across the range
         px, py = float(x_est[0]), float(x_est[1])
-        along_cos = []
+        along_cos, across = [], []
         for (sx, sy), (mx, my), d in zip(shifted.tolist(), self.markers[idx].tolist(), travelled.tolist(),
                                          strict=True):
             ux, uy = px - sx, py - sy
             norm = d * math.hypot(ux, uy)
             along_cos.append(((sx - mx) * ux + (sy - my) * uy) / norm if norm > 0.0 else 1.0)
+            across.append(((sx - mx) * uy - (sy - my) * ux) * d / norm if norm > 0.0 else 0.0)
         reads_over = (None if reads is None or None in p.reads_at
                       else np.array([reads - at for at in p.reads_at], dtype=float))
         weight_over = (None if slip_weight is None or None in p.weight_at
@@ -220,7 +230,7 @@ class FixRecorder:
         rho = self.sensor.measured_range_bound(ranges)  # the declared bound holds at the true range
         # every range but one taken at the fix time is carried (unchanged encoders included)
         carried = np.array(p.slots) < p.attempted - 1
-        heading_var = max(heading_var_now, 0.0)  # the shift is turned with the filter's heading
+        heading_var = max(heading_var0, 0.0)  # the shift is turned with the filter's heading before the fix
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (the set-membership view of docs/design.md §1, applied to motion), and
         # the least-squares weights add its variance.
@@ -245,8 +255,8 @@ class FixRecorder:
                             bearings=bearings, bearing_error=self.sensor.bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
                             bearing_margin=bearing_margin,
-                            extra_var=shift_var(self.robot, travelled, heading_var, reads_over, along_cos,
-                                                slip_weight=weight_over),
+                            extra_var=shift_cov(self.robot, travelled, heading_var, reads_over, along_cos,
+                                                across, slip_weight=weight_over),
                             fault_margin=shift)
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)

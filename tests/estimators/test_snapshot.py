@@ -184,3 +184,47 @@ def test_three_collinear_markers_keep_the_mirror_ambiguity_resolved_by_prior():
         fix = snapshot_fix(markers, r, range_bound(SENSOR, r), prior, NoiseModel.GAUSSIAN)
         np.testing.assert_allclose(fix.position, expected, atol=1e-9)
         assert fix.fault_area.contains(expected)
+
+
+# Shared extra errors (a fix's carried ranges share the shifts' common end and the heading they
+# are turned with, :func:`estimators.fault.carried.shift_cov`): the covariance of the weighted
+# estimate under the whole (k, k) matrix. Same NEES interval as above (false alarm 1e-3 per
+# geometry). Negative control: the diagonal alone (independent extra errors) is rejected; its
+# expected mean NEES is above 2.6 in both geometries, ~0.4 above the interval's upper end where
+# the mean's std is ~0.1.
+SHARED = [
+    # (markers, truth, use bearings, correlation and std factor of the extra errors on the first
+    # two ranges, the diagonal claim's expected mean NEES tr(P_diag^-1 P))
+    (np.array([[0.0, 0.0], [30.0, 0.0], [12.0, 20.0]]), np.array([9.0, 6.0]), False, -0.9, 2.0),  # 2.65
+    (np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([5.0, 2.0]), True, -0.9, 4.0),                 # 2.61
+]
+
+
+@pytest.mark.parametrize("markers, truth, use_bearings, corr, factor", SHARED)
+def test_fix_covariance_holds_with_shared_extra_errors(markers, truth, use_bearings, corr, factor):
+    rng = np.random.default_rng(2026)
+    r = ranges(truth, markers)
+    rho = range_bound(SENSOR, r)
+    k = len(r)
+    s = factor * range_std(rho[:2], NoiseModel.GAUSSIAN)  # extra errors on two ranges, against the sensor's
+    extra = np.zeros((k, k))
+    extra[:2, :2] = np.outer(s, s) * np.array([[1.0, corr], [corr, 1.0]])
+    heading = 0.4
+    true_b = bearing(np.r_[truth, heading], markers)
+    nees, nees_diag = np.empty(N_FIXES), np.empty(N_FIXES)
+    for j in range(N_FIXES):
+        z = r + draw_range_errors(rng, rho, NoiseModel.GAUSSIAN) + rng.multivariate_normal(np.zeros(k), extra)
+        kwargs = {}
+        if use_bearings:
+            kwargs = dict(bearings=true_b + draw_bearing_errors(rng, XI, k, NoiseModel.GAUSSIAN),
+                          bearing_error=XI, heading=heading)
+        prior = truth + rng.normal(0, 0.01, 2)
+        fix = snapshot_fix(markers, z, rho, prior, NoiseModel.GAUSSIAN, extra_var=extra, **kwargs)
+        diag = snapshot_fix(markers, z, rho, prior, NoiseModel.GAUSSIAN, extra_var=np.diag(extra), **kwargs)
+        np.testing.assert_array_equal(fix.position, diag.position)    # the weights use the diagonal
+        e = fix.position - truth
+        nees[j] = e @ np.linalg.solve(fix.covariance, e)
+        nees_diag[j] = e @ np.linalg.solve(diag.covariance, e)
+    lo, hi = _nees_bounds(N_FIXES)
+    assert lo <= nees.mean() <= hi, (nees.mean(), lo, hi)
+    assert not lo <= nees_diag.mean() <= hi, nees_diag.mean()
