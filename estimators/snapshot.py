@@ -74,7 +74,8 @@ class SnapshotFix:
 def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior: np.ndarray,
                  noise: NoiseModel, bearings: np.ndarray | None = None, bearing_error: float = 0.0,
                  heading: float | None = None, extra_var: np.ndarray | None = None,
-                 fault_margin: np.ndarray | None = None, bearing_margin: np.ndarray | None = None) -> SnapshotFix:
+                 fault_margin: np.ndarray | None = None, bearing_margin: np.ndarray | None = None,
+                 fault_markers: np.ndarray | None = None) -> SnapshotFix:
     """Weighted least-squares position fix and its fault area.
 
     Parameters
@@ -109,6 +110,10 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
     bearing_margin : ndarray, shape (k,), optional
         Added to ``bearing_error`` for the fault area only [rad]: a bound on the extra error of
         each bearing (e.g. one taken earlier, turned into the last one's frame by odometry).
+    fault_markers : ndarray, shape (k, 2), optional
+        Marker positions for the fault area only [m], by default ``markers``: a bound may use
+        a geometry the estimate must not (earlier ranges carried with a heading corrected by
+        these same ranges: tighter, but its error correlated with theirs).
 
     Returns
     -------
@@ -149,12 +154,13 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
             covariance = covariance + g @ shared @ g.T
 
     fault_rho = rho if fault_margin is None else rho + np.asarray(fault_margin, dtype=float)
+    area_markers = markers if fault_markers is None else np.asarray(fault_markers, dtype=float).reshape(k, 2)
     if robot_frame is None:
-        area = exact_fault_area(markers, meas, fault_rho, sol.position)
+        area = exact_fault_area(area_markers, meas, fault_rho, sol.position)
     else:
         xi = np.full(k, float(bearing_error)) + (0.0 if bearing_margin is None
                                                  else np.asarray(bearing_margin, dtype=float))
-        area = exact_fault_area(markers, meas, fault_rho, sol.position, robot_bearings=robot_frame,
+        area = exact_fault_area(area_markers, meas, fault_rho, sol.position, robot_bearings=robot_frame,
                                 robot_bearing_error=xi)
     return SnapshotFix(position=sol.position, covariance=covariance, fault_area=area,
                        residuals=sol.residuals, iterations=sol.iterations, converged=sol.converged,

@@ -10,8 +10,9 @@ dead-reckoned, so each range's error band widens by a bound on the odometry erro
 One construction serves both sides of the promise (`docs/design.md` §1):
 
 - the simulation's **realised** fault area (``sim.episode.fixes``): measured ranges,
-  dead-reckoned displacements turned into the world frame with the filter's heading from before
-  the fix's first update (independent of the fix's own noise), and that heading's std;
+  dead-reckoned displacements turned into the world frame with the filter's heading after the
+  fix's updates, and that heading's std (the snapshot estimate beside it turns them with the
+  heading from before, whose error is independent of the fix's noise: :func:`shift_cov`);
 - the planner's **predicted** fault area (:func:`promised_fault_area`, used by
   ``planner.schedule.schedule``): noise-free ranges at the planned poses, the planned displacements, and
   the heading std the plan assumes (``planning.heading_std_deg``).

@@ -195,23 +195,30 @@ class FixRecorder:
         # the episode: between physics steps the interpreter runs from cold caches, and these
         # ~40 small numpy calls cost 3-4 times what they cost in one loop (a fifth of an
         # episode's non-physics time). Nothing in the episode reads them.
-        self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x, slip_weight))
+        self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x,
+                               self.loc.heading_var, slip_weight))
 
     def _complete(self, p: _Pending, dr_end: tuple, true_pose: tuple, t: float, reads: int | None,
-                  x_est: np.ndarray, slip_weight: float | None = None) -> None:
+                  x_est: np.ndarray, heading_var_now: float, slip_weight: float | None = None) -> None:
         """Compute a finished fix's snapshot, fault area and promise, with the filter as it was then."""
         idx = np.array(p.measured)
         # Dead reckoning drifts in heading without bound; only its displacement over the fix is
-        # trusted, turned into the world frame with the filter's heading from before the fix's
-        # first update: the heading after them has been corrected with these same ranges, so its
-        # error is correlated with their noise, which the snapshot's covariance cannot describe
-        # (on random-7-008 that made d^T C^-1 d 0.05 too large on average, 0.08 at 0.8 m/s and
-        # more; issue 23). The heading's error is common to every shift: shift_cov carries it.
+        # trusted, turned into the world frame with a filter heading: two of them, for two uses.
+        # - The snapshot (a least-squares estimate and its covariance) turns the shifts with the
+        #   heading from before the fix's first update: the one after has been corrected with
+        #   these same ranges, so its error is correlated with their noise, which the covariance
+        #   cannot describe (on random-7-008 that made d^T C^-1 d 0.05 too large on average, 0.08
+        #   at 0.8 m/s and more; issue 23). Its error is common to every shift: shift_cov.
+        # - The fault area (a set: truth inside when every error is within its bound) turns them
+        #   with the heading after the updates, the tighter one: a bound needs no independence,
+        #   and it is the heading std the plan's promise assumes (planning.heading_std_deg);
+        #   the filter's std before a fix can exceed it where the fixes are sparse.
         # (A fix has a few measurements: plain floats, numpy's per-call cost would dominate.)
         heading0, heading_var0, dr_heading0 = p.heading0
         at = np.array([[float(d[0]), float(d[1])] for d in p.dr_at])
-        shifted, travelled = carry(self.markers[idx], at, (float(dr_end[0]), float(dr_end[1])),
-                                   heading0 - dr_heading0)
+        end = (float(dr_end[0]), float(dr_end[1]))
+        shifted, travelled = carry(self.markers[idx], at, end, heading0 - dr_heading0)
+        area_markers, _ = carry(self.markers[idx], at, end, float(x_est[2]) - float(dr_end[2]))
         # each shift's direction against its range's (from the shifted marker to the estimate):
         # the cosine, and the shift's signed component across the range
         px, py = float(x_est[0]), float(x_est[1])
@@ -230,11 +237,10 @@ class FixRecorder:
         rho = self.sensor.measured_range_bound(ranges)  # the declared bound holds at the true range
         # every range but one taken at the fix time is carried (unchanged encoders included)
         carried = np.array(p.slots) < p.attempted - 1
-        heading_var = max(heading_var0, 0.0)  # the shift is turned with the filter's heading before the fix
         # The shift is itself measured: the fault area widens each range by a bound on the
         # odometry error of its shift (the set-membership view of docs/design.md §1, applied to motion), and
-        # the least-squares weights add its variance.
-        shift = np.where(carried, shift_bound(self.robot, travelled, math.sqrt(heading_var)), 0.0)
+        # the least-squares weights add its variance; each with the heading it was turned with.
+        shift = np.where(carried, shift_bound(self.robot, travelled, math.sqrt(max(heading_var_now, 0.0))), 0.0)
         bearings, bearing_margin = None, None
         if p.bearings:
             # Each bearing was taken at its own heading: turn it into the frame of the last one
@@ -255,9 +261,9 @@ class FixRecorder:
                             bearings=bearings, bearing_error=self.sensor.bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
                             bearing_margin=bearing_margin,
-                            extra_var=shift_cov(self.robot, travelled, heading_var, reads_over, along_cos,
-                                                across, slip_weight=weight_over),
-                            fault_margin=shift)
+                            extra_var=shift_cov(self.robot, travelled, max(heading_var0, 0.0), reads_over,
+                                                along_cos, across, slip_weight=weight_over),
+                            fault_margin=shift, fault_markers=area_markers)
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty

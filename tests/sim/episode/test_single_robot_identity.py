@@ -12,12 +12,13 @@ odometry reads a shift actually spans (``WheelOdometry.slip_weight``) instead of
 increments. Only the fixes' snapshot position, error and covariance moved (steps and every other
 fix column hashed equal before and after, on both scenarios).
 
-Issue 23 again: a fix's shifts are turned into the world frame with the filter's heading from
-before the fix's first update (the heading after them is correlated with the fix's own range
-noise), and the snapshot covariance counts the errors the carried ranges share
-(``estimators.fault.carried.shift_cov``). Only the fixes' snapshot position, error and
-covariance and the realised fault diameter moved (by up to 2 %, the prior's heading std being
-larger); steps and every other fix column (containment, promise) hashed equal before and after.
+Issue 23 again: the snapshot turns a fix's shifts into the world frame with the filter's heading
+from before the fix's first update (the heading after them is correlated with the fix's own range
+noise), and its covariance counts the errors the carried ranges share
+(``estimators.fault.carried.shift_cov``); the fault area keeps the heading after the updates.
+Only the fixes' snapshot position, error and covariance moved; steps and every other fix column
+(fault diameter, containment, promise) hashed equal before and after, on both scenarios and on
+warehouse-reflectors.
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "75d81b38460775659da7cb54f52c7e8b33faca5e54a8043809cdfa209d233f27",
-    "paper-two-markers": "321ee8a407ad263128abc6a8fa4bfbf244b9a3601bb8e1c34a51eb6e51a66d27",
+    "warehouse": "5d3049705fb6ec5fb2dbc1dd66a551cdc3299ecf9fc45dc17dde3b19ca280224",
+    "paper-two-markers": "224210000503005271e5fcd5ff2ff2f517d860893403bccf3f59a793c10babac",
 }
 
 
