@@ -87,6 +87,11 @@ Start lag
     range at the first physics step it falls due: up to :data:`START_LAG` later than planned
     (``sim.episode.drive`` checks its own control and physics periods against it).
 
+Lines of sight
+    A fix is promised only where each of its markers stays in the laser's sight from every
+    position within its pose bound (:mod:`planner.schedule.sightcheck`); elsewhere
+    :func:`predict` returns inf and the schedule searches again without that subset there.
+
 Bearings
     The promise counts ranges only. A fix that also measures bearings realises the same
     annuli intersected with the heading-free regions of its bearings' pairwise differences
@@ -112,6 +117,7 @@ from estimators.fault.perturbed import perturbed_diameters
 from jit import compiled
 from planner.routes.smoothing import MAX_ACCEL, acceleration_limited
 from planner.schedule.pathtime import Kinematics, Track
+from planner.schedule.sightcheck import unseen
 from scenarios.schema import Scenario
 
 SPEED_LEVELS = (1.0, 0.5, 0.25)
@@ -481,7 +487,8 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
     -------
     predicted_tau : numpy.ndarray, shape (F,)
         Bound on the realised fault-area diameter of each fix over the poses within
-        :func:`pose_bound` of the planned ones [m] (inf when none is defined).
+        :func:`pose_bound` of the planned ones [m] (inf when none is defined, or when one of its
+        markers may be hidden from some of those poses: :mod:`planner.schedule.sightcheck`).
     poses : numpy.ndarray, shape (F, k, 2)
         Planned position at each measurement [m].
     kin : Kinematics
@@ -507,6 +514,8 @@ def predict(scenario: Scenario, path: np.ndarray, speed: np.ndarray, starts: np.
     est = np.broadcast_to(np.asarray(estimate, dtype=float), starts.shape)
     delta, travel = pose_bound(scenario, path, s_v, speed, s_m, est, still)
     pred = _bounded(scenario, markers[np.asarray(subsets)], poses, delta, travel)
+    # a marker the laser may lose within the pose bound: the promise is not one the plan keeps
+    pred[unseen(scenario, subsets, poses, delta)] = np.inf
     return pred, poses, kin
 
 

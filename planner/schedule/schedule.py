@@ -48,6 +48,7 @@ from itertools import combinations
 
 import numpy as np
 
+from planner.pef.sight import sight_rule
 from planner.routes.smoothing import acceleration_limited
 from planner.schedule import promise
 from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
@@ -62,6 +63,9 @@ BlockRisk = Callable[[np.ndarray, np.ndarray], np.ndarray]
 """``block(s, xy) -> (M, n)``: probability that each marker's line of sight is hidden at arc lengths
 ``s`` [m], positions ``xy`` [m]."""
 
+UNSEEN_ROUNDS = 20
+"""Searches tried, each without a subset that lost sight of a marker where a fix was chosen
+(:mod:`planner.schedule.sightcheck`), before the stretch is slowed down."""
 ESTIMATE_ROUNDS = 4
 """Rounds of computing the promises from the estimate errors the plan certifies and those from the
 promises (:func:`certified_estimate`), until every fix's is at least what the plan certifies;
@@ -338,35 +342,28 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         lv = _avoid(lv, risky, limit)
 
     pl = Windows(tr, drift, eps, gap)
-    taus = np.stack([x.tau for x in lv])
-    try:
-        chosen, level = search(pl, taus[:1], limit, k, policy, switch_tolerance)  # no slow-down
-    except PlanningError:
-        if len(lv) == 1:
-            raise
-        chosen, level = search(pl, taus, limit, k, policy, switch_tolerance)
-    starts = np.array([j for j, _, _ in chosen])
-    fix_level = level[starts].copy()
-    # a fallback's area is in force until the next fix completes, as the fix's own
-    margin = np.array([pl.err_at_completion(starts[i], 0.0, starts[i + 1]) for i in range(len(starts) - 1)]
-                      + [pl.err_at_end(starts[-1], 0.0)])
-    # The search scored every candidate with eps_max as the estimate's error (what the windows
-    # keep every error under), so these promises bound the final ones; then each fix gets the
-    # error the plan certifies where it is taken (promise.py, "Derived promise").
-    est = np.full(len(starts), eps)
-    for r in range(ESTIMATE_ROUNDS):
-        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
-                                                 est)
-        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
-        cert = certified_estimate(pl, starts, pred, fb, fb_tau, scenario.planning.redundancy > 0)
-        if r > 0 and np.all(cert <= est):
-            break  # every promise assumes at least what the promises before it certify
-        est = cert if np.all(cert[1:] < eps) else np.maximum(est, cert)  # cert[0]: the dock's fix, eps_max
+    near = sight_rule(eps).margin
+    for _ in range(UNSEEN_ROUNDS):
+        try:
+            chosen, fix_level, pred, poses, kin, v_new, order, fb, fb_tau, est = _chosen(
+                scenario, path, v, tr, lv, pl, subsets, tau_s, limit, k, policy, switch_tolerance)
+            break
+        except _Unseen as exc:
+            # the subset is out where the fix stood: a line of sight lost within the pose bound
+            # is lost from the samples around it too (up to the margin the PEF judged them with)
+            j, c = exc.sample, exc.subset
+            out = np.hypot(*(tr.xy - tr.xy[j]).T) <= near
+            lv = [replace(x, tau=np.where(out[None, :] & (np.arange(len(subsets)) == c)[:, None], np.inf, x.tau))
+                  for x in lv]
+            last = exc
     else:
-        est = np.full(len(starts), eps)  # not settled: the search's bound, which holds whatever the chain
-        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
-                                                 est)
-        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
+        j = last.sample
+        x, y = tr.xy[j]
+        raise StretchError(
+            f"no measurement schedule keeps its markers in sight: the fix at s = {tr.s[j]:.2f} m "
+            f"({x:.2f}, {y:.2f}) may lose marker(s) {subsets[last.subset]} within its pose bound, "
+            f"and {UNSEEN_ROUNDS} searches found no other", (float(tr.s[j]), float(tr.s[j]) + 0.1))
+    starts = np.array([j for j, _, _ in chosen])
     judged = np.full(len(starts), scenario.planning.redundancy > 0)
     if risky is not None and protect:
         judged |= risky[[c for _, c, _ in chosen], starts]
@@ -412,6 +409,57 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                            (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
     return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
                     worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
+
+
+class _Unseen(Exception):
+    """A chosen fix has no promise at any speed: a marker may be hidden within its pose bound.
+
+    Attributes
+    ----------
+    sample : int
+        The fix's start sample.
+    subset : int
+        Its candidate subset.
+    """
+
+    def __init__(self, sample: int, subset: int):
+        super().__init__(sample, subset)
+        self.sample, self.subset = sample, subset
+
+
+def _chosen(scenario, path, v, tr, lv, pl, subsets, tau_s, limit, k, policy, switch_tolerance):
+    """Search the fixes and settle their promises and fallbacks (raises :class:`_Unseen`)."""
+    eps = scenario.planning.eps_max
+    taus = np.stack([x.tau for x in lv])
+    try:
+        chosen, level = search(pl, taus[:1], limit, k, policy, switch_tolerance)  # no slow-down
+    except PlanningError:
+        if len(lv) == 1:
+            raise
+        chosen, level = search(pl, taus, limit, k, policy, switch_tolerance)
+    starts = np.array([j for j, _, _ in chosen])
+    fix_level = level[starts].copy()
+    # a fallback's area is in force until the next fix completes, as the fix's own
+    margin = np.array([pl.err_at_completion(starts[i], 0.0, starts[i + 1]) for i in range(len(starts) - 1)]
+                      + [pl.err_at_end(starts[-1], 0.0)])
+    # The search scored every candidate with eps_max as the estimate's error (what the windows
+    # keep every error under), so these promises bound the final ones; then each fix gets the
+    # error the plan certifies where it is taken (promise.py, "Derived promise").
+    est = np.full(len(starts), eps)
+    for r in range(ESTIMATE_ROUNDS):
+        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
+                                                 est)
+        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
+        cert = certified_estimate(pl, starts, pred, fb, fb_tau, scenario.planning.redundancy > 0)
+        if r > 0 and np.all(cert <= est):
+            break  # every promise assumes at least what the promises before it certify
+        est = cert if np.all(cert[1:] < eps) else np.maximum(est, cert)  # cert[0]: the dock's fix, eps_max
+    else:
+        est = np.full(len(starts), eps)  # not settled: the search's bound, which holds whatever the chain
+        pred, poses, kin, v_new, order = _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k,
+                                                 est)
+        fb, fb_tau = fallbacks(scenario, path, v_new, tr.s[starts], order, subsets, tau_s, starts, margin, est)
+    return chosen, fix_level, pred, poses, kin, v_new, order, fb, fb_tau, est
 
 
 def certified_estimate(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list, fb_tau: list,
@@ -493,6 +541,8 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k, est
         for i in bad:
             j, c, _ = chosen[i]
             slower = [lvl for lvl in range(fix_level[i] + 1, len(lv)) if np.isfinite(lv[lvl].tau[c, j])]
+            if not slower and not np.isfinite(pred[i]):
+                raise _Unseen(j, c)   # no promise at any speed: a marker may be hidden (sightcheck)
             if not slower:
                 x, y = tr.xy[j]
                 raise StretchError(

@@ -1,0 +1,78 @@
+"""Whether a fix's lines of sight hold at every pose its promise covers.
+
+The PEF judges visibility at the path's samples with the margin of
+:func:`planner.pef.sight.sight_rule`: ``eps_max`` plus a measured tracking allowance. A fix's
+promise, however, covers every true measurement position within its own pose bound ``Δ_i``
+(:func:`planner.schedule.promise.pose_bound`: tracking error, the estimate's certified error, the
+start lag, the speed), and in a corner or after a weak fix ``Δ_i`` can exceed that margin. Where
+the laser may lose a marker somewhere within ``Δ_i``, the robot measures another subset (or
+dead-reckons on) and the promise is not one the plan can keep. So a scheduled measurement counts
+on its marker only when :func:`planner.pef.visibility.visible_points` sees it under
+``SightRule(margin=Δ_i)`` (every obstacle grown by the physics ray's reach, the marker's mount
+and incidence wedges, the range shortened, all held at every point within ``Δ_i``; every other
+reflector's body blocks, as in the simulation). A fix with a marker that fails this has no promise
+(:func:`planner.schedule.promise.predict` returns inf), and the schedule searches again without
+that subset there.
+
+Margins are rounded up to :data:`MARGIN_STEP`, so that the sight arrays are prepared once per
+step rather than once per fix; rounding up only makes the check stricter.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner.pef.sight import SightRule
+from planner.pef.visibility import visible_points
+from scenarios.schema import Scenario
+
+MARGIN_STEP = 0.005
+"""Granularity of the margins checked [m]: each pose bound is rounded up to a multiple of it."""
+
+
+def unseen(scenario: Scenario, subsets, poses: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Tell which fixes have a marker that may be hidden from some pose within their bound.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its markers (kinds too), obstacles and declared sensor.
+    subsets : array_like of int, shape (F, k)
+        Each fix's markers, in measurement order (indices into ``scenario.markers``).
+    poses : ndarray, shape (F, k, 2)
+        Planned position of each measurement [m].
+    delta : ndarray, shape (F, k)
+        Bound on ``|true - planned|`` of each measurement position [m].
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (F,)
+        True where some measurement's marker is not seen under ``SightRule(margin=delta)``
+        (also where ``delta`` is not finite).
+    """
+    sub = np.asarray(subsets, dtype=np.int64)
+    f_n = sub.shape[0]
+    out = np.zeros(f_n, dtype=bool)
+    if f_n == 0 or sub.ndim != 2 or sub.shape[1] == 0:
+        return out
+    p = np.asarray(poses, dtype=float).reshape(f_n, sub.shape[1], 2)
+    d = np.asarray(delta, dtype=float).reshape(f_n, sub.shape[1])
+    finite = np.isfinite(d)
+    out |= ~finite.all(axis=1)
+    steps = np.where(finite, np.ceil(np.where(finite, d, 0.0) / MARGIN_STEP - 1e-9), -1).astype(np.int64)
+    markers = scenario.marker_positions()
+    normals = scenario.marker_normals()
+    pieces = scenario.obstacle_pieces()
+    sensor = scenario.sensor
+    for step in np.unique(steps[steps >= 0]).tolist():
+        rows, cols = np.nonzero(steps == step)
+        which = sub[rows, cols]
+        used, back = np.unique(which, return_inverse=True)
+        rule = SightRule(margin=max(step, 0) * MARGIN_STEP)
+        vis, _ = visible_points(p[rows, cols], markers[used], pieces, sensor.max_range,
+                                scenario.workspace.bounds, normals[used], sensor.max_incidence, rule,
+                                bodies=markers)
+        hidden = ~vis[back, np.arange(len(rows))]
+        out[rows[hidden]] = True
+    return out
+
