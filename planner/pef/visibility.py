@@ -401,7 +401,9 @@ def prepare_sight(obstacles, markers: np.ndarray, bounds: tuple[float, float, fl
 
 #: Sight arrays kept per set of obstacles (:func:`prepare_sight`), by markers and rule.
 _SIGHT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_SIGHT_KEPT = 4
+#: The PEF's rule and the schedule's sight check, one rule per 5 mm of pose bound
+#: (:mod:`planner.schedule.sightcheck`: some twenty in a plan); an entry is tens to hundreds of kB.
+_SIGHT_KEPT = 32
 
 
 def _prepare_sight(obstacles, mk: np.ndarray, bounds, fn: np.ndarray, max_incidence: float, rule: SightRule | None,

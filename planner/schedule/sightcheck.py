@@ -15,7 +15,8 @@ reflector's body blocks, as in the simulation). A fix with a marker that fails t
 that subset there.
 
 Margins are rounded up to :data:`MARGIN_STEP`, so that the sight arrays are prepared once per
-step rather than once per fix; rounding up only makes the check stricter.
+step and scenario rather than once per fix (a plan asks for some twenty steps, hundreds of
+times); rounding up only makes the check stricter.
 """
 
 from __future__ import annotations
@@ -66,13 +67,12 @@ def unseen(scenario: Scenario, subsets, poses: np.ndarray, delta: np.ndarray) ->
     sensor = scenario.sensor
     for step in np.unique(steps[steps >= 0]).tolist():
         rows, cols = np.nonzero(steps == step)
-        which = sub[rows, cols]
-        used, back = np.unique(which, return_inverse=True)
         rule = SightRule(margin=max(step, 0) * MARGIN_STEP)
-        vis, _ = visible_points(p[rows, cols], markers[used], pieces, sensor.max_range,
-                                scenario.workspace.bounds, normals[used], sensor.max_incidence, rule,
-                                bodies=markers)
-        hidden = ~vis[back, np.arange(len(rows))]
+        # every marker, not the ones used: the sight arrays are then the same for every call at
+        # this margin, prepared once (planner.pef.visibility.prepare_sight keeps them)
+        vis, _ = visible_points(p[rows, cols], markers, pieces, sensor.max_range, scenario.workspace.bounds,
+                                normals, sensor.max_incidence, rule)
+        hidden = ~vis[sub[rows, cols], np.arange(len(rows))]
         out[rows[hidden]] = True
     return out
 
