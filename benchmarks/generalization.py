@@ -56,7 +56,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--worlds", type=int, default=6, help="number of random worlds")
     ap.add_argument("--runs", type=int, default=20, help="Monte-Carlo runs per world")
-    ap.add_argument("--workers", type=int, default=1, help="worker processes per sweep")
+    ap.add_argument("--workers", type=int, default=1, help="worker processes drawing the worlds, and per sweep")
     ap.add_argument("--seed", type=int, default=1, help="root seed of the worlds")
     ap.add_argument("--alpha", type=float, default=0.01, help="family false-alarm probability per world")
     ap.add_argument("--out", help="keep the worlds and sweeps in this directory")
@@ -73,7 +73,7 @@ def main() -> None:
 
 def run(args: argparse.Namespace, root: Path) -> None:
     t0 = time.perf_counter()
-    worlds = pefsim.worlds(args.worlds, seed=args.seed, out=root)
+    worlds = pefsim.worlds(args.worlds, seed=args.seed, out=root, workers=args.workers)
     t_draw = time.perf_counter() - t0
     print(f"drew {len(worlds)} worlds in {t_draw:.1f} s ({sum(w.attempts for w in worlds)} draws)")
     reports = []

@@ -711,7 +711,7 @@ def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None =
 
 
 def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0,
-           max_size: float | None = None, bounded: bool = False) -> list:
+           max_size: float | None = None, bounded: bool = False, workers: int = 1) -> list:
     """Draw random honest worlds that plan (declared sensor and robot = the simulated ones).
 
     World i draws from ``SeedSequence(seed, spawn_key=(i,))`` alone: the same ``seed`` gives
@@ -735,6 +735,9 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
     bounded : bool
         Only uniform noise and set-membership PEF models, where containment and the promise are
         deterministic claims (no ``gdop``, no gaussian noise).
+    workers : int
+        Processes drawing worlds at once (>= 1; 1 draws in this process): the worlds are the same
+        whatever the number.
 
     Returns
     -------
@@ -744,7 +747,7 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
     """
     from dataclasses import replace
 
-    from planner.worlds import plannable_world
+    from planner.worlds import Drawing
     from scenarios import ScenarioError
     from scenarios.errors import output_errors
     from scenarios.worlds import SMALLEST_MAX_SIZE
@@ -757,13 +760,16 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
     if max_size is not None and (isinstance(max_size, bool) or not isinstance(max_size, (int, float))
                                  or not max_size >= SMALLEST_MAX_SIZE or not math.isfinite(max_size)):
         raise ScenarioError(f"max_size: expected a floor side of at least {SMALLEST_MAX_SIZE:g} m, got {max_size!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ScenarioError(f"workers: expected a whole number >= 1, got {workers!r}")
     knobs = {"max_size": None if max_size is None else float(max_size), "bounded": bool(bounded)}
+    indices = range(first, first + count)
     if out is None:
-        return [plannable_world(seed, i, **knobs) for i in range(first, first + count)]
+        return _draw_worlds(Drawing(seed, **knobs), indices, workers)
     folder = Path(out)
     with output_errors(folder, "create the output directory"):  # before the drawing, which takes seconds a world
         folder.mkdir(parents=True, exist_ok=True)
-    drawn = [plannable_world(seed, i, **knobs) for i in range(first, first + count)]
+    drawn = _draw_worlds(Drawing(seed, **knobs), indices, workers)
     written = []
     for w in drawn:
         path = folder / f"{w.name}.toml"
@@ -771,3 +777,15 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
             path.write_text(w.text, encoding="utf-8")
         written.append(replace(w, path=path))
     return written
+
+
+def _draw_worlds(drawing, indices: range, workers: int) -> list:
+    """The worlds of ``indices`` in order, drawn here (1 worker) or on a local process pool."""
+    from planner.worlds import plannable_world
+    from sim.montecarlo.executors import ExecutorKind, execute
+
+    if workers == 1 or len(indices) == 1:
+        return [plannable_world(drawing.seed, i, max_size=drawing.max_size, bounded=drawing.bounded)
+                for i in indices]
+    records = execute(ExecutorKind.LOCAL, drawing, None, list(indices), min(workers, len(indices)))
+    return [drawing.world(r) for r in sorted(records)]

@@ -12,6 +12,10 @@ largest over the tasks, rounded up to 0.1 mm. The world is then planned for real
 has no admissible route (the drift between fixes needs more room than the factor left), the
 factor grows by ``FACTOR_STEP`` up to ``FACTOR_TRIES`` times, and after that, or when a route has
 no finite error at all, the world is redrawn from the same generator.
+
+:class:`Drawing` draws worlds in worker processes (the executor protocol of
+:mod:`sim.montecarlo.executors`): each world depends on ``(seed, index)`` alone, so the texts are
+the same whatever the number of workers.
 """
 
 from __future__ import annotations
@@ -158,3 +162,38 @@ def plannable_world(seed: int, index: int, *, max_size: float | None = None, bou
                                     attempts=attempt, summary=summary)
             factor *= FACTOR_STEP
     raise PlanningError(f"world {index} of seed {seed}: no draw planned in {MAX_ATTEMPTS} attempts")
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """Draw worlds of one root seed in a worker process: ``execute(index)`` is one world.
+
+    Its own worker factory and context (``Drawing(payload)`` returns itself): what a worker
+    needs is the seed and the draw's knobs, held here. The record is picklable text, not a
+    :class:`PlannedWorld` (whose scenario the parent loads again, :meth:`world`).
+    """
+
+    seed: int
+    max_size: float | None = None
+    bounded: bool = False
+
+    def __call__(self, payload: object = None) -> Drawing:
+        return self
+
+    def execute(self, index: int) -> tuple[int, str, str, int, tuple[str, ...]]:
+        """Return ``(index, name, text, attempts, summary)`` of world ``index``."""
+        w = plannable_world(self.seed, index, max_size=self.max_size, bounded=self.bounded)
+        return index, w.name, w.text, w.attempts, w.summary
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+    def died(self, index: int, reason: str):
+        raise PlanningError(f"world {index} of seed {self.seed}: the process drawing it died ({reason})")
+
+    @staticmethod
+    def world(record: tuple[int, str, str, int, tuple[str, ...]]) -> PlannedWorld:
+        """Return the :class:`PlannedWorld` of an :meth:`execute` record (its scenario loaded)."""
+        _, name, text, attempts, summary = record
+        return PlannedWorld(name=name, text=text, scenario=scenarios.loads(text, source=f"{name}.toml"),
+                            attempts=attempts, summary=tuple(summary))

@@ -23,6 +23,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bounded", action="store_true",
                    help="only uniform noise and set-membership PEF models (gdop drawn becomes strips), where "
                         "containment and the promise are deterministic claims")
+    p.add_argument("--workers", type=int, default=1, metavar="K",
+                   help="processes drawing worlds at once (default 1); the files are the same whatever K")
     p.add_argument("--json", action="store_true", help="print name, path, attempts and summary per world")
     p.set_defaults(func=run)
 
@@ -31,7 +33,8 @@ def run(args: argparse.Namespace) -> int:
     import pefsim
     from sim.cli import print_json
 
-    drawn = pefsim.worlds(args.count, seed=args.seed, out=args.out, max_size=args.max_size, bounded=args.bounded)
+    drawn = pefsim.worlds(args.count, seed=args.seed, out=args.out, max_size=args.max_size, bounded=args.bounded,
+                          workers=args.workers)
     if args.json:
         print_json([{"name": w.name, "path": str(w.path), "attempts": w.attempts, "summary": list(w.summary)}
                     for w in drawn])

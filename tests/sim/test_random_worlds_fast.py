@@ -59,3 +59,14 @@ def test_cli_too_small_a_max_size_is_one_line_and_writes_nothing(tmp_path, capsy
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "max_size" in err[0] and value in err[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("value", ["0", "-2"])
+def test_cli_workers_below_one_is_one_line_and_writes_nothing(tmp_path, capsys, value):
+    from sim.cli import main
+
+    out = tmp_path / "w"
+    assert main(["worlds", "--count", "2", "--workers", value, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "workers" in err[0] and value in err[0]
+    assert not out.exists()
