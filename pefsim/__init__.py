@@ -780,7 +780,7 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
 
 
 def _draw_worlds(drawing, indices: range, workers: int) -> list:
-    """The worlds of ``indices`` in order, drawn here (1 worker) or on a local process pool."""
+    """Return the worlds of ``indices`` in order, drawn here (1 worker) or on a local process pool."""
     from planner.worlds import plannable_world
     from sim.montecarlo.executors import ExecutorKind, execute
 

@@ -78,7 +78,7 @@ def test_every_measurement_of_a_fix_counts_and_an_unbounded_pose_is_refused(graz
 
 
 def _refused(sc, plan) -> list[str]:
-    """The plan's fixes and fallbacks whose promise, recomputed with the check, is none."""
+    """Return the plan's fixes and fallbacks whose promise, recomputed with the check, is none."""
     path, speed = np.asarray(plan.path, float), np.asarray(plan.schedule.speed, float)
     out = []
     for n, f in enumerate(plan.schedule.fixes):
