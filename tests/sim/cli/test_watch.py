@@ -32,8 +32,11 @@ class Child:
 
     def __init__(self, args: list[str], cwd: Path):
         env = dict(os.environ, CI="1", PYTHONPATH=str(ROOT))
+        # Ctrl-C's SIGINT as a terminal delivers it: a test run started in the background of a
+        # non-interactive shell ignores SIGINT, and a child would inherit that and never end
         self.p = subprocess.Popen([sys.executable, "-m", "sim.cli", "watch", *args], cwd=cwd, env=env, text=True,
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         self.lines: queue.Queue = queue.Queue()
         for name, stream in (("out", self.p.stdout), ("err", self.p.stderr)):
             threading.Thread(target=self._pump, args=(name, stream), daemon=True).start()
