@@ -50,23 +50,13 @@ def test_small_worlds_keep_what_cannot_fail_by_chance(small_worlds):
         assert over.size == 0, f"{w.name}: fixes {over[:5].tolist()} over their promise, x{ratio[:5]}"
 
 
-@pytest.mark.parametrize("value", ["11", "nan"])
-def test_cli_too_small_a_max_size_is_one_line_and_writes_nothing(tmp_path, capsys, value):
+@pytest.mark.parametrize(("flag", "value", "key"), [("--max-size", "11", "max_size"), ("--max-size", "nan", "max_size"),
+                                               ("--workers", "0", "workers"), ("--workers", "-2", "workers")])
+def test_cli_bad_knob_is_one_line_and_writes_nothing(tmp_path, capsys, flag, value, key):
     from sim.cli import main
 
     out = tmp_path / "w"
-    assert main(["worlds", "--count", "1", "--max-size", value, "--out", str(out)]) == 2
+    assert main(["worlds", "--count", "2", flag, value, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "max_size" in err[0] and value in err[0]
-    assert not out.exists()
-
-
-@pytest.mark.parametrize("value", ["0", "-2"])
-def test_cli_workers_below_one_is_one_line_and_writes_nothing(tmp_path, capsys, value):
-    from sim.cli import main
-
-    out = tmp_path / "w"
-    assert main(["worlds", "--count", "2", "--workers", value, "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "workers" in err[0] and value in err[0]
+    assert len(err) == 1 and key in err[0] and value in err[0]
     assert not out.exists()
