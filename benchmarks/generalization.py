@@ -20,12 +20,16 @@ Then the failing worlds, each with the failing check's detail and what was drawn
 (as a module: run as a script, ``benchmarks/planner.py`` would shadow the ``planner`` package).
 
 ``--out DIR`` keeps the worlds' TOML files and sweeps there; by default they go to a temporary
-directory removed at the end.
+directory removed at the end. ``--resume`` (with ``--out``) reads back the worlds already drawn
+there and completes their sweeps (``pefsim.sweep(resume=True)``): a benchmark cut short goes on
+where it stopped. A sweep resumed on a different code version mixes runs of both; say so when
+quoting its table.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import tempfile
 import time
 from pathlib import Path
@@ -34,6 +38,8 @@ import numpy as np
 from scipy import stats
 
 import pefsim
+import scenarios
+from planner.worlds import PlannedWorld
 
 
 def false_alarm_row(alphas: list[float], failed: int) -> tuple[float, int, float]:
@@ -60,7 +66,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1, help="root seed of the worlds")
     ap.add_argument("--alpha", type=float, default=0.01, help="family false-alarm probability per world")
     ap.add_argument("--out", help="keep the worlds and sweeps in this directory")
+    ap.add_argument("--resume", action="store_true",
+                    help="read back the worlds drawn into --out and complete their sweeps")
     args = ap.parse_args()
+    if args.resume and not args.out:
+        ap.error("--resume needs --out")
 
     tmp = None if args.out else tempfile.TemporaryDirectory(prefix="pefsim-generalization-")
     root = Path(args.out) if args.out else Path(tmp.name)
@@ -71,15 +81,30 @@ def main() -> None:
             tmp.cleanup()
 
 
+def drawn_world(path: Path) -> PlannedWorld:
+    """Return the world ``pefsim.worlds`` wrote to ``path``: its header says attempts and summary."""
+    text = path.read_text(encoding="utf-8")
+    header = [line for line in text.splitlines() if line.startswith("#")]
+    attempts = int(re.search(r"draw (\d+)", header[0]).group(1))
+    summary = tuple(line.removeprefix("#   ") for line in header[1:])
+    return PlannedWorld(name=path.stem, text=text, scenario=scenarios.loads(text, source=path.name),
+                        attempts=attempts, summary=summary, path=path)
+
+
 def run(args: argparse.Namespace, root: Path) -> None:
     t0 = time.perf_counter()
-    worlds = pefsim.worlds(args.worlds, seed=args.seed, out=root, workers=args.workers)
+    paths = [root / f"random-{args.seed}-{i:03d}.toml" for i in range(args.worlds)]
+    if args.resume and all(p.is_file() for p in paths):
+        worlds = [drawn_world(p) for p in paths]
+    else:
+        worlds = pefsim.worlds(args.worlds, seed=args.seed, out=root, workers=args.workers)
     t_draw = time.perf_counter() - t0
     print(f"drew {len(worlds)} worlds in {t_draw:.1f} s ({sum(w.attempts for w in worlds)} draws)")
     reports = []
     for w in worlds:
         t = time.perf_counter()
-        sweep_dir = pefsim.sweep(w.scenario, root / w.name, runs=args.runs, workers=args.workers, report=False)
+        sweep_dir = pefsim.sweep(w.scenario, root / w.name, runs=args.runs, workers=args.workers, report=False,
+                                 resume=args.resume and (root / w.name).is_dir())
         rep = pefsim.validate(sweep_dir, alpha=args.alpha)
         reports.append((w, rep))
         verdicts = " ".join(f"{c.name}={c.status.value}" for c in rep.checks)
