@@ -75,7 +75,8 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
                  noise: NoiseModel, bearings: np.ndarray | None = None, bearing_error: float = 0.0,
                  heading: float | None = None, extra_var: np.ndarray | None = None,
                  fault_margin: np.ndarray | None = None, bearing_margin: np.ndarray | None = None,
-                 fault_markers: np.ndarray | None = None) -> SnapshotFix:
+                 fault_markers: np.ndarray | None = None,
+                 bearing_extra_var: np.ndarray | None = None) -> SnapshotFix:
     """Weighted least-squares position fix and its fault area.
 
     Parameters
@@ -114,6 +115,10 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
         Marker positions for the fault area only [m], by default ``markers``: a bound may use
         a geometry the estimate must not (earlier ranges carried with a heading corrected by
         these same ranges: tighter, but its error correlated with theirs).
+    bearing_extra_var : ndarray, shape (k,) or (k, k), optional
+        As ``extra_var``, for the bearings [rad^2] (e.g. the odometry's turn error of carrying a
+        bearing taken earlier into the last one's frame); with ``bearings`` only. Its
+        off-diagonal part enters the covariance as ``extra_var``'s does.
 
     Returns
     -------
@@ -140,7 +145,16 @@ def snapshot_fix(markers: np.ndarray, ranges: np.ndarray, rho: np.ndarray, prior
         if heading is None:
             raise ValueError("snapshot_fix: bearings given without the heading")
         robot_frame = np.asarray(bearings, dtype=float)
-        std = np.concatenate([std, np.full(k, bearing_std(float(bearing_error), noise))])
+        bstd = np.full(k, bearing_std(float(bearing_error), noise))
+        if bearing_extra_var is not None:
+            bextra = np.asarray(bearing_extra_var, dtype=float)
+            if bextra.ndim == 2:
+                off = bextra - np.diag(np.diag(bextra))
+                shared = np.zeros((2 * k, 2 * k)) if shared is None else np.pad(shared, (0, k))
+                shared[k:, k:] = off
+                bextra = np.diag(bextra)
+            bstd = np.sqrt(bstd**2 + bextra)
+        std = np.concatenate([std, bstd])
         sol = solve_pose(markers, meas, robot_frame, std, np.r_[prior, float(heading)])
         covariance = _pose_position_covariance(sol.jacobian, std, shared)
     else:
@@ -199,8 +213,9 @@ def _pose_position_covariance(jacobian, std, shared=None):
 
     The inverse of the Schur complement ``A - b b^T / c`` of the heading in the information
     matrix ``[[A, b], [b^T, c]]``: what the position keeps once the heading is estimated too.
-    ``shared`` (k, k), the off-diagonal covariance of the ranges' errors (the first k rows of
-    ``jacobian``), adds ``G shared G^T`` with ``G`` the position rows of the estimate's gain.
+    ``shared`` (m, m), the off-diagonal covariance of the first m measurements' errors (the
+    ranges, or the ranges then the bearings: the first m rows of ``jacobian``), adds
+    ``G shared G^T`` with ``G`` the position rows of the estimate's gain.
     """
     jw = jacobian / std[:, None]
     info = jw.T @ jw

@@ -254,6 +254,81 @@ def shift_cov(robot: RobotSpec, travelled, heading_var: float, reads=None, along
     return out
 
 
+def turn_cov(robot: RobotSpec, travelled, turned, reads=None, slip_weight=None) -> np.ndarray:
+    """Covariance of the dead-reckoned turns that carry a fix's bearings to its last one [rad^2].
+
+    A bearing taken earlier in a fix is turned into the last one's frame by the odometry's
+    heading change since (``sim.episode.fixes``); that change is off by ``(e_r - e_l) / b``, with
+    ``e_w`` each wheel's travel error over the shift (:func:`turn_bound` bounds it). Its parts,
+    as random errors:
+
+    - quantisation: each wheel's reported travel is off by the difference of two reading
+      residuals, independent and uniform over a tick (``tick^2 / 12`` each), so the turn's
+      variance is ``4 tick^2 / (12 b^2)``; two carried bearings share the end reading's
+      residuals, ``2 tick^2 / (12 b^2)``. None when both ends are the same reading.
+    - random slip, drawn per read and wheel with std ``odometry_noise |d_w|``: variance
+      ``odometry_noise^2 sum (d_l^2 + d_r^2) / b^2 = 4 odometry_noise^2 slip_weight / b^2``;
+      nested shifts share the shorter one's reads.
+    - the wheel-radius error ``e`` (right ``r (1 + e)``, left ``r (1 - e)``, sign unknown, taken
+      with std ``|wheel_radius_error|`` as the filter's prior): ``2 e s / b`` over the midpoint's
+      path ``s``, common to every bearing of the fix.
+
+    Left out, a carried bearing's weight was that of its sensor noise alone: on the random
+    world random-23-016 (536 ticks on 0.097 m wheels, bearings 0.16 deg gaussian) the
+    quantisation's turn std, 1.1 mrad, exceeds the bearing's 0.93 mrad, and the snapshot's
+    coverage was 0.8966 against 0.95 over 86,400 fixes (issue 23).
+
+    Parameters
+    ----------
+    robot : RobotSpec
+        The declared robot.
+    travelled : array_like, shape (k,)
+        Length of each shift (its chord) [m], >= 0; 0 with ``reads`` 0: not carried.
+    turned : array_like, shape (k,)
+        Dead-reckoned heading change over each shift [rad].
+    reads : array_like, shape (k,), optional
+        Odometry reads over each shift; by default one.
+    slip_weight : array_like, shape (k,), optional
+        ``sum (d_l^2 + d_r^2) / 4`` over each shift's reads [m^2]
+        (:attr:`sim.physics.odometry.WheelOdometry.slip_weight`'s increase); by default the
+        equal-increment value over the arc's wheel travels, as in :func:`turn_bound`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (k, k)
+        Covariance [rad^2]; rows and columns of a bearing not carried are 0.
+    """
+    d = np.ravel(travelled).tolist()
+    dth = np.ravel(turned).tolist()
+    k = len(d)
+    n = [1.0] * k if reads is None else np.ravel(reads).tolist()
+    b, tick, e = robot.wheel_base, encoder_tick(robot), abs(robot.wheel_radius_error)
+    quant, slip2 = tick * tick / (12.0 * b * b), robot.odometry_noise**2
+    path, weight, moved = [], [], []
+    for j in range(k):  # a fix has a few bearings: plain floats
+        h = 0.5 * abs(dth[j])
+        s = max(d[j], 0.0) * (h / math.sin(h) if 0.0 < h < 0.5 * math.pi else 1.0)
+        x = 0.5 * b * abs(dth[j])
+        path.append(s)
+        moved.append(n[j] > 0 or s > 0.0)
+        if slip_weight is None:
+            weight.append((2.0 * s * s + 2.0 * x * x) / (4.0 * max(n[j], 1.0)))
+        else:
+            weight.append(max(float(np.ravel(slip_weight)[j]), 0.0))
+    out = np.zeros((k, k))
+    for i in range(k):
+        if not moved[i]:
+            continue
+        for j in range(i, k):
+            if not moved[j]:
+                continue
+            shared_quant = 4.0 * quant if i == j else 2.0 * quant
+            c = shared_quant + 4.0 * slip2 * min(weight[i], weight[j]) / (b * b) \
+                + (2.0 * e / b) ** 2 * path[i] * path[j]
+            out[i, j] = out[j, i] = c
+    return out
+
+
 def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Shift each marker by the displacement from where its range was taken to the fix's end.
 

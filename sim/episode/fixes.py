@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_cov, turn_bound
+from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_cov, shift_var, turn_bound, turn_cov
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
 from sim.episode.types import FixLog
@@ -241,7 +241,7 @@ class FixRecorder:
         # odometry error of its shift (the set-membership view of docs/design.md §1, applied to motion), and
         # the least-squares weights add its variance; each with the heading it was turned with.
         shift = np.where(carried, shift_bound(self.robot, travelled, math.sqrt(max(heading_var_now, 0.0))), 0.0)
-        bearings, bearing_margin = None, None
+        bearings, bearing_margin, bearing_extra = None, None, None
         if p.bearings:
             # Each bearing was taken at its own heading: turn it into the frame of the last one
             # by the dead-reckoned turn since, so that one heading serves all (the snapshot
@@ -257,13 +257,22 @@ class FixRecorder:
             ok = reach > shift
             subtends[ok] = np.arcsin(shift[ok] / reach[ok])
             bearing_margin = np.where(carried, turn_bound(self.robot, travelled, turned, reads_over) + subtends, 0.0)
+            # The snapshot weighs each bearing with the same errors as variances: the turn's
+            # (shared through the end reading and the nested reads' slip) and the shift's part
+            # across the range, seen at the range.
+            across_cos = [math.sqrt(max(1.0 - c * c, 0.0)) for c in along_cos]
+            seen = shift_var(self.robot, travelled, max(heading_var0, 0.0), reads_over, across_cos,
+                             slip_weight=weight_over) / np.maximum(ranges, 1e-9) ** 2
+            bearing_extra = turn_cov(self.robot, travelled, turned, reads_over, weight_over) + np.diag(seen)
+            bearing_extra[~carried, :] = 0.0
+            bearing_extra[:, ~carried] = 0.0
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
                             bearings=bearings, bearing_error=self.sensor.bearing_error,
                             heading=float(x_est[2]) if bearings is not None else None,
                             bearing_margin=bearing_margin,
                             extra_var=shift_cov(self.robot, travelled, max(heading_var0, 0.0), reads_over,
                                                 along_cos, across, slip_weight=weight_over),
-                            fault_margin=shift, fault_markers=area_markers)
+                            fault_margin=shift, fault_markers=area_markers, bearing_extra_var=bearing_extra)
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)
         pad = self.k - len(idx)   # a marker lost mid-fix leaves its slot empty
