@@ -287,12 +287,21 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             step(CONTROL_STEPS)
             return
         end = world.steps + CONTROL_STEPS
+        # The control tick has just read the odometry at this physics step. A second read at the
+        # same step reports zero travel, and the filter's predict would replace each wheel's
+        # quantisation residual by an independent one, where the encoder's is unchanged: the
+        # estimate lost what the fix's updates taught it about the residuals, and the filter
+        # turned inconsistent (random-23-016, with a fix's reads all on control ticks: NEES
+        # 2.884, NIS 1.009, issue 23).
+        read_at = world.steps
         while world.steps < end:
             due = fixes.next_due
             due_step = math.ceil(due / dt_phys - 1e-9) if due < math.inf else end
             if due_step < end:
                 world.step(max(due_step - world.steps, 0))
-                read_odometry()
+                if world.steps != read_at:
+                    read_odometry()
+                    read_at = world.steps
                 # every control tick reads the odometry once: n of them so far
                 fixes.measure_due(odo.pose, pose_now(), world.time, n + counts["reads"], odo.slip_weight)
             else:

@@ -470,6 +470,9 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
 def _advance(world, robots, dt_phys: float) -> None:
     """One control period of physics, stopping at each physics step a measurement of any robot falls due."""
     end = world.steps + CONTROL_STEPS
+    # every robot's control tick has just read its odometry at this physics step: a second read
+    # here would report zero travel and renew the filter's quantisation residuals (sim.episode.drive)
+    read_at = {id(r): world.steps for r in robots}
     while True:
         due = [(math.ceil(r.fixes.next_due / dt_phys - 1e-9), r) for r in robots
                if r.fixes.pending is not None]
@@ -481,6 +484,8 @@ def _advance(world, robots, dt_phys: float) -> None:
         world.place_bodies()
         for d, r in due:
             if d <= world.steps:
-                r.read_odometry()
+                if read_at[id(r)] != world.steps:
+                    r.read_odometry()
+                    read_at[id(r)] = world.steps
                 r.fixes.measure_due(r.odo.pose, r.body.true_pose_tuple(), world.time, r.n + r.counts["reads"],
                                     r.odo.slip_weight)

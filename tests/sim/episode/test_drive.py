@@ -218,3 +218,44 @@ def test_fixes_after_the_time_limit_are_counted_unreached(prepared):
     sm = r.summary
     assert not sm["reached"] and sm["unreached_fixes"] > 0
     assert sm["fixes"] + sm["merged_fixes"] + sm["skipped_fixes"] + sm["unreached_fixes"] == sm["scheduled_fixes"]
+
+
+def test_a_measurement_on_a_control_tick_reads_the_odometry_once(monkeypatch):
+    """No physics step is read twice: a measurement falling due on a control tick uses the tick's read.
+
+    A second read at the same step reports zero travel, and the filter's predict would renew each
+    wheel's quantisation residual where the encoder's is unchanged (issue 23, random-23-016:
+    a fix's measurements 0.015 s apart fell on control ticks). With ``measurement_time`` one
+    control period every measurement of a fix falls on a tick. The control tick reads in
+    compiled code, a measurement's own read through ``WheelOdometry.update``: both are recorded
+    with the physics step they read at.
+    """
+    from sim.episode.control_tick import ControlTick
+    from sim.physics.odometry import WheelOdometry
+    from sim.physics.world import PhysicsWorld
+
+    current, reads = {"world": None}, []
+    step, update, tick = PhysicsWorld.step, WheelOdometry.update, ControlTick.__call__
+
+    def stepping(self, n=1):
+        current["world"] = self
+        return step(self, n)
+
+    def recorded(kind, f):
+        def read(self, *args, **kwargs):
+            if current["world"] is not None:
+                reads.append((current["world"].steps, kind))
+            return f(self, *args, **kwargs)
+        return read
+
+    monkeypatch.setattr(PhysicsWorld, "step", stepping)
+    monkeypatch.setattr(WheelOdometry, "update", recorded("measurement", update))
+    monkeypatch.setattr(ControlTick, "__call__", recorded("tick", tick))
+    text = scenarios.load("paper-two-markers").text.replace("measurement_time = 0.02",
+                                                             f"measurement_time = {4 / 240!r}")
+    sc = scenarios.loads(text, source="tick-aligned.toml")
+    r = run_episode(sc, 0, seed=np.random.SeedSequence(sc.seed, spawn_key=(0,)), time_limit=3.0)
+    assert len(r.fixes.t) >= 5
+    steps = np.array([s for s, _ in reads])
+    assert sum(kind == "tick" for _, kind in reads) > 100
+    assert np.all(np.diff(steps) > 0), f"steps read twice: {np.unique(steps[1:][np.diff(steps) == 0])[:5]}"
