@@ -64,6 +64,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=20, help="Monte-Carlo runs per world")
     ap.add_argument("--workers", type=int, default=1, help="worker processes drawing the worlds, and per sweep")
     ap.add_argument("--seed", type=int, default=1, help="root seed of the worlds")
+    ap.add_argument("--first", type=int, default=0, help="index of the first world (then first + 1, ...)")
     ap.add_argument("--alpha", type=float, default=0.01, help="family false-alarm probability per world")
     ap.add_argument("--out", help="keep the worlds and sweeps in this directory")
     ap.add_argument("--resume", action="store_true",
@@ -93,11 +94,11 @@ def drawn_world(path: Path) -> PlannedWorld:
 
 def run(args: argparse.Namespace, root: Path) -> None:
     t0 = time.perf_counter()
-    paths = [root / f"random-{args.seed}-{i:03d}.toml" for i in range(args.worlds)]
+    paths = [root / f"random-{args.seed}-{i:03d}.toml" for i in range(args.first, args.first + args.worlds)]
     if args.resume and all(p.is_file() for p in paths):
         worlds = [drawn_world(p) for p in paths]
     else:
-        worlds = pefsim.worlds(args.worlds, seed=args.seed, out=root, workers=args.workers)
+        worlds = pefsim.worlds(args.worlds, seed=args.seed, out=root, first=args.first, workers=args.workers)
     t_draw = time.perf_counter() - t0
     print(f"drew {len(worlds)} worlds in {t_draw:.1f} s ({sum(w.attempts for w in worlds)} draws)")
     reports = []
