@@ -12,17 +12,25 @@ its centre lies within r_j of that segment (:func:`low_segment`). A marker witho
 **Timing (the uncertainty).** The plan says where each robot is when
 (:func:`planner.fleet.zones.predict_timeline`, waits included); real robots are not there on
 time. Each robot's *lag* delta (actual minus planned time at which it passes a place on its
-path) is modelled as Gaussian, mean ``lag0 + lag_rate * d + wait_lag * w`` and variance
-``base_var + var_rate * d + wait_var * w``, with d the planned time it has driven and w the
-number of zone waits it has had so far (:class:`TimingModel`; the numbers, measured and derived:
-:data:`TIMING`). Robots' lags are independent. Robot i measures at planned time T (its fix is
-triggered by arc length, so it is where the plan says, at time T + delta_i); robot j is then
-where its plan has it at time ``T + delta_i - delta_j``. The probability that robot j blocks the
-ray is the mass of ``T + delta_i - delta_j`` over the planned times at which j's centre is in the
-blocking region (robot j's timeline; before its start and after its end it stands on its docks),
-each time weighted by the chance that j's centre, spread by :data:`POS_SD` about its planned
-place, lies in the region (a robot waiting at a stop stands a few centimetres from where the
-timeline has it: timing alone would make its shadow's edge sharp).
+path) is Gaussian. From its departure it is the robot's own: mean ``lag0 + lag_rate * d``,
+variance ``base_var + var_rate * d`` over the planned time d it has driven. A zone wait ties it
+to the robot it waited for (:attr:`planner.fleet.zones.Timeline.holder`): the waiting robot
+leaves when the holder has passed, ``release_lag`` (variance ``release_var``) after it, so from
+the wait's end its lag is the holder's lag at the planned release time plus that restart, plus
+its own drift since (``lag_rate``, ``var_rate`` per second driven), unless it arrived so late
+that the holder had gone (its own lag, less the planned wait, is the larger mean: it did not
+stop). Tied lags are correlated: robot i measuring at planned time T and robot j tied to i's lag
+at time t differ by i's drift between t and T and j's restart and drift, not by two independent
+lags (:func:`lag_difference`; the built-in fleet's robot r1, waiting five times for r3, hid a
+reflector of r3's fixes in every run where independent lags, each wait adding a second, gave
+0.2-1.7 %: issue 23). Robot i measures at planned time T (its fix is triggered by arc length,
+so it is where the plan says, at time T + delta_i); robot j is then where its plan has it at
+time ``T + delta_i - delta_j``. The probability that robot j blocks the ray is the mass of
+``T + delta_i - delta_j`` over the planned times at which j's centre is in the blocking region
+(robot j's timeline; before its start and after its end it stands on its docks), each time
+weighted by the chance that j's centre, spread by :data:`POS_SD` about its planned place, lies
+in the region (a robot waiting at a stop stands a few centimetres from where the timeline has
+it: timing alone would make its shadow's edge sharp).
 Several robots block independently: ``p = 1 - prod_j (1 - p_j)``.
 
 **Traffic that is not simulated** (``routes.traffic``, a density in [0, 1] per segment): it adds,
@@ -36,7 +44,7 @@ robots').
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.special import ndtr
@@ -66,7 +74,7 @@ TRAFFIC_BLOCK = 0.5
 
 @dataclass(frozen=True)
 class TimingModel:
-    """A robot's lag against its planned timeline: Gaussian, mean and variance growing with its drive.
+    """A robot's lag against its planned timeline: Gaussian, growing with its drive, reset by zone waits.
 
     Attributes
     ----------
@@ -74,30 +82,30 @@ class TimingModel:
         Mean lag at departure [s].
     lag_rate : float
         Mean lag gained per second of planned driving [s/s].
-    wait_lag : float
-        Mean lag gained per zone wait [s].
+    release_lag : float
+        Mean delay of a robot leaving a zone wait after the robot it waited for has passed [s].
     base_var : float
         Variance of the lag at departure [s^2].
     var_rate : float
         Variance gained per second of planned driving [s^2/s].
-    wait_var : float
-        Variance gained per zone wait [s^2].
+    release_var : float
+        Variance of that delay [s^2].
     """
 
     lag0: float
     lag_rate: float
-    wait_lag: float
+    release_lag: float
     base_var: float
     var_rate: float
-    wait_var: float
+    release_var: float
 
-    def mean(self, drive: np.ndarray, waits: np.ndarray) -> np.ndarray:
-        """Mean lag [s] after ``drive`` seconds driven and ``waits`` zone waits (planned)."""
-        return self.lag0 + self.lag_rate * np.asarray(drive, float) + self.wait_lag * np.asarray(waits, float)
+    def mean(self, drive: np.ndarray) -> np.ndarray:
+        """Mean of a robot's own lag [s] after ``drive`` seconds driven (planned), before any wait."""
+        return self.lag0 + self.lag_rate * np.asarray(drive, float)
 
-    def var(self, drive: np.ndarray, waits: np.ndarray) -> np.ndarray:
-        """Variance of the lag [s^2] after ``drive`` seconds driven and ``waits`` zone waits (planned)."""
-        return self.base_var + self.var_rate * np.asarray(drive, float) + self.wait_var * np.asarray(waits, float)
+    def var(self, drive: np.ndarray) -> np.ndarray:
+        """Variance of a robot's own lag [s^2] after ``drive`` seconds driven (planned), before any wait."""
+        return self.base_var + self.var_rate * np.asarray(drive, float)
 
 
 #: Measured with ``python benchmarks/timing_spread.py --seeds 4`` (warehouse-fleet's three tasks,
@@ -112,21 +120,27 @@ _MEASURED = {"lag0": 0.989, "lag_rate": -0.0046, "base_var": 2.4e-5, "var_rate":
 # planned place is passed and measures at physics steps (1/240 s), and the timeline is a grid of
 # predict_timeline's 0.1 s: each a uniform error of its width, variance width^2 / 12.
 _FLOOR_VAR = (1.0 / 60.0) ** 2 / 12.0 + (1.0 / 240.0) ** 2 / 12.0 + 0.1 ** 2 / 12.0
-# A zone wait, derived (not yet measured on fleet episodes): the timeline stops and restarts the
-# robot at once; the follower restarts from rest at max_accel 0.5 m/s^2 (sim.episode.follower),
-# v / (2 a) = 1 s later at 1 m/s, and may have braked before the release or not: the lag a wait
-# adds is taken uniform on [0, v / a] = [0, 2 s], mean 1 s, variance (2 s)^2 / 12.
-_WAIT = {"lag": 1.0, "var": 2.0 ** 2 / 12.0}
+# A zone wait's release, derived: the timeline restarts the robot at once when the holder has
+# passed; the follower restarts from rest at max_accel 0.5 m/s^2 (sim.episode.follower),
+# v / (2 a) = 1 s later at 1 m/s, and may have braked before the release or not: the delay is
+# taken uniform on [0, v / a] = [0, 2 s], mean 1 s, variance (2 s)^2 / 12. (Three warehouse-fleet
+# episodes: r1 left its waits for r3 0.88-1.10 s after r3's lag, the same in every seed.)
+_RELEASE = {"lag": 1.0, "var": 2.0 ** 2 / 12.0}
 
-TIMING = TimingModel(lag0=_MEASURED["lag0"], lag_rate=_MEASURED["lag_rate"], wait_lag=_WAIT["lag"],
+TIMING = TimingModel(lag0=_MEASURED["lag0"], lag_rate=_MEASURED["lag_rate"], release_lag=_RELEASE["lag"],
                      base_var=_MEASURED["base_var"] + _MEASURED["line_error_var"] + _FLOOR_VAR,
-                     var_rate=_MEASURED["var_rate"], wait_var=_WAIT["var"])
+                     var_rate=_MEASURED["var_rate"], release_var=_RELEASE["var"])
 """The timing model of the simulated robots (the comments above give each number's source)."""
 
 
 @dataclass(frozen=True)
 class Track:
     """One robot's predicted drive, refined, with its lag model: what blocks the others' rays.
+
+    A sample's lag is ``delta_root(root_t) + X``, X independent of every robot's own lag, Gaussian
+    with mean ``x_mean`` and variance ``x_var``: the root's own lag at its time (the robot's own
+    lag there, before any wait, :meth:`TimingModel.mean`). A sample before the robot's first tied
+    wait is its own (``root`` -1, X = 0).
 
     Attributes
     ----------
@@ -138,23 +152,30 @@ class Track:
         Arc length along the robot's whole path [m].
     drive : ndarray, shape (T,)
         Planned time driven so far [s].
-    waits : ndarray, shape (T,)
-        Zone waits begun so far (planned).
     radius, height : float
         The robot's body [m].
+    root : ndarray of int, shape (T,)
+        The robot whose own lag the sample's lag is tied to (-1: its own, at the sample).
+    root_t : ndarray, shape (T,)
+        Planned time of the root's lag [s] (the sample's own time for -1).
+    x_mean, x_var : ndarray, shape (T,)
+        Mean [s] and variance [s^2] of X.
     """
 
     t: np.ndarray
     xy: np.ndarray
     s: np.ndarray
     drive: np.ndarray
-    waits: np.ndarray
     radius: float
     height: float
+    root: np.ndarray
+    root_t: np.ndarray
+    x_mean: np.ndarray
+    x_var: np.ndarray
 
     @classmethod
     def of(cls, timeline: Timeline, start_time: float, radius: float, height: float, dt: float = FINE_DT) -> Track:
-        """Refine ``timeline`` to steps of ``dt`` [s] and count its driving time and zone waits."""
+        """Refine ``timeline`` to steps of ``dt`` [s] and count its driving time; every lag its own."""
         t0 = np.asarray(timeline.t, float)
         t = np.arange(t0[0], t0[-1] + 0.5 * dt, dt)
         s = np.interp(t, t0, timeline.s)
@@ -163,9 +184,8 @@ class Track:
         waiting = np.asarray(timeline.waiting, bool)
         driving = ~waiting & (t0 > start_time) & (t0 <= timeline.end_time + 1e-9)
         drive = np.interp(t, t0, np.cumsum(np.where(driving, step, 0.0)))
-        begun = np.cumsum(waiting & ~np.concatenate([[False], waiting[:-1]]))
-        waits = begun[np.clip(np.searchsorted(t0, t, side="right") - 1, 0, len(t0) - 1)].astype(float)
-        return cls(t, xy, s, drive, waits, float(radius), float(height))
+        zero = np.zeros(len(t))
+        return cls(t, xy, s, drive, float(radius), float(height), np.full(len(t), -1), t.copy(), zero, zero.copy())
 
     def at_s(self, s: np.ndarray) -> np.ndarray:
         """Planned time [s] at which the robot first reaches arc length(s) ``s`` [m]."""
@@ -175,10 +195,110 @@ class Track:
         u = np.where(s1 > s0, np.clip((s - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0, 1.0), 1.0)
         return np.where(s <= self.s[0], self.t[0], self.t[k - 1] + u * (self.t[k] - self.t[k - 1]))
 
-    def state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Planned time driven [s] and zone waits begun at planned time(s) ``t`` [s]."""
-        k = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 1)
-        return np.interp(t, self.t, self.drive), self.waits[k]
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Index of the sample in force at planned time(s) ``t`` [s]."""
+        return np.clip(np.searchsorted(self.t, np.asarray(t, float), side="right") - 1, 0, len(self.t) - 1)
+
+
+def _waits(timeline: Timeline, t: np.ndarray) -> list[tuple[int, int, int]]:
+    """Zone waits of a timeline on refined times ``t``: (first waiting sample, release sample, holder)."""
+    if timeline.holder is None:
+        return []
+    t0, waiting, holder = np.asarray(timeline.t, float), np.asarray(timeline.waiting, bool), timeline.holder
+    out = []
+    k, n = 0, len(t0)
+    while k < n:
+        if not waiting[k]:
+            k += 1
+            continue
+        e = k
+        while e + 1 < n and waiting[e + 1]:
+            e += 1
+        # the wait covers the steps ending at samples k..e: it starts at t0[k-1], ends at t0[e]
+        a = int(np.searchsorted(t, t0[max(k - 1, 0)] - 1e-9, side="left"))
+        b = int(np.searchsorted(t, t0[e] - 1e-9, side="left"))
+        out.append((min(a, len(t) - 1), min(b, len(t) - 1), int(holder[e])))
+        k = e + 1
+    return out
+
+
+def tie(tracks: list[Track], timelines: list[Timeline], timing: TimingModel = TIMING) -> list[Track]:
+    """Tie each robot's lag after a zone wait to the robot it waited for (module docstring).
+
+    Waits are taken in the order they end; each release sets the waiting robot's lag from then
+    on (until its next release) to the holder's lag at the release plus the restart, or keeps
+    its own (less the planned wait) when that is the later.
+
+    Parameters
+    ----------
+    tracks : list of Track
+        The fleet's tracks (:meth:`Track.of`), in robot order.
+    timelines : list of Timeline
+        Their timelines (with :attr:`~planner.fleet.zones.Timeline.holder`).
+    timing : TimingModel
+
+    Returns
+    -------
+    list of Track
+    """
+    root = [tr.root.copy() for tr in tracks]
+    root_t = [tr.root_t.copy() for tr in tracks]
+    xm = [tr.x_mean.copy() for tr in tracks]
+    xv = [tr.x_var.copy() for tr in tracks]
+    events = sorted((tracks[j].t[b], j, a, b, h) for j, tl in enumerate(timelines)
+                    for a, b, h in _waits(tl, tracks[j].t) if 0 <= h < len(tracks) and h != j)
+
+    def mean_at(j, k):
+        r = root[j][k]
+        own = timing.mean(np.interp(root_t[j][k], tracks[r if r >= 0 else j].t, tracks[r if r >= 0 else j].drive))
+        return float(own) + xm[j][k]
+
+    def var_at(j, k):
+        r = root[j][k]
+        own = timing.var(np.interp(root_t[j][k], tracks[r if r >= 0 else j].t, tracks[r if r >= 0 else j].drive))
+        return float(own) + xv[j][k]
+
+    for t_rel, j, a, b, h in events:
+        tj = tracks[j]
+        before = max(a - 1, 0)
+        waited = float(tj.t[b] - tj.t[a])
+        kh = int(tracks[h].sample(t_rel))
+        tied_mean = mean_at(h, kh) + timing.release_lag
+        if mean_at(j, before) - waited >= tied_mean:
+            continue                        # arrived after the holder had gone: did not stop
+        r = root[h][kh]
+        new_root, new_t = (h, t_rel) if r < 0 else (int(r), float(root_t[h][kh]))
+        base_m, base_v = xm[h][kh] + timing.release_lag, xv[h][kh] + timing.release_var
+        since = tj.drive[b:] - tj.drive[b]
+        root[j][b:], root_t[j][b:] = new_root, new_t
+        xm[j][b:] = base_m + timing.lag_rate * since
+        xv[j][b:] = base_v + timing.var_rate * since
+    return [replace(tr, root=root[j], root_t=root_t[j], x_mean=xm[j], x_var=xv[j]) for j, tr in enumerate(tracks)]
+
+
+def lag_difference(tracks: list[Track], i: int, j: int, t: np.ndarray,
+                   timing: TimingModel = TIMING) -> tuple[np.ndarray, np.ndarray]:
+    """Mean [s] and variance [s^2] of ``delta_i - delta_j`` at planned time(s) ``t``.
+
+    Each lag is its root's own lag plus an independent part (:class:`Track`); two lags with one
+    root share that root's own lag up to the earlier of their times, whose variance cancels.
+    (Parts of X shared through a robot between them are taken as independent: more spread.)
+    """
+    t = np.asarray(t, float).reshape(-1)
+    parts = []
+    for r in (i, j):
+        tr = tracks[r]
+        k = tr.sample(t)
+        root = np.where(tr.root[k] >= 0, tr.root[k], r)
+        when = tr.root_t[k]
+        drive = np.empty(len(t))
+        for q in np.unique(root):
+            sel = root == q
+            drive[sel] = np.interp(when[sel], tracks[q].t, tracks[q].drive)
+        parts.append((root, drive, timing.mean(drive) + tr.x_mean[k], timing.var(drive) + tr.x_var[k]))
+    (ri, di, mi, vi), (rj, dj, mj, vj) = parts
+    shared = np.where(ri == rj, timing.var(np.minimum(di, dj)), 0.0)
+    return mi - mj, np.maximum(vi + vj - 2.0 * shared, 0.0)
 
 
 def low_segment(origin: np.ndarray, h_origin: float | np.ndarray, target: np.ndarray, h_target: np.ndarray,
@@ -231,8 +351,8 @@ def _distance(xy: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def block_probability(other: Track, origin: np.ndarray, h_origin: float, target: np.ndarray,
-                      h_target: np.ndarray, when: np.ndarray, lag_mean: np.ndarray, lag_var: np.ndarray,
-                      timing: TimingModel = TIMING, group: np.ndarray | None = None, chunk: int = 256) -> np.ndarray:
+                      h_target: np.ndarray, when: np.ndarray, shift_mean: np.ndarray, shift_var: np.ndarray,
+                      group: np.ndarray | None = None, chunk: int = 256) -> np.ndarray:
     """Probability that robot ``other``'s body is on each ray at the time it is measured.
 
     Parameters
@@ -249,10 +369,9 @@ def block_probability(other: Track, origin: np.ndarray, h_origin: float, target:
         Reflector heights [m] (NaN: above every robot, never blocked).
     when : ndarray, shape (Q,)
         Planned time of each measurement [s].
-    lag_mean, lag_var : ndarray, shape (Q,)
-        Mean [s] and variance [s^2] of the measuring robot's lag at ``when``.
-    timing : TimingModel
-        The other robot's lag model.
+    shift_mean, shift_var : ndarray, shape (Q,)
+        Mean [s] and variance [s^2] of the measuring robot's lag less the other's at ``when``
+        (:func:`lag_difference`): the other is where its plan has it at ``when + shift``.
     group : ndarray of int, shape (Q,), optional
         Rays measured together (one fix's): the probability is then per group (0 .. G-1) that
         the body hides at least one of its rays, each group's times and lags taken from its
@@ -270,9 +389,8 @@ def block_probability(other: Track, origin: np.ndarray, h_origin: float, target:
     n_out = int(gid.max(initial=-1)) + 1
     out = np.zeros(n_out)
     a, b, some = low_segment(origin, h_origin, target, h_target, other.height)
-    drive, waits = other.state(when)
-    mu = np.asarray(lag_mean, float) - timing.mean(drive, waits)      # mean of delta_i - delta_j
-    sd = np.sqrt(np.asarray(lag_var, float) + timing.var(drive, waits))
+    mu = np.broadcast_to(np.asarray(shift_mean, float), (q_n,))      # mean of delta_i - delta_j
+    sd = np.sqrt(np.maximum(np.broadcast_to(np.asarray(shift_var, float), (q_n,)), 1e-12))
     # cells of the other's samples: sample k stands for planned times [edge_k, edge_k+1), the first
     # and last reaching to -inf and +inf (standing on its docks before and after)
     t = other.t
@@ -348,10 +466,3 @@ def traffic_probability(segment_density: np.ndarray, h_target: np.ndarray, tops:
 def combine(p: np.ndarray, axis: int = 0) -> np.ndarray:
     """Probability that at least one of independent events of probabilities ``p`` happens, along ``axis``."""
     return 1.0 - np.prod(1.0 - np.clip(np.asarray(p, float), 0.0, 1.0), axis=axis)
-
-
-def lag_of(track: Track, timing: TimingModel, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean [s] and variance [s^2] of a robot's lag at planned time(s) ``t``."""
-    drive, waits = track.state(np.asarray(t, float))
-    return timing.mean(drive, waits), timing.var(drive, waits)
-

@@ -14,7 +14,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.fleet.blocking import TIMING, TimingModel, Track, block_probability, lag_of, traffic_probability
+from planner.fleet.blocking import (
+    TIMING,
+    TimingModel,
+    Track,
+    block_probability,
+    lag_difference,
+    tie,
+    traffic_probability,
+)
 from scenarios.schema import Scenario
 
 
@@ -75,9 +83,10 @@ class RobotBlocking:
         return float(self.p_fix[~self.protected].sum())
 
 
-def tracks_of(robots: Sequence) -> list[Track]:
-    """Each robot's refined timeline (``robots``: :class:`planner.fleet.plan.FleetRobotPlan`)."""
-    return [Track.of(r.timeline, r.start_time, r.robot.radius, r.robot.height) for r in robots]
+def tracks_of(robots: Sequence, timing: TimingModel = TIMING) -> list[Track]:
+    """Each robot's refined timeline, its lags tied through its zone waits (``robots``: ``FleetRobotPlan``)."""
+    tracks = [Track.of(r.timeline, r.start_time, r.robot.radius, r.robot.height) for r in robots]
+    return tie(tracks, [r.timeline for r in robots], timing)
 
 
 def _heights(scenario: Scenario) -> np.ndarray:
@@ -136,15 +145,16 @@ def marker_risk(scenario: Scenario, tracks: list[Track], i: int, xy: np.ndarray,
     out = np.zeros((len(m_pos), n))
     if len(low) == 0 or n == 0:
         return out
-    mean_i, var_i = lag_of(tracks[i], timing, when)
     origin = np.repeat(xy, len(low), axis=0)
     target = np.tile(m_pos[low], (n, 1))
     ht = np.tile(h[low], n)
-    w, mu, v = np.repeat(when, len(low)), np.repeat(mean_i, len(low)), np.repeat(var_i, len(low))
+    w = np.repeat(when, len(low))
     free = np.ones(len(origin))
     for j, tr in enumerate(tracks):
         if j != i:
-            free *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v, timing)
+            mu, v = lag_difference(tracks, i, j, when, timing)
+            free *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, np.repeat(mu, len(low)),
+                                            np.repeat(v, len(low)))
     tops = max(t.height for t in tracks)
     dens = np.repeat(_segment_density(scenario, xy), len(low))
     kw = {} if traffic_block is None else {"traffic_block": traffic_block}
@@ -179,7 +189,7 @@ def risk(scenario: Scenario, tracks: list[Track], i: int, offset: float,
 def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = None,
             timing: TimingModel = TIMING) -> list[RobotBlocking]:
     """Predicted blocking of every scheduled fix of every robot (``robots``: ``FleetRobotPlan``)."""
-    tracks = tracks_of(robots) if tracks is None else tracks
+    tracks = tracks_of(robots, timing) if tracks is None else tracks
     m_pos, h = scenario.marker_positions(), _heights(scenario)
     tops = max(t.height for t in tracks)
     out = []
@@ -196,17 +206,18 @@ def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = N
         s, xy, markers = np.array(s, float), np.array(xy, float).reshape(-1, 2), np.array(markers, int)
         n_fix, k = markers.shape if markers.size else (0, scenario.sensor.markers_per_fix)
         when = tracks[i].at_s(s)
-        mean_i, var_i = lag_of(tracks[i], timing, when)
         origin = np.repeat(xy, k, axis=0)
         target, ht = m_pos[markers.reshape(-1)], h[markers.reshape(-1)]
-        w, mu, v = np.repeat(when, k), np.repeat(mean_i, k), np.repeat(var_i, k)
+        w = np.repeat(when, k)
         free_ray, free_fix = np.ones(n_fix * k), np.ones(n_fix)
         for j, tr in enumerate(tracks):
             if j == i:
                 continue
-            free_ray *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v, timing)
+            mean, var = lag_difference(tracks, i, j, when, timing)
+            mu, v = np.repeat(mean, k), np.repeat(var, k)
+            free_ray *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v)
             # at least one of the fix's rays: the union of their regions under the same lag
-            free_fix *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v, timing,
+            free_fix *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v,
                                                 group=np.repeat(np.arange(n_fix), k))
         dens = np.repeat(_segment_density(scenario, xy), k)
         out.append(RobotBlocking(task=np.array(task, int), fix=np.array(fix, int), time=when, s=s, markers=markers,

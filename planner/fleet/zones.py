@@ -189,6 +189,8 @@ class ZoneControl:
         self._count = [np.zeros(g, dtype=np.int32) for _ in range(n)]
         self.lo = [0] * n
         self.end = [0] * n
+        #: The robot holding a cell robot i's last refused request needed (-1: none refused yet).
+        self.refused_by = [-1] * n
         for i in range(n):
             self._take(i, 0, 1)
 
@@ -242,7 +244,9 @@ class ZoneControl:
             k = self.next_stop(i)
             cells = self._cells(i, self.end[i] + 1, k + 1)
             held = self.owner[cells]
-            if np.any((held >= 0) & (held != i)):
+            others = held[(held >= 0) & (held != i)]
+            if len(others):
+                self.refused_by[i] = int(others[0])
                 return False
             self._take(i, self.end[i] + 1, k + 1)
             self.end[i] = k
@@ -294,6 +298,9 @@ class Timeline:
         Position [m].
     waiting : ndarray of bool, shape (T,)
         The robot stood waiting for a zone during the step ending at this sample.
+    holder : ndarray of int, shape (T,), optional
+        At a waiting sample, the robot holding the zone it waited for (-1 elsewhere); None:
+        not recorded (no waits).
     wait_time : float
         Time spent waiting for zones [s] (not counting the wait for its start time).
     end_time : float
@@ -306,6 +313,7 @@ class Timeline:
     waiting: np.ndarray
     wait_time: float
     end_time: float
+    holder: np.ndarray | None = None
 
 
 def predict_timeline(zones: ZoneControl, kinematics: Sequence[Kinematics], start_times: Sequence[float],
@@ -347,7 +355,7 @@ def predict_timeline(zones: ZoneControl, kinematics: Sequence[Kinematics], start
     clock = [0.0] * n
     s_now = [0.0] * n
     done = [zones.length(i) <= 0.0 for i in range(n)]
-    rows: list[list[tuple[float, float, bool]]] = [[(0.0, 0.0, False)] for _ in range(n)]
+    rows: list[list[tuple[float, float, bool, int]]] = [[(0.0, 0.0, False, -1)] for _ in range(n)]
     waited = [0.0] * n
     end_time = [0.0 if done[i] else math.nan for i in range(n)]
     t = 0.0
@@ -361,7 +369,7 @@ def predict_timeline(zones: ZoneControl, kinematics: Sequence[Kinematics], start
             if done[i]:
                 continue
             if t_next <= start_times[i]:
-                rows[i].append((t_next, 0.0, False))
+                rows[i].append((t_next, 0.0, False, -1))
                 moved = True   # waiting for its start time is progress of the clock, not a jam
                 continue
             step = min(dt, t_next - start_times[i])
@@ -376,7 +384,7 @@ def predict_timeline(zones: ZoneControl, kinematics: Sequence[Kinematics], start
             moved |= s_new > s_now[i] or c_new > clock[i]
             s_now[i], clock[i] = s_new, c_new
             zones.release(i, s_new)
-            rows[i].append((t_next, s_new, wait > 1e-9))
+            rows[i].append((t_next, s_new, wait > 1e-9, zones.refused_by[i] if wait > 1e-9 else -1))
             if c_new >= total[i] or s_new >= zones.length(i):
                 done[i] = True
                 end_time[i] = t_next - max(0.0, c_new - total[i])
@@ -386,8 +394,9 @@ def predict_timeline(zones: ZoneControl, kinematics: Sequence[Kinematics], start
         t = t_next
     out = []
     for i in range(n):
-        arr = np.array([(a, b) for a, b, _ in rows[i]], dtype=float).reshape(-1, 2)
+        arr = np.array([(a, b) for a, b, _, _ in rows[i]], dtype=float).reshape(-1, 2)
         out.append(Timeline(t=arr[:, 0], s=arr[:, 1], xy=zones.point(i, arr[:, 1]),
-                            waiting=np.array([w for _, _, w in rows[i]], dtype=bool),
-                            wait_time=float(waited[i]), end_time=float(end_time[i])))
+                            waiting=np.array([w for _, _, w, _ in rows[i]], dtype=bool),
+                            wait_time=float(waited[i]), end_time=float(end_time[i]),
+                            holder=np.array([h for _, _, _, h in rows[i]], dtype=int)))
     return out

@@ -8,18 +8,29 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from planner.fleet.blocking import FINE_DT, POS_SD, TimingModel, Track, block_probability, combine, low_segment
+from planner.fleet.blocking import (
+    FINE_DT,
+    POS_SD,
+    TimingModel,
+    Track,
+    block_probability,
+    combine,
+    lag_difference,
+    low_segment,
+    tie,
+)
 from planner.fleet.zones import Timeline
 
-SHARP = TimingModel(lag0=0.0, lag_rate=0.0, wait_lag=0.0, base_var=1e-8, var_rate=0.0, wait_var=0.0)
+
+def _timeline(xy, t, waiting=None, holder=None):
+    xy = np.asarray(xy, float)
+    return Timeline(t=np.asarray(t, float), s=np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]),
+                    xy=xy, waiting=np.zeros(len(t), bool) if waiting is None else np.asarray(waiting, bool),
+                    wait_time=0.0, end_time=float(t[-1]), holder=None if holder is None else np.asarray(holder, int))
 
 
 def _track(xy, t, radius=0.4, height=0.5, waiting=None):
-    xy = np.asarray(xy, float)
-    tl = Timeline(t=np.asarray(t, float), s=np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]),
-                  xy=xy, waiting=np.zeros(len(t), bool) if waiting is None else np.asarray(waiting, bool),
-                  wait_time=0.0, end_time=float(t[-1]))
-    return Track.of(tl, 0.0, radius, height)
+    return Track.of(_timeline(xy, t, waiting), 0.0, radius, height)
 
 
 def test_the_low_part_of_a_ray_is_where_it_passes_below_the_body_top():
@@ -44,7 +55,7 @@ def test_a_body_standing_on_the_ray_hides_it_and_beside_it_does_not():
     edge = _track(np.tile([5.0, 0.45], (len(t), 1)), t)
     off = _track(np.tile([5.0, 1.0], (len(t), 1)), t)   # 1 m off the ray, radius 0.4
     args = (np.array([[0.0, 0.0]]), 0.5, np.array([[10.0, 0.0]]), np.array([0.3]), np.array([4.0]),
-            np.zeros(1), np.zeros(1), SHARP)
+            np.zeros(1), np.full(1, 2e-8))
     # where it stands is spread by POS_SD across the shadow's edge
     assert block_probability(on, *args)[0] == pytest.approx(ndtr(0.2 / POS_SD))
     assert block_probability(edge, *args)[0] == pytest.approx(ndtr(-0.05 / POS_SD))
@@ -56,10 +67,9 @@ def test_a_crossing_hides_the_ray_for_the_timing_spread_s_share_of_its_passage()
     v, r, sd = 1.0, 0.4, 0.3
     t = np.arange(0.0, 10.0 + 1e-9, 0.1)
     track = _track(np.column_stack([np.full(len(t), 5.0), -5.0 + v * t]), t, radius=r)
-    timing = TimingModel(0.0, 0.0, 0.0, 0.5 * sd**2, 0.0, 0.0)
     when = np.array([3.0, 4.5, 5.0, 5.6, 7.0])
     p = block_probability(track, np.zeros((5, 2)), 0.5, np.tile([10.0, 0.0], (5, 1)), np.full(5, 0.3), when,
-                          np.zeros(5), np.full(5, 0.5 * sd**2), timing)
+                          np.zeros(5), np.full(5, sd**2))
     # crossing at right angles, the position spread along the motion adds (POS_SD / v)^2 to the timing's
     total = math.hypot(sd, POS_SD / v)
     exact = ndtr((5.0 + r / v - when) / total) - ndtr((5.0 - r / v - when) / total)
@@ -72,10 +82,9 @@ def test_a_crossing_hides_the_ray_for_the_timing_spread_s_share_of_its_passage()
 def test_a_fix_s_rays_count_once_when_the_body_hides_several():
     t = np.arange(0.0, 10.0, 0.1)
     track = _track(np.column_stack([np.full(len(t), 5.0), -5.0 + t]), t)
-    timing = TimingModel(0.0, 0.0, 0.0, 0.02, 0.0, 0.0)
     origin = np.zeros((2, 2))
     target = np.array([[10.0, 0.0], [10.0, 0.5]])   # two markers, both rays crossed at about 5 s
-    kw = dict(lag_mean=np.zeros(2), lag_var=np.full(2, 0.02), timing=timing)
+    kw = dict(shift_mean=np.zeros(2), shift_var=np.full(2, 0.04))
     each = block_probability(track, origin, 0.5, target, np.full(2, 0.3), np.full(2, 5.2), **kw)
     both = block_probability(track, origin, 0.5, target, np.full(2, 0.3), np.full(2, 5.2), group=np.zeros(2, int), **kw)
     assert both.shape == (1,)
@@ -83,15 +92,37 @@ def test_a_fix_s_rays_count_once_when_the_body_hides_several():
     assert 0.0 < each.max() - 1e-12 <= both[0] <= combine(each) + 1e-12
 
 
-def test_waits_count_as_events_and_widen_the_spread():
-    t = np.arange(0.0, 6.0, 0.1)
-    waiting = (t > 2.0) & (t < 3.0)
-    x = np.where(t < 2.0, t, np.where(t < 3.0, 2.0, t - 1.0))
-    track = _track(np.column_stack([x, np.zeros(len(t))]), t, waiting=waiting)
-    drive, waits = track.state(np.array([1.0, 2.5, 5.0]))
-    assert np.allclose(waits, [0, 1, 1]) and drive[2] == pytest.approx(4.0, abs=0.11)
-    model = TimingModel(1.0, 0.0, 0.5, 0.01, 0.0, 0.25)
-    assert model.mean(drive, waits)[2] == pytest.approx(1.5) and model.var(drive, waits)[2] == pytest.approx(0.26)
+def test_a_robot_waiting_for_another_takes_its_lag_from_the_release():
+    """Robot 1 waits (2-3 s) for robot 0: from its release its lag is robot 0's plus the restart.
+
+    Against robot 0 measuring later, the difference is robot 0's drift since the release and the
+    restart: its variance is ``release_var + var_rate * (robot 0's driving since)``, not two
+    independent lags' sum. A wait for a robot that had long gone (its own lag, less the wait,
+    later than the holder's) keeps the robot's own lag.
+    """
+    t = np.arange(0.0, 6.0 + 1e-9, 0.1)
+    waiting = (t > 2.0 + 1e-9) & (t < 3.0 + 1e-9)
+    x1 = np.where(t < 2.0, t, np.where(t < 3.0, 2.0, t - 1.0))
+    tl0 = _timeline(np.column_stack([t, np.full(len(t), 5.0)]), t)
+    tl1 = _timeline(np.column_stack([x1, np.zeros(len(t))]), t, waiting, np.where(waiting, 0, -1))
+    model = TimingModel(lag0=1.0, lag_rate=0.01, release_lag=0.7, base_var=0.3, var_rate=0.02, release_var=0.05)
+    tracks = tie([Track.of(tl, 0.0, 0.4, 0.5) for tl in (tl0, tl1)], [tl0, tl1], model)
+    when = np.array([1.0, 5.0])
+    mean, var = lag_difference(tracks, 0, 1, when, model)
+    # before the wait: two own lags, independent, the same drive
+    assert mean[0] == pytest.approx(0.0, abs=1e-9) and var[0] == pytest.approx(2 * (0.3 + 0.02 * 1.0), abs=1e-3)
+    # at 5 s robot 1 (released at 3 s, driven 1.9 s since) follows robot 0's lag at 3 s
+    d0_rel, d0, d1_since = 3.0, 5.0, 1.9
+    assert mean[1] == pytest.approx(0.01 * (d0 - d0_rel) - 0.7 - 0.01 * d1_since, abs=2e-3)
+    assert var[1] == pytest.approx(0.02 * (d0 - d0_rel) + 0.05 + 0.02 * d1_since, abs=3e-3)
+    # robot 0 leaving at 2.9 s, robot 1 losing 2 s per second driven: at the wait robot 1 is
+    # 4 s late, later than robot 0's release (0.2 s late) plus the restart by more than the wait:
+    # it did not stop, its own lag goes on
+    late = TimingModel(lag0=0.0, lag_rate=2.0, release_lag=0.7, base_var=0.3, var_rate=0.0, release_var=0.05)
+    tracks = tie([Track.of(tl0, 2.9, 0.4, 0.5), Track.of(tl1, 0.0, 0.4, 0.5)], [tl0, tl1], late)
+    assert np.all(tracks[1].root == -1)
+    # with robot 0 leaving on time it would have waited
+    assert np.any(tie([Track.of(tl, 0.0, 0.4, 0.5) for tl in (tl0, tl1)], [tl0, tl1], late)[1].root == 0)
 
 
 @pytest.fixture(scope="module")
