@@ -65,9 +65,9 @@ from scipy import stats
 
 import scenarios
 from estimators.fault.carried import encoder_tick, turn_cov
-from sim.episode.drive import CONTROL_STEPS
 from sim.physics.config import PhysicsConfig
 from sim.physics.odometry import WheelOdometry
+from tests.sim.episode.fix_reads import fix_reads
 
 ALPHA = 0.001
 N = 2000
@@ -94,12 +94,7 @@ def _trials(first_step: int = 1):
     robot = _robot()
     b, r, tick = robot.wheel_base, robot.wheel_radius, encoder_tick(robot)
     dt = PhysicsConfig().time_step
-    due = [first_step + math.ceil(j * MEASUREMENT_TIME / dt - 1e-9) for j in range(K)]
-    ticks = set(range(0, due[-1] + 1, CONTROL_STEPS))
-    reads = sorted(ticks | set(due))    # a measurement on a control tick reads twice
-    reads += [s for s in due if s in ticks]
-    reads.sort()
-    reads = [s for s in reads if s >= due[0]]
+    due, reads = fix_reads(first_step, K, MEASUREMENT_TIME, dt)
     # each wheel's speed band: a whole tick of travel between any two of the fix's reads
     band = tick / (math.gcd(*(t - s for i, s in enumerate(due) for t in due[i + 1:])) * dt)
     centre = np.array([SPEED - 0.5 * b * YAW_RATE, SPEED + 0.5 * b * YAW_RATE])   # left, right [m/s]

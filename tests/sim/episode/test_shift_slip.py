@@ -10,17 +10,19 @@ wheel travel ``d_w``; in an episode a fix's measurement reads fall between the c
 random world ``random-7-008`` (coverage 0.9427 of 46,397 fixes at 200 runs, issue 23).
 
 Here the odometry (:class:`sim.physics.odometry.WheelOdometry`) reads wheels rolling straight at
-1 m/s with the episode's pattern: control reads every ``CONTROL_STEPS`` physics steps and a fix's
-measurement reads at the physics steps they fall due (one on a control tick: a read of zero
-travel). Encoders of 2^24 ticks make the quantisation negligible (its ``tick^2 / 12`` is kept in
-the claim), so each trial's along-track shift error is gaussian with the claimed variance and
-``sum z^2`` over ``N`` independent trials is chi2(N): the acceptance region is its two-sided
-interval at false-alarm probability ``ALPHA``. Negative control: the equal-increment claim
-(``slip_weight`` not given) for the same reads lies outside it: it is 1 / 1.331 of the exact
-claim on these reads, so its statistic is ``1.331 chi2(N) / N`` and ``N = 1000`` puts the
-interval's upper end (1.154 N) 2.97 standard deviations below its mean: the control misses with
-probability 0.0015. (It measured 0.989 and 1.316; 4000 trials gave 0.985 and 1.31 in four times
-the time.) The same trials check the covariance of two nested shifts of a fix
+1 m/s with the episode's pattern (``tests/sim/episode/fix_reads.py``): control reads every
+``CONTROL_STEPS`` physics steps and a fix's measurement reads at the physics steps they fall
+due, once per step. Encoders of 2^24 ticks make the quantisation negligible (its
+``tick^2 / 12`` is kept in the claim), so each trial's along-track shift error is gaussian with
+the claimed variance and ``sum z^2`` over ``N`` independent trials is chi2(N): the acceptance
+region is its two-sided interval at false-alarm probability ``ALPHA``. Negative control: the
+equal-increment claim (``slip_weight`` not given) for the same reads lies outside it. A fix
+starting a step before a control tick reads after 1, 4, 2, 2 and 4 steps: the equal claim is
+1 / 1.213 of the exact one, so its statistic is ``1.213 chi2(N) / N`` and ``N = 4000`` puts the
+interval's upper end (1.075 N) 5.1 standard deviations below its mean: the control misses with
+probability 2e-7. (It measured 0.992 and 1.204. Before an episode read each physics step once,
+a measurement on a tick read again, a zero increment, and the first trials' pattern gave 1.331.)
+The same trials check the covariance of two nested shifts of a fix
 (:func:`estimators.fault.carried.shift_cov`, the off-diagonal the snapshot covariance counts).
 """
 
@@ -35,11 +37,12 @@ from scipy import stats
 
 import scenarios
 from estimators.fault.carried import shift_cov, shift_var
-from sim.episode.drive import CONTROL_STEPS
 from sim.physics.config import PhysicsConfig
+from tests.sim.episode.fix_reads import fix_reads
 
 ALPHA = 0.001
-N = 1000
+N = 4000
+FIRST_STEP = 3        # a fix starting a step before a control tick: its reads' increments 1, 4, 2, 2, 4 steps
 SPEED = 1.0
 MEASUREMENT_TIME = 0.027   # random-7-008's
 
@@ -61,12 +64,7 @@ def _trials(first_step: int):
 
     dt = PhysicsConfig().time_step
     k = 3
-    due = [first_step + math.ceil(j * MEASUREMENT_TIME / dt - 1e-9) for j in range(k)]
-    ticks = set(range(0, due[-1] + 1, CONTROL_STEPS))
-    reads = sorted(ticks | set(due))    # a measurement on a control tick reads twice
-    reads += [s for s in due if s in ticks]
-    reads.sort()
-    reads = [s for s in reads if s >= due[0]]
+    due, reads = fix_reads(first_step, k, MEASUREMENT_TIME, dt)
     rng = np.random.default_rng(20261203)
     omega = SPEED / robot.wheel_radius
     errors, claims, equal, errors2, covs = [], [], [], [], []
@@ -94,7 +92,7 @@ def _trials(first_step: int):
 
 def test_shift_variance_holds_for_a_fix_s_uneven_reads():
     lo, hi = stats.chi2.ppf([ALPHA / 2, 1 - ALPHA / 2], N)
-    errors, claims, equal, _, _ = _trials(first_step=1)
+    errors, claims, equal, _, _ = _trials(first_step=FIRST_STEP)
     assert lo <= np.sum(errors**2 / claims) <= hi
     # negative control: n equal increments understate the slip of these uneven ones
     assert np.sum(errors**2 / equal) > hi
@@ -106,11 +104,12 @@ def test_nested_shifts_share_their_slip():
     The second range's shift is the end of the first's: they share its reads' slip, and
     ``e_1 + e_2`` has variance ``C_11 + C_22 + 2 C_12``; ``sum (e_1 + e_2)^2 / that`` over the
     trials is chi2(N), two-sided interval at ``ALPHA``. Negative control: independent shifts
-    (``C_12 = 0``) understate it by the factor ``1 + 2 C_12 / (C_11 + C_22)``, 1.62 here, so
-    the control's statistic ``1.62 chi2(N) / N`` misses the interval with probability < 1e-6.
+    (``C_12 = 0``) understate it by the factor ``1 + 2 C_12 / (C_11 + C_22)``, 1.66 here, so
+    the control's statistic ``1.66 chi2(N) / N`` misses the interval with probability < 1e-6
+    (measured: 0.994 and 1.646).
     """
     lo, hi = stats.chi2.ppf([ALPHA / 2, 1 - ALPHA / 2], N)
-    errors, _, _, errors2, covs = _trials(first_step=1)
+    errors, _, _, errors2, covs = _trials(first_step=FIRST_STEP)
     total = errors + errors2
     assert lo <= np.sum(total**2 / (covs[:, 0, 0] + covs[:, 1, 1] + 2.0 * covs[:, 0, 1])) <= hi
     assert np.sum(total**2 / (covs[:, 0, 0] + covs[:, 1, 1])) > hi
