@@ -69,26 +69,34 @@ class EpisodeApi:
     """Modules worth importing once before workers start (see :mod:`sim.montecarlo.executors`)."""
 
 
+def _prepare_fleet(scenario, task_index=0, *, traffic: bool = True):
+    from sim.episode import fleet
+
+    return fleet.prepare_fleet(scenario, traffic=traffic)
+
+
+def _run_fleet(scenario, task_index=0, seed=0, world=None, prepared=None, q_scale=1.0):
+    from sim.episode import fleet
+
+    return fleet.run_fleet_episode(scenario, seed=seed, world=world, prepared=prepared, q_scale=q_scale)
+
+
 def fleet_api(traffic: bool = True) -> EpisodeApi:
     """Return the real episode API of a fleet scenario: ``sim.episode.fleet`` in a fleet world.
 
     Its ``prepare`` plans the whole fleet (whatever the task index) and its ``run_episode``
     returns a :class:`~sim.episode.fleet.FleetResult`. ``traffic`` False plans each robot's
-    measurement schedule as if it drove alone (:func:`sim.episode.fleet.prepare_fleet`).
+    measurement schedule as if it drove alone (:func:`sim.episode.fleet.prepare_fleet`). Its
+    parts are module-level functions (and partials of them): the local pool pickles them to its
+    workers.
     """
     from functools import partial
 
-    from sim.episode import fleet
     from sim.physics.world import PhysicsWorld
 
-    def prepare(scenario, task_index=0):
-        return fleet.prepare_fleet(scenario, traffic=traffic)
-
-    def run(scenario, task_index=0, seed=0, world=None, prepared=None, q_scale=1.0):
-        return fleet.run_fleet_episode(scenario, seed=seed, world=world, prepared=prepared, q_scale=q_scale)
-
     preload = ("sim.episode.fleet", "sim.physics.world", "estimators.ekf", "sim.episode.fixes", "planner.pef.map")
-    return EpisodeApi(prepare, run, partial(PhysicsWorld, fleet=True), preload)
+    return EpisodeApi(partial(_prepare_fleet, traffic=traffic), _run_fleet, partial(PhysicsWorld, fleet=True),
+                      preload)
 
 
 def default_api() -> EpisodeApi:

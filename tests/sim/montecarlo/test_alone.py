@@ -137,3 +137,13 @@ def test_the_fleet_planned_alone_breaks_the_plan_check(capsys, alone, runs, plan
     assert status["plan"] == plan and code == (1 if alone else 0), report["failed"]
     # the fault areas stay honest either way: what breaks is the schedule's reliance on hidden reflectors
     assert status["containment"] == status["promise"] == "pass"
+
+
+@pytest.mark.parametrize("traffic", [True, False])
+def test_the_fleet_api_crosses_to_worker_processes(planned, traffic):
+    """The local pool pickles the episode API to its workers (``--workers 2`` on a fleet died of it)."""
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(fleet_api(traffic=traffic)))
+    copy.prepare(scenarios.load("warehouse-fleet"))
+    assert planned == [traffic]
