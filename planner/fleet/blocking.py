@@ -265,7 +265,9 @@ def tie(tracks: list[Track], timelines: list[Timeline], timing: TimingModel = TI
         kh = int(tracks[h].sample(t_rel))
         tied_mean = mean_at(h, kh) + timing.release_lag
         if mean_at(j, before) - waited >= tied_mean:
-            continue                        # arrived after the holder had gone: did not stop
+            # arrived after the holder had gone: it did not stop, and the plan's wait is lag made up
+            xm[j][b:] -= waited
+            continue
         r = root[h][kh]
         new_root, new_t = (h, t_rel) if r < 0 else (int(r), float(root_t[h][kh]))
         base_m, base_v = xm[h][kh] + timing.release_lag, xv[h][kh] + timing.release_var

@@ -115,12 +115,16 @@ def test_a_robot_waiting_for_another_takes_its_lag_from_the_release():
     d0_rel, d0, d1_since = 3.0, 5.0, 1.9
     assert mean[1] == pytest.approx(0.01 * (d0 - d0_rel) - 0.7 - 0.01 * d1_since, abs=2e-3)
     assert var[1] == pytest.approx(0.02 * (d0 - d0_rel) + 0.05 + 0.02 * d1_since, abs=3e-3)
-    # robot 0 leaving at 2.9 s, robot 1 losing 2 s per second driven: at the wait robot 1 is
-    # 4 s late, later than robot 0's release (0.2 s late) plus the restart by more than the wait:
+    # robot 0 leaving at 2.95 s, robot 1 losing 2 s per second driven: at the wait robot 1 is
+    # 4 s late, later than robot 0's release (0.1 s late) plus the restart by more than the wait:
     # it did not stop, its own lag goes on
     late = TimingModel(lag0=0.0, lag_rate=2.0, release_lag=0.7, base_var=0.3, var_rate=0.0, release_var=0.05)
-    tracks = tie([Track.of(tl0, 2.9, 0.4, 0.5), Track.of(tl1, 0.0, 0.4, 0.5)], [tl0, tl1], late)
+    tracks = tie([Track.of(tl0, 2.95, 0.4, 0.5), Track.of(tl1, 0.0, 0.4, 0.5)], [tl0, tl1], late)
     assert np.all(tracks[1].root == -1)
+    # and the plan's 1 s wait is lag made up: at 5 s robot 1 has driven 4 s (8 s late) less 1 s,
+    # robot 0 2.1 s (4.2 s late)
+    mean, _ = lag_difference(tracks, 0, 1, np.array([5.0]), late)
+    assert mean[0] == pytest.approx(4.2 - 7.0, abs=0.11)
     # with robot 0 leaving on time it would have waited
     assert np.any(tie([Track.of(tl, 0.0, 0.4, 0.5) for tl in (tl0, tl1)], [tl0, tl1], late)[1].root == 0)
 
