@@ -253,11 +253,6 @@ def tie(tracks: list[Track], timelines: list[Timeline], timing: TimingModel = TI
         own = timing.mean(np.interp(root_t[j][k], tracks[r if r >= 0 else j].t, tracks[r if r >= 0 else j].drive))
         return float(own) + xm[j][k]
 
-    def var_at(j, k):
-        r = root[j][k]
-        own = timing.var(np.interp(root_t[j][k], tracks[r if r >= 0 else j].t, tracks[r if r >= 0 else j].drive))
-        return float(own) + xv[j][k]
-
     for t_rel, j, a, b, h in events:
         tj = tracks[j]
         before = max(a - 1, 0)
