@@ -208,7 +208,9 @@ class RobotSpec:
         left wheel has the opposite sign), the classic UMBmark odometry error [-].
     odometry_noise : float
         Relative standard deviation of each wheel's travelled distance per increment
-        (slip, floor), used by the filter's process noise [-].
+        (slip, floor), used by the filter's process noise [-]. The simulation draws it normal,
+        or, in a bounded-noise world (``sensor.noise = "uniform"``), uniform within
+        ``+-sqrt(3)`` of it (every random error of that world has a bound).
     turn_slip : float
         Outward (sideways) slip of the axle midpoint over one odometry step per metre of travel
         and radian of the step's heading change [-]: the step's chord points along

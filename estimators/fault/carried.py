@@ -89,18 +89,28 @@ def _shift_coefficients(robot: RobotSpec, heading_std: float) -> tuple[float, fl
     return tick, per_metre
 
 
-def turn_bound(robot: RobotSpec, travelled, turned, reads=None) -> np.ndarray:
+def turn_bound(robot: RobotSpec, travelled, turned, reads=None, wheel_paths=None, bounded: bool = False) -> np.ndarray:
     """Bound on the odometry error of a dead-reckoned heading change [rad].
 
     A bearing taken earlier in a fix is turned into the frame of the last one by the
     odometry's heading change ``turned`` since; its error is ``(e_right - e_left) / b`` with
     ``e_w`` each wheel's travel error. Per wheel: less than one tick of quantisation (both
     readings are floors), the declared systematic radius error ``|wheel_radius_error|`` times
-    the wheel's true travel (at most its reported travel ``|d_w|`` plus a tick),
-    and the random slip (std ``odometry_noise |increment|`` per read, taken as ``K_SIGMA``
-    times the std of the sum over ``reads`` equal increments, like :func:`shift_bound`'s). The
-    wheels' travels are ``d_w = s +- b turned / 2`` over the midpoint's path ``s``, taken as
-    the arc of chord ``travelled`` and turn ``turned`` (constant curvature over the shift).
+    the wheel's true travel (at most its reported travel ``|d_w|`` plus a tick), and the random
+    slip of std ``odometry_noise |increment|`` per read. The wheels' travels are
+    ``d_w = s +- b turned / 2`` over the midpoint's path ``s``, taken as the arc of chord
+    ``travelled`` and turn ``turned`` (constant curvature over the shift).
+
+    The slip's part:
+
+    - ``bounded`` (a bounded-noise world: each read's slip is within ``sqrt(3) odometry_noise
+      |increment|``): a hard bound, ``sqrt(3) odometry_noise`` times the two wheels' summed
+      ``|increment|`` over the reads (``wheel_paths``, or ``|d_l| + |d_r|`` of the arc). The
+      ``K_SIGMA`` form below missed a 4.1-sigma normal slip of the simulation on random-23-037
+      (one truth outside its fault area in 12,600 fixes, issue 23), which is why a bounded world's
+      floor now slips within a bound too.
+    - otherwise ``K_SIGMA`` times the std of the sum over ``reads`` equal increments, like
+      :func:`shift_bound`'s.
 
     Parameters
     ----------
@@ -112,7 +122,13 @@ def turn_bound(robot: RobotSpec, travelled, turned, reads=None) -> np.ndarray:
         Dead-reckoned heading change over each shift [rad].
     reads : array_like, shape (k,), optional
         Odometry reads over each shift; by default one (the slip of one increment, an upper
-        bound).
+        bound). Not used when ``bounded``.
+    wheel_paths : array_like, shape (k, 2), optional
+        Each wheel's summed ``|increment|`` over each shift's reads (left, right) [m]
+        (:attr:`sim.physics.odometry.WheelOdometry.wheel_paths`' increase); with ``bounded``
+        only, by default the arc's ``|d_l|`` and ``|d_r|``.
+    bounded : bool
+        The slip is bounded (uniform in ``+-sqrt(3) odometry_noise |increment|``).
 
     Returns
     -------
@@ -122,13 +138,18 @@ def turn_bound(robot: RobotSpec, travelled, turned, reads=None) -> np.ndarray:
     d = np.ravel(travelled).tolist()
     dth = np.ravel(turned).tolist()
     n = [1.0] * len(d) if reads is None else np.ravel(reads).tolist()
+    paths = None if wheel_paths is None else np.reshape(wheel_paths, (-1, 2)).tolist()
     b, tick = robot.wheel_base, encoder_tick(robot)
     out = []
-    for dj, tj, nj in zip(d, dth, n, strict=True):  # a fix has a few bearings: plain floats
+    for j, (dj, tj, nj) in enumerate(zip(d, dth, n, strict=True)):  # a fix has a few bearings: plain floats
         h = 0.5 * abs(tj)
         path = max(dj, 0.0) * (h / math.sin(h) if 0.0 < h < 0.5 * math.pi else 1.0)
         x = 0.5 * b * abs(tj)                  # the wheels' travels are path +- x
-        slip = K_SIGMA * robot.odometry_noise * math.sqrt((2.0 * path * path + 2.0 * x * x) / max(nj, 1.0))
+        if bounded:
+            rolled = (abs(path - x) + abs(path + x)) if paths is None else paths[j][0] + paths[j][1]
+            slip = math.sqrt(3.0) * robot.odometry_noise * rolled
+        else:
+            slip = K_SIGMA * robot.odometry_noise * math.sqrt((2.0 * path * path + 2.0 * x * x) / max(nj, 1.0))
         e = abs(robot.wheel_radius_error)
         out.append((2.0 * tick * (1.0 + e) + e * 2.0 * max(path, x) + slip) / b)
     return np.array(out).reshape(np.shape(travelled))

@@ -27,7 +27,7 @@ from planner.pef.map import PEF
 from planner.plan import Plan
 from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
 from scenarios import PlanningError, Scenario, SimulationError
-from scenarios.schema import PefModel
+from scenarios.schema import NoiseModel, PefModel
 from sim.episode.certify import certified_bound, lost_markers, single_failure_excused
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.follower import PurePursuit, wheel_speeds
@@ -210,10 +210,11 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     angles0 = world.robot.wheel_angles()
     loc = episode_localizer(scenario, np.array(dock.pose), P0, angles0, q_scale=q_scale)
-    # The simulated floor's random slip, per unit of travel, goes into the odometry readings;
-    # the odometry's dead reckoning carries the ranges of a fix to its end (FixRecorder).
-    odo = WheelOdometry(robot, angles0, np.array(dock.pose),
-                        slip_std=actual.odometry_noise, rng=rng_odo)
+    # The simulated floor's random slip, per unit of travel, goes into the odometry readings
+    # (bounded in a bounded-noise world); the odometry's dead reckoning carries the ranges of a
+    # fix to its end (FixRecorder).
+    odo = WheelOdometry(robot, angles0, np.array(dock.pose), slip_std=actual.odometry_noise, rng=rng_odo,
+                        bounded=scenario.sensor_actual.noise is NoiseModel.UNIFORM)
     fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
     q_block, n_markers = scenario.sensor_actual.block_probability, len(scenario.markers)
     follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
@@ -303,7 +304,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                     read_odometry()
                     read_at = world.steps
                 # every control tick reads the odometry once: n of them so far
-                fixes.measure_due(odo.pose, pose_now(), world.time, n + counts["reads"], odo.slip_weight)
+                fixes.measure_due(odo.pose, pose_now(), world.time, n + counts["reads"], odo.slip_weight,
+                                  odo.wheel_paths)
             else:
                 world.step(end - world.steps)
 

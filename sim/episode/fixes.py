@@ -23,6 +23,7 @@ import numpy as np
 from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_cov, shift_var, turn_bound, turn_cov
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
+from scenarios.schema import NoiseModel
 from sim.episode.types import FixLog
 
 
@@ -38,6 +39,7 @@ class _Pending:
     dr_at: list[tuple[float, float, float]] = field(default_factory=list)
     reads_at: list[int | None] = field(default_factory=list)
     weight_at: list[float | None] = field(default_factory=list)
+    paths_at: list[tuple[float, float] | None] = field(default_factory=list)
     # the filter's heading, its variance and the dead-reckoned heading before the fix's first update
     heading0: tuple[float, float, float] | None = None
     nis: float = 0.0
@@ -142,7 +144,7 @@ class FixRecorder:
     # -- measuring -----------------------------------------------------------------------
 
     def measure_due(self, dr_pose: np.ndarray, true_pose, t: float, reads: int | None = None,
-                    slip_weight: float | None = None) -> None:
+                    slip_weight: float | None = None, wheel_paths: tuple[float, float] | None = None) -> None:
         """Take the measurement that is due now (the caller has predicted the EKF up to ``t``).
 
         ``true_pose`` is the robot's true pose now (x, y, theta), a tuple or an array.
@@ -151,7 +153,9 @@ class FixRecorder:
         depends on how many increments they span (None: counted as one, an upper bound).
         ``slip_weight`` is the odometry's :attr:`~sim.physics.odometry.WheelOdometry.slip_weight`
         now: with it the slip variance of a shift is exact for reads of any spacing (None: the
-        ``reads`` count, as if the increments were equal).
+        ``reads`` count, as if the increments were equal). ``wheel_paths`` are its
+        :attr:`~sim.physics.odometry.WheelOdometry.wheel_paths` now: with them a bounded slip's
+        turn error has a hard bound (None: taken from the shift's arc).
         """
         p = self.pending
         slot = p.attempted
@@ -182,11 +186,12 @@ class FixRecorder:
             p.dr_at.append(tuple(map(float, dr_pose)))  # floats: no numpy between physics steps
             p.reads_at.append(reads)
             p.weight_at.append(slip_weight)
+            p.paths_at.append(wheel_paths)
         if not p.markers:
-            self._finish(dr_pose, true_pose, t, reads, slip_weight)
+            self._finish(dr_pose, true_pose, t, reads, slip_weight, wheel_paths)
 
     def _finish(self, dr_end: np.ndarray, true_pose, t: float, reads: int | None,
-                slip_weight: float | None = None) -> None:
+                slip_weight: float | None = None, wheel_paths: tuple[float, float] | None = None) -> None:
         p, self.pending = self.pending, None
         if len(p.measured) < 2:
             self.skipped += 1  # a marker vanished behind an obstacle mid-fix: no fix
@@ -196,10 +201,11 @@ class FixRecorder:
         # ~40 small numpy calls cost 3-4 times what they cost in one loop (a fifth of an
         # episode's non-physics time). Nothing in the episode reads them.
         self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x,
-                               self.loc.heading_var, slip_weight))
+                               self.loc.heading_var, slip_weight, wheel_paths))
 
     def _complete(self, p: _Pending, dr_end: tuple, true_pose: tuple, t: float, reads: int | None,
-                  x_est: np.ndarray, heading_var_now: float, slip_weight: float | None = None) -> None:
+                  x_est: np.ndarray, heading_var_now: float, slip_weight: float | None = None,
+                  wheel_paths: tuple[float, float] | None = None) -> None:
         """Compute a finished fix's snapshot, fault area and promise, with the filter as it was then."""
         idx = np.array(p.measured)
         # Dead reckoning drifts in heading without bound; only its displacement over the fix is
@@ -233,6 +239,8 @@ class FixRecorder:
                       else np.array([reads - at for at in p.reads_at], dtype=float))
         weight_over = (None if slip_weight is None or None in p.weight_at
                        else np.array([slip_weight - at for at in p.weight_at], dtype=float))
+        paths_over = (None if wheel_paths is None or None in p.paths_at
+                      else np.array([[wheel_paths[0] - at[0], wheel_paths[1] - at[1]] for at in p.paths_at]))
         ranges = np.array(p.ranges)
         rho = self.sensor.measured_range_bound(ranges)  # the declared bound holds at the true range
         # every range but one taken at the fix time is carried (unchanged encoders included)
@@ -256,7 +264,9 @@ class FixRecorder:
             subtends = np.full(len(idx), 0.5 * math.pi)    # a shift beyond the range: no bound
             ok = reach > shift
             subtends[ok] = np.arcsin(shift[ok] / reach[ok])
-            bearing_margin = np.where(carried, turn_bound(self.robot, travelled, turned, reads_over) + subtends, 0.0)
+            turn = turn_bound(self.robot, travelled, turned, reads_over, wheel_paths=paths_over,
+                              bounded=self.sensor.noise is NoiseModel.UNIFORM)
+            bearing_margin = np.where(carried, turn + subtends, 0.0)
             # The snapshot weighs each bearing with the same errors as variances: the turn's
             # (shared through the end reading and the nested reads' slip) and the shift's part
             # across the range, seen at the range.

@@ -38,6 +38,7 @@ import numpy as np
 from planner.fleet.plan import FleetPlan, FleetRobotPlan, plan_fleet, zones_of
 from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
 from scenarios import PlanningError, Scenario, SimulationError
+from scenarios.schema import NoiseModel
 from sim.episode.certify import certified_bound, lost_markers, single_failure_excused
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.drive import (
@@ -183,7 +184,8 @@ class _Robot:
         pose = np.array(self._dock.pose)
         self.loc = episode_localizer(self.sc, pose, self._P0, angles0, q_scale=self.q_scale)
         actual = self.sc.robot_actual
-        self.odo = self._WheelOdometry(self.sc.robot, angles0, pose, slip_std=actual.odometry_noise, rng=self._rng_odo)
+        self.odo = self._WheelOdometry(self.sc.robot, angles0, pose, slip_std=actual.odometry_noise, rng=self._rng_odo,
+                                       bounded=self.sc.sensor_actual.noise is NoiseModel.UNIFORM)
         self.fixes = self._FixRecorder(self.sc, self.pef, self.laser, self.loc, self._rng_laser)
         self.dt_ctrl = dt_ctrl
         self.min_gap = 1.0 / self.sc.sensor.fix_rate_hz - dt_ctrl
@@ -488,4 +490,4 @@ def _advance(world, robots, dt_phys: float) -> None:
                     r.read_odometry()
                     read_at[id(r)] = world.steps
                 r.fixes.measure_due(r.odo.pose, r.body.true_pose_tuple(), world.time, r.n + r.counts["reads"],
-                                    r.odo.slip_weight)
+                                    r.odo.slip_weight, r.odo.wheel_paths)

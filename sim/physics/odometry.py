@@ -63,10 +63,12 @@ def integrate_arc(pose: np.ndarray, d_left: float, d_right: float, wheel_base: f
                              float(wheel_base)))
 
 
-# WheelOdometry.state (float64, shape (7,)): encoder counts, dead-reckoned pose, next slip normal,
-# and the running sum of (d_left^2 + d_right^2) / 4 over the reads [m^2] (SLIP_WEIGHT: the wheels'
-# mean travel has slip variance slip_std^2 times its increase, whatever the reads' spacing).
-TICKS_LEFT, TICKS_RIGHT, POSE_X, POSE_Y, POSE_THETA, NEXT_NORMAL, SLIP_WEIGHT = range(7)
+# WheelOdometry.state (float64, shape (9,)): encoder counts, dead-reckoned pose, next slip draw,
+# the running sum of (d_left^2 + d_right^2) / 4 over the reads [m^2] (SLIP_WEIGHT: the wheels'
+# mean travel has slip variance slip_std^2 times its increase, whatever the reads' spacing), and
+# each wheel's running sum of |d| over the reads [m] (PATH_LEFT, PATH_RIGHT: a bounded slip's sum
+# between two reads is at most sqrt(3) slip_std times its increase).
+TICKS_LEFT, TICKS_RIGHT, POSE_X, POSE_Y, POSE_THETA, NEXT_NORMAL, SLIP_WEIGHT, PATH_LEFT, PATH_RIGHT = range(9)
 # WheelOdometry.params (float64, shape (4,)).
 METRES_PER_TICK, TICKS_PER_REV, SLIP_STD, WHEEL_BASE = range(4)
 
@@ -79,12 +81,13 @@ def odometry_step(state, params, normals, angle_left, angle_right):
 
     Parameters
     ----------
-    state : ndarray, shape (7,)
-        :attr:`WheelOdometry.state` (indices ``TICKS_LEFT`` ... ``SLIP_WEIGHT``); updated.
+    state : ndarray, shape (9,)
+        :attr:`WheelOdometry.state` (indices ``TICKS_LEFT`` ... ``PATH_RIGHT``); updated.
     params : ndarray, shape (4,)
         :attr:`WheelOdometry.params` (indices ``METRES_PER_TICK`` ... ``WHEEL_BASE``).
     normals : ndarray, shape (B,)
-        Standard normal draws for the slip, consumed from ``state[NEXT_NORMAL]``, left first.
+        Unit-variance draws for the slip (normal, or uniform on ``[-sqrt 3, sqrt 3]`` for a bounded
+        slip), consumed from ``state[NEXT_NORMAL]``, left first.
     angle_left, angle_right : float
         Wheel joint angles now [rad].
 
@@ -103,6 +106,8 @@ def odometry_step(state, params, normals, angle_left, angle_right):
     d_right = (ticks_right - state[TICKS_RIGHT]) * params[METRES_PER_TICK]
     state[TICKS_LEFT], state[TICKS_RIGHT] = ticks_left, ticks_right
     state[SLIP_WEIGHT] += 0.25 * (d_left * d_left + d_right * d_right)
+    state[PATH_LEFT] += abs(d_left)
+    state[PATH_RIGHT] += abs(d_right)
     slip = params[SLIP_STD]
     if slip > 0.0:
         k = int(state[NEXT_NORMAL])
@@ -131,20 +136,26 @@ class WheelOdometry:
     rng : numpy.random.Generator, optional
         Source of the slip noise (required when ``slip_std > 0``); drawn left then right wheel
         at each update, in blocks (the numbers are those of one scalar draw after another).
+    bounded : bool
+        Draw the slip uniform in ``+-sqrt(3) slip_std |d|`` per read (same variance) instead of
+        normal: the floor of a bounded-noise world (``noise = "uniform"``), where every random
+        error the simulation draws has a bound and the realised fault area must hold the truth
+        at every fix (a normal slip 4 sigma out broke it on random-23-037, issue 23).
     """
 
     _BLOCK = 1024   # slip normals drawn per refill (even: a block holds whole left/right pairs)
 
     def __init__(self, spec: RobotSpec, angles: np.ndarray, pose: np.ndarray, slip_std: float = 0.0,
-                 rng: np.random.Generator | None = None) -> None:
+                 rng: np.random.Generator | None = None, bounded: bool = False) -> None:
         if slip_std > 0.0 and rng is None:
             raise ValueError(f"WheelOdometry: slip_std = {slip_std} > 0 needs a random generator, got rng=None")
         self.spec = spec
         self.slip_std = float(slip_std)
         self._rng = rng
+        self.bounded = bool(bounded)
         self.params = np.array([2.0 * math.pi * spec.wheel_radius / spec.encoder_ticks,
                                 float(spec.encoder_ticks), self.slip_std, spec.wheel_base])
-        self.state = np.zeros(7)
+        self.state = np.zeros(9)
         self.normals = np.zeros(2)
         if self.slip_std > 0.0:
             self.refill()
@@ -158,8 +169,11 @@ class WheelOdometry:
         self.state[POSE_X:POSE_THETA + 1] = np.array(pose, dtype=float).reshape(3)
 
     def refill(self) -> None:
-        """Draw the next block of slip normals (call when :func:`odometry_step` says so)."""
-        self.normals = self._rng.standard_normal(self._BLOCK)
+        """Draw the next block of slip draws (call when :func:`odometry_step` says so)."""
+        if self.bounded:
+            self.normals = self._rng.uniform(-math.sqrt(3.0), math.sqrt(3.0), self._BLOCK)
+        else:
+            self.normals = self._rng.standard_normal(self._BLOCK)
         self.state[NEXT_NORMAL] = 0.0
 
     def update(self, angles) -> WheelTravel:
@@ -188,6 +202,15 @@ class WheelOdometry:
         control ticks) weigh more than ``d^2 / (2 n)`` for ``n`` equal ones.
         """
         return float(self.state[SLIP_WEIGHT])
+
+    @property
+    def wheel_paths(self) -> tuple[float, float]:
+        """Running sums over the reads of each wheel's ``|d|`` (left, right) [m], slip excluded.
+
+        A bounded slip (``bounded``) adds at most ``sqrt(3) slip_std`` times a wheel's increase
+        of it to the wheel's reported travel between two reads.
+        """
+        return float(self.state[PATH_LEFT]), float(self.state[PATH_RIGHT])
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

@@ -244,6 +244,31 @@ def test_odometry_slip_is_drawn_per_wheel_from_the_generator():
         WheelOdometry(sc.robot, np.zeros(2), np.zeros(3), slip_std=0.01)
 
 
+def test_bounded_odometry_slip_is_uniform_with_the_declared_std():
+    # A bounded-noise world's floor: uniform in +-sqrt(3) slip_std |d| per read, the same draws as
+    # scalar uniform draws (left first), and the wheels' |d| summed for the fault area's bound.
+    sc = flat(0.0)
+    n, r = sc.robot.encoder_ticks, sc.robot.wheel_radius
+    odo = WheelOdometry(sc.robot, np.zeros(2), np.zeros(3), slip_std=0.02, rng=np.random.default_rng(7),
+                        bounded=True)
+    ref = np.random.default_rng(7)
+    tick = 2 * math.pi / n
+    nominal = 25 * 2 * math.pi * r / n
+    u = []
+    for j in range(1, 2500):  # crosses the refill of the draws' block
+        travel = odo.update(np.array([(25 * j + 0.5) * tick, (50 * j + 0.5) * tick]))
+        ul, ur = ref.uniform(-math.sqrt(3.0), math.sqrt(3.0), 2)
+        assert travel.d_left == pytest.approx(nominal * (1 + 0.02 * ul), rel=1e-12)
+        assert travel.d_right == pytest.approx(2 * nominal * (1 + 0.02 * ur), rel=1e-12)
+        u += [(travel.d_left / nominal - 1) / 0.02, (travel.d_right / (2 * nominal) - 1) / 0.02]
+    u = np.array(u)
+    assert np.max(np.abs(u)) <= math.sqrt(3.0) * (1 + 1e-9)
+    # unit variance: 4998 draws of variance 1 (uniform: the mean square's std is sqrt(0.8 / N)),
+    # 5 of its stds either side; the normal's fourth moment would not change this, its bound would
+    assert abs(np.mean(u * u) - 1.0) < 5.0 * math.sqrt(0.8 / u.size)
+    assert odo.wheel_paths == pytest.approx((2499 * nominal, 2 * 2499 * nominal), rel=1e-9)
+
+
 def test_integrate_arc_follows_the_circle():
     # Constant wheel travel per step traces a circle of radius R = b (dl + dr) / (2 (dr - dl))
     # about the centre to the robot's left; compare with the closed form after many steps.
