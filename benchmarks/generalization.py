@@ -23,7 +23,8 @@ Then the failing worlds, each with the failing check's detail and what was drawn
 directory removed at the end. ``--resume`` (with ``--out``) reads back the worlds already drawn
 there and completes their sweeps (``pefsim.sweep(resume=True)``): a benchmark cut short goes on
 where it stopped. A sweep resumed on a different code version mixes runs of both; say so when
-quoting its table.
+quoting its table. ``--noise uniform`` (or ``gaussian``) sweeps only the worlds drawn with that
+noise: the bounded worlds alone decide the deterministic checks (containment, promise, bound).
 """
 
 from __future__ import annotations
@@ -69,6 +70,8 @@ def main() -> None:
     ap.add_argument("--out", help="keep the worlds and sweeps in this directory")
     ap.add_argument("--resume", action="store_true",
                     help="read back the worlds drawn into --out and complete their sweeps")
+    ap.add_argument("--noise", choices=[m.value for m in scenarios.NoiseModel],
+                    help="sweep only the worlds drawn with this noise model")
     args = ap.parse_args()
     if args.resume and not args.out:
         ap.error("--resume needs --out")
@@ -101,6 +104,9 @@ def run(args: argparse.Namespace, root: Path) -> None:
         worlds = pefsim.worlds(args.worlds, seed=args.seed, out=root, first=args.first, workers=args.workers)
     t_draw = time.perf_counter() - t0
     print(f"drew {len(worlds)} worlds in {t_draw:.1f} s ({sum(w.attempts for w in worlds)} draws)")
+    if args.noise is not None:
+        worlds = [w for w in worlds if w.scenario.sensor.noise.value == args.noise]
+        print(f"{len(worlds)} of them with {args.noise} noise")
     reports = []
     for w in worlds:
         t = time.perf_counter()
