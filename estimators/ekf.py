@@ -66,7 +66,7 @@ import numpy as np
 
 from estimators import motion, process_noise
 from estimators.measurements import bound_std
-from estimators.predict import predict_step
+from estimators.predict import TURN_SLIP, predict_step
 from estimators.update import UpdateResult, gate_threshold, gated_joseph_update, wrap_scalar
 from jit import compiled
 from scenarios.errors import SimulationError
@@ -264,15 +264,28 @@ class Localizer:
         return float(e @ np.linalg.solve(self._kf.P[:3, :3], e))
 
     # ---------------------------------------------------------------- predict
-    def predict(self, d_left: float, d_right: float) -> None:
+    def predict(self, d_left: float, d_right: float, turn_slip: float | None = None) -> None:
         """Propagate the estimate by one odometry increment.
 
         Parameters
         ----------
         d_left, d_right : float
             Wheel travel measured by the encoders over the step (nominal radius) [m].
+        turn_slip : float, optional
+            The increment's turn slip [-] (:func:`estimators.motion._arc_terms`); by default the
+            declared ``robot.turn_slip``. A simulated platform's depends on the read's span
+            (:func:`sim.physics.turn_lag.read_turn_slip`).
         """
+        self.set_turn_slip(turn_slip)
         predict_step(self._kf.x, self._kf.P, float(d_left), float(d_right), self.predict_params)
+
+    def set_turn_slip(self, turn_slip: float | None = None) -> None:
+        """Set the turn slip the next predict uses [-] (None: the declared ``robot.turn_slip``).
+
+        :attr:`predict_params` holds it, where a compiled caller's predict reads it too
+        (``sim.episode.control_tick``).
+        """
+        self.predict_params[TURN_SLIP] = self.robot.turn_slip if turn_slip is None else float(turn_slip)
 
     def state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Return the filter's live state and covariance arrays (not copies), for :func:`predict_step`.

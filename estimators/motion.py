@@ -66,7 +66,10 @@ Checked against the simulated hardware (warehouse episodes) and left as it is:
   :mod:`sim.physics.config`; measured 0.119-0.134 over four arcs on both built-in robots,
   against 0.11-0.19 with 20 iterations). The error it leaves is bounded (the lag is half a
   physics step of travel, <= 2 mm at 1 m/s) and, being deterministic given the encoder
-  increments, is a mean term, not noise;
+  increments, is a mean term, not noise. The integrator's share is that of a read spanning the
+  control period's 4 physics steps; a fix's measurements read between the ticks, spanning 1-3,
+  and the episode gives the filter each read's own (``Localizer.predict(turn_slip=...)``,
+  :func:`sim.physics.turn_lag.read_turn_slip`);
 - crab and braking creep: with 20 solver iterations the small robot of ``paper-two-markers``
   (5 cm wheels, 0.1 mm laser) crabbed 0.41 mm sideways over a 3 m straight run at 0.5 m/s
   (a crab angle of ~1.4e-4 rad, more while braking) and failed NEES at 200 runs (3.218 against

@@ -77,14 +77,16 @@ class ControlTick:
         self._rows = len(log)
 
     def __call__(self, angles: tuple[float, float], true_pose: tuple[float, float, float], t: float, n: int,
-                 s_prev: float, steer: bool) -> tuple[float, float, bool, float]:
+                 s_prev: float, steer: bool, turn_slip: float | None = None) -> tuple[float, float, bool, float]:
         """Read the encoders at ``angles`` [rad], predict, log row ``n``, and command if ``steer``.
 
-        Returns (v [m/s], omega [rad/s], done, s [m]); without ``steer`` the robot is held
-        (0, 0, False) and ``s_prev`` is logged.
+        ``turn_slip`` is the read's (:meth:`estimators.ekf.Localizer.predict`), by default the
+        declared one. Returns (v [m/s], omega [rad/s], done, s [m]); without ``steer`` the robot
+        is held (0, 0, False) and ``s_prev`` is logged.
         """
         if not 0 <= n < self._rows:  # the compiled step does not check bounds
             raise IndexError(f"ControlTick: log row {n} outside 0..{self._rows - 1}")
+        self.loc.set_turn_slip(turn_slip)
         v, omega, done, s, used_up = _tick(*self._arrays, self.odo.normals, angles[0], angles[1], *self._filter,
                                            n, t, *true_pose, s_prev, steer, self.dt)
         if used_up:

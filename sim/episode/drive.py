@@ -32,6 +32,7 @@ from sim.episode.certify import certified_bound, lost_markers, single_failure_ex
 from sim.episode.control_tick import LOG_COLUMNS, LOG_COV, LOG_EST, LOG_S, LOG_T, LOG_TRUE, ControlTick
 from sim.episode.follower import PurePursuit, wheel_speeds
 from sim.episode.types import EpisodeResult, StepLog
+from sim.physics.turn_lag import read_turn_slip
 
 CONTROL_STEPS = 4
 """Physics steps per control step: 60 Hz control at pybullet's 240 Hz. An odometry increment
@@ -243,13 +244,19 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     wheel_angles, predict = world.robot.wheel_angle_pair, loc.predict
 
+    def read_turn_slip_now() -> float:
+        # the turn slip of a read now: the physics' lag depends on the steps it spans
+        steps, counts["last_read"] = world.steps - counts["last_read"], world.steps
+        return read_turn_slip(robot.turn_slip, steps, CONTROL_STEPS)
+
     def read_odometry() -> None:
         d_left, d_right = odo.update(wheel_angles())
-        predict(d_left, d_right)
+        predict(d_left, d_right, read_turn_slip_now())
         counts["reads"] += 1
 
     next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
-    counts = {"merged": 0, "reads": 0}   # reads: odometry reads outside the control ticks
+    # reads: odometry reads outside the control ticks; last_read: the physics step of the last read
+    counts = {"merged": 0, "reads": 0, "last_read": world.steps}
 
     fix_s_list = fix_s.tolist()  # compared at every control step: floats, not numpy scalars
     # the single-failure test: with lines of sight blocked, the guarantee must survive one of
@@ -318,7 +325,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         t = world.time
         # odometry, predict, log row n (the arc length of this step's estimate) and, unless the
         # robot is held or done, the follower's command from this step's estimate
-        v, omega, cmd_done, s_cmd = tick(wheel_angles(), true_pose(), t, n, s_now, not (holding or done))
+        v, omega, cmd_done, s_cmd = tick(wheel_angles(), true_pose(), t, n, s_now, not (holding or done),
+                                         read_turn_slip_now())
         n += 1
         if done:
             if fixes.pending is None and next_fix >= len(fix_s_list):

@@ -55,6 +55,7 @@ from sim.episode.drive import (
 )
 from sim.episode.follower import SPEED, YAW_RATE, PurePursuit, wheel_speeds
 from sim.episode.types import EpisodeResult, FixNote, StepLog
+from sim.physics.turn_lag import read_turn_slip
 
 STOP_MARGIN = 0.05
 """A robot aims to stop this far before the end of its reservation [m] (the follower's overshoot)."""
@@ -184,6 +185,7 @@ class _Robot:
         pose = np.array(self._dock.pose)
         self.loc = episode_localizer(self.sc, pose, self._P0, angles0, q_scale=self.q_scale)
         actual = self.sc.robot_actual
+        self.last_read = self.world.steps   # the physics step of the last odometry read
         self.odo = self._WheelOdometry(self.sc.robot, angles0, pose, slip_std=actual.odometry_noise, rng=self._rng_odo,
                                        bounded=self.sc.sensor_actual.noise is NoiseModel.UNIFORM)
         self.fixes = self._FixRecorder(self.sc, self.pef, self.laser, self.loc, self._rng_laser)
@@ -218,9 +220,14 @@ class _Robot:
 
     # -- fixes ------------------------------------------------------------------------------
 
+    def read_turn_slip_now(self) -> float:
+        """Return the turn slip of a read now (the physics' lag depends on the steps it spans)."""
+        steps, self.last_read = self.world.steps - self.last_read, self.world.steps
+        return read_turn_slip(self.sc.robot.turn_slip, steps, CONTROL_STEPS)
+
     def read_odometry(self) -> None:
         d_left, d_right = self.odo.update(self.body.wheel_angle_pair())
-        self.loc.predict(d_left, d_right)
+        self.loc.predict(d_left, d_right, self.read_turn_slip_now())
         self.counts["reads"] += 1
 
     def start_fix(self, s_now: float, t: float) -> None:
@@ -264,7 +271,7 @@ class _Robot:
         waiting_start = t < self.start_time - 1e-9
         steer = not (self.holding or self.done or self.at_goal or self.finished or waiting_start)
         v, omega, cmd_done, s_cmd = self.tick(body.wheel_angle_pair(), body.true_pose_tuple(), t, self.n,
-                                              self.s_now, steer)
+                                              self.s_now, steer, self.read_turn_slip_now())
         self.n += 1
         if self.finished or waiting_start:
             body.set_wheel_speeds(0.0, 0.0)

@@ -70,7 +70,8 @@ def _odometry_shifts(robot, bounded, n, seed):
         speed = rng.uniform(-1.0, 1.0) * rng.choice([0.0, 1.0])
         yaw = rng.uniform(-1.0, 1.0)
         sign = rng.choice([-1.0, 1.0])
-        rates = np.array([(speed - 0.5 * b * yaw) / (r * (1 - sign * e)), (speed + 0.5 * b * yaw) / (r * (1 + sign * e))])
+        rates = np.array([(speed - 0.5 * b * yaw) / (r * (1 - sign * e)),
+                          (speed + 0.5 * b * yaw) / (r * (1 + sign * e))])
         a0 = rng.uniform(0.0, 2.0 * np.pi, 2)
         odo = WheelOdometry(robot, a0, np.zeros(3), slip_std=robot.odometry_noise,
                             rng=np.random.default_rng(rng.integers(2**63)), bounded=bounded)

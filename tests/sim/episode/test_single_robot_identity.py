@@ -26,6 +26,10 @@ no column of either episode.
 Issue 23 (containment of random-23-037): a bounded-noise world's floor slips within a bound
 (uniform draws of the declared std, ``WheelOdometry(bounded=True)``): both scenarios are uniform,
 so the odometry readings, and with them every column, moved.
+
+Issue 23 (random-23-029's corner): the filter's turn slip per read follows the physics steps
+the read spans (``sim.physics.turn_lag``): a fix's reads between control ticks moved the
+estimate, and with it every column.
 """
 
 from __future__ import annotations
@@ -41,8 +45,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "373b602e566a3610adaaca5fcb53d829cbcfd38e4373a00de0fbd0d37f3c8b65",
-    "paper-two-markers": "8c87095f338716a28f3f3ab3c3f7ef15447fab732754f20fac25760fd6e2a11f",
+    "warehouse": "9a6285065c8dc4c9d35933a3b44b2f4e60b10a2bd588ad3e74f73a58614d8292",
+    "paper-two-markers": "686e8b8be2b69210eedd714506eecb307466984d7f1dfb5a266a286df975f755",
 }
 
 
