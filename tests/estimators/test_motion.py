@@ -134,3 +134,13 @@ def test_propagate_moments_is_the_ekf_predict():
     np.testing.assert_allclose(xm, expected_x, rtol=0, atol=1e-15)
     np.testing.assert_allclose(Pm, expected_P, rtol=1e-12, atol=0)
     assert np.array_equal(Pm, Pm.T)
+
+
+def test_the_variance_floor_is_negligible_against_the_smallest_declared_slip():
+    # The floor is a numerical guard: at most 1 % of the slip variance of a 1 mm read at the
+    # smallest non-zero slip a random world declares (SLIP_RANGE to four decimals, 0.0001).
+    # The old floor, 1e-12, outweighed it 100 times (random-23-029's heading, issue 23).
+    from scenarios.worlds import SLIP_RANGE
+
+    smallest_slip = max(SLIP_RANGE[0], 1e-4)
+    assert motion.VARIANCE_FLOOR <= 0.01 * (smallest_slip * 1e-3) ** 2

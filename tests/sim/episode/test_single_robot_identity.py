@@ -30,6 +30,10 @@ so the odometry readings, and with them every column, moved.
 Issue 23 (random-23-029's corner): the filter's turn slip per read follows the physics steps
 the read spans (``sim.physics.turn_lag``): a fix's reads between control ticks moved the
 estimate, and with it every column.
+
+Issue 23 (random-23-029's heading): the process noise's numerical floor went from 1e-12 to
+1e-16 m^2 per wheel and read (``estimators.motion.VARIANCE_FLOOR``): the filter's covariance, and
+with it every column that depends on the estimate, moved.
 """
 
 from __future__ import annotations
@@ -45,8 +49,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "9a6285065c8dc4c9d35933a3b44b2f4e60b10a2bd588ad3e74f73a58614d8292",
-    "paper-two-markers": "686e8b8be2b69210eedd714506eecb307466984d7f1dfb5a266a286df975f755",
+    "warehouse": "1d2cea9cb9178b5ea0db3c7fd3106b9897ac3865fa5fc3b1bdd83e8c81a8965b",
+    "paper-two-markers": "34fe3092604502ff80459bcb8d0591739bf0c3fbbe972de96067bfb31e6cde6f",
 }
 
 
