@@ -164,19 +164,20 @@ def bands_parallelogram(b0, b1, x, y, mx, my, wedge, max_range, hp, nhp, hidden,
     sca, _, _, visa, taua, besta = _scratch(nm if redundant else 1, npair_max if redundant else 1)
     scb, _, _, visbb, taubb, bestbb = _scratch(nm if redundant else 1, npair_max if redundant else 1)
     preva, prevb = np.empty((cand.size, 2), dtype=np.int64), np.empty((cand.size, 2), dtype=np.int64)
-    nprevb = npreva = 0
+    # int64 from the start: numba would compile _without_pass again for each literal it saw
+    nprevb = npreva = np.int64(0)
     for band in range(b0, b1):
         iy0 = band * TILE_ROWS
         th = min(TILE_ROWS, ny - iy0)
         ylo, yhi = y[iy0], y[iy0 + th - 1]
-        nb = 0
+        nb = np.int64(0)
         for m in range(nm):
             d = max(ylo - my[m], my[m] - yhi, 0.0)
             if not hidden[m] and d * d <= r2max:
                 bm[nb] = m
                 nb += 1
         _band_intervals(iy0, th, x, y, mx, my, r2max, hp, nhp, bm, nb, ivs, nint, lo_col, hi_col, sh)
-        nprev = 0
+        nprev = np.int64(0)
         for k in range(ntx):
             tx = k if band % 2 == 0 else ntx - 1 - k  # serpentine: neighbours share winners
             ix0 = tx * TILE_COLS
@@ -185,7 +186,7 @@ def bands_parallelogram(b0, b1, x, y, mx, my, wedge, max_range, hp, nhp, hidden,
             w = th * tw
             # the tile's markers: an interval meets it (a marker whose cells there are all
             # out of range or not free only adds pairs that never win)
-            nl = 0
+            nl = np.int64(0)
             for q in range(nb):
                 if hi_col[q] <= ix0 or lo_col[q] >= ix1:
                     continue
@@ -213,7 +214,7 @@ def bands_parallelogram(b0, b1, x, y, mx, my, wedge, max_range, hp, nhp, hidden,
                         best[2 * (cell + i) + 1] = -1
                         if redundant:
                             tau_plain[cell + i] = np.inf
-                nprev = nprevb = npreva = 0
+                nprev = nprevb = npreva = np.int64(0)
                 continue
             for j in range(nl):
                 q, m = loc[j], gm[j]
@@ -231,7 +232,7 @@ def bands_parallelogram(b0, b1, x, y, mx, my, wedge, max_range, hp, nhp, hidden,
                             dx = x[i] - mx[m]
                             visb[o + i] = (frow[i] and dx * dx + dy * dy <= r2max
                                            and wedges_ok(dx, dy, wedge, m))
-            npair = 0
+            npair = np.int64(0)
             for a in range(nl):
                 for b in range(a + 1, nl):
                     lsub[npair, 0], lsub[npair, 1] = a, b
@@ -249,10 +250,10 @@ def bands_parallelogram(b0, b1, x, y, mx, my, wedge, max_range, hp, nhp, hidden,
             nprev = ncand
             if redundant:
                 nl_pairs = npair
-                npreva = _without_pass(0, w, nl, nl_pairs, gm, local_of, visb, bestb, visa, pxb, pyb, mxl, myl, rel,
-                                       ab, lsub, margin, preva, npreva, sca, taua, besta)
-                nprevb = _without_pass(1, w, nl, nl_pairs, gm, local_of, visb, bestb, visbb, pxb, pyb, mxl, myl,
-                                       rel, ab, lsub, margin, prevb, nprevb, scb, taubb, bestbb)
+                npreva = _without_pass(np.int64(0), w, nl, nl_pairs, gm, local_of, visb, bestb, visa, pxb, pyb,
+                                       mxl, myl, rel, ab, lsub, margin, preva, npreva, sca, taua, besta)
+                nprevb = _without_pass(np.int64(1), w, nl, nl_pairs, gm, local_of, visb, bestb, visbb, pxb, pyb,
+                                       mxl, myl, rel, ab, lsub, margin, prevb, nprevb, scb, taubb, bestbb)
             for j in range(nl):
                 local_of[gm[j]] = -1
             for r in range(th):
