@@ -488,7 +488,7 @@ def _two_range_diameters(markers, ranges, rho, prior, status, diameter):
         if not (math.isfinite(total) and rho_min > 0.0 and reach_min >= 0.0):
             continue
         code, _, _, _, _, d = _region(markers[i], ranges[i], rho[i], prior[i],
-                                      DEFAULT_TOLERANCE_FRACTION * rho_min, False)
+                                      DEFAULT_TOLERANCE_FRACTION * rho_min, np.bool_(False))
         status[i] = code
         diameter[i] = d
 
