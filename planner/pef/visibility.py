@@ -240,13 +240,13 @@ def shadow_table(mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swall
     hidden = np.zeros(nm, dtype=np.bool_)
     for m in range(nm):
         kept[m], _, hidden[m] = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow,
-                                              bodies, n_ob, margin, max_range, False, hp1, nhp1, clip)
+                                              bodies, n_ob, margin, max_range, np.bool_(False), hp1, nhp1, clip)
     k = max(1, kept.max()) if nm else 1
     hp = np.zeros((nm, k, planes.shape[1] + 2, 3))
     nhp = np.zeros((nm, k), dtype=np.int64)
     for m in range(nm):  # again, into the table sized by the first pass (cheap next to its use)
         n, _, _ = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob,
-                                margin, max_range, False, hp1, nhp1, clip)
+                                margin, max_range, np.bool_(False), hp1, nhp1, clip)
         hp[m, :n] = hp1[:n]
         nhp[m, :n] = nhp1[:n]
     return hp, nhp, hidden
@@ -269,7 +269,7 @@ def _visible_points_markers(m0, m1, px, py, free, mx, my, wedge, max_range, plan
     r2max = max_range * max_range
     for m in range(m0, m1):
         ns, nc, _ = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies,
-                                  n_ob, margin, max_range, True, hp, nhp, clip)
+                                  n_ob, margin, max_range, np.bool_(True), hp, nhp, clip)
         bx, by = mx[m], my[m]
         for n in range(px.size):
             ok = free[n]
