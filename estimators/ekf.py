@@ -41,14 +41,18 @@ Noise: ``R`` is the declared sensor's model (:mod:`estimators.measurements`): ra
 ``q_scale * G diag(var_l, var_r) G^T`` (:mod:`estimators.motion`).
 
 Encoder quantisation (``encoder_residual_state=True``, what an episode uses): the state is
-further augmented with each wheel's centred quantisation residual ``(q_left, q_right)`` [m],
-the last two entries of ``full_x`` (:mod:`estimators.motion_quantised`). A count error is
-bounded and telescopes over a window (the reported travel is ``true + q_{k-1} - q_k``), an
-MA(1) noise; the white ``tick^2 / 12`` per step of the plain model grows without bound and made
-the filter pessimistic: over the 0.4 s between fixes the white model's pose NEES is 1.53
-against 3 (``tests/sim/test_odometry_noise_model.py``), and 200 warehouse episodes gave NIS
-0.962. The residuals at the start can be given (``residual0``, variance 0): an episode zeroes
-the encoders at known angles. ``q_scale`` scales the residual variance too.
+further augmented with each wheel's centred quantisation residual, as the phasors of its first
+harmonics and a white rest [m] per wheel, the last ``2 PER_WHEEL`` entries of ``full_x``
+(:mod:`estimators.motion_quantised`). A count error is bounded and telescopes over a window (the
+reported travel is ``true + q_{k-1} - q_k``); the white ``tick^2 / 12`` per step of the plain
+model grows without bound and made the filter pessimistic: over the 0.4 s between fixes the
+white model's pose NEES is 1.53 against 3 (``tests/sim/test_odometry_noise_model.py``), and 200
+warehouse episodes gave NIS 0.962. The phasor turns with each wheel's commanded rate
+(:meth:`Localizer.set_command`) over each read's span (``steps``, with ``step_time``): a
+residual follows from the last one where the wheel's turn is known to a fraction of a tick
+(:mod:`estimators.encoder_phase`), and is independent of it where not. The residuals at the
+start can be given (``residual0``, variance 0): an episode zeroes the encoders at known angles.
+``q_scale`` scales the residual variance too.
 
 Also checked against the simulation and not modelled, because it is negligible: ``R`` at the
 predicted instead of the true range (``Re * |error|`` ~ 1e-7 m against ``rho`` ~ 2 mm); the laser
@@ -64,8 +68,9 @@ import math
 
 import numpy as np
 
-from estimators import motion, process_noise
+from estimators import encoder_phase, motion, process_noise
 from estimators.measurements import bound_std
+from estimators.motion_quantised import HARMONICS, PER_WHEEL, WHITE_SHARE, harmonic_share, phasor_state
 from estimators.predict import TURN_SLIP, predict_step
 from estimators.update import UpdateResult, gate_threshold, gated_joseph_update, wrap_scalar
 from jit import compiled
@@ -125,12 +130,16 @@ class Localizer:
     residual0 : array_like, shape (2,), optional
         The residuals at the start, centred [m], when they are known (the encoders were zeroed
         at a known angle): used with variance 0. By default zero-mean with ``tick^2 / 12``.
+    step_time : float, optional
+        The physics step [s] that reads' spans count (:meth:`predict`'s ``steps``); without it
+        the encoder phases are not predicted.
     """
 
     def __init__(self, robot: RobotSpec, sensor: SensorSpec, markers, x0, P0,
                  gate_probability: float | None = 0.999, q_scale: float = 1.0,
                  include_systematic: bool = False, estimate_wheel_bias: bool = False,
-                 bias_walk_std: float = 0.0, encoder_residual_state: bool = False, residual0=None):
+                 bias_walk_std: float = 0.0, encoder_residual_state: bool = False, residual0=None,
+                 step_time: float | None = None):
         # filterpy imports all its subpackages (~1 s): only pay for it when a filter is built.
         from filterpy.kalman import ExtendedKalmanFilter
 
@@ -183,13 +192,18 @@ class Localizer:
             P0_sym = np.block([[P0_sym, np.zeros((3, 1))], [np.zeros((1, 3)), np.array([[bias_std**2]])]])
             dim = 4
         if self.encoder_residual_state:
-            if residual0 is None:
-                q_mean, q_var = np.zeros(2), quant_var   # counted from an unknown point in a tick
+            tick = 2.0 * math.pi * robot.wheel_radius / robot.encoder_ticks
+            nq = 2 * PER_WHEEL
+            if residual0 is None:   # counted from an unknown point in a tick
+                q_mean = np.zeros(nq)
+                block = [harmonic_share(m) * quant_var for m in range(1, HARMONICS + 1) for _ in range(2)]
+                q_var = np.tile(block + [WHITE_SHARE * quant_var], 2)
             else:
-                q_mean, q_var = _check_matrix("residual0", residual0, (2,)), 0.0
+                q0 = _check_matrix("residual0", residual0, (2,))
+                q_mean, q_var = np.r_[phasor_state(q0[0], tick), phasor_state(q0[1], tick)], np.zeros(nq)
             x0_arr = np.r_[x0_arr, q_mean]
-            P0_sym = np.block([[P0_sym, np.zeros((dim, 2))], [np.zeros((2, dim)), q_var * np.eye(2)]])
-            dim += 2
+            P0_sym = np.block([[P0_sym, np.zeros((dim, nq))], [np.zeros((nq, dim)), np.diag(q_var)]])
+            dim += nq
         elif residual0 is not None:
             raise SimulationError("Localizer: residual0: given without encoder_residual_state")
         self._kf = ExtendedKalmanFilter(dim_x=dim, dim_z=1)
@@ -200,6 +214,9 @@ class Localizer:
         self.predict_params = np.array([robot.wheel_base, rel_var, base_var, self.q_scale,
                                         self.bias_walk_std**2, float(self.estimate_wheel_bias), quant_var,
                                         robot.turn_slip])
+        #: the encoder phase predictor's state (:mod:`estimators.encoder_phase`)
+        self.phase = encoder_phase.new_state(robot.encoder_ticks, robot.wheel_radius, step_time,
+                                             robot.odometry_noise)
         # Measurement Jacobian at the current state, filled before each update; the wheel-error
         # and residual columns (if any) stay 0.
         self._H = np.zeros((1, dim))
@@ -222,7 +239,7 @@ class Localizer:
 
     @property
     def full_x(self) -> np.ndarray:
-        """Whole state, a copy: (3,) pose, (4,) with the wheel error ``e`` [-]; +2 encoder residuals [m]."""
+        """Whole state, a copy: (3,) pose, (4,) with the wheel error ``e``; then the encoder residual blocks."""
         return self._kf.x.copy()
 
     @property
@@ -264,7 +281,8 @@ class Localizer:
         return float(e @ np.linalg.solve(self._kf.P[:3, :3], e))
 
     # ---------------------------------------------------------------- predict
-    def predict(self, d_left: float, d_right: float, turn_slip: float | None = None) -> None:
+    def predict(self, d_left: float, d_right: float, turn_slip: float | None = None,
+                steps: int | None = None) -> None:
         """Propagate the estimate by one odometry increment.
 
         Parameters
@@ -275,9 +293,26 @@ class Localizer:
             The increment's turn slip [-] (:func:`estimators.motion._arc_terms`); by default the
             declared ``robot.turn_slip``. A simulated platform's depends on the read's span
             (:func:`sim.physics.turn_lag.read_turn_slip`).
+        steps : int, optional
+            Physics steps the increment spans (:meth:`set_read_steps`); by default unknown.
         """
         self.set_turn_slip(turn_slip)
-        predict_step(self._kf.x, self._kf.P, float(d_left), float(d_right), self.predict_params)
+        self.set_read_steps(steps)
+        predict_step(self._kf.x, self._kf.P, float(d_left), float(d_right), self.predict_params, self.phase)
+
+    def set_read_steps(self, steps: int | None = None) -> None:
+        """Set the physics steps the next predict's read spans (None: unknown).
+
+        With ``step_time`` it times the wheels' commanded turn over the read, which the encoder
+        phasors turn by (:mod:`estimators.encoder_phase`); :attr:`phase` holds it, where a
+        compiled caller's predict reads it too.
+        """
+        self.phase[encoder_phase.STEPS] = 0.0 if steps is None else float(steps)
+
+    def set_command(self, rate_left: float, rate_right: float) -> None:
+        """Record the wheel rates commanded from now on [rad/s] (left, right; forward positive)."""
+        self.phase[encoder_phase.CMD_LEFT] = float(rate_left)
+        self.phase[encoder_phase.CMD_RIGHT] = float(rate_right)
 
     def set_turn_slip(self, turn_slip: float | None = None) -> None:
         """Set the turn slip the next predict uses [-] (None: the declared ``robot.turn_slip``).

@@ -1,4 +1,4 @@
-"""EKF predict with each wheel's encoder quantisation residual in the state (an MA(1) noise).
+"""EKF predict with each wheel's encoder quantisation residual in the state, phase and all.
 
 An encoder counts whole ticks of its wheel's rotation: the count converted to travel is
 ``r phi_k - q_k``, with ``q_k`` in ``[0, tick)`` the part of the rotation below the last tick
@@ -7,52 +7,73 @@ therefore ``d_k = r (phi_k - phi_{k-1}) - q_k + q_{k-1}``: the quantisation erro
 difference of two residuals, and over any window the errors telescope to ``q_start - q_end``.
 Added to the process noise as white noise of variance ``tick^2 / 12`` per step (what
 :func:`estimators.process_noise.wheel_variances` does) it grows without bound, at standstill too,
-while the true error never exceeds one tick: the filter becomes pessimistic, the more the more
-often it predicts (60 Hz here) and the slower the robot moves.
+while the true error never exceeds one tick.
 
-Exact treatment (a second-order-exact linear model of a moving-average noise): the state is
-augmented with each wheel's current residual, centred, ``(q_left, q_right)`` [m], zero-mean with
-variance ``tick^2 / 12`` (uniform over a tick). At each step the residual is replaced by a new
-one, independent of everything before it (true when a step moves the wheel over many ticks, or
-over an uncertain fraction of one; see ``estimators.ekf`` for when that is what the
-simulated encoders do), and the wheel's rotation over the step is estimated as
-``u_w = d_w - q_w,old + q_w,new``. With the relative wheel-radius error ``e`` (optional state,
-:func:`estimators.motion.propagate_moments_biased`) the wheels roll ``t_l = (1 - e) u_l`` and
-``t_r = (1 + e) u_r`` plus the floor's random slip (variance ``var_left``, ``var_right``), so
+The residual is a sawtooth of the wheel's phase: centred, ``tick (phase - 1/2)
+= -(tick / pi) sum_m sin(2 pi m phase) / m``. A step that turns the wheel ``T`` ticks advances
+every harmonic's angle by ``2 pi m T``: a residual is not independent of the last one; over a
+window the count error's variance is ``f (1 - f) tick^2`` for a fractional turn ``f``, not the
+``tick^2 / 6`` of two independent residuals, and across the runs of a sweep a fix's windows all
+have the same ``f`` (``docs/design.md`` §6). The state holds, per wheel, the first
+``HARMONICS`` harmonics as phasors ``(p_c, p_s)_m = -(tick / (pi m)) (cos, sin)(2 pi m phase)``
+[m] (``6 / (pi m)^2`` of the residual's variance each) and the rest ``w`` as white:
+``q = sum_m p_s,m + w``. At each step phasor m turns by ``2 pi m T`` with the turn predicted from
+the wheel command (:func:`estimators.encoder_phase.phase_advance`) and shrinks by
+``rho_m = exp(-2 pi^2 m^2 sigma^2)`` for the prediction's uncertainty ``sigma`` [ticks], a fresh
+part of variance ``(1 - rho_m^2)`` keeping it stationary; ``w`` is renewed. So every window's
+count-error variance is right to within twice the white share, ``2 (1/12 - sum_m 1/(2 pi^2 m^2))
+tick^2`` (0.022 for 4 harmonics, 0.065 for one; independent residuals are up to 0.167 off), and
+with ``sigma`` infinite (no prediction) the model is that of independent residuals of variance
+``tick^2 / 12``.
 
-    pose' = f(pose, t_l, t_r),       e' = e,       q' = q_new,
-    P' = A P A^T + B W B^T,
+The wheel's rotation over the step is ``u_w = d_w - q_w,old + q_w,new``. With the relative
+wheel-radius error ``e`` (optional state, :func:`estimators.motion.propagate_moments_biased`) the
+wheels roll ``t_l = (1 - e) u_l`` and ``t_r = (1 + e) u_r`` plus the floor's random slip
+(variance ``var_left``, ``var_right``), so ``pose' = f(pose, t_l, t_r)``, ``e' = e``,
+``p' = rho R(2 pi T) p + n``, ``w' = w_new``, ``P' = A P A^T + B W B^T``.
 
-``A`` the Jacobian with respect to the old state (pose: ``F``; e: ``-u_l G_l + u_r G_r``;
-old residuals: ``-(1 - e) G_l``, ``-(1 + e) G_r``; the residual rows are zero: they are
-replaced) and ``B W B^T`` the new residuals and the slip, with the new residuals' rows
-``(1 -/+ e) G_w tick^2/12`` coupling the pose to them. The pose picks up
-``G (q_new - q_old)`` per step, whose sum over a window stays bounded: the pose covariance
-at standstill no longer grows.
-
-State layout: ``(x [m], y [m], theta [rad], [e [-]], q_left [m], q_right [m])``, shape (5,)
-or (6,).
+State layout: ``(x [m], y [m], theta [rad], [e [-]], left block, right block)``, a block
+``(p_c,1, p_s,1, ..., p_c,M, p_s,M, w)`` [m] of ``PER_WHEEL`` entries: shape
+``(3 + 2 PER_WHEEL,)`` or ``(4 + 2 PER_WHEEL,)``.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from estimators.motion import _arc_terms, _jacobians_into
 from jit import compiled
 
+#: harmonics of the sawtooth carried as phasors per wheel: they hold
+#: ``sum_{m <= M} 6 / (pi^2 m^2)`` of a residual's variance (0.877 for 4), the rest is white
+HARMONICS = 4
+#: entries per wheel: each harmonic's phasor (cos, sin part) [m], then the white rest [m]
+PER_WHEEL = 2 * HARMONICS + 1
+
+
+def harmonic_share(m: int) -> float:
+    """Share of a residual's variance ``tick^2 / 12`` in one component of harmonic ``m``'s phasor: 6 / (pi m)^2."""
+    return 6.0 / (math.pi * m) ** 2
+
+
+#: share of the residual's variance in the white rest
+WHITE_SHARE = 1.0 - sum(harmonic_share(m) for m in range(1, HARMONICS + 1))
+
 
 @compiled.njit(cache=True)
 def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right, quant_var,
-                                bias_walk_var, turn_slip=0.0):
-    """EKF predict step of the pose augmented with the encoder residuals, in place.
+                                bias_walk_var, turn_slip=0.0, turn_left=0.0, turn_right=0.0,
+                                sigma_left=math.inf, sigma_right=math.inf):
+    """EKF predict step of the pose augmented with the encoders' residual phasors, in place.
 
     Parameters
     ----------
-    x : numpy.ndarray, shape (5,) or (6,), float64, C-contiguous
-        ``(x [m], y [m], theta [rad], q_left [m], q_right [m])``, or with the relative
-        wheel-radius error ``(x, y, theta, e [-], q_left, q_right)``; overwritten. The
-        residuals are centred (zero mean); the heading is left unwrapped.
+    x : numpy.ndarray, shape (3 + 2 PER_WHEEL,) or (4 + 2 PER_WHEEL,), float64, C-contiguous
+        ``(x [m], y [m], theta [rad], [e [-]], left block, right block)``, a wheel's block the
+        phasors ``(p_c, p_s)`` of harmonics 1..HARMONICS and the white rest ``w`` [m] (module
+        docstring); overwritten. The heading is left unwrapped.
     P : numpy.ndarray, shape (n, n), float64, C-contiguous
         Its covariance; overwritten.
     d_left, d_right : float
@@ -63,21 +84,49 @@ def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var
         Variance of each wheel's random slip over the step [m^2] (already scaled), without
         quantisation.
     quant_var : float
-        Variance of a new residual [m^2]: ``tick^2 / 12`` (already scaled).
+        Variance of a residual [m^2]: ``tick^2 / 12`` (already scaled); harmonic m's phasor holds
+        ``6 / (pi m)^2`` of it per component, the white rest what is left.
     bias_walk_var : float
         Variance added to ``e`` over the step [-] (ignored without ``e``).
     turn_slip : float
         Declared outward slip per radian of the step's heading change [-]
         (:func:`estimators.motion.propagate_moments`).
+    turn_left, turn_right : float
+        Each wheel's predicted turn over the step [ticks]
+        (:func:`estimators.encoder_phase.phase_advance`).
+    sigma_left, sigma_right : float
+        Their standard deviations [ticks]; inf (the default): the phasors are renewed,
+        independent of the last (the residuals of successive reads independent).
     """
     n = x.shape[0]
-    biased = n == 6
-    iq = n - 2
+    biased = n == 4 + 2 * PER_WHEEL
+    b0 = 4 if biased else 3                      # first entry of the left wheel's block
     e = x[3] if biased else 0.0
-    sl, sr = 1.0 - e, 1.0 + e
-    ul = d_left - x[iq]
-    ur = d_right - x[iq + 1]
-    tl, tr = sl * ul, sr * ur
+    scale = (1.0 - e, 1.0 + e)
+    white = WHITE_SHARE * quant_var
+    M = HARMONICS
+    # per wheel and harmonic: shrink rho, cos, sin of the turn's angle, variance per component
+    rho, co, si, var_h = np.empty((2, M)), np.empty((2, M)), np.empty((2, M)), np.empty(M)
+    for m in range(M):
+        var_h[m] = 6.0 / (math.pi * (m + 1)) ** 2 * quant_var
+    u = np.empty(2)
+    for w in range(2):
+        turn = turn_left if w == 0 else turn_right
+        sig = sigma_left if w == 0 else sigma_right
+        b = b0 + PER_WHEEL * w
+        q_old = x[b + 2 * M]
+        q_new = 0.0
+        for m in range(M):
+            h = m + 1
+            rho[w, m] = math.exp(-2.0 * (math.pi * h * sig) ** 2) if sig < math.inf else 0.0
+            co[w, m], si[w, m] = math.cos(2.0 * math.pi * h * turn), math.sin(2.0 * math.pi * h * turn)
+            pc, ps = x[b + 2 * m], x[b + 2 * m + 1]
+            q_old += ps
+            # p' = rho R(2 pi h turn) p (+ noise): the new residual's mean is the sum of the p'_s
+            q_new += rho[w, m] * (si[w, m] * pc + co[w, m] * ps)
+        d = d_left if w == 0 else d_right
+        u[w] = d - q_old + q_new
+    tl, tr = scale[0] * u[0], scale[1] * u[1]
     F3 = np.empty((3, 3))
     G = np.empty((3, 2))
     _jacobians_into(x[2], tl, tr, wheel_base, F3, G, turn_slip)
@@ -86,52 +135,102 @@ def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var
         for j in range(3):
             A[i, j] = F3[i, j]
         if biased:
-            A[i, 3] = -ul * G[i, 0] + ur * G[i, 1]
-        A[i, iq] = -sl * G[i, 0]
-        A[i, iq + 1] = -sr * G[i, 1]
+            A[i, 3] = -u[0] * G[i, 0] + u[1] * G[i, 1]
+        for w in range(2):
+            b = b0 + PER_WHEEL * w
+            g = scale[w] * G[i, w]
+            for m in range(M):
+                A[i, b + 2 * m] = g * rho[w, m] * si[w, m]
+                A[i, b + 2 * m + 1] = g * (rho[w, m] * co[w, m] - 1.0)
+            A[i, b + 2 * M] = -g
     if biased:
         A[3, 3] = 1.0
+    for w in range(2):
+        b = b0 + PER_WHEEL * w
+        for m in range(M):
+            c, s_ = rho[w, m] * co[w, m], rho[w, m] * si[w, m]
+            o = b + 2 * m
+            A[o, o], A[o, o + 1] = c, -s_
+            A[o + 1, o], A[o + 1, o + 1] = s_, c
+        # the white rest's row stays zero: renewed
     ds, dtheta, _, k, _, c, s = _arc_terms(x[2], tl, tr, wheel_base, turn_slip)
     x[0] += ds * k * c
     x[1] += ds * k * s
     x[2] += dtheta
-    x[iq] = 0.0
-    x[iq + 1] = 0.0
-    # Explicit loops: for n <= 6 numba's BLAS-backed `@` costs more than the arithmetic.
+    for w in range(2):
+        b = b0 + PER_WHEEL * w
+        for m in range(M):
+            o = b + 2 * m
+            pc, ps = x[o], x[o + 1]
+            x[o] = rho[w, m] * (co[w, m] * pc - si[w, m] * ps)
+            x[o + 1] = rho[w, m] * (si[w, m] * pc + co[w, m] * ps)
+        x[b + 2 * M] = 0.0
+    # A is sparse (the blocks rotate, the pose mixes): skip its zeros in A P A^T.
     AP = np.empty((n, n))
     for i in range(n):
         for j in range(n):
             v = 0.0
             for m in range(n):
-                v += A[i, m] * P[m, j]
+                a = A[i, m]
+                if a != 0.0:
+                    v += a * P[m, j]
             AP[i, j] = v
-    # Rows of the new residuals are zero in A: only the pose (and e) block propagates.
-    m_top = iq
-    wl = sl * sl * (quant_var + var_left)
-    wr = sr * sr * (quant_var + var_right)
-    for i in range(m_top):
-        for j in range(i, m_top):
+    for i in range(n):
+        for j in range(i, n):
             v = 0.0
             for m in range(n):
-                v += AP[i, m] * A[j, m]
-            if j < 3:
-                v += G[i, 0] * wl * G[j, 0] + G[i, 1] * wr * G[j, 1]
-            elif i == 3:
-                v += bias_walk_var
+                a = A[j, m]
+                if a != 0.0:
+                    v += AP[i, m] * a
             # Writing one triangle into both keeps P exactly symmetric over thousands of steps.
             P[i, j] = v
             P[j, i] = v
-    for i in range(m_top):
-        cl = sl * G[i, 0] * quant_var if i < 3 else 0.0
-        cr = sr * G[i, 1] * quant_var if i < 3 else 0.0
-        P[i, iq] = cl
-        P[iq, i] = cl
-        P[i, iq + 1] = cr
-        P[iq + 1, i] = cr
-    P[iq, iq] = quant_var
-    P[iq + 1, iq + 1] = quant_var
-    P[iq, iq + 1] = 0.0
-    P[iq + 1, iq] = 0.0
+    # The noise: per wheel each phasor's renewal (var (1 - rho^2) of its share per component),
+    # the white rest's renewal and the slip; the pose sees the p_s renewals, the rest and the slip.
+    for w in range(2):
+        b = b0 + PER_WHEEL * w
+        slip_var = var_left if w == 0 else var_right
+        sw = scale[w]
+        renew_sum = 0.0
+        for m in range(M):
+            renew = (1.0 - rho[w, m] * rho[w, m]) * var_h[m]
+            renew_sum += renew
+            o = b + 2 * m
+            P[o, o] += renew
+            P[o + 1, o + 1] += renew
+            for i in range(3):
+                P[i, o + 1] += sw * G[i, w] * renew
+                P[o + 1, i] = P[i, o + 1]
+        for i in range(3):
+            gi = sw * G[i, w]
+            for j in range(i, 3):
+                v = gi * sw * G[j, w] * (renew_sum + white + slip_var)
+                P[i, j] += v
+                if j != i:
+                    P[j, i] += v
+            P[i, b + 2 * M] += gi * white
+            P[b + 2 * M, i] = P[i, b + 2 * M]
+        P[b + 2 * M, b + 2 * M] += white
+    if biased:
+        P[3, 3] += bias_walk_var
+
+
+def phasor_state(residual: float, tick: float) -> np.ndarray:
+    """Return a wheel's block (``PER_WHEEL`` entries [m]) for a known centred residual [m] on encoders of ``tick`` [m].
+
+    The residual is ``tick (phase - 1/2)`` for the wheel's phase in ``[0, 1)`` ticks past its
+    last edge, ``-(tick / pi) sum_m sin(2 pi m phase) / m``: harmonic m's phasor is
+    ``-(tick / (pi m)) (cos, sin)(2 pi m phase)``, and the white rest what the first
+    ``HARMONICS`` leave of the residual.
+    """
+    phase = residual / tick + 0.5
+    out = np.empty(PER_WHEEL)
+    for m in range(1, HARMONICS + 1):
+        amp = -tick / (math.pi * m)
+        out[2 * m - 2] = amp * math.cos(2.0 * math.pi * m * phase)
+        out[2 * m - 1] = amp * math.sin(2.0 * math.pi * m * phase)
+    out[-1] = residual - out[1:-1:2].sum()
+    return out
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

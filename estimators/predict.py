@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from estimators import motion
+from estimators.encoder_phase import phase_advance
 from estimators.motion_quantised import propagate_moments_quantised
 from jit import compiled
 
@@ -20,19 +21,22 @@ WHEEL_BASE, REL_VAR, BASE_VAR, Q_SCALE, WALK_VAR, BIASED, QUANT_VAR, TURN_SLIP =
 
 
 @compiled.njit(cache=True)
-def predict_step(x, P, d_left, d_right, params):
+def predict_step(x, P, d_left, d_right, params, phase):
     """Run the Localizer's predict on its state arrays, in place (see :meth:`Localizer.predict`).
 
     Compiled so that a control loop can call it from compiled code (``sim.episode.control_tick``).
 
     Parameters
     ----------
-    x, P : ndarray, shape (n,), (n, n), n in 3..6
+    x, P : ndarray, shape (n,), (n, n), n in (3, 4, 9, 10)
         The filter's state and covariance (:meth:`Localizer.state_arrays`).
     d_left, d_right : float
         Wheel travel measured by the encoders over the step (nominal radius) [m].
     params : ndarray, shape (8,)
         :attr:`Localizer.predict_params`.
+    phase : ndarray
+        :attr:`Localizer.phase` (:mod:`estimators.encoder_phase`): the wheel command and the
+        read's span; used and updated with the encoder residual states.
     """
     wheel_base, rel_var, base_var, q = params[WHEEL_BASE], params[REL_VAR], params[BASE_VAR], params[Q_SCALE]
     var_left = q * (rel_var * d_left * d_left + base_var)
@@ -40,8 +44,9 @@ def predict_step(x, P, d_left, d_right, params):
     walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
     slip = params[TURN_SLIP]
     if params[QUANT_VAR] > 0.0:
+        turn_l, turn_r, sig_l, sig_r = phase_advance(phase, d_left, d_right)
         propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right,
-                                    q * params[QUANT_VAR], walk_var, slip)
+                                    q * params[QUANT_VAR], walk_var, slip, turn_l, turn_r, sig_l, sig_r)
     elif params[BIASED] > 0.0:
         motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var, slip)
     else:

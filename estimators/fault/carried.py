@@ -156,7 +156,7 @@ def turn_bound(robot: RobotSpec, travelled, turned, reads=None, wheel_paths=None
 
 
 def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along_cos=None,
-              slip_weight=None) -> np.ndarray:
+              slip_weight=None, count_var=None) -> np.ndarray:
     """Variance of each range's error from the odometry error of its shift [m^2].
 
     Along the shift: the two encoder readings' quantisation (the shift's error is the
@@ -188,6 +188,11 @@ def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along
         ``sum (d_l^2 + d_r^2) / 4`` over the odometry reads of each shift [m^2]
         (:attr:`sim.physics.odometry.WheelOdometry.slip_weight`'s increase); by default the
         equal-increment value ``d^2 / (2 n)``.
+    count_var : array_like, shape (k, 2), optional
+        Each wheel's count-error variance over each shift [m^2]
+        (:func:`estimators.encoder_phase.count_error_var` of the turn the command predicts: a
+        fix's shifts are coherent across runs); by default that of two independent residuals,
+        ``tick^2 / 6`` (the wheels' mean then has the ``tick^2 / 12`` above).
 
     Returns
     -------
@@ -198,14 +203,16 @@ def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along
     n = [1.0] * len(d) if reads is None else np.ravel(reads).tolist()
     cos = None if along_cos is None else np.ravel(along_cos).tolist()
     weight = None if slip_weight is None else np.ravel(slip_weight).tolist()
-    quant, slip2, hv = encoder_tick(robot) ** 2 / 12.0, robot.odometry_noise**2, max(heading_var, 0.0)
+    slip2, hv = robot.odometry_noise**2, max(heading_var, 0.0)
+    quant = ([encoder_tick(robot) ** 2 / 12.0] * len(d) if count_var is None
+             else (0.25 * np.asarray(count_var, dtype=float).reshape(len(d), 2).sum(axis=1)).tolist())
     out = []
     for j, dj in enumerate(d):  # a fix has a few ranges: plain floats
         if dj <= 0.0:
             out.append(0.0)
             continue
         slip_part = dj * dj / (2.0 * max(n[j], 1.0)) if weight is None else max(weight[j], 0.0)
-        along = (quant if n[j] > 0 else 0.0) + slip2 * slip_part
+        along = (quant[j] if n[j] > 0 else 0.0) + slip2 * slip_part
         across = hv * dj * dj
         c2 = 1.0 if cos is None else cos[j] * cos[j]
         out.append(along + across if cos is None else along * c2 + across * (1.0 - c2))
@@ -213,7 +220,7 @@ def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along
 
 
 def shift_cov(robot: RobotSpec, travelled, heading_var: float, reads=None, along_cos=None, across=None,
-              slip_weight=None) -> np.ndarray:
+              slip_weight=None, count_cov=None) -> np.ndarray:
     """Covariance of the ranges' errors from the odometry errors of their shifts [m^2].
 
     The diagonal is :func:`shift_var`. The shifts of one fix are not independent: all end at the
@@ -246,13 +253,19 @@ def shift_cov(robot: RobotSpec, travelled, heading_var: float, reads=None, along
         default no heading term off the diagonal.
     slip_weight : array_like, shape (k,), optional
         As in :func:`shift_var`.
+    count_cov : array_like, shape (k, k, 2), optional
+        Each wheel's covariance of the shifts' count errors [m^2] (:func:`count_cov`); by
+        default independent residuals: ``tick^2 / 6`` on the diagonal, the shared end reading's
+        ``tick^2 / 12`` off it.
 
     Returns
     -------
     numpy.ndarray, shape (k, k)
         Covariance [m^2]; rows and columns of a range not carried are 0.
     """
-    var = shift_var(robot, travelled, heading_var, reads, along_cos, slip_weight)
+    cc = None if count_cov is None else np.asarray(count_cov, dtype=float)
+    var = shift_var(robot, travelled, heading_var, reads, along_cos, slip_weight,
+                    None if cc is None else np.diagonal(cc).T)
     d = np.ravel(travelled).tolist()
     k = len(d)
     n = [1.0] * k if reads is None else np.ravel(reads).tolist()
@@ -267,7 +280,8 @@ def shift_cov(robot: RobotSpec, travelled, heading_var: float, reads=None, along
         for j in range(i + 1, k):
             if d[i] <= 0.0 or d[j] <= 0.0:
                 continue
-            quant = end_quant if n[i] > 0 and n[j] > 0 else 0.0
+            shared = end_quant if cc is None else 0.25 * (cc[i, j, 0] + cc[i, j, 1])
+            quant = shared if n[i] > 0 and n[j] > 0 else 0.0
             c = (quant + slip2 * min(slip_part[i], slip_part[j])) * cos[i] * cos[j]
             if a is not None:
                 c += hv * a[i] * a[j]
@@ -275,7 +289,7 @@ def shift_cov(robot: RobotSpec, travelled, heading_var: float, reads=None, along
     return out
 
 
-def turn_cov(robot: RobotSpec, travelled, turned, reads=None, slip_weight=None) -> np.ndarray:
+def turn_cov(robot: RobotSpec, travelled, turned, reads=None, slip_weight=None, count_cov=None) -> np.ndarray:
     """Covariance of the dead-reckoned turns that carry a fix's bearings to its last one [rad^2].
 
     A bearing taken earlier in a fix is turned into the last one's frame by the odometry's
@@ -313,6 +327,9 @@ def turn_cov(robot: RobotSpec, travelled, turned, reads=None, slip_weight=None) 
         ``sum (d_l^2 + d_r^2) / 4`` over each shift's reads [m^2]
         (:attr:`sim.physics.odometry.WheelOdometry.slip_weight`'s increase); by default the
         equal-increment value over the arc's wheel travels, as in :func:`turn_bound`.
+    count_cov : array_like, shape (k, k, 2), optional
+        Each wheel's covariance of the shifts' count errors [m^2] (:func:`count_cov`); by
+        default that of independent residuals (above).
 
     Returns
     -------
@@ -343,11 +360,58 @@ def turn_cov(robot: RobotSpec, travelled, turned, reads=None, slip_weight=None) 
         for j in range(i, k):
             if not moved[j]:
                 continue
-            shared_quant = 4.0 * quant if i == j else 2.0 * quant
+            if count_cov is None:
+                shared_quant = 4.0 * quant if i == j else 2.0 * quant
+            else:
+                shared_quant = (float(count_cov[i][j][0]) + float(count_cov[i][j][1])) / (b * b)
             c = shared_quant + 4.0 * slip2 * min(weight[i], weight[j]) / (b * b) \
                 + (2.0 * e / b) ** 2 * path[i] * path[j]
             out[i, j] = out[j, i] = c
     return out
+
+
+def count_cov(robot: RobotSpec, turns, steps, sigma_per_step) -> np.ndarray:
+    """Each wheel's covariance of a fix's shifts' count errors, coherent across runs [m^2].
+
+    Shift i runs from measurement i to the fix's end E; its count error is the difference of
+    the residuals at its ends, so two shifts share ``cov = (V(i, E) + V(j, E) - V(i, j)) / 2``,
+    ``V`` a window's count-error variance (:func:`estimators.encoder_phase.count_error_var`) for
+    the turn the wheel command predicts between the two reads and its uncertainty. Across the
+    runs of a sweep a fix's windows turn the wheels the same to ~0.005 ticks: the variance is
+    that of their fractional turn, not the ``tick^2 / 6`` of independent residuals
+    (``docs/design.md`` §6).
+
+    Parameters
+    ----------
+    robot : RobotSpec
+        The declared robot (its encoder tick).
+    turns : array_like, shape (k + 1, 2)
+        Each wheel's commanded turn [ticks] up to each measurement and to the fix's end (last
+        row), from any origin.
+    steps : array_like, shape (k + 1,)
+        The physics step of each (any origin).
+    sigma_per_step : array_like, shape (2,)
+        Each wheel's turn uncertainty per physics step [ticks]
+        (:func:`estimators.encoder_phase.sigma_per_step`; inf: unknown).
+
+    Returns
+    -------
+    numpy.ndarray, shape (k, k, 2)
+    """
+    from estimators.encoder_phase import count_error_var
+
+    t = np.asarray(turns, dtype=float)
+    st = np.asarray(steps, dtype=float)
+    sig = np.asarray(sigma_per_step, dtype=float)
+    # V between every two rows, per wheel: (k + 1, k + 1, 2); the same read: no window, no error
+    dt = t[None, :, :] - t[:, None, :]
+    span = np.abs(st[None, :] - st[:, None])[..., None]
+    with np.errstate(invalid="ignore"):   # 0 steps times an unknown (inf) rate: no window
+        ds = np.where(span == 0.0, 0.0, span * sig)
+    V = np.where(span == 0.0, 0.0, count_error_var(dt, ds))
+    end = V[:-1, -1, :]                                      # V(i, E)
+    out = 0.5 * (end[:, None, :] + end[None, :, :] - V[:-1, :-1, :])
+    return out * encoder_tick(robot) ** 2
 
 
 def carry(markers, at, end, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -33,10 +33,10 @@ _TRUE0, _EST0, _COV0 = LOG_TRUE.start, LOG_EST.start, LOG_COV.start  # numba ind
 
 
 @compiled.njit(cache=True)
-def _tick(odo_state, odo_params, normals, angle_left, angle_right, kf_x, kf_P, ekf_params,
+def _tick(odo_state, odo_params, normals, angle_left, angle_right, kf_x, kf_P, ekf_params, phase,
           table, limits, follower_state, log, n, t, true_x, true_y, true_theta, s_prev, steer, dt):
     d_left, d_right, used_up = odometry_step(odo_state, odo_params, normals, angle_left, angle_right)
-    predict_step(kf_x, kf_P, d_left, d_right, ekf_params)
+    predict_step(kf_x, kf_P, d_left, d_right, ekf_params, phase)
     row = log[n]
     row[LOG_T] = t
     row[_TRUE0], row[_TRUE0 + 1], row[_TRUE0 + 2] = true_x, true_y, true_theta
@@ -73,20 +73,23 @@ class ControlTick:
         # an episode.
         x, P = localizer.state_arrays()
         self._arrays = (odometry.state, odometry.params)
-        self._filter = (x, P, localizer.predict_params, follower.table, follower.limits, follower.state, log)
+        self._filter = (x, P, localizer.predict_params, localizer.phase, follower.table, follower.limits,
+                        follower.state, log)
         self._rows = len(log)
 
     def __call__(self, angles: tuple[float, float], true_pose: tuple[float, float, float], t: float, n: int,
-                 s_prev: float, steer: bool, turn_slip: float | None = None) -> tuple[float, float, bool, float]:
+                 s_prev: float, steer: bool, turn_slip: float | None = None,
+                 steps: int | None = None) -> tuple[float, float, bool, float]:
         """Read the encoders at ``angles`` [rad], predict, log row ``n``, and command if ``steer``.
 
-        ``turn_slip`` is the read's (:meth:`estimators.ekf.Localizer.predict`), by default the
-        declared one. Returns (v [m/s], omega [rad/s], done, s [m]); without ``steer`` the robot
-        is held (0, 0, False) and ``s_prev`` is logged.
+        ``turn_slip`` and ``steps`` are the read's (:meth:`estimators.ekf.Localizer.predict`), by
+        default the declared turn slip and an unknown span. Returns (v [m/s], omega [rad/s],
+        done, s [m]); without ``steer`` the robot is held (0, 0, False) and ``s_prev`` is logged.
         """
         if not 0 <= n < self._rows:  # the compiled step does not check bounds
             raise IndexError(f"ControlTick: log row {n} outside 0..{self._rows - 1}")
         self.loc.set_turn_slip(turn_slip)
+        self.loc.set_read_steps(steps)
         v, omega, done, s, used_up = _tick(*self._arrays, self.odo.normals, angles[0], angles[1], *self._filter,
                                            n, t, *true_pose, s_prev, steer, self.dt)
         if used_up:

@@ -210,7 +210,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             f"at {list(dock.position)}, a fix needs {k}")
 
     angles0 = world.robot.wheel_angles()
-    loc = episode_localizer(scenario, np.array(dock.pose), P0, angles0, q_scale=q_scale)
+    loc = episode_localizer(scenario, np.array(dock.pose), P0, angles0, q_scale=q_scale,
+                            step_time=world.config.time_step)
     # The simulated floor's random slip, per unit of travel, goes into the odometry readings
     # (bounded in a bounded-noise world); the odometry's dead reckoning carries the ranges of a
     # fix to its end (FixRecorder).
@@ -244,14 +245,14 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     wheel_angles, predict = world.robot.wheel_angle_pair, loc.predict
 
-    def read_turn_slip_now() -> float:
-        # the turn slip of a read now: the physics' lag depends on the steps it spans
+    def read_span() -> tuple[float, int]:
+        # a read now: its turn slip (the physics' lag depends on the steps it spans) and span
         steps, counts["last_read"] = world.steps - counts["last_read"], world.steps
-        return read_turn_slip(robot.turn_slip, steps, CONTROL_STEPS)
+        return read_turn_slip(robot.turn_slip, steps, CONTROL_STEPS), steps
 
     def read_odometry() -> None:
         d_left, d_right = odo.update(wheel_angles())
-        predict(d_left, d_right, read_turn_slip_now())
+        predict(d_left, d_right, *read_span())
         counts["reads"] += 1
 
     next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
@@ -319,14 +320,19 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     # The schedule's first fix is taken at standstill on the dock, before the robot leaves.
     holding = len(fix_s) > 0 and fix_s[0] <= 1e-9
     s_now = 0.0
-    true_pose, set_wheel_speeds = world.robot.true_pose_tuple, world.robot.set_wheel_speeds
+    true_pose = world.robot.true_pose_tuple
+
+    def set_wheel_speeds(left: float, right: float) -> None:
+        # the motors, and the filter that predicts the encoders' phase from what they were told
+        world.robot.set_wheel_speeds(left, right)
+        loc.set_command(left, right)
     radius, base = robot.wheel_radius, robot.wheel_base
     while n < n_max:
         t = world.time
         # odometry, predict, log row n (the arc length of this step's estimate) and, unless the
         # robot is held or done, the follower's command from this step's estimate
         v, omega, cmd_done, s_cmd = tick(wheel_angles(), true_pose(), t, n, s_now, not (holding or done),
-                                         read_turn_slip_now())
+                                         *read_span())
         n += 1
         if done:
             if fixes.pending is None and next_fix >= len(fix_s_list):

@@ -20,7 +20,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.fault.carried import carry, promised_fault_area, shift_bound, shift_cov, shift_var, turn_bound, turn_cov
+from estimators import encoder_phase
+from estimators.encoder_phase import sigma_per_step
+from estimators.fault.carried import (
+    carry,
+    count_cov,
+    promised_fault_area,
+    shift_bound,
+    shift_cov,
+    shift_var,
+    turn_bound,
+    turn_cov,
+)
 from estimators.snapshot import snapshot_fix
 from scenarios import SimulationError
 from scenarios.schema import NoiseModel
@@ -40,6 +51,10 @@ class _Pending:
     reads_at: list[int | None] = field(default_factory=list)
     weight_at: list[float | None] = field(default_factory=list)
     paths_at: list[tuple[float, float] | None] = field(default_factory=list)
+    # the filter's clock (physics steps) and each wheel's commanded turn [ticks] at each measurement
+    phase_at: list[tuple[float, float, float]] = field(default_factory=list)
+    # each wheel's commanded-turn uncertainty per physics step at the fix's end [ticks]
+    phase_sigma: tuple[float, float] = (math.inf, math.inf)
     # the filter's heading, its variance and the dead-reckoned heading before the fix's first update
     heading0: tuple[float, float, float] | None = None
     nis: float = 0.0
@@ -187,6 +202,7 @@ class FixRecorder:
             p.reads_at.append(reads)
             p.weight_at.append(slip_weight)
             p.paths_at.append(wheel_paths)
+            p.phase_at.append(self._phase_mark())
         if not p.markers:
             self._finish(dr_pose, true_pose, t, reads, slip_weight, wheel_paths)
 
@@ -200,8 +216,14 @@ class FixRecorder:
         # the episode: between physics steps the interpreter runs from cold caches, and these
         # ~40 small numpy calls cost 3-4 times what they cost in one loop (a fifth of an
         # episode's non-physics time). Nothing in the episode reads them.
+        p.phase_at.append(self._phase_mark())
+        p.phase_sigma = sigma_per_step(self.loc.phase)
         self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x,
                                self.loc.heading_var, slip_weight, wheel_paths))
+
+    def _phase_mark(self) -> tuple[float, float, float]:
+        ph = self.loc.phase
+        return float(ph[encoder_phase.NOW]), float(ph[encoder_phase.CMD_SUM_L]), float(ph[encoder_phase.CMD_SUM_R])
 
     def _complete(self, p: _Pending, dr_end: tuple, true_pose: tuple, t: float, reads: int | None,
                   x_est: np.ndarray, heading_var_now: float, slip_weight: float | None = None,
@@ -243,6 +265,11 @@ class FixRecorder:
                       else np.array([[wheel_paths[0] - at[0], wheel_paths[1] - at[1]] for at in p.paths_at]))
         ranges = np.array(p.ranges)
         rho = self.sensor.measured_range_bound(ranges)  # the declared bound holds at the true range
+        # the count errors of the shifts: coherent across runs where the commanded turn is known
+        # (a filter that does not count physics steps knows no turn: independent residuals)
+        marks = np.array(p.phase_at)
+        counts = (count_cov(self.robot, marks[:, 1:], marks[:, 0], p.phase_sigma)
+                  if self.loc.phase[encoder_phase.STEP_TIME] > 0.0 else None)
         # every range but one taken at the fix time is carried (unchanged encoders included)
         carried = np.array(p.slots) < p.attempted - 1
         # The shift is itself measured: the fault area widens each range by a bound on the
@@ -272,8 +299,10 @@ class FixRecorder:
             # across the range, seen at the range.
             across_cos = [math.sqrt(max(1.0 - c * c, 0.0)) for c in along_cos]
             seen = shift_var(self.robot, travelled, max(heading_var0, 0.0), reads_over, across_cos,
-                             slip_weight=weight_over) / np.maximum(ranges, 1e-9) ** 2
-            bearing_extra = turn_cov(self.robot, travelled, turned, reads_over, weight_over) + np.diag(seen)
+                             slip_weight=weight_over, count_var=None if counts is None else np.diagonal(counts).T)
+            seen = seen / np.maximum(ranges, 1e-9) ** 2
+            bearing_extra = turn_cov(self.robot, travelled, turned, reads_over, weight_over,
+                                     count_cov=counts) + np.diag(seen)
             bearing_extra[~carried, :] = 0.0
             bearing_extra[:, ~carried] = 0.0
         snap = snapshot_fix(shifted, ranges, rho, prior=x_est[:2], noise=self.sensor.noise,
@@ -281,7 +310,7 @@ class FixRecorder:
                             heading=float(x_est[2]) if bearings is not None else None,
                             bearing_margin=bearing_margin,
                             extra_var=shift_cov(self.robot, travelled, max(heading_var0, 0.0), reads_over,
-                                                along_cos, across, slip_weight=weight_over),
+                                                along_cos, across, slip_weight=weight_over, count_cov=counts),
                             fault_margin=shift, fault_markers=area_markers, bearing_extra_var=bearing_extra)
         fa = snap.fault_area
         truth = np.asarray(true_pose[:2], dtype=float)

@@ -183,7 +183,8 @@ class _Robot:
         """After the world's reset: zero the encoders, build the filter, start task 0."""
         angles0 = self.body.wheel_angles()
         pose = np.array(self._dock.pose)
-        self.loc = episode_localizer(self.sc, pose, self._P0, angles0, q_scale=self.q_scale)
+        self.loc = episode_localizer(self.sc, pose, self._P0, angles0, q_scale=self.q_scale,
+                                     step_time=self.world.config.time_step)
         actual = self.sc.robot_actual
         self.last_read = self.world.steps   # the physics step of the last odometry read
         self.odo = self._WheelOdometry(self.sc.robot, angles0, pose, slip_std=actual.odometry_noise, rng=self._rng_odo,
@@ -220,14 +221,14 @@ class _Robot:
 
     # -- fixes ------------------------------------------------------------------------------
 
-    def read_turn_slip_now(self) -> float:
-        """Return the turn slip of a read now (the physics' lag depends on the steps it spans)."""
+    def read_span(self) -> tuple[float, int]:
+        """Return a read's turn slip now (the physics' lag depends on the steps it spans) and its span."""
         steps, self.last_read = self.world.steps - self.last_read, self.world.steps
-        return read_turn_slip(self.sc.robot.turn_slip, steps, CONTROL_STEPS)
+        return read_turn_slip(self.sc.robot.turn_slip, steps, CONTROL_STEPS), steps
 
     def read_odometry(self) -> None:
         d_left, d_right = self.odo.update(self.body.wheel_angle_pair())
-        self.loc.predict(d_left, d_right, self.read_turn_slip_now())
+        self.loc.predict(d_left, d_right, *self.read_span())
         self.counts["reads"] += 1
 
     def start_fix(self, s_now: float, t: float) -> None:
@@ -265,16 +266,21 @@ class _Robot:
 
     # -- one control tick ---------------------------------------------------------------------
 
+    def command(self, left: float, right: float) -> None:
+        """Command the wheel rates [rad/s]: the motors, and the filter that predicts the encoders' phase."""
+        self.body.set_wheel_speeds(left, right)
+        self.loc.set_command(left, right)
+
     def control(self, t: float) -> None:
         """Read, predict, log, and command the wheels for the next control period."""
         body = self.body
         waiting_start = t < self.start_time - 1e-9
         steer = not (self.holding or self.done or self.at_goal or self.finished or waiting_start)
         v, omega, cmd_done, s_cmd = self.tick(body.wheel_angle_pair(), body.true_pose_tuple(), t, self.n,
-                                              self.s_now, steer, self.read_turn_slip_now())
+                                              self.s_now, steer, *self.read_span())
         self.n += 1
         if self.finished or waiting_start:
-            body.set_wheel_speeds(0.0, 0.0)
+            self.command(0.0, 0.0)
             return
         if self.at_goal:
             self._hold_at_goal(t)
@@ -283,7 +289,7 @@ class _Robot:
             self.start_fix(0.0, t)
             self.holding = self.fixes.pending is not None
             if self.holding:
-                body.set_wheel_speeds(0.0, 0.0)
+                self.command(0.0, 0.0)
                 return
             v, omega, cmd_done, s_cmd = self.follower.command(self.loc.x, self.dt_ctrl)
             self.log[self.n - 1, LOG_S] = s_cmd
@@ -295,7 +301,7 @@ class _Robot:
         v, omega = self._zone_limit(v, omega)
         self.reserved.append((t, self.offset + self.s_now, self.zones.reserved_to(self.i)))
         self.start_fix(self.s_now, t)
-        body.set_wheel_speeds(*wheel_speeds(v, omega, self.sc.robot.wheel_radius, self.sc.robot.wheel_base))
+        self.command(*wheel_speeds(v, omega, self.sc.robot.wheel_radius, self.sc.robot.wheel_base))
 
     def _hold_at_goal(self, t: float) -> None:
         """Hold at the task's goal until the schedule's last fixes are taken, then go on.
@@ -304,7 +310,7 @@ class _Robot:
         tolerance of the path's end, short of fixes the schedule puts within a fix gap of it; the
         robot finishes the fix under way and takes each of them in turn, at the goal.
         """
-        self.body.set_wheel_speeds(0.0, 0.0)
+        self.command(0.0, 0.0)
         if self.fixes.pending is not None or self.next_fix < len(self.fix_s):
             if self.next_fix < len(self.fix_s):
                 self.start_fix(self.fix_s[self.next_fix], t)

@@ -35,6 +35,7 @@ import pytest
 import scenarios
 from estimators import consistency
 from estimators.motion import arc_step
+from estimators.motion_quantised import phasor_state
 from estimators.predict import predict_step
 from sim.episode.drive import CONTROL_STEPS, episode_localizer
 from sim.physics.config import PhysicsConfig
@@ -67,7 +68,7 @@ FILTERS = {  # name -> changes to the episode's filter
 
 
 @numba.njit(cache=True)
-def _dead_reckon(odo_state, odo_params, normals, angles0, rates, x0, P0, ekf_params, radii, wheel_base,
+def _dead_reckon(odo_state, odo_params, normals, angles0, rates, x0, P0, ekf_params, phase, radii, wheel_base,
                  xs, Ps, truths):
     """Dead-reckon every window with the episode's compiled odometry and predict kernels.
 
@@ -88,7 +89,7 @@ def _dead_reckon(odo_state, odo_params, normals, angles0, rates, x0, P0, ekf_par
             angle_r += tr / radii[1]
             tx, ty, tth = arc_step((tx, ty, tth), tl, tr, wheel_base)
             d_left, d_right, _ = odometry_step(odo_state, odo_params, normals, angle_l, angle_r)
-            predict_step(x, P, d_left, d_right, ekf_params)
+            predict_step(x, P, d_left, d_right, ekf_params, phase)
         xs[w] = x
         Ps[w] = P
         truths[w, 0], truths[w, 1], truths[w, 2] = tx, ty, tth
@@ -107,7 +108,10 @@ def _window_nees(seed: int, n_windows: int = N_WINDOWS) -> dict[str, np.ndarray]
     v = np.maximum(v0[:, None] + a[:, None] * t, 0.02)
     omega = omega0[:, None] + alpha[:, None] * t
     rates = np.ascontiguousarray(np.stack([v - 0.5 * b * omega, v + 0.5 * b * omega], axis=-1) * DT)
-    residual0 = np.array([[centred_residual(float(g), ROBOT) for g in row] for row in angles0])
+    tick = 2.0 * math.pi * ROBOT.wheel_radius / ROBOT.encoder_ticks
+    # each wheel's known start residual as the filter holds it: phasor and rest (p_c, p_s, w)
+    residual0 = np.array([[v for g in row for v in phasor_state(centred_residual(float(g), ROBOT), tick)]
+                          for row in angles0])
     slip_normals = rng.standard_normal(2 * n_windows * WINDOW + 2)
     out = {}
     for name, kw in FILTERS.items():
@@ -121,8 +125,9 @@ def _window_nees(seed: int, n_windows: int = N_WINDOWS) -> dict[str, np.ndarray]
         x0 = np.column_stack([poses, np.full(n_windows, e)] + ([residual0] if quantised else []))
         xs, Ps = np.empty_like(x0), np.empty((n_windows, *loc.full_P.shape))
         truths = np.empty((n_windows, 3))
+        # no read spans: the residuals independent from read to read (the phases go unpredicted)
         _dead_reckon(odo.state, odo.params, odo.normals, angles0, rates, np.ascontiguousarray(x0), loc.full_P,
-                     loc.predict_params, radii, b, xs, Ps, truths)
+                     loc.predict_params, loc.phase, radii, b, xs, Ps, truths)
         err = xs[:, :3] - truths
         err[:, 2] = (err[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
         out[name] = consistency.nees(err, Ps[:, :3, :3])

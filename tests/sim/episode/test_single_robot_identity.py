@@ -39,6 +39,12 @@ The scalar update's products are loops instead of numba's BLAS-backed ``@`` (9 s
 on a cold cache, 1.4 s now), and it writes one triangle of P into both: the sums run in another
 order, so covariances moved in their last bits (paper-two-markers, seed 5: at most 2e-21 m^2 in
 P and 7e-15 in the NEES; the estimate equal), and with them the hashes.
+
+Issue 23 (random-23-016's N-run tests and coverage): the encoder residuals are the phasors of
+their first harmonics, turned at each read by the wheels' commanded turn
+(``estimators.encoder_phase``), and the snapshot weighs a fix's shifts and carried bearings
+with the count errors of their fractional turns (``estimators.fault.carried.count_cov``): the
+estimate, its covariance and the snapshot moved, and with them every column.
 """
 
 from __future__ import annotations
@@ -54,8 +60,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "b957e7e476531f33fd4d4d9120e3f0a7976e320ccf1692a14542f427c07fb082",
-    "paper-two-markers": "5eac711c994665d54c3f9b923006dc457eb1ea9c91467d7dd6f6ee961e060386",
+    "warehouse": "9993470cb0405f862c5f9145596408bcc5da4b0a49457077abe1d52ca02bd8b6",
+    "paper-two-markers": "91e7b23286017160ffff1016e13eaf782afffc271376144ea3e781c64e481242",
 }
 
 
