@@ -22,7 +22,7 @@ the wheel command (:func:`estimators.encoder_phase.phase_advance`) and shrinks b
 ``rho_m = exp(-2 pi^2 m^2 sigma^2)`` for the prediction's uncertainty ``sigma`` [ticks], a fresh
 part of variance ``(1 - rho_m^2)`` keeping it stationary; ``w`` is renewed. So every window's
 count-error variance is right to within twice the white share, ``2 (1/12 - sum_m 1/(2 pi^2 m^2))
-tick^2`` (0.022 for 4 harmonics, 0.065 for one; independent residuals are up to 0.167 off), and
+tick^2`` (0.012 for 8 harmonics, 0.065 for one; independent residuals are up to 0.167 off), and
 with ``sigma`` infinite (no prediction) the model is that of independent residuals of variance
 ``tick^2 / 12``.
 
@@ -47,8 +47,8 @@ from estimators.motion import _arc_terms, _jacobians_into
 from jit import compiled
 
 #: harmonics of the sawtooth carried as phasors per wheel: they hold
-#: ``sum_{m <= M} 6 / (pi^2 m^2)`` of a residual's variance (0.877 for 4), the rest is white
-HARMONICS = 4
+#: ``sum_{m <= M} 6 / (pi^2 m^2)`` of a residual's variance (0.929 for 8), the rest is white
+HARMONICS = 8
 #: entries per wheel: each harmonic's phasor (cos, sin part) [m], then the white rest [m]
 PER_WHEEL = 2 * HARMONICS + 1
 
