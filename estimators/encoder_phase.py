@@ -37,11 +37,14 @@ CMD_LEFT, CMD_RIGHT, STEPS, TICKS_PER_RAD, STEP_TIME, NOW, COUNT_L, COUNT_R, CMD
 HEAD0 = 16
 #: entries of a past read in the ring: step, counted (l, r), commanded (l, r), sum d^2 (l, r)
 ENTRY = 7
-#: history the tracking error is read from [physics steps] (1 s at 240 Hz): long enough for the
-#: count's residuals and the slip to be a small part of it
-WINDOW = 240
-#: past reads kept: a read spans at least one physics step
-RING = WINDOW + 16
+#: history the tracking error is read from [physics steps] (4 s at 240 Hz): long enough for the
+#: count's residuals and the slip to be a small part of it (the count's 1/2 tick is 5e-4 tick per
+#: step; a fix's reads then keep even the 8th harmonic's phase: rho_8 > 0.99)
+WINDOW = 960
+#: the history keeps the first read past every CHECKPOINT physics steps
+CHECKPOINT = 16
+#: checkpoints kept
+RING = WINDOW // CHECKPOINT + 8
 
 
 def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, slip_std: float = 0.0) -> np.ndarray:
@@ -72,7 +75,7 @@ def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, 
 def sigma_per_step(state):
     """Return the std of each wheel's turn per physics step about the commanded rate [ticks] (inf: unknown).
 
-    Over the history since the newest past read at least ``WINDOW`` steps old (else the oldest
+    Over the history since the newest checkpoint at least ``WINDOW`` steps old (else the oldest
     kept; unknown while it spans less than half a window), ``span`` steps: the counted minus the
     commanded turn ``D`` is the tracking error plus the count's residual difference (std at
     most 1/2 tick) plus the slip in the readings (``slip^2 sum d^2``). The tracking error's rate
@@ -163,13 +166,14 @@ def phase_advance(state, d_left, d_right):
     state[SQ_R] += cr * cr
     state[CMD_SUM_L] += turn_l
     state[CMD_SUM_R] += turn_r
-    head = (head + 1) % RING
-    o = HEAD0 + ENTRY * head
-    state[o], state[o + 1], state[o + 2] = state[NOW], state[COUNT_L], state[COUNT_R]
-    state[o + 3], state[o + 4] = state[CMD_SUM_L], state[CMD_SUM_R]
-    state[o + 5], state[o + 6] = state[SQ_L], state[SQ_R]
-    state[HEAD] = head
-    state[FILLED] = min(filled + 1, RING)
+    if math.floor(state[NOW] / CHECKPOINT) > math.floor(now / CHECKPOINT):   # a checkpoint passed
+        head = (head + 1) % RING
+        o = HEAD0 + ENTRY * head
+        state[o], state[o + 1], state[o + 2] = state[NOW], state[COUNT_L], state[COUNT_R]
+        state[o + 3], state[o + 4] = state[CMD_SUM_L], state[CMD_SUM_R]
+        state[o + 5], state[o + 6] = state[SQ_L], state[SQ_R]
+        state[HEAD] = head
+        state[FILLED] = min(filled + 1, RING)
     state[STEPS] = 0.0   # a span is set for each read
     return turn_l, turn_r, sig_l, sig_r
 

@@ -65,16 +65,16 @@ def test_the_phase_predictor_times_the_command_and_bounds_it_by_the_history():
     per_step = rate / 240 * ROBOT.encoder_ticks / (2 * math.pi)  # ticks
     state[encoder_phase.CMD_LEFT] = state[encoder_phase.CMD_RIGHT] = rate
     out = []
-    for k in range(80):                                          # 80 reads of 4 steps: 320 steps
+    for k in range(300):                                         # 300 reads of 4 steps: 1200 steps
         state[encoder_phase.STEPS] = 4
         counted = math.floor((k + 1) * 4 * per_step) - math.floor(k * 4 * per_step)
         out.append(phase_advance(state, counted * TICK, counted * TICK))
     turn_l, turn_r, sig_l, sig_r = out[-1]
     assert turn_l == pytest.approx(4 * per_step) and turn_r == pytest.approx(4 * per_step)
-    # a WINDOW of history, the counted turn within a tick of the commanded one, no slip:
-    # sqrt(D^2 + 1/4) / WINDOW per step with |D| < 1
-    window = encoder_phase.WINDOW
-    assert 4 * 0.5 / window <= sig_l <= 4 * math.sqrt(1.25) / window
+    # a WINDOW of history (to a checkpoint), the counted turn within a tick of the commanded one,
+    # no slip: sqrt(D^2 + 1/4) / span per step with |D| < 1
+    window, checkpoint = encoder_phase.WINDOW, encoder_phase.CHECKPOINT
+    assert 4 * 0.5 / (window + checkpoint) <= sig_l <= 4 * math.sqrt(1.25) / window
     assert math.isinf(out[25][2])                                # 104 steps of history: unknown
     # no span: no prediction, and the history is left alone
     before = state.copy()

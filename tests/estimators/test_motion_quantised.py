@@ -95,7 +95,7 @@ def test_localizer_layout_and_known_start_residuals():
 def _window_variance(f: float, sigma_inf: bool) -> tuple[float, float]:
     """Return the model's variance of a wheel's count error over a read that turns it 44 + f ticks [tick^2].
 
-    The filter (no slip) first dead-reckons 40 such reads of 4 steps, turning on the spot, so the
+    The filter (no slip) first dead-reckons 150 such reads of 4 steps, turning on the spot, so the
     phase predictor has its history and the residual states their stationary spread; then the
     pose is made known (its rows and columns zeroed) and it predicts one more read: the
     heading's variance is then ``(var_l + var_r) / b^2`` of the two wheels' count errors. Also
@@ -107,7 +107,7 @@ def _window_variance(f: float, sigma_inf: bool) -> tuple[float, float]:
     per_read = 44.0 + f                                # ticks per 4-step read, both wheels
     rate = per_read / (4 * dt) / (ROBOT.encoder_ticks / (2 * math.pi))   # rad/s
     loc.set_command(-rate, rate)                       # on the spot: the pose's x, y stay put
-    for _ in range(40):
+    for _ in range(150):
         loc.predict(-per_read * TICK, per_read * TICK, 0.0, 4)
     x, P = loc.state_arrays()
     P[:3, :] = 0.0

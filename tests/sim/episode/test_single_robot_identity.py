@@ -61,8 +61,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "1a7e4eb1871974f605092c61ebee8454b58859dd1a7cc993889676201cc639b6",
-    "paper-two-markers": "75d0d733b93d093c1763e2454f6e0c96a031d317aeeb4b0e858676c76f941921",
+    "warehouse": "48545ef5147ccb83b6c6ccdf11877ad8ad034161417192fb5eae0288b8801c66",
+    "paper-two-markers": "f976c108638d6a05de41c2bf331429af49005d78f3de00dc9a23e29172a2b70a",
 }
 
 
