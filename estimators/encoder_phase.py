@@ -16,12 +16,14 @@ it was over the history before it (``WINDOW`` physics steps, :func:`sigma_per_st
 counted minus the commanded turn is ``D`` ticks, which holds the count's own residual difference
 and the readings' slip besides the tracking, so ``sigma = m sqrt(D^2 + 1/4 + slip part) / span``.
 Measured over the read windows of random-23-016 and random-23-030 (issue 23): the commanded
-rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma. With no
+rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma, but its
+tails (1-5 um of travel at the 99th percentile) are not, on fine encoders: random-23-030 is
+overconfident with this sigma (``docs/design.md`` §6, open). With no
 span (``STEPS`` 0: a filter used outside an episode) or too short a history, ``sigma`` is
 infinite: the residuals are independent from read to read, the model before this one.
 
 State (float64, shape ``(HEAD0 + ENTRY * RING,)``, :func:`new_state`): the command, the read's
-span, constants, running sums [ticks] and a ring of past reads (``ENTRY`` running sums each).
+span, constants, running sums [ticks] and a ring of checkpoints (``ENTRY`` running sums each).
 """
 
 from __future__ import annotations
