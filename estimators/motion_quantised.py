@@ -165,23 +165,29 @@ def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var
             x[o] = rho[w, m] * (co[w, m] * pc - si[w, m] * ps)
             x[o + 1] = rho[w, m] * (si[w, m] * pc + co[w, m] * ps)
         x[b + 2 * M] = 0.0
-    # A is sparse (the blocks rotate, the pose mixes): skip its zeros in A P A^T.
+    # A is sparse (the pose rows mix everything, the phasor blocks rotate, the white rows are
+    # zero): list each row's nonzero columns once, so A P A^T costs O(nnz n), not O(n^3).
+    cols = np.empty((n, n), dtype=np.int64)
+    ncol = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        for m in range(n):
+            if A[i, m] != 0.0:
+                cols[i, ncol[i]] = m
+                ncol[i] += 1
     AP = np.empty((n, n))
     for i in range(n):
         for j in range(n):
             v = 0.0
-            for m in range(n):
-                a = A[i, m]
-                if a != 0.0:
-                    v += a * P[m, j]
+            for c in range(ncol[i]):
+                m = cols[i, c]
+                v += A[i, m] * P[m, j]
             AP[i, j] = v
     for i in range(n):
         for j in range(i, n):
             v = 0.0
-            for m in range(n):
-                a = A[j, m]
-                if a != 0.0:
-                    v += AP[i, m] * a
+            for c in range(ncol[j]):
+                m = cols[j, c]
+                v += AP[i, m] * A[j, m]
             # Writing one triangle into both keeps P exactly symmetric over thousands of steps.
             P[i, j] = v
             P[j, i] = v

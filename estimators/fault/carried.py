@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from estimators.encoder_phase import count_error_var
 from estimators.fault.annuli import _OK, _region
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION, FaultArea, _input_summary, exact_fault_area
 from jit import compiled
@@ -398,8 +399,6 @@ def count_cov(robot: RobotSpec, turns, steps, sigma_per_step) -> np.ndarray:
     -------
     numpy.ndarray, shape (k, k, 2)
     """
-    from estimators.encoder_phase import count_error_var
-
     t = np.asarray(turns, dtype=float)
     st = np.asarray(steps, dtype=float)
     sig = np.asarray(sigma_per_step, dtype=float)
