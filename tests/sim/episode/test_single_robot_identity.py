@@ -46,6 +46,11 @@ their first 8 harmonics, turned at each read by the wheels' commanded turn
 with the count errors of their fractional turns (``estimators.fault.carried.count_cov``): the
 estimate, its covariance and the snapshot moved, and with them every column. (The scalar
 update's Joseph form is expanded to O(n^2) for the larger state, equal in exact arithmetic.)
+
+Issue 23 (random-23-029 and -030 overconfident): the phase predictor adds the velocity loop's
+steady offset, read from the history, to the commanded turn, and widens each read's sigma by the
+loop's lag after a command change and the rate's wander (``sim.physics.robot.RATE_DIFFUSION``):
+the phasors, the estimate and the snapshot moved, and with them every column.
 """
 
 from __future__ import annotations
@@ -61,8 +66,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "48545ef5147ccb83b6c6ccdf11877ad8ad034161417192fb5eae0288b8801c66",
-    "paper-two-markers": "f976c108638d6a05de41c2bf331429af49005d78f3de00dc9a23e29172a2b70a",
+    "warehouse": "f4384f6e0d720dcf3f7b0bcd8643ab31c0dc2df1fd23aa5885a81422a6a9971c",
+    "paper-two-markers": "e4c74da31040c4251a6de263c295787d30e03d4c6cad2a3c22d30e3985b032bf",
 }
 
 
