@@ -118,6 +118,25 @@ def test_the_phase_predictor_learns_the_motors_steady_offset_from_the_history():
     np.testing.assert_array_equal(state, before)
 
 
+def test_an_offset_the_slip_swamps_is_not_taken():
+    # The same wheels, but readings that slip 5 % per read: over the history the slip's
+    # std (sqrt(slip^2 sum d^2), ~12 ticks) dwarfs the offset's 1.5 ticks, so D / span would be
+    # mostly slip, persistent from read to read. The predictor keeps the commanded turn and
+    # counts |D| in the spread: sqrt(D^2 + noise) / span per step.
+    window = encoder_phase.WINDOW
+    rate, offset = 3.0, 1.6e-3
+    per_step = rate / 240 * ROBOT.encoder_ticks / (2 * math.pi)
+    state = new_state(ROBOT.encoder_ticks, ROBOT.wheel_radius, 1 / 240, slip_std=0.05)
+    state[encoder_phase.CMD_LEFT] = state[encoder_phase.CMD_RIGHT] = rate
+    turn_l, _, sig_l, _ = _steady_reads(state, per_step, offset, 300)[-1]
+    assert turn_l == pytest.approx(4 * per_step)
+    assert sig_l > 4 * 10.0 / (window + encoder_phase.CHECKPOINT)   # the slip's ~12 ticks, at least 10
+    # negative control: without the slip the offset is taken (the test above)
+    clean = new_state(ROBOT.encoder_ticks, ROBOT.wheel_radius, 1 / 240)
+    clean[encoder_phase.CMD_LEFT] = clean[encoder_phase.CMD_RIGHT] = rate
+    assert abs(_steady_reads(clean, per_step, offset, 300)[-1][0] - 4 * per_step) > 4 / window
+
+
 def test_a_command_change_and_the_rate_wander_widen_the_reads_sigma():
     # A read right after the command steps from 3 to 3.5 rad/s: the loop keeps between none and
     # all of one step of the change, mean square a third of it; the wander adds
