@@ -12,7 +12,8 @@ fraction of a tick, without the count it is modelling the error of.
 The prediction: the wheel turns at its commanded rate plus the velocity loop's steady offset
 over the read's span of ``m`` physics steps, ``T = (omega_cmd a + D / span) m`` ticks, with
 ``a = step_time ticks_per_rev / (2 pi)`` and ``D`` the counted minus the commanded turn over the
-history (``WINDOW`` physics steps, :func:`tracking`). Bullet's wheels, measured (issue 23),
+history (``WINDOW`` physics steps, :func:`tracking`), taken where it stands out of its noise
+(else 0, with ``|D|`` in the spread). Bullet's wheels, measured (issue 23),
 turn 3e-4 to 9e-4 rad/s short of their command under load, steadily; their rate wanders about
 that by 5e-5 to 1e-4 of the command, correlated over 40-150 steps; after a command change the
 first step keeps ~0.1 of the change. The read's ``sigma`` holds what that prediction does not
