@@ -5,6 +5,13 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
+
+# The fast tier runs one xdist worker per core; OpenBLAS's own threads (one per core in each
+# worker) then oversubscribe the cores and spin: a 400k x 38 sample covariance took 12 s instead of
+# 0.5 (tests/estimators/test_motion_quantised.py). One BLAS thread per worker. Set before any test
+# module imports numpy, which reads it once.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pytest
 
