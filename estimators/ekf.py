@@ -133,16 +133,13 @@ class Localizer:
     step_time : float, optional
         The physics step [s] that reads' spans count (:meth:`predict`'s ``steps``); without it
         the encoder phases are not predicted.
-    rate_diffusion : float
-        The wheels' velocity-loop rate wander (:func:`estimators.encoder_phase.new_state`) [-];
-        used with ``step_time``.
     """
 
     def __init__(self, robot: RobotSpec, sensor: SensorSpec, markers, x0, P0,
                  gate_probability: float | None = 0.999, q_scale: float = 1.0,
                  include_systematic: bool = False, estimate_wheel_bias: bool = False,
                  bias_walk_std: float = 0.0, encoder_residual_state: bool = False, residual0=None,
-                 step_time: float | None = None, rate_diffusion: float = 0.0):
+                 step_time: float | None = None):
         # filterpy imports all its subpackages (~1 s): only pay for it when a filter is built.
         from filterpy.kalman import ExtendedKalmanFilter
 
@@ -219,7 +216,7 @@ class Localizer:
                                         robot.turn_slip])
         #: the encoder phase predictor's state (:mod:`estimators.encoder_phase`)
         self.phase = encoder_phase.new_state(robot.encoder_ticks, robot.wheel_radius, step_time,
-                                             robot.odometry_noise, rate_diffusion)
+                                             robot.odometry_noise)
         # Measurement Jacobian at the current state, filled before each update; the wheel-error
         # and residual columns (if any) stay 0.
         self._H = np.zeros((1, dim))

@@ -9,33 +9,21 @@ variance is ``sum_m 2 (1 - cos(2 pi m f) exp(-2 pi^2 m^2 sigma^2)) / (2 pi^2 m^2
 ~0.005 ticks: the filter must know ``f``, so it must know how far each wheel turned, to a
 fraction of a tick, without the count it is modelling the error of.
 
-The prediction: the wheel turns at its commanded rate plus the velocity loop's steady offset
-over the read's span of ``m`` physics steps, ``T = (omega_cmd a + D / span) m`` ticks, with
-``a = step_time ticks_per_rev / (2 pi)`` and ``D`` the counted minus the commanded turn over the
-history (``WINDOW`` physics steps, :func:`tracking`), taken where it stands out of its noise
-(else 0, with ``|D|`` in the spread). Bullet's wheels, measured (issue 23),
-turn 3e-4 to 9e-4 rad/s short of their command under load, steadily; their rate wanders about
-that by 5e-5 to 1e-4 of the command, correlated over 40-150 steps; after a command change the
-first step keeps ~0.1 of the change. The read's ``sigma`` holds what that prediction does not
-know:
-
-- the offset's own error (the count residuals at the history's ends, the readings' slip, the
-  turn the loop lost to the history's command change), times ``m`` (:func:`tracking`);
-- the loop's lag after this read's command change ``dw``: ``lambda`` in ``[0, 1]`` of one step
-  of it, uniform, mean square ``(a dw)^2 / 3``;
-- the rate's wander, a random walk: ``rate_diffusion (omega_cmd a)^2 m``
-  (``sim.physics.robot.RATE_DIFFUSION`` for the simulated motors).
-
-The last two are summed per wheel (``LOOSE_L``/``LOOSE_R``) for the snapshot's windows
-(:func:`estimators.fault.carried.count_cov`). With the commanded rate alone and the history's
-``|D|`` as a spread instead (the model before this one), random-23-029 was overconfident (NEES
-3.85: each read's phase fell 0.006 tick behind, coherently) and random-23-030 too (3.22). With no
+The prediction: the wheel turns at its commanded rate over the read's span,
+``T = omega_cmd * m * step_time * ticks_per_rev / (2 pi)`` ticks for a read spanning ``m``
+physics steps. Its uncertainty assumes the wheel's tracking error per step over the read is what
+it was over the history before it (``WINDOW`` physics steps, :func:`sigma_per_step`): there the
+counted minus the commanded turn is ``D`` ticks, which holds the count's own residual difference
+and the readings' slip besides the tracking, so ``sigma = m sqrt(D^2 + 1/4 + slip part) / span``.
+Measured over the read windows of random-23-016 and random-23-030 (issue 23): the commanded
+rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma, but its
+tails (1-5 um of travel at the 99th percentile) are not, on fine encoders: random-23-030 is
+overconfident with this sigma (``docs/design.md`` §6, open). With no
 span (``STEPS`` 0: a filter used outside an episode) or too short a history, ``sigma`` is
-infinite: the residuals are independent from read to read.
+infinite: the residuals are independent from read to read, the model before this one.
 
-State (float64, shape ``(HEAD0 + ENTRY * RING,)``, :func:`new_state`): the command and the one
-before, the read's span, constants, running sums [ticks, tick^2] and a ring of checkpoints
-(``ENTRY`` entries each).
+State (float64, shape ``(HEAD0 + ENTRY * RING,)``, :func:`new_state`): the command, the read's
+span, constants, running sums [ticks] and a ring of checkpoints (``ENTRY`` running sums each).
 """
 
 from __future__ import annotations
@@ -47,11 +35,10 @@ import numpy as np
 from jit import compiled
 
 CMD_LEFT, CMD_RIGHT, STEPS, TICKS_PER_RAD, STEP_TIME, NOW, COUNT_L, COUNT_R, CMD_SUM_L, CMD_SUM_R, \
-    TICK, HEAD, FILLED, SLIP_VAR, SQ_L, SQ_R, PREV_LEFT, PREV_RIGHT, LOOSE_L, LOOSE_R, DIFFUSION = range(21)
-HEAD0 = 21
-#: entries of a past read in the ring: step, counted (l, r), commanded (l, r), sum d^2 (l, r),
-#: the read's commanded rate (l, r)
-ENTRY = 9
+    TICK, HEAD, FILLED, SLIP_VAR, SQ_L, SQ_R = range(16)
+HEAD0 = 16
+#: entries of a past read in the ring: step, counted (l, r), commanded (l, r), sum d^2 (l, r)
+ENTRY = 7
 #: history the tracking error is read from [physics steps] (4 s at 240 Hz): long enough for the
 #: count's residuals and the slip to be a small part of it (the count's 1/2 tick is 5e-4 tick per
 #: step; a fix's reads then keep even the 8th harmonic's phase: rho_8 > 0.99)
@@ -62,8 +49,7 @@ CHECKPOINT = 16
 RING = WINDOW // CHECKPOINT + 8
 
 
-def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, slip_std: float = 0.0,
-              rate_diffusion: float = 0.0) -> np.ndarray:
+def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, slip_std: float = 0.0) -> np.ndarray:
     """Return a phase state for wheels of ``encoder_ticks`` per revolution.
 
     Parameters
@@ -77,14 +63,9 @@ def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, 
     slip_std : float
         The floor's random slip per unit of a read's travel [-] (``RobotSpec.odometry_noise``):
         it is in the counted travel the tracking error is read from.
-    rate_diffusion : float
-        The velocity loop's rate wander about its steady offset, as the growth per physics step of
-        the variance of the turn relative to the commanded turn [-]: a read's turn about the
-        history's rate has variance ``rate_diffusion (commanded turn per step)^2`` per step.
     """
     s = np.zeros(HEAD0 + ENTRY * RING)
     s[SLIP_VAR] = slip_std * slip_std
-    s[DIFFUSION] = rate_diffusion
     s[TICKS_PER_RAD] = encoder_ticks / (2.0 * math.pi)
     s[STEP_TIME] = 0.0 if step_time is None else float(step_time)
     s[TICK] = 2.0 * math.pi * wheel_radius / encoder_ticks
@@ -93,28 +74,14 @@ def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, 
 
 
 @compiled.njit(cache=True)
-def tracking(state):
-    """Each wheel's turn per physics step about the commanded rate, and its std [ticks] (std inf: unknown).
+def sigma_per_step(state):
+    """Return the std of each wheel's turn per physics step about the commanded rate [ticks] (inf: unknown).
 
     Over the history since the newest checkpoint at least ``WINDOW`` steps old (else the oldest
-    kept; unknown while it spans less than half a window), ``span`` steps, the counted minus the
-    commanded turn ``D`` is the wheel's steady tracking error (a rate: the velocity loop's offset
-    under load, 1.6e-3 tick per step on random-23-029's wheels, the same to 1 % at every step)
-    plus three errors taken as its uncertainty:
-
-    - the count's residual difference at the history's ends (std at most 1/2 tick);
-    - the slip in the readings (``slip^2 sum d^2``);
-    - the turn the velocity loop lost to the history's command change ``dW`` (the rate at its
-      end minus the rate at its start, as turn per step: ``a = ticks_per_rad * step_time``):
-      after a change the wheel lags the integral of its command by a part ``lambda`` in
-      ``[0, 1]`` of one step of the change (0.10 in Bullet's solver, measured on
-      random-23-030), uniform: mean square ``(a dW)^2 / 3``.
-
-    Returns
-    -------
-    rate_left, rate_right, std_left, std_right : float
-        ``D / span`` and ``sqrt((a dW)^2 / 3 + 1/4 + slip^2 sum d^2) / span`` [ticks per step]
-        where ``|D|`` exceeds twice that noise; else 0 and ``sqrt(D^2 + noise) / span``.
+    kept; unknown while it spans less than half a window), ``span`` steps: the counted minus the
+    commanded turn ``D`` is the tracking error plus the count's residual difference (std at
+    most 1/2 tick) plus the slip in the readings (``slip^2 sum d^2``). The tracking error's rate
+    is taken as ``D / span`` give or take those: ``sqrt(D^2 + 1/4 + slip^2 sum d^2) / span``.
     """
     now, head, filled = state[NOW], int(state[HEAD]), int(state[FILLED])
     j = head
@@ -125,30 +92,13 @@ def tracking(state):
     o = HEAD0 + ENTRY * j
     span = now - state[o]
     if span < 0.5 * WINDOW:
-        return 0.0, 0.0, math.inf, math.inf
+        return math.inf, math.inf
     dev_l = (state[COUNT_L] - state[o + 1]) - (state[CMD_SUM_L] - state[o + 3])
     dev_r = (state[COUNT_R] - state[o + 2]) - (state[CMD_SUM_R] - state[o + 4])
     slip_l = state[SLIP_VAR] * (state[SQ_L] - state[o + 5])
     slip_r = state[SLIP_VAR] * (state[SQ_R] - state[o + 6])
-    a = state[TICKS_PER_RAD] * state[STEP_TIME]
-    lost_l = a * (state[PREV_LEFT] - state[o + 7])
-    lost_r = a * (state[PREV_RIGHT] - state[o + 8])
-    noise_l = lost_l * lost_l / 3.0 + 0.25 + slip_l
-    noise_r = lost_r * lost_r / 3.0 + 0.25 + slip_r
-    # A rate error persists from read to read: the phase error it leaves grows with the number
-    # of reads, which the phasors' per-read forgetting cannot follow. So the offset is taken
-    # only where it stands out of its own noise, at two standard deviations (random-23-029: 1.5
-    # ticks over the history against 0.5); where the readings' slip swamps it (random-23-016:
-    # 1.3 ticks of slip against an offset of 0.1), correcting by D / span would turn the slip
-    # into a persistent error of that size (NEES 3.47 over 24 runs, 2.97 with the gate), and
-    # |D| counts as the spread instead, as before the offset was taken.
-    take_l = dev_l * dev_l > 4.0 * noise_l
-    take_r = dev_r * dev_r > 4.0 * noise_r
-    rest_l = 0.0 if take_l else dev_l
-    rest_r = 0.0 if take_r else dev_r
-    return (dev_l / span if take_l else 0.0, dev_r / span if take_r else 0.0,
-            math.sqrt(rest_l * rest_l + noise_l) / span,
-            math.sqrt(rest_r * rest_r + noise_r) / span)
+    return (math.sqrt(dev_l * dev_l + 0.25 + slip_l) / span,
+            math.sqrt(dev_r * dev_r + 0.25 + slip_r) / span)
 
 
 def count_error_var(turn, sigma) -> np.ndarray:
@@ -203,25 +153,12 @@ def phase_advance(state, d_left, d_right):
         Predicted turn [ticks] and its standard deviation [ticks] (inf: unknown).
     """
     m = state[STEPS]
-    a = state[TICKS_PER_RAD] * state[STEP_TIME]
-    if not (m > 0.0 and a > 0.0):
-        state[PREV_LEFT], state[PREV_RIGHT] = state[CMD_LEFT], state[CMD_RIGHT]
+    if not (m > 0.0 and state[STEP_TIME] > 0.0):
         return 0.0, 0.0, math.inf, math.inf
-    rate_l, rate_r, per_l, per_r = tracking(state)
-    cmd_l, cmd_r = state[CMD_LEFT] * a, state[CMD_RIGHT] * a   # commanded turn per step [ticks]
-    # what the history does not predict: the velocity loop's lag after this read's command change
-    # (tracking(): lambda in [0, 1], mean square a third of one step of the change) and the
-    # rate's wander over the read
-    step_l = cmd_l - state[PREV_LEFT] * a
-    step_r = cmd_r - state[PREV_RIGHT] * a
-    state[PREV_LEFT], state[PREV_RIGHT] = state[CMD_LEFT], state[CMD_RIGHT]
-    loose_l = step_l * step_l / 3.0 + state[DIFFUSION] * cmd_l * cmd_l * m
-    loose_r = step_r * step_r / 3.0 + state[DIFFUSION] * cmd_r * cmd_r * m
-    state[LOOSE_L] += loose_l
-    state[LOOSE_R] += loose_r
-    turn_l, turn_r = (cmd_l + rate_l) * m, (cmd_r + rate_r) * m
-    sig_l = math.sqrt((m * per_l) ** 2 + loose_l)
-    sig_r = math.sqrt((m * per_r) ** 2 + loose_r)
+    k = state[TICKS_PER_RAD] * state[STEP_TIME] * m
+    turn_l, turn_r = state[CMD_LEFT] * k, state[CMD_RIGHT] * k
+    per_l, per_r = sigma_per_step(state)
+    sig_l, sig_r = m * per_l, m * per_r
     now, head, filled = state[NOW], int(state[HEAD]), int(state[FILLED])
     state[NOW] = now + m
     cl, cr = d_left / state[TICK], d_right / state[TICK]
@@ -229,15 +166,14 @@ def phase_advance(state, d_left, d_right):
     state[COUNT_R] += cr
     state[SQ_L] += cl * cl
     state[SQ_R] += cr * cr
-    state[CMD_SUM_L] += cmd_l * m
-    state[CMD_SUM_R] += cmd_r * m
+    state[CMD_SUM_L] += turn_l
+    state[CMD_SUM_R] += turn_r
     if math.floor(state[NOW] / CHECKPOINT) > math.floor(now / CHECKPOINT):   # a checkpoint passed
         head = (head + 1) % RING
         o = HEAD0 + ENTRY * head
         state[o], state[o + 1], state[o + 2] = state[NOW], state[COUNT_L], state[COUNT_R]
         state[o + 3], state[o + 4] = state[CMD_SUM_L], state[CMD_SUM_R]
         state[o + 5], state[o + 6] = state[SQ_L], state[SQ_R]
-        state[o + 7], state[o + 8] = state[CMD_LEFT], state[CMD_RIGHT]
         state[HEAD] = head
         state[FILLED] = min(filled + 1, RING)
     state[STEPS] = 0.0   # a span is set for each read

@@ -371,7 +371,7 @@ def turn_cov(robot: RobotSpec, travelled, turned, reads=None, slip_weight=None, 
     return out
 
 
-def count_cov(robot: RobotSpec, turns, steps, sigma_per_step, loose_var=None) -> np.ndarray:
+def count_cov(robot: RobotSpec, turns, steps, sigma_per_step) -> np.ndarray:
     """Each wheel's covariance of a fix's shifts' count errors, coherent across runs [m^2].
 
     Shift i runs from measurement i to the fix's end E; its count error is the difference of
@@ -393,11 +393,7 @@ def count_cov(robot: RobotSpec, turns, steps, sigma_per_step, loose_var=None) ->
         The physics step of each (any origin).
     sigma_per_step : array_like, shape (2,)
         Each wheel's turn uncertainty per physics step [ticks]
-        (:func:`estimators.encoder_phase.tracking`; inf: unknown).
-    loose_var : array_like, shape (k + 1, 2), optional
-        Each wheel's running sum, up to each row, of the reads' turn variance the history's rate
-        does not predict [tick^2] (``estimators.encoder_phase.LOOSE_L``/``LOOSE_R``, any origin:
-        the velocity loop's lag after command changes and its rate wander); default none.
+        (:func:`estimators.encoder_phase.sigma_per_step`; inf: unknown).
 
     Returns
     -------
@@ -406,12 +402,11 @@ def count_cov(robot: RobotSpec, turns, steps, sigma_per_step, loose_var=None) ->
     t = np.asarray(turns, dtype=float)
     st = np.asarray(steps, dtype=float)
     sig = np.asarray(sigma_per_step, dtype=float)
-    chg = np.zeros_like(t) if loose_var is None else np.asarray(loose_var, dtype=float)
     # V between every two rows, per wheel: (k + 1, k + 1, 2); the same read: no window, no error
     dt = t[None, :, :] - t[:, None, :]
     span = np.abs(st[None, :] - st[:, None])[..., None]
     with np.errstate(invalid="ignore"):   # 0 steps times an unknown (inf) rate: no window
-        ds = np.where(span == 0.0, 0.0, np.sqrt((span * sig) ** 2 + np.abs(chg[None, :, :] - chg[:, None, :])))
+        ds = np.where(span == 0.0, 0.0, span * sig)
     V = np.where(span == 0.0, 0.0, count_error_var(dt, ds))
     end = V[:-1, -1, :]                                      # V(i, E)
     out = 0.5 * (end[:, None, :] + end[None, :, :] - V[:-1, :-1, :])

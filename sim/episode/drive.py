@@ -158,8 +158,7 @@ def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float
 
     The pose with the relative wheel-radius error and both encoders' quantisation residuals in
     the state (:mod:`estimators.ekf`); the encoders are zeroed at ``wheel_angles``, so the
-    residuals there are known exactly. The filter knows the simulated motors' rate wander
-    (:data:`sim.physics.robot.RATE_DIFFUSION`); it times the reads when ``step_time`` is given.
+    residuals there are known exactly.
 
     Parameters
     ----------
@@ -181,10 +180,8 @@ def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float
     """
     from estimators.ekf import Localizer
     from sim.physics.odometry import centred_residual
-    from sim.physics.robot import RATE_DIFFUSION
 
-    kw = {"q_scale": q_scale, "estimate_wheel_bias": True, "encoder_residual_state": True,
-          "rate_diffusion": RATE_DIFFUSION, **overrides}
+    kw = {"q_scale": q_scale, "estimate_wheel_bias": True, "encoder_residual_state": True, **overrides}
     if kw["encoder_residual_state"] and "residual0" not in kw:
         kw["residual0"] = [centred_residual(float(a), scenario.robot) for a in wheel_angles]
     return Localizer(scenario.robot, scenario.sensor, scenario.marker_positions(), pose, P0, **kw)

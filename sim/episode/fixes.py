@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from estimators import encoder_phase
-from estimators.encoder_phase import tracking
+from estimators.encoder_phase import sigma_per_step
 from estimators.fault.carried import (
     carry,
     count_cov,
@@ -51,13 +51,10 @@ class _Pending:
     reads_at: list[int | None] = field(default_factory=list)
     weight_at: list[float | None] = field(default_factory=list)
     paths_at: list[tuple[float, float] | None] = field(default_factory=list)
-    # the filter's clock (physics steps), each wheel's commanded turn [ticks] and running sum of
-    # the reads' turn variance the history does not predict [tick^2] (estimators.encoder_phase)
-    # at each measurement
-    phase_at: list[tuple[float, float, float, float, float]] = field(default_factory=list)
-    # each wheel's turn per physics step about the commanded rate and its std at the fix's end
-    # [ticks] (estimators.encoder_phase.tracking)
-    phase_tracking: tuple[float, float, float, float] = (0.0, 0.0, math.inf, math.inf)
+    # the filter's clock (physics steps) and each wheel's commanded turn [ticks] at each measurement
+    phase_at: list[tuple[float, float, float]] = field(default_factory=list)
+    # each wheel's commanded-turn uncertainty per physics step at the fix's end [ticks]
+    phase_sigma: tuple[float, float] = (math.inf, math.inf)
     # the filter's heading, its variance and the dead-reckoned heading before the fix's first update
     heading0: tuple[float, float, float] | None = None
     nis: float = 0.0
@@ -220,14 +217,13 @@ class FixRecorder:
         # ~40 small numpy calls cost 3-4 times what they cost in one loop (a fifth of an
         # episode's non-physics time). Nothing in the episode reads them.
         p.phase_at.append(self._phase_mark())
-        p.phase_tracking = tracking(self.loc.phase)
+        p.phase_sigma = sigma_per_step(self.loc.phase)
         self._finished.append((p, tuple(map(float, dr_end)), tuple(true_pose), t, reads, self.loc.x,
                                self.loc.heading_var, slip_weight, wheel_paths))
 
-    def _phase_mark(self) -> tuple[float, float, float, float, float]:
+    def _phase_mark(self) -> tuple[float, float, float]:
         ph = self.loc.phase
-        return (float(ph[encoder_phase.NOW]), float(ph[encoder_phase.CMD_SUM_L]), float(ph[encoder_phase.CMD_SUM_R]),
-                float(ph[encoder_phase.LOOSE_L]), float(ph[encoder_phase.LOOSE_R]))
+        return float(ph[encoder_phase.NOW]), float(ph[encoder_phase.CMD_SUM_L]), float(ph[encoder_phase.CMD_SUM_R])
 
     def _complete(self, p: _Pending, dr_end: tuple, true_pose: tuple, t: float, reads: int | None,
                   x_est: np.ndarray, heading_var_now: float, slip_weight: float | None = None,
@@ -272,8 +268,7 @@ class FixRecorder:
         # the count errors of the shifts: coherent across runs where the commanded turn is known
         # (a filter that does not count physics steps knows no turn: independent residuals)
         marks = np.array(p.phase_at)
-        rate = np.array(p.phase_tracking)
-        counts = (count_cov(self.robot, marks[:, 1:3] + marks[:, :1] * rate[:2], marks[:, 0], rate[2:], marks[:, 3:5])
+        counts = (count_cov(self.robot, marks[:, 1:], marks[:, 0], p.phase_sigma)
                   if self.loc.phase[encoder_phase.STEP_TIME] > 0.0 else None)
         # every range but one taken at the fix time is carried (unchanged encoders included)
         carried = np.array(p.slots) < p.attempted - 1

@@ -22,21 +22,6 @@ from scenarios.schema import RobotSpec
 from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced
 
-RATE_DIFFUSION = 1.2e-7
-"""The wheels' rate wander under Bullet's velocity motor, as a diffusion [-]: the variance of a
-wheel's turn about its commanded turn (less the steady offset) grows by this times the square of
-the commanded turn per physics step, per physics step.
-
-Below a tick, a wheel does not turn at its commanded rate: the motor's velocity constraint leaves
-an offset under load (3e-4 to 9e-4 rad/s), and around it the rate wanders by 5e-5 to 1e-4 of the
-command with a correlation time of 40-150 steps. The wander's variogram, the variance of the
-summed relative rate error over L steps divided by L, was measured over one episode each on
-warehouse, corridor-gaussian, hall, paper-docks and random-23-005, -016, -029, -030 (issue 23):
-its maximum over L = 16-960 steps lies in 4.5e-8 - 2.0e-7 for each wheel, median 1.15e-7. The
-encoder phase predictor (:mod:`estimators.encoder_phase`) needs it: its phasors must forget the
-phase as fast as the wheel wanders from the predicted turn.
-"""
-
 _CASTER_MASS_FRACTION = 0.01   # casters are light plastic balls; a share of the chassis mass [-]
 _WHEEL_GAP = 0.01              # clearance between chassis side and wheel [m]
 _FRONT_LOAD = 0.1              # share of the chassis weight the front caster carries [-]

@@ -10,7 +10,7 @@ import pytest
 
 from estimators import motion
 from estimators.ekf import Localizer
-from estimators.encoder_phase import tracking
+from estimators.encoder_phase import sigma_per_step
 from estimators.motion_quantised import HARMONICS, PER_WHEEL, WHITE_SHARE, harmonic_share, propagate_moments_quantised
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
@@ -112,7 +112,7 @@ def _window_variance(f: float, sigma_inf: bool) -> tuple[float, float]:
     x, P = loc.state_arrays()
     P[:3, :] = 0.0
     P[:, :3] = 0.0
-    sigma = 4 * tracking(loc.phase)[2]
+    sigma = 4 * sigma_per_step(loc.phase)[0]
     loc.predict(-per_read * TICK, per_read * TICK, 0.0, None if sigma_inf else 4)
     return loc.P[2, 2] * ROBOT.wheel_base**2 / 2 / TICK**2, sigma
 

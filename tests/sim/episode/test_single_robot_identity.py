@@ -46,12 +46,6 @@ their first 8 harmonics, turned at each read by the wheels' commanded turn
 with the count errors of their fractional turns (``estimators.fault.carried.count_cov``): the
 estimate, its covariance and the snapshot moved, and with them every column. (The scalar
 update's Joseph form is expanded to O(n^2) for the larger state, equal in exact arithmetic.)
-
-Issue 23 (random-23-029 and -030 overconfident): the phase predictor adds the velocity loop's
-steady offset, read from the history, to the commanded turn, and widens each read's sigma by the
-loop's lag after a command change and the rate's wander (``sim.physics.robot.RATE_DIFFUSION``):
-the phasors, the estimate and the snapshot moved, and with them every column. Then the offset is
-taken only where it stands out of its noise (random-23-016's slip): moved again.
 """
 
 from __future__ import annotations
@@ -67,8 +61,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "f6e7c50fe7cb3227e5dee07afae90540b17b968d23aafc53a2346d445858aa4e",
-    "paper-two-markers": "30fef11f2da1379cb8fbf8e3ef42989bcb59237b205e36f992f4fb25cd6e2d18",
+    "warehouse": "48545ef5147ccb83b6c6ccdf11877ad8ad034161417192fb5eae0288b8801c66",
+    "paper-two-markers": "f976c108638d6a05de41c2bf331429af49005d78f3de00dc9a23e29172a2b70a",
 }
 
 
