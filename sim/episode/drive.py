@@ -153,12 +153,13 @@ def run_episode(scenario: Scenario, task_index: int = 0, seed: int | np.random.S
             world.close()
 
 
-def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float = 1.0, **overrides):
+def episode_localizer(scenario: Scenario, pose, P0, q_scale: float = 1.0, **overrides):
     """Build the filter an episode runs, on the declared robot and sensor.
 
     The pose with the relative wheel-radius error and both encoders' quantisation residuals in
-    the state (:mod:`estimators.ekf`); the encoders are zeroed at ``wheel_angles``, so the
-    residuals there are known exactly.
+    the state (:mod:`estimators.ekf`). The residuals start unknown, uniform over a tick: an
+    incremental encoder counts from wherever its wheel stands, and cannot say where that is
+    within a tick (the episode draws it per run, :func:`encoder_phases`).
 
     Parameters
     ----------
@@ -167,8 +168,6 @@ def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float
         Start estimate (x [m], y [m], theta [rad]).
     P0 : array_like, shape (3, 3)
         Its covariance.
-    wheel_angles : array_like, shape (2,)
-        Wheel angles (left, right) where the odometry starts counting [rad].
     q_scale : float
         Multiplies the process noise (1 = the declared model; negative controls).
     **overrides
@@ -179,12 +178,21 @@ def episode_localizer(scenario: Scenario, pose, P0, wheel_angles, q_scale: float
     estimators.ekf.Localizer
     """
     from estimators.ekf import Localizer
-    from sim.physics.odometry import centred_residual
 
     kw = {"q_scale": q_scale, "estimate_wheel_bias": True, "encoder_residual_state": True, **overrides}
-    if kw["encoder_residual_state"] and "residual0" not in kw:
-        kw["residual0"] = [centred_residual(float(a), scenario.robot) for a in wheel_angles]
     return Localizer(scenario.robot, scenario.sensor, scenario.marker_positions(), pose, P0, **kw)
+
+
+def encoder_phases(rng: np.random.Generator) -> np.ndarray:
+    """Draw where each encoder's tick edges sit on its wheel at a run's start, shape (2,) [ticks].
+
+    Uniform in ``[0, 1)``, left then right (:class:`sim.physics.odometry.WheelOdometry`'s
+    ``phase``). A fleet's missions start with the wheels wherever they stopped; the same
+    sub-tick phase in every run of a sweep would make the encoders' count errors, which the
+    filter treats as random, the same in every run, and the N-run tests, which average
+    independent runs, would see them as a bias.
+    """
+    return rng.uniform(0.0, 1.0, 2)
 
 
 def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> EpisodeResult:
@@ -201,6 +209,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
 
     P0 = np.diag([START_POS_STD**2, START_POS_STD**2, START_YAW_STD**2])
     true_start = np.array(dock.pose) + rng_start.multivariate_normal(np.zeros(3), P0)
+    phase = encoder_phases(rng_start)
     world.reset(true_start)
     laser = LaserSensor(world, scenario.sensor_actual, scenario.marker_positions(), scenario.marker_normals())
     n_visible = int(laser.visible_all().sum())
@@ -210,13 +219,12 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
             f"at {list(dock.position)}, a fix needs {k}")
 
     angles0 = world.robot.wheel_angles()
-    loc = episode_localizer(scenario, np.array(dock.pose), P0, angles0, q_scale=q_scale,
-                            step_time=world.config.time_step)
+    loc = episode_localizer(scenario, np.array(dock.pose), P0, q_scale=q_scale, step_time=world.config.time_step)
     # The simulated floor's random slip, per unit of travel, goes into the odometry readings
     # (bounded in a bounded-noise world); the odometry's dead reckoning carries the ranges of a
     # fix to its end (FixRecorder).
     odo = WheelOdometry(robot, angles0, np.array(dock.pose), slip_std=actual.odometry_noise, rng=rng_odo,
-                        bounded=scenario.sensor_actual.noise is NoiseModel.UNIFORM)
+                        bounded=scenario.sensor_actual.noise is NoiseModel.UNIFORM, phase=phase)
     fixes = FixRecorder(scenario, pef, laser, loc, rng_laser)
     q_block, n_markers = scenario.sensor_actual.block_probability, len(scenario.markers)
     follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,

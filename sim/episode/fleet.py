@@ -50,6 +50,7 @@ from sim.episode.drive import (
     _streams,
     _summary,
     check_markers,
+    encoder_phases,
     episode_localizer,
     seed_sequence,
 )
@@ -159,6 +160,7 @@ class _Robot:
         dock = scenario.dock(rp.plans[0].start)
         P0 = np.diag([START_POS_STD**2, START_POS_STD**2, START_YAW_STD**2])
         self.true_start = np.array(dock.pose) + rng_start.multivariate_normal(np.zeros(3), P0)
+        self._phase = encoder_phases(rng_start)
         self.body = world.robots[i]
         self.laser = LaserSensor(world, scenario.sensor_actual, scenario.marker_positions(),
                                  scenario.marker_normals(), robot=i)
@@ -183,12 +185,12 @@ class _Robot:
         """After the world's reset: zero the encoders, build the filter, start task 0."""
         angles0 = self.body.wheel_angles()
         pose = np.array(self._dock.pose)
-        self.loc = episode_localizer(self.sc, pose, self._P0, angles0, q_scale=self.q_scale,
+        self.loc = episode_localizer(self.sc, pose, self._P0, q_scale=self.q_scale,
                                      step_time=self.world.config.time_step)
         actual = self.sc.robot_actual
         self.last_read = self.world.steps   # the physics step of the last odometry read
         self.odo = self._WheelOdometry(self.sc.robot, angles0, pose, slip_std=actual.odometry_noise, rng=self._rng_odo,
-                                       bounded=self.sc.sensor_actual.noise is NoiseModel.UNIFORM)
+                                       bounded=self.sc.sensor_actual.noise is NoiseModel.UNIFORM, phase=self._phase)
         self.fixes = self._FixRecorder(self.sc, self.pef, self.laser, self.loc, self._rng_laser)
         self.dt_ctrl = dt_ctrl
         self.min_gap = 1.0 / self.sc.sensor.fix_rate_hz - dt_ctrl

@@ -26,20 +26,26 @@ class WheelTravel(NamedTuple):
     d_right: float
 
 
-def encoder_ticks(angle: float, ticks_per_rev: int) -> int:
-    """Return the encoder count at wheel ``angle`` [rad] (floor: the count changes at each tick edge)."""
-    return math.floor(angle * ticks_per_rev / (2.0 * math.pi))
+def encoder_ticks(angle: float, ticks_per_rev: int, phase: float = 0.0) -> int:
+    """Return the encoder count at wheel ``angle`` [rad] (floor: the count changes at each tick edge).
+
+    ``phase`` [ticks, in ``[0, 1)``] is where the encoder disc's edges sit on the wheel: the count
+    is ``floor(angle ticks_per_rev / (2 pi) + phase)``.
+    """
+    return math.floor(angle * ticks_per_rev / (2.0 * math.pi) + phase)
 
 
-def centred_residual(angle: float, spec: RobotSpec) -> float:
+def centred_residual(angle: float, spec: RobotSpec, phase: float = 0.0) -> float:
     """Part of the wheel's rotation at ``angle`` [rad] below its last tick edge, as travel, centred [m].
 
-    ``r angle - tick * count - tick / 2`` (nominal radius ``r``, ``tick = 2 pi r / encoder_ticks``):
-    in ``[-tick/2, tick/2)``, the quantisation residual the filter's encoder state
+    ``r angle + tick * phase - tick * count - tick / 2`` (nominal radius ``r``,
+    ``tick = 2 pi r / encoder_ticks``, the encoder's ``phase`` as in :func:`encoder_ticks`): in
+    ``[-tick/2, tick/2)``, the quantisation residual the filter's encoder state
     (:mod:`estimators.motion_quantised`) holds.
     """
     tick = 2.0 * math.pi * spec.wheel_radius / spec.encoder_ticks
-    return spec.wheel_radius * angle - tick * encoder_ticks(angle, spec.encoder_ticks) - 0.5 * tick
+    return (spec.wheel_radius * angle + tick * phase - tick * encoder_ticks(angle, spec.encoder_ticks, phase)
+            - 0.5 * tick)
 
 
 def integrate_arc(pose: np.ndarray, d_left: float, d_right: float, wheel_base: float) -> np.ndarray:
@@ -69,8 +75,8 @@ def integrate_arc(pose: np.ndarray, d_left: float, d_right: float, wheel_base: f
 # each wheel's running sum of |d| over the reads [m] (PATH_LEFT, PATH_RIGHT: a bounded slip's sum
 # between two reads is at most sqrt(3) slip_std times its increase).
 TICKS_LEFT, TICKS_RIGHT, POSE_X, POSE_Y, POSE_THETA, NEXT_NORMAL, SLIP_WEIGHT, PATH_LEFT, PATH_RIGHT = range(9)
-# WheelOdometry.params (float64, shape (4,)).
-METRES_PER_TICK, TICKS_PER_REV, SLIP_STD, WHEEL_BASE = range(4)
+# WheelOdometry.params (float64, shape (6,)); PHASE_*: each encoder's phase [ticks] (encoder_ticks).
+METRES_PER_TICK, TICKS_PER_REV, SLIP_STD, WHEEL_BASE, PHASE_LEFT, PHASE_RIGHT = range(6)
 
 
 @compiled.njit(cache=True)
@@ -83,8 +89,8 @@ def odometry_step(state, params, normals, angle_left, angle_right):
     ----------
     state : ndarray, shape (9,)
         :attr:`WheelOdometry.state` (indices ``TICKS_LEFT`` ... ``PATH_RIGHT``); updated.
-    params : ndarray, shape (4,)
-        :attr:`WheelOdometry.params` (indices ``METRES_PER_TICK`` ... ``WHEEL_BASE``).
+    params : ndarray, shape (6,)
+        :attr:`WheelOdometry.params` (indices ``METRES_PER_TICK`` ... ``PHASE_RIGHT``).
     normals : ndarray, shape (B,)
         Unit-variance draws for the slip (normal, or uniform on ``[-sqrt 3, sqrt 3]`` for a bounded
         slip), consumed from ``state[NEXT_NORMAL]``, left first.
@@ -100,8 +106,8 @@ def odometry_step(state, params, normals, angle_left, angle_right):
     """
     two_pi = 2.0 * math.pi
     n = params[TICKS_PER_REV]
-    ticks_left = math.floor(angle_left * n / two_pi)   # as encoder_ticks(), to the last bit
-    ticks_right = math.floor(angle_right * n / two_pi)
+    ticks_left = math.floor(angle_left * n / two_pi + params[PHASE_LEFT])   # as encoder_ticks(), to the last bit
+    ticks_right = math.floor(angle_right * n / two_pi + params[PHASE_RIGHT])
     d_left = (ticks_left - state[TICKS_LEFT]) * params[METRES_PER_TICK]
     d_right = (ticks_right - state[TICKS_RIGHT]) * params[METRES_PER_TICK]
     state[TICKS_LEFT], state[TICKS_RIGHT] = ticks_left, ticks_right
@@ -141,20 +147,28 @@ class WheelOdometry:
         normal: the floor of a bounded-noise world (``noise = "uniform"``), where every random
         error the simulation draws has a bound and the realised fault area must hold the truth
         at every fix (a normal slip 4 sigma out broke it on random-23-037, issue 23).
+    phase : (2,) array_like
+        Where each encoder's tick edges sit on its wheel (left, right) [ticks, in ``[0, 1)``]
+        (:func:`encoder_ticks`). An episode draws them per run: a robot's wheels stop wherever
+        they stopped, so a run starts at a sub-tick phase that is random and that the encoder
+        cannot report.
     """
 
     _BLOCK = 1024   # slip normals drawn per refill (even: a block holds whole left/right pairs)
 
     def __init__(self, spec: RobotSpec, angles: np.ndarray, pose: np.ndarray, slip_std: float = 0.0,
-                 rng: np.random.Generator | None = None, bounded: bool = False) -> None:
+                 rng: np.random.Generator | None = None, bounded: bool = False, phase=(0.0, 0.0)) -> None:
         if slip_std > 0.0 and rng is None:
             raise ValueError(f"WheelOdometry: slip_std = {slip_std} > 0 needs a random generator, got rng=None")
         self.spec = spec
         self.slip_std = float(slip_std)
         self._rng = rng
         self.bounded = bool(bounded)
+        phase_l, phase_r = (float(p) for p in phase)
+        if not (0.0 <= phase_l < 1.0 and 0.0 <= phase_r < 1.0):
+            raise ValueError(f"WheelOdometry: phase = {list(phase)}, each in [0, 1) ticks")
         self.params = np.array([2.0 * math.pi * spec.wheel_radius / spec.encoder_ticks,
-                                float(spec.encoder_ticks), self.slip_std, spec.wheel_base])
+                                float(spec.encoder_ticks), self.slip_std, spec.wheel_base, phase_l, phase_r])
         self.state = np.zeros(9)
         self.normals = np.zeros(2)
         if self.slip_std > 0.0:
@@ -164,8 +178,8 @@ class WheelOdometry:
     def reset(self, angles: np.ndarray, pose: np.ndarray) -> None:
         """Restart from wheel ``angles`` (2,) [rad] and ``pose`` (3,) (the slip stream goes on)."""
         n = self.spec.encoder_ticks
-        self.state[TICKS_LEFT] = encoder_ticks(float(angles[0]), n)
-        self.state[TICKS_RIGHT] = encoder_ticks(float(angles[1]), n)
+        self.state[TICKS_LEFT] = encoder_ticks(float(angles[0]), n, self.params[PHASE_LEFT])
+        self.state[TICKS_RIGHT] = encoder_ticks(float(angles[1]), n, self.params[PHASE_RIGHT])
         self.state[POSE_X:POSE_THETA + 1] = np.array(pose, dtype=float).reshape(3)
 
     def refill(self) -> None:

@@ -116,7 +116,10 @@ def _window_nees(seed: int, n_windows: int = N_WINDOWS) -> dict[str, np.ndarray]
     out = {}
     for name, kw in FILTERS.items():
         # The episode's filter gives the predict parameters and the start covariance's layout.
-        loc = episode_localizer(SCENARIO, np.r_[poses[0], e], np.diag([TINY_VAR] * 4), angles0[0], **kw)
+        # the windows' start residuals are known (residual0 below): zero variance in their block
+        known = {} if kw.get("encoder_residual_state") is False else {
+            "residual0": [centred_residual(float(g), ROBOT) for g in angles0[0]]}
+        loc = episode_localizer(SCENARIO, np.r_[poses[0], e], np.diag([TINY_VAR] * 4), **known, **kw)
         quantised = loc.encoder_residual_state
         odo = WheelOdometry(ROBOT, np.zeros(2), np.zeros(3), slip_std=ACTUAL.odometry_noise,
                             rng=np.random.default_rng(0))

@@ -18,7 +18,7 @@ import pytest
 
 import scenarios
 from sim.physics.config import PhysicsConfig
-from sim.physics.odometry import WheelOdometry, encoder_ticks, integrate_arc
+from sim.physics.odometry import WheelOdometry, centred_residual, encoder_ticks, integrate_arc
 from sim.physics.quiet import pb
 from sim.physics.robot import urdf_text
 from sim.physics.world import PhysicsWorld
@@ -213,6 +213,29 @@ def test_encoder_ticks_quantise_with_floor():
     assert encoder_ticks(1.001 * tick, n) == 1
     assert encoder_ticks(-0.001 * tick, n) == -1
     assert encoder_ticks(10 * 2 * math.pi + 0.5 * tick, n) == 10 * n
+
+
+def test_encoder_phase_moves_the_tick_edges_on_the_wheel():
+    # the edges sit at angles (k - phase) ticks: a phase of 0.3 counts 0.3 tick of rotation sooner
+    n = 2048
+    tick = 2 * math.pi / n
+    assert encoder_ticks(0.69 * tick, n, 0.3) == 0
+    assert encoder_ticks(0.71 * tick, n, 0.3) == 1
+    assert encoder_ticks(-0.29 * tick, n, 0.3) == 0
+    assert encoder_ticks(-0.31 * tick, n, 0.3) == -1
+    sc = flat(0.0)
+    r = sc.robot.wheel_radius
+    odo = WheelOdometry(sc.robot, np.zeros(2), np.zeros(3), phase=(0.3, 0.0))
+    angle = 2 * math.pi * 0.8 / sc.robot.encoder_ticks   # 0.8 tick: past the left's first edge only
+    travel = odo.update(np.array([angle, angle]))
+    assert travel.d_left == pytest.approx(2 * math.pi * r / sc.robot.encoder_ticks, rel=1e-12)
+    assert travel.d_right == 0.0
+    # the residual the filter's state holds: the rotation past the last edge, centred
+    tick = 2 * math.pi * r / sc.robot.encoder_ticks
+    assert centred_residual(angle, sc.robot, 0.3) == pytest.approx((0.1 - 0.5) * tick, rel=1e-9)
+    for bad in ((1.0, 0.0), (0.0, -0.1), (float("nan"), 0.0)):
+        with pytest.raises(ValueError, match="phase"):
+            WheelOdometry(sc.robot, np.zeros(2), np.zeros(3), phase=bad)
 
 
 def test_odometry_converts_ticks_with_the_nominal_radius():
