@@ -275,8 +275,12 @@ def test_each_run_draws_its_encoder_phases_and_the_filter_is_not_told():
     p = np.array(phases)
     assert p.shape == (400, 2) and np.all((p >= 0.0) & (p < 1.0))
     # uniform: each decile of each wheel's phase holds 40 +- 3.4 sigma of 400 draws (p < 1e-3 each)
-    counts = np.stack([np.histogram(p[:, w], bins=10, range=(0.0, 1.0))[0] for w in range(2)])
-    assert np.all(np.abs(counts - 40) < 3.4 * math.sqrt(400 * 0.1 * 0.9)), counts
+    def uniform(p):
+        counts = np.stack([np.histogram(p[:, w], bins=10, range=(0.0, 1.0))[0] for w in range(2)])
+        return bool(np.all(np.abs(counts - 40) < 3.4 * math.sqrt(400 * 0.1 * 0.9)))
+
+    assert uniform(p), p
+    assert not uniform(np.full_like(p, 0.5))   # negative control: every run at one phase, as before
     sc = scenarios.load("paper-two-markers")
     loc = episode_localizer(sc, np.zeros(3), np.eye(3) * 1e-6)
     tick = 2 * math.pi * sc.robot.wheel_radius / sc.robot.encoder_ticks
