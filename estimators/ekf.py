@@ -41,18 +41,17 @@ Noise: ``R`` is the declared sensor's model (:mod:`estimators.measurements`): ra
 ``q_scale * G diag(var_l, var_r) G^T`` (:mod:`estimators.motion`).
 
 Encoder quantisation (``encoder_residual_state=True``, what an episode uses): the state is
-further augmented with each wheel's centred quantisation residual, as the phasors of its first
-harmonics and a white rest [m] per wheel, the last ``2 PER_WHEEL`` entries of ``full_x``
-(:mod:`estimators.motion_quantised`). A count error is bounded and telescopes over a window (the
-reported travel is ``true + q_{k-1} - q_k``); the white ``tick^2 / 12`` per step of the plain
-model grows without bound and made the filter pessimistic: over the 0.4 s between fixes the
-white model's pose NEES is 1.53 against 3 (``tests/sim/test_odometry_noise_model.py``), and 200
-warehouse episodes gave NIS 0.962. The phasor turns with each wheel's commanded rate
-(:meth:`Localizer.set_command`) over each read's span (``steps``, with ``step_time``): a
-residual follows from the last one where the wheel's turn is known to a fraction of a tick
-(:mod:`estimators.encoder_phase`), and is independent of it where not. The residuals at the
-start can be given (``residual0``, variance 0): an episode zeroes the encoders at known angles.
-``q_scale`` scales the residual variance too.
+further augmented with each wheel's centred quantisation residual [m], the last two entries of
+``full_x`` (:mod:`estimators.motion_quantised`). A count error is bounded and telescopes over a
+window (the reported travel is ``true + q_{k-1} - q_k``); the white ``tick^2 / 12`` per step of
+the plain model grows without bound and made the filter pessimistic: over the 0.4 s between
+fixes the white model's pose NEES is 1.53 against 3 (``tests/sim/test_odometry_noise_model.py``),
+and 200 warehouse episodes gave NIS 0.962. Each read's new residual is independent of the last:
+the filter does not predict the wheels' phase (the module says why). The residuals at the start
+can be given (``residual0``, variance 0) when the encoders were zeroed at known angles; an
+episode's are unknown. ``q_scale`` scales the residual variance too. The wheel command and each
+read's span (:meth:`Localizer.set_command`, ``steps``, with ``step_time``) keep the history of
+commanded against counted turn (:mod:`estimators.encoder_phase`) the fix snapshot reads.
 
 Also checked against the simulation and not modelled, because it is negligible: ``R`` at the
 predicted instead of the true range (``Re * |error|`` ~ 1e-7 m against ``rho`` ~ 2 mm); the laser
@@ -70,7 +69,6 @@ import numpy as np
 
 from estimators import encoder_phase, motion, process_noise
 from estimators.measurements import bound_std
-from estimators.motion_quantised import HARMONICS, PER_WHEEL, WHITE_SHARE, harmonic_share, phasor_state
 from estimators.predict import TURN_SLIP, predict_step
 from estimators.update import UpdateResult, gate_threshold, gated_joseph_update, wrap_scalar
 from jit import compiled
@@ -123,8 +121,8 @@ class Localizer:
         [1/sqrt(m)]; 0 (default) makes ``e`` a random constant. Only with
         ``estimate_wheel_bias``.
     encoder_residual_state : bool
-        Model encoder quantisation exactly: the state gains each wheel's centred quantisation
-        residual ``(q_left, q_right)`` [m] (last two entries of :attr:`full_x`) and the white
+        Model encoder quantisation: the state gains each wheel's centred quantisation residual
+        ``(q_left, q_right)`` [m] (last two entries of :attr:`full_x`) and the white
         ``tick^2 / 12`` term leaves the process noise (module docstring,
         :mod:`estimators.motion_quantised`). Off by default (the white approximation).
     residual0 : array_like, shape (2,), optional
@@ -132,7 +130,7 @@ class Localizer:
         at a known angle): used with variance 0. By default zero-mean with ``tick^2 / 12``.
     step_time : float, optional
         The physics step [s] that reads' spans count (:meth:`predict`'s ``steps``); without it
-        the encoder phases are not predicted.
+        the history of commanded against counted turn (:attr:`phase`) knows no spans.
     """
 
     def __init__(self, robot: RobotSpec, sensor: SensorSpec, markers, x0, P0,
@@ -192,18 +190,13 @@ class Localizer:
             P0_sym = np.block([[P0_sym, np.zeros((3, 1))], [np.zeros((1, 3)), np.array([[bias_std**2]])]])
             dim = 4
         if self.encoder_residual_state:
-            tick = 2.0 * math.pi * robot.wheel_radius / robot.encoder_ticks
-            nq = 2 * PER_WHEEL
             if residual0 is None:   # counted from an unknown point in a tick
-                q_mean = np.zeros(nq)
-                block = [harmonic_share(m) * quant_var for m in range(1, HARMONICS + 1) for _ in range(2)]
-                q_var = np.tile(block + [WHITE_SHARE * quant_var], 2)
+                q_mean, q_var = np.zeros(2), np.full(2, quant_var)
             else:
-                q0 = _check_matrix("residual0", residual0, (2,))
-                q_mean, q_var = np.r_[phasor_state(q0[0], tick), phasor_state(q0[1], tick)], np.zeros(nq)
+                q_mean, q_var = _check_matrix("residual0", residual0, (2,)), np.zeros(2)
             x0_arr = np.r_[x0_arr, q_mean]
-            P0_sym = np.block([[P0_sym, np.zeros((dim, nq))], [np.zeros((nq, dim)), np.diag(q_var)]])
-            dim += nq
+            P0_sym = np.block([[P0_sym, np.zeros((dim, 2))], [np.zeros((2, dim)), np.diag(q_var)]])
+            dim += 2
         elif residual0 is not None:
             raise SimulationError("Localizer: residual0: given without encoder_residual_state")
         self._kf = ExtendedKalmanFilter(dim_x=dim, dim_z=1)
@@ -303,9 +296,9 @@ class Localizer:
     def set_read_steps(self, steps: int | None = None) -> None:
         """Set the physics steps the next predict's read spans (None: unknown).
 
-        With ``step_time`` it times the wheels' commanded turn over the read, which the encoder
-        phasors turn by (:mod:`estimators.encoder_phase`); :attr:`phase` holds it, where a
-        compiled caller's predict reads it too.
+        With ``step_time`` it times the wheels' commanded turn over the read, for the history
+        of commanded against counted turn the fix snapshot reads (:mod:`estimators.encoder_phase`);
+        :attr:`phase` holds it, where a compiled caller's predict reads it too.
         """
         self.phase[encoder_phase.STEPS] = 0.0 if steps is None else float(steps)
 

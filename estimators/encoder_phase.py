@@ -16,11 +16,12 @@ it was over the history before it (``WINDOW`` physics steps, :func:`sigma_per_st
 counted minus the commanded turn is ``D`` ticks, which holds the count's own residual difference
 and the readings' slip besides the tracking, so ``sigma = m sqrt(D^2 + 1/4 + slip part) / span``.
 Measured over the read windows of random-23-016 and random-23-030 (issue 23): the commanded
-rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma, but its
-tails (1-5 um of travel at the 99th percentile) are not, on fine encoders: random-23-030 is
-overconfident with this sigma (``docs/design.md`` §6, open). With no
-span (``STEPS`` 0: a filter used outside an episode) or too short a history, ``sigma`` is
-infinite: the residuals are independent from read to read, the model before this one.
+rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma. That is what
+the fix snapshot uses it for: a fix's shifts span a few physics steps
+(:func:`estimators.fault.carried.count_cov`). The filter does not: over the time between fixes
+the wheels fall behind their command by a steady ~1e-4 of their rate, and the errors of
+successive reads add up instead of averaging (:mod:`estimators.motion_quantised`). With no span
+(``STEPS`` 0: a filter used outside an episode) or too short a history, ``sigma`` is infinite.
 
 State (float64, shape ``(HEAD0 + ENTRY * RING,)``, :func:`new_state`): the command, the read's
 span, constants, running sums [ticks] and a ring of checkpoints (``ENTRY`` running sums each).
@@ -41,7 +42,7 @@ HEAD0 = 16
 ENTRY = 7
 #: history the tracking error is read from [physics steps] (4 s at 240 Hz): long enough for the
 #: count's residuals and the slip to be a small part of it (the count's 1/2 tick is 5e-4 tick per
-#: step; a fix's reads then keep even the 8th harmonic's phase: rho_8 > 0.99)
+#: step)
 WINDOW = 960
 #: the history keeps the first read past every CHECKPOINT physics steps
 CHECKPOINT = 16

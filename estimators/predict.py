@@ -28,7 +28,7 @@ def predict_step(x, P, d_left, d_right, params, phase):
 
     Parameters
     ----------
-    x, P : ndarray, shape (n,), (n, n), n in (3, 4, 9, 10)
+    x, P : ndarray, shape (n,), (n, n), n in (3, 4, 5, 6)
         The filter's state and covariance (:meth:`Localizer.state_arrays`).
     d_left, d_right : float
         Wheel travel measured by the encoders over the step (nominal radius) [m].
@@ -36,7 +36,7 @@ def predict_step(x, P, d_left, d_right, params, phase):
         :attr:`Localizer.predict_params`.
     phase : ndarray
         :attr:`Localizer.phase` (:mod:`estimators.encoder_phase`): the wheel command and the
-        read's span; used and updated with the encoder residual states.
+        read's span; its history is updated with the encoder residual states.
     """
     wheel_base, rel_var, base_var, q = params[WHEEL_BASE], params[REL_VAR], params[BASE_VAR], params[Q_SCALE]
     var_left = q * (rel_var * d_left * d_left + base_var)
@@ -44,9 +44,11 @@ def predict_step(x, P, d_left, d_right, params, phase):
     walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
     slip = params[TURN_SLIP]
     if params[QUANT_VAR] > 0.0:
-        turn_l, turn_r, sig_l, sig_r = phase_advance(phase, d_left, d_right)
+        # The phase history is the fix snapshot's (sim.episode.fixes); the filter takes each
+        # read's residual as new (estimators.motion_quantised says why).
+        phase_advance(phase, d_left, d_right)
         propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right,
-                                    q * params[QUANT_VAR], walk_var, slip, turn_l, turn_r, sig_l, sig_r)
+                                    q * params[QUANT_VAR], walk_var, slip)
     elif params[BIASED] > 0.0:
         motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var, slip)
     else:

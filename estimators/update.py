@@ -74,8 +74,8 @@ def joseph_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, innovation: float
         Measurement noise variance ``R``.
     """
     # The Joseph form (I - K H) P (I - K H)^T + var K K^T expanded for a scalar measurement:
-    # P - K h^T - h K^T + (H P H^T + var) K K^T with h = P H^T, in O(n^2) (n is 22 with the
-    # encoder phasors) and without numba's BLAS-backed `@` (~9 s to compile).
+    # P - K h^T - h K^T + (H P H^T + var) K K^T with h = P H^T, in O(n^2) and without numba's
+    # BLAS-backed `@` (~9 s to compile).
     n = x.shape[0]
     h = np.empty(n)
     for i in range(n):

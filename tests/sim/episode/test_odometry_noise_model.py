@@ -35,7 +35,6 @@ import pytest
 import scenarios
 from estimators import consistency
 from estimators.motion import arc_step
-from estimators.motion_quantised import phasor_state
 from estimators.predict import predict_step
 from sim.episode.drive import CONTROL_STEPS, episode_localizer
 from sim.physics.config import PhysicsConfig
@@ -108,10 +107,8 @@ def _window_nees(seed: int, n_windows: int = N_WINDOWS) -> dict[str, np.ndarray]
     v = np.maximum(v0[:, None] + a[:, None] * t, 0.02)
     omega = omega0[:, None] + alpha[:, None] * t
     rates = np.ascontiguousarray(np.stack([v - 0.5 * b * omega, v + 0.5 * b * omega], axis=-1) * DT)
-    tick = 2.0 * math.pi * ROBOT.wheel_radius / ROBOT.encoder_ticks
-    # each wheel's known start residual as the filter holds it: phasor and rest (p_c, p_s, w)
-    residual0 = np.array([[v for g in row for v in phasor_state(centred_residual(float(g), ROBOT), tick)]
-                          for row in angles0])
+    # each wheel's known start residual as the filter holds it
+    residual0 = np.array([[centred_residual(float(g), ROBOT) for g in row] for row in angles0])
     slip_normals = rng.standard_normal(2 * n_windows * WINDOW + 2)
     out = {}
     for name, kw in FILTERS.items():
