@@ -269,7 +269,7 @@ class _Robot:
     # -- one control tick ---------------------------------------------------------------------
 
     def command(self, left: float, right: float) -> None:
-        """Command the wheel rates [rad/s]: the motors, and the filter that predicts the encoders' phase."""
+        """Command the wheel rates [rad/s]: the motors, and the filter's history of commanded turn (the snapshot's)."""
         self.body.set_wheel_speeds(left, right)
         self.loc.set_command(left, right)
 
