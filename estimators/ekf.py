@@ -46,12 +46,12 @@ further augmented with each wheel's centred quantisation residual [m], the last 
 window (the reported travel is ``true + q_{k-1} - q_k``); the white ``tick^2 / 12`` per step of
 the plain model grows without bound and made the filter pessimistic: over the 0.4 s between
 fixes the white model's pose NEES is 1.53 against 3 (``tests/sim/test_odometry_noise_model.py``),
-and 200 warehouse episodes gave NIS 0.962. Each read's new residual is independent of the last:
-the filter does not predict the wheels' phase (the module says why). The residuals at the start
+and 200 warehouse episodes gave NIS 0.962. A residual keeps, across one read, the correlation of
+the read's fractional turn, predicted from the wheel command (:meth:`Localizer.set_command`) over
+the read's span (``steps``, with ``step_time``), and no more (the module says why). The residuals at the start
 can be given (``residual0``, variance 0) when the encoders were zeroed at known angles; an
-episode's are unknown. ``q_scale`` scales the residual variance too. The wheel command and each
-read's span (:meth:`Localizer.set_command`, ``steps``, with ``step_time``) keep the history of
-commanded against counted turn (:mod:`estimators.encoder_phase`) the fix snapshot reads.
+episode's are unknown. ``q_scale`` scales the residual variance too. The history of commanded
+against counted turn (:mod:`estimators.encoder_phase`) is the fix snapshot's too.
 
 Also checked against the simulation and not modelled, because it is negligible: ``R`` at the
 predicted instead of the true range (``Re * |error|`` ~ 1e-7 m against ``rho`` ~ 2 mm); the laser
@@ -130,7 +130,7 @@ class Localizer:
         at a known angle): used with variance 0. By default zero-mean with ``tick^2 / 12``.
     step_time : float, optional
         The physics step [s] that reads' spans count (:meth:`predict`'s ``steps``); without it
-        the history of commanded against counted turn (:attr:`phase`) knows no spans.
+        no read's turn is predicted and each read's residual is new.
     """
 
     def __init__(self, robot: RobotSpec, sensor: SensorSpec, markers, x0, P0,
@@ -296,8 +296,8 @@ class Localizer:
     def set_read_steps(self, steps: int | None = None) -> None:
         """Set the physics steps the next predict's read spans (None: unknown).
 
-        With ``step_time`` it times the wheels' commanded turn over the read, for the history
-        of commanded against counted turn the fix snapshot reads (:mod:`estimators.encoder_phase`);
+        With ``step_time`` it times the wheels' commanded turn over the read, whose fractional
+        part sets the residuals' correlation across it (:mod:`estimators.motion_quantised`);
         :attr:`phase` holds it, where a compiled caller's predict reads it too.
         """
         self.phase[encoder_phase.STEPS] = 0.0 if steps is None else float(steps)

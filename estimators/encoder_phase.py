@@ -17,10 +17,10 @@ counted minus the commanded turn is ``D`` ticks, which holds the count's own res
 and the readings' slip besides the tracking, so ``sigma = m sqrt(D^2 + 1/4 + slip part) / span``.
 Measured over the read windows of random-23-016 and random-23-030 (issue 23): the commanded
 rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma. That is what
-the fix snapshot uses it for: a fix's shifts span a few physics steps
-(:func:`estimators.fault.carried.count_cov`). The filter does not: over the time between fixes
-the wheels fall behind their command by a steady ~1e-4 of their rate, and the errors of
-successive reads add up instead of averaging (:mod:`estimators.motion_quantised`). With no span
+the filter uses it for, over one read (:mod:`estimators.motion_quantised`), and the fix snapshot,
+over a fix's shifts, a few physics steps (:func:`estimators.fault.carried.count_cov`). Not
+further: over the time between fixes the wheels fall behind their command by a steady ~1e-4 of
+their rate, and the errors of successive reads add up instead of averaging. With no span
 (``STEPS`` 0: a filter used outside an episode) or too short a history, ``sigma`` is infinite.
 
 State (float64, shape ``(HEAD0 + ENTRY * RING,)``, :func:`new_state`): the command, the read's

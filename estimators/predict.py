@@ -44,11 +44,11 @@ def predict_step(x, P, d_left, d_right, params, phase):
     walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
     slip = params[TURN_SLIP]
     if params[QUANT_VAR] > 0.0:
-        # The phase history is the fix snapshot's (sim.episode.fixes); the filter takes each
-        # read's residual as new (estimators.motion_quantised says why).
-        phase_advance(phase, d_left, d_right)
+        # each read's predicted turn sets its residuals' correlation across it (one read only:
+        # estimators.motion_quantised says why); the history is the fix snapshot's too
+        turn_l, turn_r, sig_l, sig_r = phase_advance(phase, d_left, d_right)
         propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right,
-                                    q * params[QUANT_VAR], walk_var, slip)
+                                    q * params[QUANT_VAR], walk_var, slip, turn_l, turn_r, sig_l, sig_r)
     elif params[BIASED] > 0.0:
         motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var, slip)
     else:

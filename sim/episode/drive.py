@@ -331,7 +331,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     true_pose = world.robot.true_pose_tuple
 
     def set_wheel_speeds(left: float, right: float) -> None:
-        # the motors, and the filter's history of commanded against counted turn (the fix snapshot's)
+        # the motors, and the filter, which predicts each read's turn from what they were told
         world.robot.set_wheel_speeds(left, right)
         loc.set_command(left, right)
     radius, base = robot.wheel_radius, robot.wheel_base

@@ -269,7 +269,7 @@ class _Robot:
     # -- one control tick ---------------------------------------------------------------------
 
     def command(self, left: float, right: float) -> None:
-        """Command the wheel rates [rad/s]: the motors, and the filter's history of commanded turn (the snapshot's)."""
+        """Command the wheel rates [rad/s]: the motors, and the filter, which predicts each read's turn from them."""
         self.body.set_wheel_speeds(left, right)
         self.loc.set_command(left, right)
 

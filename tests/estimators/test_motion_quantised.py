@@ -10,7 +10,7 @@ import pytest
 
 from estimators import motion
 from estimators.ekf import Localizer
-from estimators.motion_quantised import propagate_moments_quantised
+from estimators.motion_quantised import propagate_moments_quantised, read_correlation
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec, SensorSpec
 
@@ -21,11 +21,13 @@ MARKERS = np.array([[0.0, 0.0], [10.0, 0.0]])
 NO_SLIP = dataclasses.replace(ROBOT, odometry_noise=0.0)
 
 
-@pytest.mark.parametrize("biased", [True, False])
-def test_moments_match_sampling_the_model(biased):
+@pytest.mark.parametrize("biased, turns, sigma", [(True, (3.3, 7.9), 0.01), (False, (3.3, 7.9), 0.01),
+                                                 (True, (3.3, 7.9), math.inf)])
+def test_moments_match_sampling_the_model(biased, turns, sigma):
     # The model written out sample by sample: old state from its prior; each wheel's new residual
-    # fresh, zero-mean with tick^2 / 12; slip gaussian. The wheels roll
-    # (1 -/+ e)(d - q_old + q_new + slip).
+    # c q_old plus a fresh part of variance (1 - c^2) tick^2 / 12, c the sawtooth's correlation
+    # over the read's fractional turn (0 when the turn is not predicted); slip gaussian. The
+    # wheels roll (1 -/+ e)(d - q_old + q_new + slip).
     rng = np.random.default_rng(5)
     x0 = np.r_[1.0, 2.0, 0.3, 0.002, rng.normal(0, 1e-5, 2)]
     P0 = np.diag([1e-6, 2e-6, 1e-6, 4e-6, QUANT_VAR, QUANT_VAR])
@@ -37,16 +39,19 @@ def test_moments_match_sampling_the_model(biased):
         x0, P0 = x0[keep], P0[np.ix_(keep, keep)]
     d_left, d_right, var_left, var_right = 0.02, 0.025, 1e-8, 2e-8
     x, P = x0.copy(), P0.copy()
-    propagate_moments_quantised(x, P, d_left, d_right, ROBOT.wheel_base, var_left, var_right, QUANT_VAR, 0.0, 0.0)
+    propagate_moments_quantised(x, P, d_left, d_right, ROBOT.wheel_base, var_left, var_right, QUANT_VAR, 0.0, 0.0,
+                                turns[0], turns[1], sigma, sigma)
     n = 400_000
     s = rng.multivariate_normal(x0, P0, n)
     e = s[:, 3] if biased else np.zeros(n)
     t, q_new = [], []
     for w, d, var in ((0, d_left, var_left), (1, d_right, var_right)):
-        fresh = rng.standard_normal(n) * math.sqrt(QUANT_VAR)
-        u = d - s[:, -2 + w] + fresh + rng.standard_normal(n) * math.sqrt(var)
+        f = turns[w] % 1.0
+        c = 1 - 6 * f * (1 - f) if sigma < math.inf else 0.0
+        q = c * s[:, -2 + w] + rng.standard_normal(n) * math.sqrt((1 - c * c) * QUANT_VAR)
+        u = d - s[:, -2 + w] + q + rng.standard_normal(n) * math.sqrt(var)
         t.append((1 - e) * u if w == 0 else (1 + e) * u)
-        q_new.append(fresh)
+        q_new.append(q)
     z = np.column_stack([motion.propagate(s[:, :3], t[0], t[1], ROBOT.wheel_base), *([e] if biased else []), *q_new])
     # Sampling error of a variance with 4e5 samples: ~0.2 % (normal) -> 1 % is > 4 sigma.
     np.testing.assert_allclose(np.diag(np.cov(z.T)), np.diag(P), rtol=0.01)
@@ -103,3 +108,41 @@ def test_the_count_error_over_a_window_stays_that_of_two_residuals(reads):
     assert abs(empirical - 1 / 6) < 0.005
     if reads > 1:
         assert abs(_count_error_var(reads, False) - empirical) > 0.005
+
+
+@pytest.mark.parametrize("f", [0.004, 0.25, 0.5, 0.83])
+def test_a_reads_count_error_has_the_variance_of_its_fractional_turn(f):
+    # Sampled: a wheel from a phase uniform over a tick, a read that turns it 44 + f ticks: the
+    # residual's correlation across the read is 1 - 6 f (1 - f) and the count error's variance
+    # f (1 - f). The model's, with the turn predicted, is that; independent residuals (the turn
+    # not predicted) give 1/6 whatever f: the negative control, off at f = 0.004 and 0.5.
+    rng = np.random.default_rng(int(f * 1000))
+    theta0 = rng.uniform(0, 1, 200_000)
+    q0, q1 = theta0 % 1.0 - 0.5, (theta0 + 44.0 + f) % 1.0 - 0.5
+    # correlation and variance to ~0.005 at 2e5 samples: 0.01 is > 4 sigma
+    assert abs(read_correlation(44.0 + f, 0.01) - np.corrcoef(q0, q1)[0, 1]) < 0.01
+    empirical = np.var(q0 - q1)
+    assert abs(_read_count_error_var(44.0 + f, 4) - empirical) < 0.01
+    if f in (0.004, 0.5):
+        assert abs(_read_count_error_var(44.0 + f, None) - empirical) > 0.01
+
+
+def _read_count_error_var(turn: float, steps: int | None) -> float:
+    """Return the model's variance of one read's count error on the spot [tick^2] (``steps`` None: turn not predicted).
+
+    The filter (no slip) turns on the spot at a steady command for 150 reads of 4 steps, so the
+    phase history is there, then the pose is made known and it predicts one more read: the
+    heading's variance is ``(var_l + var_r) / b^2`` of the two wheels' count errors.
+    """
+    dt = 1 / 240
+    loc = Localizer(NO_SLIP, SensorSpec(), MARKERS, [1.0, 2.0, 0.0], np.eye(3) * 1e-8, encoder_residual_state=True,
+                    step_time=dt)
+    rate = turn / (4 * dt) / (ROBOT.encoder_ticks / (2 * math.pi))   # rad/s
+    loc.set_command(-rate, rate)
+    for _ in range(150):
+        loc.predict(-turn * TICK, turn * TICK, 0.0, 4)
+    x, P = loc.state_arrays()
+    P[:3, :] = 0.0
+    P[:, :3] = 0.0
+    loc.predict(-turn * TICK, turn * TICK, 0.0, steps)
+    return loc.P[2, 2] * ROBOT.wheel_base**2 / 2 / TICK**2
