@@ -48,9 +48,9 @@ the plain model grows without bound and made the filter pessimistic: over the 0.
 fixes the white model's pose NEES is 1.53 against 3 (``tests/sim/test_odometry_noise_model.py``),
 and 200 warehouse episodes gave NIS 0.962. A residual keeps, across one read, the correlation of
 the read's fractional turn, predicted from the wheel command (:meth:`Localizer.set_command`) over
-the read's span (``steps``, with ``step_time``), and no more (the module says why). The residuals at the start
-can be given (``residual0``, variance 0) when the encoders were zeroed at known angles; an
-episode's are unknown. ``q_scale`` scales the residual variance too. The history of commanded
+the read's span (``steps``, with ``step_time``), and no more (the module says why). The
+residuals at the start can be given (``residual0``, variance 0) when the encoders were zeroed at
+known angles; an episode's are unknown. ``q_scale`` scales the residual variance too. The history of commanded
 against counted turn (:mod:`estimators.encoder_phase`) is the fix snapshot's too.
 
 Also checked against the simulation and not modelled, because it is negligible: ``R`` at the

@@ -36,7 +36,7 @@ def predict_step(x, P, d_left, d_right, params, phase):
         :attr:`Localizer.predict_params`.
     phase : ndarray
         :attr:`Localizer.phase` (:mod:`estimators.encoder_phase`): the wheel command and the
-        read's span; its history is updated with the encoder residual states.
+        read's span; used and updated with the encoder residual states.
     """
     wheel_base, rel_var, base_var, q = params[WHEEL_BASE], params[REL_VAR], params[BASE_VAR], params[Q_SCALE]
     var_left = q * (rel_var * d_left * d_left + base_var)
