@@ -114,6 +114,28 @@ def test_gate_rejects_a_fifty_sigma_outlier():
     assert np.linalg.norm(ungated.x[:2] - x[:2]) > 1e-3
 
 
+def test_two_markers_in_a_row_past_the_gate_bring_a_lost_filter_back():
+    # The prediction is 30 sigma off in x; the markers are exact. One marker past the gate is an
+    # outlier; a second, other marker past it too says the prediction is off: it is applied.
+    truth = np.array([8.0, 11.0, 0.4])
+    sd = math.sqrt(P_PRIOR[0, 0])
+    loc = _localizer(x0=truth + [30.0 * sd, 0.0, 0.0])
+    first = loc.update_range(0, float(np.hypot(*(truth[:2] - MARKERS[0]))))
+    assert not first.accepted and first.nis > 100.0
+    second = loc.update_range(1, float(np.hypot(*(truth[:2] - MARKERS[1]))))
+    assert second.accepted and second.nis > 100.0
+    assert abs(loc.x[0] - truth[0]) < 15.0 * sd
+    # The next rejection starts a new count: a lone outlier after an applied update is gated.
+    r2 = float(np.hypot(*(loc.x[:2] - MARKERS[2])))
+    assert not loc.update_range(2, r2 + 50.0 * math.sqrt(loc.update_range(2, r2).innovation_var)).accepted
+    # Negative control: the same marker twice is one marker disagreeing; both are gated.
+    same = _localizer(x0=truth + [30.0 * sd, 0.0, 0.0])
+    r0, lost = float(np.hypot(*(truth[:2] - MARKERS[0]))), same.x
+    assert not same.update_range(0, r0).accepted
+    assert not same.update_range(0, r0).accepted
+    np.testing.assert_array_equal(same.x, lost)
+
+
 def test_bad_arguments_raise_one_line_errors():
     with pytest.raises(SimulationError, match="P0"):
         _localizer(P0=np.diag([1.0, -1.0, 1.0]))
