@@ -48,14 +48,14 @@ Noise: ``R`` is the declared sensor's model (:mod:`estimators.measurements`): ra
 ``q_scale * G diag(var_l, var_r) G^T`` (:mod:`estimators.motion`).
 
 Encoder quantisation (``encoder_residual_state=True``, what an episode uses): the state is
-further augmented with each wheel's centred quantisation residual [m], the last two entries of
-``full_x`` (:mod:`estimators.motion_quantised`). A count error is bounded and telescopes over a
+further augmented with each wheel's last quantisation residuals [m], a block per wheel at the
+end of ``full_x`` (:mod:`estimators.motion_quantised`). A count error is bounded and telescopes over a
 window (the reported travel is ``true + q_{k-1} - q_k``); the white ``tick^2 / 12`` per step of
 the plain model grows without bound and made the filter pessimistic: over the 0.4 s between
 fixes the white model's pose NEES is 1.53 against 3 (``tests/sim/test_odometry_noise_model.py``),
-and 200 warehouse episodes gave NIS 0.962. A residual keeps, across one read, the correlation of
-the read's fractional turn, predicted from the wheel command (:meth:`Localizer.set_command`) over
-the read's span (``steps``, with ``step_time``), and no more (the module says why). The
+and 200 warehouse episodes gave NIS 0.962. A new residual is predicted from the last ones with the
+sawtooth's correlations over the reads' fractional turns, predicted from the wheel command
+(:meth:`Localizer.set_command`) over each read's span (``steps``, with ``step_time``). The
 residuals at the start can be given (``residual0``, variance 0) when the encoders were zeroed at
 known angles; an episode's are unknown. ``q_scale`` scales the residual variance too. The history of commanded
 against counted turn (:mod:`estimators.encoder_phase`) is the fix snapshot's too.
@@ -131,8 +131,9 @@ class Localizer:
         [1/sqrt(m)]; 0 (default) makes ``e`` a random constant. Only with
         ``estimate_wheel_bias``.
     encoder_residual_state : bool
-        Model encoder quantisation: the state gains each wheel's centred quantisation residual
-        ``(q_left, q_right)`` [m] (last two entries of :attr:`full_x`) and the white
+        Model encoder quantisation: the state gains each wheel's last
+        ``encoder_phase.LAGS`` centred quantisation residuals [m] (a block per wheel, left then
+        right, newest first, at the end of :attr:`full_x`) and the white
         ``tick^2 / 12`` term leaves the process noise (module docstring,
         :mod:`estimators.motion_quantised`). Off by default (the white approximation).
     residual0 : array_like, shape (2,), optional
@@ -202,13 +203,16 @@ class Localizer:
             P0_sym = np.block([[P0_sym, np.zeros((3, 1))], [np.zeros((1, 3)), np.array([[bias_std**2]])]])
             dim = 4
         if self.encoder_residual_state:
+            # each wheel's block holds its last LAGS residuals: at the start all the same one
             if residual0 is None:   # counted from an unknown point in a tick
                 q_mean, q_var = np.zeros(2), np.full(2, quant_var)
             else:
                 q_mean, q_var = _check_matrix("residual0", residual0, (2,)), np.zeros(2)
-            x0_arr = np.r_[x0_arr, q_mean]
-            P0_sym = np.block([[P0_sym, np.zeros((dim, 2))], [np.zeros((2, dim)), np.diag(q_var)]])
-            dim += 2
+            lags = encoder_phase.LAGS
+            x0_arr = np.r_[x0_arr, np.repeat(q_mean, lags)]
+            blocks = np.kron(np.diag(q_var), np.ones((lags, lags)))
+            P0_sym = np.block([[P0_sym, np.zeros((dim, 2 * lags))], [np.zeros((2 * lags, dim)), blocks]])
+            dim += 2 * lags
         elif residual0 is not None:
             raise SimulationError("Localizer: residual0: given without encoder_residual_state")
         self._kf = ExtendedKalmanFilter(dim_x=dim, dim_z=1)

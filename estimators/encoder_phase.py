@@ -17,14 +17,16 @@ counted minus the commanded turn is ``D`` ticks, which holds the count's own res
 and the readings' slip besides the tracking, so ``sigma = m sqrt(D^2 + 1/4 + slip part) / span``.
 Measured over the read windows of random-23-016 and random-23-030 (issue 23): the commanded
 rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma. That is what
-the filter uses it for, over one read (:mod:`estimators.motion_quantised`), and the fix snapshot,
-over a fix's shifts, a few physics steps (:func:`estimators.fault.carried.count_cov`). Not
-further: over the time between fixes the wheels fall behind their command by a steady ~1e-4 of
-their rate, and the errors of successive reads add up instead of averaging. With no span
-(``STEPS`` 0: a filter used outside an episode) or too short a history, ``sigma`` is infinite.
+the filter uses it for, over its last ``LAGS`` reads (:mod:`estimators.motion_quantised`), and the
+fix snapshot, over a fix's shifts, a few physics steps (:func:`estimators.fault.carried.count_cov`).
+Over the time between fixes the wheels fall behind their command by a steady ~1e-4 of their rate,
+and the errors of successive reads add up instead of averaging: a turn over ``s`` steps is known
+to ``s`` times the per-step sigma, not ``sqrt(s)`` times. With no span (``STEPS`` 0: a filter used
+outside an episode) or too short a history, ``sigma`` is infinite.
 
-State (float64, shape ``(HEAD0 + ENTRY * RING,)``, :func:`new_state`): the command, the read's
-span, constants, running sums [ticks] and a ring of checkpoints (``ENTRY`` running sums each).
+State (float64, shape ``(RECENT0 + BOUNDARY * (LAGS + 1),)``, :func:`new_state`): the command,
+the read's span, constants, running sums [ticks], a ring of checkpoints (``ENTRY`` running sums
+each) and a ring of the last read boundaries (:func:`boundaries`).
 """
 
 from __future__ import annotations
@@ -36,8 +38,8 @@ import numpy as np
 from jit import compiled
 
 CMD_LEFT, CMD_RIGHT, STEPS, TICKS_PER_RAD, STEP_TIME, NOW, COUNT_L, COUNT_R, CMD_SUM_L, CMD_SUM_R, \
-    TICK, HEAD, FILLED, SLIP_VAR, SQ_L, SQ_R = range(16)
-HEAD0 = 16
+    TICK, HEAD, FILLED, SLIP_VAR, SQ_L, SQ_R, PER_L, PER_R, SEGMENT, NEWEST = range(20)
+HEAD0 = 20
 #: entries of a past read in the ring: step, counted (l, r), commanded (l, r), sum d^2 (l, r)
 ENTRY = 7
 #: history the tracking error is read from [physics steps] (4 s at 240 Hz): long enough for the
@@ -48,6 +50,12 @@ WINDOW = 960
 CHECKPOINT = 16
 #: checkpoints kept
 RING = WINDOW // CHECKPOINT + 8
+#: past residuals the filter keeps per wheel (:mod:`estimators.motion_quantised`); the last
+#: LAGS + 1 read boundaries are kept: commanded sum left, right [ticks], step, segment (a read
+#: whose turn is not predicted starts a new segment)
+LAGS = 8
+BOUNDARY = 4
+RECENT0 = HEAD0 + ENTRY * RING
 
 
 def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, slip_std: float = 0.0) -> np.ndarray:
@@ -65,7 +73,7 @@ def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, 
         The floor's random slip per unit of a read's travel [-] (``RobotSpec.odometry_noise``):
         it is in the counted travel the tracking error is read from.
     """
-    s = np.zeros(HEAD0 + ENTRY * RING)
+    s = np.zeros(RECENT0 + BOUNDARY * (LAGS + 1))   # every boundary at the start, segment 0
     s[SLIP_VAR] = slip_std * slip_std
     s[TICKS_PER_RAD] = encoder_ticks / (2.0 * math.pi)
     s[STEP_TIME] = 0.0 if step_time is None else float(step_time)
@@ -155,6 +163,8 @@ def phase_advance(state, d_left, d_right):
     """
     m = state[STEPS]
     if not (m > 0.0 and state[STEP_TIME] > 0.0):
+        state[PER_L] = state[PER_R] = math.inf
+        _push_boundary(state, state[SEGMENT] + 1.0)
         return 0.0, 0.0, math.inf, math.inf
     k = state[TICKS_PER_RAD] * state[STEP_TIME] * m
     turn_l, turn_r = state[CMD_LEFT] * k, state[CMD_RIGHT] * k
@@ -178,7 +188,49 @@ def phase_advance(state, d_left, d_right):
         state[HEAD] = head
         state[FILLED] = min(filled + 1, RING)
     state[STEPS] = 0.0   # a span is set for each read
+    state[PER_L], state[PER_R] = per_l, per_r
+    known = per_l < math.inf and per_r < math.inf
+    _push_boundary(state, state[SEGMENT] if known else state[SEGMENT] + 1.0)
     return turn_l, turn_r, sig_l, sig_r
+
+
+@compiled.njit(cache=True)
+def _push_boundary(state, segment):
+    """Record the read boundary just passed: the commanded sums, the step, its ``segment``."""
+    newest = (int(state[NEWEST]) + 1) % (LAGS + 1)
+    o = RECENT0 + BOUNDARY * newest
+    state[o], state[o + 1], state[o + 2], state[o + 3] = state[CMD_SUM_L], state[CMD_SUM_R], state[NOW], segment
+    state[NEWEST] = newest
+    state[SEGMENT] = segment
+
+
+@compiled.njit(cache=True)
+def boundaries(state, wheel, turns, steps, segments):
+    """Fill the last ``LAGS + 1`` read boundaries, newest first.
+
+    Parameters
+    ----------
+    state : ndarray
+        :func:`new_state`'s array.
+    wheel : int
+        0 left, 1 right.
+    turns, steps, segments : ndarray, shape (LAGS + 1,)
+        Filled: the wheel's commanded turn since the start [ticks], the physics step and the
+        segment at each boundary (boundaries of different segments are not related by a
+        predicted turn).
+
+    Returns
+    -------
+    float
+        The wheel's tracking sigma per physics step [ticks] (:func:`sigma_per_step`, inf: unknown).
+    """
+    newest = int(state[NEWEST])
+    for k in range(LAGS + 1):
+        o = RECENT0 + BOUNDARY * ((newest - k) % (LAGS + 1))
+        turns[k] = state[o + wheel]
+        steps[k] = state[o + 2]
+        segments[k] = state[o + 3]
+    return state[PER_L + wheel]
 
 
 # numba keys a cache on its own file only: flush the kernels above when a file they inline changed

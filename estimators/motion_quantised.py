@@ -1,4 +1,4 @@
-"""EKF predict with each wheel's encoder quantisation residual in the state.
+"""EKF predict with each wheel's last encoder quantisation residuals in the state.
 
 An encoder counts whole ticks of its wheel's rotation: the count converted to travel is
 ``r phi_k - q_k``, with ``q_k`` in ``[0, tick)`` the part of the rotation below the last tick
@@ -9,27 +9,39 @@ Added to the process noise as white noise of variance ``tick^2 / 12`` per step (
 :func:`estimators.process_noise.wheel_variances` does) it grows without bound, at standstill too,
 while the true error never exceeds one tick. With the residual a state, the error stays bounded.
 
-A residual is the sawtooth of its wheel's phase: a read that turns the wheel ``n + f`` ticks
-moves it by ``f`` (modulo the tick), so across the read it keeps the sawtooth's correlation
-``c = 1 - 6 f (1 - f)`` (:func:`read_correlation`), and the read's count error has the variance
-``f (1 - f) tick^2``: up to 1/4 tick^2 at f = 1/2, ~0 for a turn of whole ticks. The model is that
-correlation and no more: ``q_new = c q_old + v`` with ``v`` fresh, of variance
-``(1 - c^2) tick^2 / 12``, the turn predicted from the wheel command over the read's span
-(:func:`estimators.encoder_phase.phase_advance`; c = 0, a new residual, when it is not). Over one
-read (1-4 physics steps) the prediction holds to ~0.003 ticks; over the time between fixes it does
-not: the simulated wheels fall behind their command by a steady ~1e-4 of their rate (0.055 ticks a
-second on random-23-017), and a filter that turned the residual's harmonics by the command over
-many reads learnt phases it did not have and was overconfident on five of 22 random worlds
-(``docs/design.md`` §6). What the AR(1) loses is the correlation over several reads (a wheel that
-turns 70.83 ticks a read is back near its phase every 6 reads).
+A residual is the sawtooth of its wheel's phase, so residuals at two read boundaries between
+which the wheel turned ``n + f`` ticks have the sawtooth's correlation ``1 - 6 f (1 - f)`` for a
+phase uniform over a tick (:func:`read_correlation`), and a window's count error the variance
+``f (1 - f) tick^2``: up to 1/4 tick^2 at f = 1/2, ~0 for a turn of whole ticks. The turns are
+predicted from the wheel command (:mod:`estimators.encoder_phase`); the wheels fall behind their
+command by a steady rate (~1e-4 of it in the simulation, 0.055 ticks a second on random-23-017),
+so a turn over ``s`` physics steps is known to ``sigma s`` ticks, ``sigma`` the tracking error's
+rate give or take (:func:`estimators.encoder_phase.sigma_per_step`): a rate error, whose error
+grows with the lag, not with its square root. Averaged over it the correlation is that of the
+count-error variance :func:`estimators.encoder_phase.count_error_var`, a proper covariance for
+any set of boundaries (a mixture over the rate).
 
-The wheel's rotation over the step is ``u_w = d_w - q_w,old + q_w,new = d_w - (1 - c) q_w,old + v_w``. With the relative
+The state keeps each wheel's residuals at the last ``LAGS`` read boundaries, newest first. A
+read's new residual is the best linear predictor from them, ``q_new = a . (q_0 .. q_{K-1}) + v``,
+with the sawtooth covariances among those boundaries and the new one
+(:func:`residual_predictor`); ``v`` is fresh, of the predictor's error variance. So every window
+of up to ``LAGS`` reads has its count-error variance exact for its predicted turn, and windows
+longer than that are the Gaussian chain's extrapolation of it. Why several: with one residual
+(``LAGS`` 1, an AR(1) over a read, the model before this one) a wheel whose phase walks slowly
+(random-23-000: -0.06 ticks a read) gets the mean 1/6 for windows whose turn sums to half a tick,
+where the truth is 1/4 (up to 37 % low over 2-12 reads), and the filter's NEES was 3.11 at 200
+runs; carrying the residual's harmonics by the command over every read (the model before that)
+claimed the phase after the wheels had drifted from it (``docs/design.md`` §6).
+
+The wheel's rotation over the step is ``u_w = d_w - q_w,0 + q_w,new``. With the relative
 wheel-radius error ``e`` (optional state, :func:`estimators.motion.propagate_moments_biased`) the
 wheels roll ``t_l = (1 - e) u_l`` and ``t_r = (1 + e) u_r`` plus the floor's random slip
-(variance ``var_left``, ``var_right``), so ``pose' = f(pose, t_l, t_r)``, ``e' = e``,
-``q' = c q + v``, ``P' = A P A^T + B W B^T``.
+(variance ``var_left``, ``var_right``), so ``pose' = f(pose, t_l, t_r)``, ``e' = e``, each
+block shifts by one with ``q_new`` in front, ``P' = A P A^T + B W B^T``.
 
-State layout: ``(x [m], y [m], theta [rad], [e [-]], q_left [m], q_right [m])``: shape (5,) or (6,).
+State layout: ``(x [m], y [m], theta [rad], [e [-]], left block, right block)``, a block the
+``LAGS`` residuals ``(q_0, ..., q_{LAGS-1})`` [m], newest first: shape ``(3 + 2 LAGS,)`` or
+``(4 + 2 LAGS,)``.
 """
 
 from __future__ import annotations
@@ -38,35 +50,161 @@ import math
 
 import numpy as np
 
+from estimators.encoder_phase import LAGS, boundaries
 from estimators.motion import _arc_terms, _jacobians_into
 from jit import compiled
+
+#: below this spread of a turn [ticks] :func:`read_correlation` averages near one whole tick
+SIGMA_NEAR = 0.1
+#: added to the predictor's correlation matrix: boundaries at the same phase (the start, a
+#: stop) make it singular, and a share of 1e-9 of the residual's variance is far below anything
+#: the filter resolves
+JITTER = 1e-9
 
 
 @compiled.njit(cache=True)
 def read_correlation(turn, sigma):
-    """Correlation of a wheel's residual across a read that turns it ``turn`` ticks [-].
+    """Correlation of a wheel's residuals at two boundaries ``turn`` ticks apart, known to ``sigma`` [-].
 
-    The sawtooth's autocorrelation at the read's fractional turn ``f``: ``1 - 6 f (1 - f)``
-    for a phase uniform over a tick; 0 (a new residual) when the turn is not predicted (``sigma``
-    infinite).
+    The sawtooth's autocorrelation at the fractional turn ``f``, ``1 - 6 f (1 - f)`` for a phase
+    uniform over a tick, averaged over the turn's normal spread: ``1 - 6 v`` with ``v`` the count
+    error's variance :func:`estimators.encoder_phase.count_error_var`. 0 when ``sigma`` is
+    infinite (the turn is not predicted).
     """
     if not sigma < math.inf:
         return 0.0
     f = turn - math.floor(turn)
-    return 1.0 - 6.0 * f * (1.0 - f)
+    if f > 0.5:
+        f -= 1.0                                 # centred on the whole tick, |f| <= 1/2
+    if sigma <= 0.0:
+        return 1.0 - 6.0 * abs(f) + 6.0 * f * f
+    if sigma < SIGMA_NEAR:
+        # 1 - 6 |f| + 6 f^2 is smooth but at whole ticks, and the next one is > 5 sigma away:
+        # average |f| (a folded normal) and f^2 over the spread
+        z = f / sigma
+        mean_abs = (sigma * math.sqrt(2.0 / math.pi) * math.exp(-0.5 * z * z)
+                    + f * math.erf(z / math.sqrt(2.0)))
+        return 1.0 - 6.0 * mean_abs + 6.0 * (f * f + sigma * sigma)
+    # sum_m 6 / (pi m)^2 cos(2 pi m f) exp(-2 pi^2 m^2 sigma^2); past m = 20 the terms are < e^-79
+    c = 0.0
+    for m in range(1, 21):
+        c += 6.0 / (math.pi * m) ** 2 * math.cos(2.0 * math.pi * m * f) * math.exp(
+            -2.0 * (math.pi * m * sigma) ** 2)
+    return c
+
+
+@compiled.njit(cache=True)
+def predictor_from(turns, steps, segments, per_step, coef):
+    """Fill ``coef`` with the best linear predictor of the residual at boundary 0 from boundaries 1..K.
+
+    Parameters
+    ----------
+    turns, steps, segments : ndarray, shape (K + 1,)
+        Each boundary's commanded turn since any origin [ticks], physics step and segment,
+        the new boundary first (:func:`estimators.encoder_phase.boundaries`).
+    per_step : float
+        The turn's uncertainty per physics step of lag [ticks] (inf: not predicted).
+    coef : ndarray, shape (K,)
+        Filled: ``a``, the new residual's weights on the past ones.
+
+    Returns
+    -------
+    float
+        The predictor's error variance as a share of the residual's, in ``[0, 1]``.
+    """
+    k = coef.shape[0]
+    C = np.empty((k, k))
+    c = np.empty(k)
+    for i in range(k):
+        c[i] = _pair(turns, steps, segments, per_step, 0, i + 1)
+        for j in range(i + 1):
+            C[i, j] = 1.0 + JITTER if i == j else _pair(turns, steps, segments, per_step, i + 1, j + 1)
+    # Cholesky C = L L^T in place (lower), then L L^T a = c
+    for j in range(k):
+        s = C[j, j]
+        for m in range(j):
+            s -= C[j, m] * C[j, m]
+        d = math.sqrt(max(s, JITTER))
+        C[j, j] = d
+        for i in range(j + 1, k):
+            s = C[i, j]
+            for m in range(j):
+                s -= C[i, m] * C[j, m]
+            C[i, j] = s / d
+    for i in range(k):
+        s = c[i]
+        for m in range(i):
+            s -= C[i, m] * coef[m]
+        coef[i] = s / C[i, i]
+    explained = 0.0
+    for i in range(k):
+        explained += coef[i] * coef[i]       # |L^-1 c|^2 = c . C^-1 c
+    for i in range(k - 1, -1, -1):
+        s = coef[i]
+        for m in range(i + 1, k):
+            s -= C[m, i] * coef[m]
+        coef[i] = s / C[i, i]
+    return min(max(1.0 - explained, 0.0), 1.0)
+
+
+@compiled.njit(cache=True)
+def _pair(turns, steps, segments, per_step, i, j):
+    if segments[i] != segments[j]:
+        return 0.0
+    return read_correlation(turns[i] - turns[j], per_step * abs(steps[i] - steps[j]))
+
+
+@compiled.njit(cache=True)
+def residual_predictor(phase, wheel, coef):
+    """Fill ``coef`` with the wheel's predictor over the read just recorded; return its fresh share.
+
+    :func:`predictor_from` over the last ``LAGS + 1`` boundaries of ``phase``
+    (:mod:`estimators.encoder_phase`).
+    """
+    turns = np.empty(LAGS + 1)
+    steps = np.empty(LAGS + 1)
+    segments = np.empty(LAGS + 1)
+    per_step = boundaries(phase, wheel, turns, steps, segments)
+    return predictor_from(turns, steps, segments, per_step, coef)
+
+
+@compiled.njit(cache=True)
+def _left_product(M, A3, coef_l, coef_r, biased, out):
+    """``out = A M`` for the predict's transition ``A``: dense pose rows ``A3``, ``e`` kept, blocks shifted."""
+    n = M.shape[0]
+    k = coef_l.shape[0]
+    for i in range(3):
+        for col in range(n):
+            v = 0.0
+            for m in range(n):
+                v += A3[i, m] * M[m, col]
+            out[i, col] = v
+    if biased:
+        for col in range(n):
+            out[3, col] = M[3, col]
+    for w in range(2):
+        base = n - 2 * k + w * k
+        coef = coef_l if w == 0 else coef_r
+        for col in range(n):
+            v = 0.0
+            for j in range(k):
+                v += coef[j] * M[base + j, col]
+            out[base, col] = v
+        for j in range(k - 1, 0, -1):
+            for col in range(n):
+                out[base + j, col] = M[base + j - 1, col]
 
 
 @compiled.njit(cache=True)
 def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right, quant_var,
-                                bias_walk_var, turn_slip=0.0, turn_left=0.0, turn_right=0.0,
-                                sigma_left=math.inf, sigma_right=math.inf):
-    """EKF predict step of the pose augmented with the encoders' residuals, in place.
+                                bias_walk_var, turn_slip, coef_left, coef_right, fresh_left, fresh_right):
+    """EKF predict step of the pose augmented with the encoders' residual blocks, in place.
 
     Parameters
     ----------
-    x : numpy.ndarray, shape (5,) or (6,), float64, C-contiguous
-        ``(x [m], y [m], theta [rad], [e [-]], q_left [m], q_right [m])``, the residuals centred
-        (module docstring); overwritten. The heading is left unwrapped.
+    x : numpy.ndarray, shape (3 + 2 K,) or (4 + 2 K,), float64, C-contiguous
+        ``(x [m], y [m], theta [rad], [e [-]], left block, right block)`` (module docstring), the
+        residuals centred; overwritten. The heading is left unwrapped.
     P : numpy.ndarray, shape (n, n), float64, C-contiguous
         Its covariance; overwritten.
     d_left, d_right : float
@@ -83,85 +221,76 @@ def propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var
     turn_slip : float
         Declared outward slip per radian of the step's heading change [-]
         (:func:`estimators.motion.propagate_moments`).
-    turn_left, turn_right : float
-        Each wheel's predicted turn over the step [ticks]
-        (:func:`estimators.encoder_phase.phase_advance`).
-    sigma_left, sigma_right : float
-        Whether it is predicted: finite, or inf (the default: the residual is new).
+    coef_left, coef_right : numpy.ndarray, shape (K,)
+        Each wheel's new residual's weights on its block (:func:`residual_predictor`; zeros: a
+        new residual).
+    fresh_left, fresh_right : float
+        The share of ``quant_var`` that is new in each wheel's new residual, in ``[0, 1]``.
     """
     n = x.shape[0]
-    biased = n == 6
-    b0 = n - 2                                   # the left wheel's residual
+    k = coef_left.shape[0]
+    if not (n - 2 * k in (3, 4) and coef_right.shape[0] == k and P.shape[0] == n and P.shape[1] == n):
+        raise ValueError("propagate_moments_quantised: x, P and the predictors do not match")
+    biased = n - 2 * k == 4
+    bl, br = n - 2 * k, n - k                    # the blocks' first entries
     e = x[3] if biased else 0.0
     scale = (1.0 - e, 1.0 + e)
-    # q_new = c q_old + v, var(v) = (1 - c^2) tick^2 / 12: the wheels turned d - (1 - c) q_old + v
-    c = (read_correlation(turn_left, sigma_left), read_correlation(turn_right, sigma_right))
-    u_l, u_r = d_left - (1.0 - c[0]) * x[b0], d_right - (1.0 - c[1]) * x[b0 + 1]
+    q_l = 0.0
+    q_r = 0.0
+    for j in range(k):
+        q_l += coef_left[j] * x[bl + j]
+        q_r += coef_right[j] * x[br + j]
+    u_l, u_r = d_left - x[bl] + q_l, d_right - x[br] + q_r
     tl, tr = scale[0] * u_l, scale[1] * u_r
     F3 = np.empty((3, 3))
     G = np.empty((3, 2))
     _jacobians_into(x[2], tl, tr, wheel_base, F3, G, turn_slip)
-    # A = d(new state)/d(old state): the pose rows mix pose, e and the old residuals; e's row is
-    # the identity; a residual's row is c on its diagonal. Only the pose rows need products.
-    A = np.zeros((3, n))
+    # The pose rows of A: pose, e, and each residual through u_w = d_w - q_0 + a . q
+    A3 = np.zeros((3, n))
     for i in range(3):
         for j in range(3):
-            A[i, j] = F3[i, j]
+            A3[i, j] = F3[i, j]
         if biased:
-            A[i, 3] = -u_l * G[i, 0] + u_r * G[i, 1]
-        A[i, b0] = -scale[0] * G[i, 0] * (1.0 - c[0])
-        A[i, b0 + 1] = -scale[1] * G[i, 1] * (1.0 - c[1])
-    AP = np.zeros((3, n))
-    for i in range(3):
-        for j in range(n):
-            v = 0.0
-            for m in range(n):
-                v += A[i, m] * P[m, j]
-            AP[i, j] = v
-    out = np.zeros((n, n))
-    for i in range(3):
-        for j in range(i, 3):
-            v = 0.0
-            for m in range(n):
-                v += AP[i, m] * A[j, m]
-            out[i, j] = v
-            out[j, i] = v
-        if biased:
-            out[i, 3] = AP[i, 3]                 # cov(pose', e) = A_pose P[:, e]
-            out[3, i] = AP[i, 3]
-        for w in range(2):
-            out[i, b0 + w] = c[w] * AP[i, b0 + w]
-            out[b0 + w, i] = out[i, b0 + w]
+            A3[i, 3] = -u_l * G[i, 0] + u_r * G[i, 1]
+        for j in range(k):
+            A3[i, bl + j] = scale[0] * G[i, 0] * coef_left[j]
+            A3[i, br + j] = scale[1] * G[i, 1] * coef_right[j]
+        A3[i, bl] -= scale[0] * G[i, 0]
+        A3[i, br] -= scale[1] * G[i, 1]
+    AP = np.empty((n, n))
+    _left_product(P, A3, coef_left, coef_right, biased, AP)
+    out = np.empty((n, n))
+    _left_product(AP.T, A3, coef_left, coef_right, biased, out)      # A (A P)^T = A P A^T
     if biased:
-        out[3, 3] = P[3, 3] + bias_walk_var
-        for w in range(2):
-            out[3, b0 + w] = c[w] * P[3, b0 + w]
-            out[b0 + w, 3] = out[3, b0 + w]
-    for w in range(2):
-        for w2 in range(2):
-            out[b0 + w, b0 + w2] = c[w] * c[w2] * P[b0 + w, b0 + w2]
-    # The noise: each wheel's fresh part of the residual and slip move the pose; the fresh part
-    # is also the residual's.
+        out[3, 3] += bias_walk_var
+    # The noise: each wheel's fresh residual part and slip move the pose; the fresh part is also
+    # the new residual.
     for w in range(2):
         sw = scale[w]
+        base = bl if w == 0 else br
+        fresh = (fresh_left if w == 0 else fresh_right) * quant_var
         slip_var = var_left if w == 0 else var_right
-        fresh = (1.0 - c[w] * c[w]) * quant_var
         for i in range(3):
             gi = sw * G[i, w]
-            for j in range(i, 3):
-                v = gi * sw * G[j, w] * (fresh + slip_var)
-                out[i, j] += v
-                if j != i:
-                    out[j, i] += v
-            out[i, b0 + w] += gi * fresh
-            out[b0 + w, i] = out[i, b0 + w]
-        out[b0 + w, b0 + w] += fresh
-    ds, dtheta, _, k, _, cs, sn = _arc_terms(x[2], tl, tr, wheel_base, turn_slip)
-    x[0] += ds * k * cs
-    x[1] += ds * k * sn
+            for j in range(3):
+                out[i, j] += gi * sw * G[j, w] * (fresh + slip_var)
+            out[i, base] += gi * fresh
+            out[base, i] += gi * fresh
+        out[base, base] += fresh
+    for i in range(n):                           # exactly symmetric, whatever the rounding
+        for j in range(i):
+            v = 0.5 * (out[i, j] + out[j, i])
+            out[i, j] = v
+            out[j, i] = v
+    ds, dtheta, _, kk, _, cs, sn = _arc_terms(x[2], tl, tr, wheel_base, turn_slip)
+    x[0] += ds * kk * cs
+    x[1] += ds * kk * sn
     x[2] += dtheta
-    x[b0] = c[0] * x[b0]
-    x[b0 + 1] = c[1] * x[b0 + 1]
+    for j in range(k - 1, 0, -1):
+        x[bl + j] = x[bl + j - 1]
+        x[br + j] = x[br + j - 1]
+    x[bl] = q_l
+    x[br] = q_r
     P[:, :] = out
 
 

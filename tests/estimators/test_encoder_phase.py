@@ -76,7 +76,30 @@ def test_the_phase_predictor_times_the_command_and_bounds_it_by_the_history():
     window, checkpoint = encoder_phase.WINDOW, encoder_phase.CHECKPOINT
     assert 4 * 0.5 / (window + checkpoint) <= sig_l <= 4 * math.sqrt(1.25) / window
     assert math.isinf(out[25][2])                                # 104 steps of history: unknown
-    # no span: no prediction, and the history is left alone
+    # no span: no prediction; the history is left alone, and the read starts a new segment of
+    # boundaries (the residuals before it are not related to the ones after by a known turn)
     before = state.copy()
     assert math.isinf(phase_advance(state, 0.01, 0.01)[2])
-    np.testing.assert_array_equal(state, before)
+    np.testing.assert_array_equal(state[encoder_phase.HEAD0:encoder_phase.RECENT0],
+                                  before[encoder_phase.HEAD0:encoder_phase.RECENT0])
+    np.testing.assert_array_equal(state[:encoder_phase.PER_L], before[:encoder_phase.PER_L])
+    assert state[encoder_phase.SEGMENT] == before[encoder_phase.SEGMENT] + 1
+
+
+def test_the_boundaries_are_the_last_reads_newest_first():
+    state = new_state(ROBOT.encoder_ticks, ROBOT.wheel_radius, 1 / 240)
+    state[encoder_phase.CMD_LEFT], state[encoder_phase.CMD_RIGHT] = 2.0, -1.0
+    k_rad = ROBOT.encoder_ticks / (2 * math.pi) / 240              # ticks per (rad/s) per step
+    spans = [4, 1, 3, 4, 2, 4, 4, 4, 4, 3, 1]
+    for m in spans:
+        state[encoder_phase.STEPS] = m
+        phase_advance(state, 0.0, 0.0)
+    lags = encoder_phase.LAGS
+    turns, steps, segments = np.empty(lags + 1), np.empty(lags + 1), np.empty(lags + 1)
+    per = encoder_phase.boundaries(state, 1, turns, steps, segments)
+    assert math.isinf(per)                                          # 30 steps of history: unknown
+    ends = np.cumsum(spans)[::-1][:lags + 1]
+    np.testing.assert_array_equal(steps, ends)
+    np.testing.assert_allclose(turns, -1.0 * k_rad * ends, rtol=1e-12)
+    # every read so far had an unknown sigma: each its own segment
+    assert len(set(segments)) == lags + 1

@@ -33,7 +33,7 @@ import numpy as np
 import pytest
 
 import scenarios
-from estimators import consistency
+from estimators import consistency, encoder_phase
 from estimators.motion import arc_step
 from estimators.predict import predict_step
 from sim.episode.drive import CONTROL_STEPS, episode_localizer
@@ -122,7 +122,9 @@ def _window_nees(seed: int, n_windows: int = N_WINDOWS) -> dict[str, np.ndarray]
                             rng=np.random.default_rng(0))
         odo.normals = slip_normals      # every filter sees the same slip draws
         odo.state[NEXT_NORMAL] = 0.0
-        x0 = np.column_stack([poses, np.full(n_windows, e)] + ([residual0] if quantised else []))
+        # each wheel's block: its last residuals, all the start one
+        blocks = np.repeat(residual0, encoder_phase.LAGS, axis=1)
+        x0 = np.column_stack([poses, np.full(n_windows, e)] + ([blocks] if quantised else []))
         xs, Ps = np.empty_like(x0), np.empty((n_windows, *loc.full_P.shape))
         truths = np.empty((n_windows, 3))
         # no read spans: the residuals independent from read to read (the phases go unpredicted)

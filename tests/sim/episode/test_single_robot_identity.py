@@ -61,6 +61,11 @@ phasors renewed at every read, the covariance within 1e-19 of it.
 Issue 23 (random-23-008's N-run NEES, -030's cross-track): each residual keeps, across a read,
 the sawtooth's correlation over the read's predicted fractional turn (an AR(1),
 ``estimators.motion_quantised.read_correlation``): the estimate and its covariance moved.
+
+Issue 23 (random-23-000's NEES, -030's cross-track): each wheel's last 8 residuals are states, a
+new one predicted from them with the sawtooth's covariances over the predicted turns, averaged
+over a tracking error that grows with the lag (``estimators.motion_quantised``): the estimate and
+its covariance moved. (The gate's rule for two markers in a row does not act in these 3 s.)
 """
 
 from __future__ import annotations
@@ -76,8 +81,8 @@ from sim.episode.drive import run_episode
 from sim.montecarlo.rows import fix_columns, run_row, step_columns
 
 BEFORE_FLEETS = {
-    "warehouse": "f49428fe09cf87c5e07c8878774b2a8a02e14c323df6caf54c893ae4f449233c",
-    "paper-two-markers": "a5093fb084af35dea3503b72be14bf37abf396719da8e5e859f4afe6993c0e96",
+    "warehouse": "47636f6df83fb4f9fe741d04f2033839097e73a660bbbe539e7021f62d28ef13",
+    "paper-two-markers": "06a896292afc3fcc1a7c37cb11aee834dff527c30a926bb8cd1f0c9a8292487f",
 }
 
 
