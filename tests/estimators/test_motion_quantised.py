@@ -154,12 +154,13 @@ def test_a_reads_count_error_has_the_variance_of_its_fractional_turn(f):
         assert abs(_read_count_error_var(44.0 + f, None) - empirical) > 0.01
 
 
-def _read_count_error_var(turn: float, steps: int | None) -> float:
-    """Return the model's variance of one read's count error on the spot [tick^2] (``steps`` None: turn not predicted).
+def _read_count_error_var(turn: float, steps: int | None, reads: int = 1) -> float:
+    """Return the model's variance of a wheel's count error over ``reads`` reads on the spot [tick^2].
 
     The filter (no slip) turns on the spot at a steady command for 150 reads of 4 steps, so the
-    phase history is there, then the pose is made known and it predicts one more read: the
-    heading's variance is ``(var_l + var_r) / b^2`` of the two wheels' count errors.
+    phase history is there, then the pose is made known and it predicts ``reads`` more reads of
+    ``steps`` steps (None: the turn not predicted): the heading's variance is
+    ``(var_l + var_r) / b^2`` of the two wheels' count errors over the window.
     """
     dt = 1 / 240
     loc = Localizer(NO_SLIP, SensorSpec(), MARKERS, [1.0, 2.0, 0.0], np.eye(3) * 1e-8, encoder_residual_state=True,
@@ -171,7 +172,8 @@ def _read_count_error_var(turn: float, steps: int | None) -> float:
     x, P = loc.state_arrays()
     P[:3, :] = 0.0
     P[:, :3] = 0.0
-    loc.predict(-turn * TICK, turn * TICK, 0.0, steps)
+    for _ in range(reads):
+        loc.predict(-turn * TICK, turn * TICK, 0.0, steps)
     return loc.P[2, 2] * ROBOT.wheel_base**2 / 2 / TICK**2
 
 
@@ -207,28 +209,6 @@ def test_the_predictor_from_one_boundary_is_the_correlation_and_from_none_is_fre
     assert coef.sum() == pytest.approx(1.0, abs=1e-6)
 
 
-def _window_count_error_var(turn: float, reads: int) -> float:
-    """Return the filter's variance of a wheel's count error over ``reads`` reads of ``turn`` ticks [tick^2].
-
-    On the spot (no slip) at a steady command for 150 reads of 4 steps, so the history is there;
-    then the pose is made known and it predicts ``reads`` more: the heading's variance is
-    ``(var_l + var_r) / b^2`` of the two wheels' count errors over the window.
-    """
-    dt = 1 / 240
-    loc = Localizer(NO_SLIP, SensorSpec(), MARKERS, [1.0, 2.0, 0.0], np.eye(3) * 1e-8, encoder_residual_state=True,
-                    step_time=dt)
-    rate = turn / (4 * dt) / (ROBOT.encoder_ticks / (2 * math.pi))   # rad/s
-    loc.set_command(-rate, rate)
-    for _ in range(150):
-        loc.predict(-turn * TICK, turn * TICK, 0.0, 4)
-    x, P = loc.state_arrays()
-    P[:3, :] = 0.0
-    P[:, :3] = 0.0
-    for _ in range(reads):
-        loc.predict(-turn * TICK, turn * TICK, 0.0, 4)
-    return loc.P[2, 2] * ROBOT.wheel_base**2 / 2 / TICK**2
-
-
 @pytest.mark.parametrize("reads", [2, 4, 6, LAGS])
 def test_a_slowly_walking_phase_has_the_count_errors_of_its_windows(reads):
     # random-23-000's left wheel: 44.94 ticks a read, so its phase walks back 0.06 a read and a
@@ -242,7 +222,7 @@ def test_a_slowly_walking_phase_has_the_count_errors_of_its_windows(reads):
     theta0 = rng.uniform(0, 1, 200_000)
     window = turn * reads
     sampled = np.var(window - (np.floor(theta0 + window) - np.floor(theta0)))
-    assert abs(_window_count_error_var(turn, reads) - sampled) < 0.01
+    assert abs(_read_count_error_var(turn, 4, reads) - sampled) < 0.01
     ar1 = 2 * (1 - read_correlation(turn, 0.0) ** reads) / 12
     if reads >= 4:
         assert abs(ar1 - sampled) > 0.01
