@@ -27,7 +27,7 @@ from sim.montecarlo.rows import schemas
 from sim.montecarlo.steps import StepsMode
 
 SWEEP_FORMAT = 2
-"""2: ``steps`` mode and float32 step parts; 1: every step, float64."""
+"""2: ``steps`` mode and float32 step parts (far positions float64 since 2026-12-05, read alike); 1: float64."""
 
 
 def stored_steps_mode(settings: dict[str, Any]) -> StepsMode:

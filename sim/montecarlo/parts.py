@@ -6,9 +6,12 @@ Size (`docs/design.md` §5: steps are the bulk of a sweep). Per-step parts are s
   relative resolution of 2**-24 (6e-8): a position at 16 .. 32 m to 1.9 um (3.8 um at
   32 .. 64 m), an angle to 2.4e-7 rad, a time of 64 .. 128 s to 7.6 us (the control step is
   16.7 ms), a variance of 1e-6 m^2 to 6e-14 m^2, and errors, bounds and the NEES to 6e-8 of
-  their value. The positions are millimetre-scale apart from the truth, so nothing any
-  check or figure reads is near that resolution; what is given up is bit-exactness against
-  the episode's float64 arrays (the error column, not est - true, carries the error);
+  their value; what is given up is bit-exactness against the episode's float64 arrays. But a
+  position's resolution is relative to the site's coordinates, not to the error: a world drawn
+  in site coordinates (a CAD drawing or a map 700 km from its origin, as random worlds are
+  drawn) kept its positions only to 6-8 cm, where the estimate is millimetres from the truth. A
+  part whose positions float32 would round by more than :data:`POSITION_RESOLUTION` keeps them
+  float64 (:func:`positions_kept`; 30 % more bytes for such a part);
 - floats with BYTE_STREAM_SPLIT (the high bytes of slowly varying values compress well
   once apart), step and fix indices with DELTA_BINARY_PACKED (an arange costs ~0), the
   constant run column and small integer or boolean columns with dictionary/RLE, and zstd
@@ -31,6 +34,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
@@ -61,6 +65,31 @@ LATER_COLUMNS = frozenset({"lost_guarantee", "excused", "unplanned"})
 def lean(schema: pa.Schema) -> pa.Schema:
     """Return ``schema`` with float64 fields as float32 (the storage of per-step parts)."""
     return pa.schema([pa.field(f.name, pa.float32()) if pa.types.is_float64(f.type) else f for f in schema])
+
+
+POSITIONS = ("true_x", "true_y", "est_x", "est_y")
+"""Step columns in world coordinates [m]."""
+POSITION_RESOLUTION = 1e-5
+"""Largest rounding of a stored position [m]: a hundredth of the millimetre an estimate is off."""
+
+
+def positions_kept(storage: pa.Schema, columns: dict) -> pa.Schema:
+    """Return ``storage`` with :data:`POSITIONS` as float64 if float32 would round them too much.
+
+    Too much: by more than :data:`POSITION_RESOLUTION`, i.e. coordinates beyond
+    ``2**24 POSITION_RESOLUTION`` = 168 m.
+
+    Parameters
+    ----------
+    storage : pyarrow.Schema
+        A steps part's lean storage (:func:`lean`).
+    columns : dict of str to numpy.ndarray
+        The part's columns (the :data:`POSITIONS` among them, [m]).
+    """
+    limit = POSITION_RESOLUTION * 2.0**24      # float32 rounds |x| by at most |x| 2**-24
+    # all four or none: est - true is read from them
+    far = any(len(columns[n]) and float(np.nanmax(np.abs(columns[n]))) > limit for n in POSITIONS if n in columns)
+    return pa.schema([pa.field(f.name, pa.float64()) if far and f.name in POSITIONS else f for f in storage])
 
 
 def write_parquet(table: pa.Table, path: Path) -> None:

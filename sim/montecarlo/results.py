@@ -159,7 +159,8 @@ def write_record(layout: SweepLayout, record: RunRecord, fleet: bool = False) ->
     """
     sch = schemas(fleet)
     if record.steps is not None:
-        write_atomic(layout.part(layout.steps_dir, record.run), _table(record.steps, sch.step_storage))
+        storage = parts.positions_kept(sch.step_storage, record.steps)
+        write_atomic(layout.part(layout.steps_dir, record.run), _table(record.steps, storage))
     if record.fixes is not None:
         write_atomic(layout.part(layout.fixes_dir, record.run), _table(record.fixes, sch.fixes))
     if record.recording is not None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -44,6 +45,8 @@ def test_round_trip_keeps_every_value(tmp_path, scenario):
     def f32(a):  # steps are stored as float32: exactly the episode's values rounded to it
         return np.asarray(a).astype(np.float32)
 
+    # near the origin float32 keeps the positions to 1e-5 m: stored float32 (sim.montecarlo.parts)
+    assert pq.read_schema(layout.part(layout.steps_dir, 3)).field("true_x").type == pa.float32()
     np.testing.assert_array_equal(steps.column("true_x").to_numpy(), f32(result.steps.true_pose[:, 0]))
     np.testing.assert_array_equal(steps.column("est_theta").to_numpy(), f32(result.steps.est_pose[:, 2]))
     np.testing.assert_array_equal(steps.column("xtheta_cov").to_numpy(), f32(result.steps.est_cov[:, 0, 2]))
@@ -56,6 +59,32 @@ def test_round_trip_keeps_every_value(tmp_path, scenario):
     # snapshot_error is derived: check it against an independent computation
     want = np.linalg.norm(result.fixes.snapshot - result.fixes.true_position, axis=1)
     np.testing.assert_allclose(fixes.column("snapshot_error").to_numpy(), want, rtol=1e-15)
+
+
+def test_steps_far_from_the_origin_keep_the_estimate_s_millimetres(tmp_path, scenario):
+    """A site 700 km from its origin: est - true read back from the steps as the episode had it.
+
+    In float32 a coordinate of 7e5 m is kept to 6 cm; the negative control stores the same
+    positions as float32 and loses the error.
+    """
+    layout = SweepLayout(tmp_path)
+    layout.make_dirs()
+    rec, _ = _record(scenario, 1)
+    steps = dict(rec.steps)
+    rng = np.random.default_rng(5)
+    n = len(steps["true_x"])
+    steps["true_x"] = 718012.7 + np.linspace(0.0, 20.0, n)
+    steps["true_y"] = -249086.5 + np.linspace(0.0, 5.0, n)
+    steps["est_x"] = steps["true_x"] + rng.normal(0.0, 1e-3, n)
+    steps["est_y"] = steps["true_y"] + rng.normal(0.0, 1e-3, n)
+    results.write_record(layout, RunRecord(rec.run, rec.row, steps, rec.fixes))
+    back = results.read_steps(tmp_path)
+    stored = pq.read_schema(layout.part(layout.steps_dir, rec.run))
+    assert stored.field("true_x").type == pa.float64() and stored.field("t").type == pa.float32()
+    err = back.column("est_x").to_numpy() - back.column("true_x").to_numpy()
+    np.testing.assert_allclose(err, steps["est_x"] - steps["true_x"], rtol=0.0, atol=1e-9)
+    as32 = (steps["est_x"].astype(np.float32).astype(float) - steps["true_x"].astype(np.float32).astype(float))
+    assert np.max(np.abs(as32 - (steps["est_x"] - steps["true_x"]))) > 1e-3   # what float32 did
 
 
 def test_crashed_row_has_nulls_and_no_step_parts(tmp_path):
