@@ -88,7 +88,8 @@ def positions_kept(storage: pa.Schema, columns: dict) -> pa.Schema:
     """
     limit = POSITION_RESOLUTION * 2.0**24      # float32 rounds |x| by at most |x| 2**-24
     # all four or none: est - true is read from them
-    far = any(len(columns[n]) and float(np.nanmax(np.abs(columns[n]))) > limit for n in POSITIONS if n in columns)
+    far = any(float(np.max(np.abs(c), initial=0.0, where=np.isfinite(c))) > limit
+              for c in (np.asarray(columns[n], dtype=float) for n in POSITIONS if n in columns))
     return pa.schema([pa.field(f.name, pa.float64()) if far and f.name in POSITIONS else f for f in storage])
 
 
