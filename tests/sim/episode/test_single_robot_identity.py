@@ -117,11 +117,8 @@ def _close(got, want, where: str) -> None:
         assert got == want, where
 
 
-@pytest.mark.parametrize("name", NAMES)
-def test_single_robot_tables_are_those_before_fleets(name):
-    with np.load(REFERENCE, allow_pickle=False) as ref:
-        want = {k: ref[k] for k in ref.files if k.startswith(name + "/")}
-    got = tables(name)
+def _assert_same_tables(got: dict, want: dict, name: str) -> None:
+    """Integers, flags and strings equal; floats to ``RTOL``; the runs row field by field."""
     assert sorted(got) == sorted(want)
     _close(json.loads(str(got[f"{name}/run"])), json.loads(str(want[f"{name}/run"])), f"{name}/run")
     for key in sorted(want):
@@ -135,14 +132,28 @@ def test_single_robot_tables_are_those_before_fleets(name):
             np.testing.assert_array_equal(g, w, err_msg=key)
 
 
-def test_a_moved_column_fails():
-    """Negative control: the comparison catches one step's covariance moved by 1e-9 of itself."""
+def _reference(name: str) -> dict:
     with np.load(REFERENCE, allow_pickle=False) as ref:
-        w = ref["warehouse/steps/x_var"]
-    moved = w.copy()
-    moved[len(moved) // 2] *= 1.0 + 1e-9
+        return {k: ref[k] for k in ref.files if k.startswith(name + "/")}
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_single_robot_tables_are_those_before_fleets(name):
+    _assert_same_tables(tables(name), _reference(name), name)
+
+
+@pytest.mark.parametrize("key", ["warehouse/steps/x_var", "warehouse/fixes/n_accepted"])
+def test_a_moved_column_fails(key):
+    """Negative control: one step's covariance moved by 1e-9 of itself, or one count by one, fails."""
+    want = _reference("warehouse")
+    got = dict(want)
+    moved = got[key].copy()
+    i = len(moved) // 2
+    moved[i] = moved[i] * (1.0 + 1e-9) if moved.dtype.kind == "f" else moved[i] + 1
+    got[key] = moved
+    _assert_same_tables(want, want, "warehouse")
     with pytest.raises(AssertionError):
-        np.testing.assert_allclose(moved, w, rtol=RTOL, atol=0.0)
+        _assert_same_tables(got, want, "warehouse")
 
 
 if __name__ == "__main__":
