@@ -337,9 +337,12 @@ class _Robot:
         a = self.follower.max_accel
         brake = v * v / (2.0 * BRAKE * a)
         zones.request(i, s_glob + brake + LOOKAHEAD)
+        if zones.reserved_to(i) >= zones.length(i):
+            # reserved to its final dock: the follower's own goal stop rules (compared as arc
+            # lengths: the room below and the way left summed in another order differed in the
+            # last bit, and a robot 5 cm short of its goal was held there for good)
+            return v, omega
         room = zones.reserved_to(i) - STOP_MARGIN - s_glob
-        if room >= zones.length(i) - s_glob - STOP_MARGIN:
-            return v, omega      # reserved to its final dock: the follower's own goal stop rules
         cap = math.sqrt(2.0 * BRAKE * a * max(room, 0.0))
         if v <= cap:
             return v, omega
