@@ -48,14 +48,16 @@ Noise: ``R`` is the declared sensor's model (:mod:`estimators.measurements`): ra
 ``q_scale * G diag(var_l, var_r) G^T`` (:mod:`estimators.motion`).
 
 Encoder quantisation (``encoder_residual_state=True``, what an episode uses): the state is
-further augmented with each wheel's last quantisation residuals [m], a block per wheel at the
-end of ``full_x`` (:mod:`estimators.motion_quantised`). A count error is bounded and telescopes over a
+further augmented with each wheel's quantisation residual [m], as the phasors of its first
+harmonics and a remainder, a block per wheel at the end of ``full_x``
+(:mod:`estimators.motion_quantised`). A count error is bounded and telescopes over a
 window (the reported travel is ``true + q_{k-1} - q_k``); the white ``tick^2 / 12`` per step of
 the plain model grows without bound and made the filter pessimistic: over the 0.4 s between
 fixes the white model's pose NEES is 1.53 against 3 (``tests/sim/test_odometry_noise_model.py``),
-and 200 warehouse episodes gave NIS 0.962. A new residual is predicted from the last ones with the
-sawtooth's correlations over the reads' fractional turns, predicted from the wheel command
-(:meth:`Localizer.set_command`) over each read's span (``steps``, with ``step_time``). The
+and 200 warehouse episodes gave NIS 0.962. The residual at a read's end is the sawtooth of the
+wheel's phase, which the drive holds to the commanded turn: the harmonics are turned by the
+wheel command (:meth:`Localizer.set_command`) over each read's span (``steps``, with
+``step_time``). The
 residuals at the start can be given (``residual0``, variance 0) when the encoders were zeroed at
 known angles; an episode's are unknown. ``q_scale`` scales the residual variance too. The history of commanded
 against counted turn (:mod:`estimators.encoder_phase`) is the fix snapshot's too.
@@ -74,7 +76,7 @@ import math
 
 import numpy as np
 
-from estimators import encoder_phase, motion, process_noise
+from estimators import encoder_phase, motion, motion_quantised, process_noise
 from estimators.measurements import bound_std
 from estimators.predict import TURN_SLIP, predict_step
 from estimators.update import UpdateResult, gate_threshold, gated_joseph_update, wrap_scalar
@@ -131,9 +133,9 @@ class Localizer:
         [1/sqrt(m)]; 0 (default) makes ``e`` a random constant. Only with
         ``estimate_wheel_bias``.
     encoder_residual_state : bool
-        Model encoder quantisation: the state gains each wheel's last
-        ``encoder_phase.LAGS`` centred quantisation residuals [m] (a block per wheel, left then
-        right, newest first, at the end of :attr:`full_x`) and the white
+        Model encoder quantisation: the state gains each wheel's centred quantisation residual
+        as ``motion_quantised.BLOCK`` states [m] (its harmonics' phasors and the remainder, a
+        block per wheel, left then right, at the end of :attr:`full_x`) and the white
         ``tick^2 / 12`` term leaves the process noise (module docstring,
         :mod:`estimators.motion_quantised`). Off by default (the white approximation).
     residual0 : array_like, shape (2,), optional
@@ -203,16 +205,20 @@ class Localizer:
             P0_sym = np.block([[P0_sym, np.zeros((3, 1))], [np.zeros((1, 3)), np.array([[bias_std**2]])]])
             dim = 4
         if self.encoder_residual_state:
-            # each wheel's block holds its last LAGS residuals: at the start all the same one
+            # each wheel's block: its residual's harmonics and the remainder
+            # (estimators.motion_quantised)
+            k = motion_quantised.BLOCK
             if residual0 is None:   # counted from an unknown point in a tick
-                q_mean, q_var = np.zeros(2), np.full(2, quant_var)
+                x0_arr = np.r_[x0_arr, np.zeros(2 * k)]
+                blocks = quant_var * np.diag(np.tile(motion_quantised.block_prior(), 2))
             else:
-                q_mean, q_var = _check_matrix("residual0", residual0, (2,)), np.zeros(2)
-            lags = encoder_phase.LAGS
-            x0_arr = np.r_[x0_arr, np.repeat(q_mean, lags)]
-            blocks = np.kron(np.diag(q_var), np.ones((lags, lags)))
-            P0_sym = np.block([[P0_sym, np.zeros((dim, 2 * lags))], [np.zeros((2 * lags, dim)), blocks]])
-            dim += 2 * lags
+                q0 = _check_matrix("residual0", residual0, (2,))
+                tick = 2.0 * math.pi * robot.wheel_radius / robot.encoder_ticks
+                x0_arr = np.r_[x0_arr, motion_quantised.residual_block(q0[0], tick),
+                               motion_quantised.residual_block(q0[1], tick)]
+                blocks = np.zeros((2 * k, 2 * k))
+            P0_sym = np.block([[P0_sym, np.zeros((dim, 2 * k))], [np.zeros((2 * k, dim)), blocks]])
+            dim += 2 * k
         elif residual0 is not None:
             raise SimulationError("Localizer: residual0: given without encoder_residual_state")
         self._kf = ExtendedKalmanFilter(dim_x=dim, dim_z=1)

@@ -16,15 +16,17 @@ it was over the history before it (``WINDOW`` physics steps, :func:`sigma_per_st
 counted minus the commanded turn is ``D`` ticks, which holds the count's own residual difference
 and the readings' slip besides the tracking, so ``sigma = m sqrt(D^2 + 1/4 + slip part) / span``.
 Measured over the read windows of random-23-016 and random-23-030 (issue 23): the commanded
-rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma. That is what
-the filter uses it for, over its last ``LAGS`` reads (:mod:`estimators.motion_quantised`), and the
-fix snapshot, over a fix's shifts, a few physics steps (:func:`estimators.fault.carried.count_cov`).
-Over the time between fixes the wheels fall behind their command by a steady ~1e-4 of their rate,
-and the errors of successive reads add up instead of averaging: a turn over ``s`` steps is known
-to ``s`` times the per-step sigma, not ``sqrt(s)`` times. With no span (``STEPS`` 0: a filter used
-outside an episode) or too short a history, ``sigma`` is infinite.
+rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma. The fix
+snapshot uses it over a fix's shifts, a few physics steps (:func:`estimators.fault.carried.count_cov`),
+the filter for the part of the residual it does not carry as harmonics, over a read
+(:mod:`estimators.motion_quantised`). The drive holds each wheel to its command's integral
+(``sim.physics.robot``, a position loop), so the phase at every read boundary is the start's plus
+the commanded turn since, whatever the lag: the filter carries the residual's harmonics through
+the commanded sums (:func:`boundaries`) from the first read on. With no span (``STEPS`` 0: a
+filter used outside an episode) the read's turn is not predicted: it starts a new segment, and
+``sigma`` is infinite; so it is while the history is shorter than half a ``WINDOW``.
 
-State (float64, shape ``(RECENT0 + BOUNDARY * (LAGS + 1),)``, :func:`new_state`): the command,
+State (float64, shape ``(RECENT0 + BOUNDARY * BOUNDARIES,)``, :func:`new_state`): the command,
 the read's span, constants, running sums [ticks], a ring of checkpoints (``ENTRY`` running sums
 each) and a ring of the last read boundaries (:func:`boundaries`).
 """
@@ -50,10 +52,10 @@ WINDOW = 960
 CHECKPOINT = 16
 #: checkpoints kept
 RING = WINDOW // CHECKPOINT + 8
-#: past residuals the filter keeps per wheel (:mod:`estimators.motion_quantised`); the last
-#: LAGS + 1 read boundaries are kept: commanded sum left, right [ticks], step, segment (a read
-#: whose turn is not predicted starts a new segment)
-LAGS = 8
+#: read boundaries kept, the read just recorded's two ends (:mod:`estimators.motion_quantised`):
+#: commanded sum left, right [ticks], step, segment (a read whose turn is not predicted starts a
+#: new segment)
+BOUNDARIES = 2
 BOUNDARY = 4
 RECENT0 = HEAD0 + ENTRY * RING
 
@@ -73,7 +75,7 @@ def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, 
         The floor's random slip per unit of a read's travel [-] (``RobotSpec.odometry_noise``):
         it is in the counted travel the tracking error is read from.
     """
-    s = np.zeros(RECENT0 + BOUNDARY * (LAGS + 1))   # every boundary at the start, segment 0
+    s = np.zeros(RECENT0 + BOUNDARY * BOUNDARIES)   # every boundary at the start, segment 0
     s[SLIP_VAR] = slip_std * slip_std
     s[TICKS_PER_RAD] = encoder_ticks / (2.0 * math.pi)
     s[STEP_TIME] = 0.0 if step_time is None else float(step_time)
@@ -189,15 +191,14 @@ def phase_advance(state, d_left, d_right):
         state[FILLED] = min(filled + 1, RING)
     state[STEPS] = 0.0   # a span is set for each read
     state[PER_L], state[PER_R] = per_l, per_r
-    known = per_l < math.inf and per_r < math.inf
-    _push_boundary(state, state[SEGMENT] if known else state[SEGMENT] + 1.0)
+    _push_boundary(state, state[SEGMENT])
     return turn_l, turn_r, sig_l, sig_r
 
 
 @compiled.njit(cache=True)
 def _push_boundary(state, segment):
     """Record the read boundary just passed: the commanded sums, the step, its ``segment``."""
-    newest = (int(state[NEWEST]) + 1) % (LAGS + 1)
+    newest = (int(state[NEWEST]) + 1) % BOUNDARIES
     o = RECENT0 + BOUNDARY * newest
     state[o], state[o + 1], state[o + 2], state[o + 3] = state[CMD_SUM_L], state[CMD_SUM_R], state[NOW], segment
     state[NEWEST] = newest
@@ -206,7 +207,7 @@ def _push_boundary(state, segment):
 
 @compiled.njit(cache=True)
 def boundaries(state, wheel, turns, steps, segments):
-    """Fill the last ``LAGS + 1`` read boundaries, newest first.
+    """Fill the last ``BOUNDARIES`` read boundaries, newest first.
 
     Parameters
     ----------
@@ -214,7 +215,7 @@ def boundaries(state, wheel, turns, steps, segments):
         :func:`new_state`'s array.
     wheel : int
         0 left, 1 right.
-    turns, steps, segments : ndarray, shape (LAGS + 1,)
+    turns, steps, segments : ndarray, shape (BOUNDARIES,)
         Filled: the wheel's commanded turn since the start [ticks], the physics step and the
         segment at each boundary (boundaries of different segments are not related by a
         predicted turn).
@@ -225,8 +226,8 @@ def boundaries(state, wheel, turns, steps, segments):
         The wheel's tracking sigma per physics step [ticks] (:func:`sigma_per_step`, inf: unknown).
     """
     newest = int(state[NEWEST])
-    for k in range(LAGS + 1):
-        o = RECENT0 + BOUNDARY * ((newest - k) % (LAGS + 1))
+    for k in range(BOUNDARIES):
+        o = RECENT0 + BOUNDARY * ((newest - k) % BOUNDARIES)
         turns[k] = state[o + wheel]
         steps[k] = state[o + 2]
         segments[k] = state[o + 3]

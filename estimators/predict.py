@@ -11,11 +11,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from estimators import motion
-from estimators.encoder_phase import LAGS, phase_advance
-from estimators.motion_quantised import propagate_moments_quantised, residual_predictor
+from estimators.encoder_phase import phase_advance
+from estimators.motion_quantised import propagate_moments_quantised
 from jit import compiled
 
 # Localizer.predict_params (float64, shape (8,)): what a predict step needs besides x and P.
@@ -46,15 +44,11 @@ def predict_step(x, P, d_left, d_right, params, phase):
     walk_var = params[WALK_VAR] * 0.5 * (abs(d_left) + abs(d_right))
     slip = params[TURN_SLIP]
     if params[QUANT_VAR] > 0.0:
-        # the reads' predicted turns relate the new residuals to the last LAGS
-        # (estimators.motion_quantised); the history is the fix snapshot's too
+        # the read's commanded turn carries the residuals' harmonics (estimators.motion_quantised);
+        # the history is the fix snapshot's too
         phase_advance(phase, d_left, d_right)
-        coef_l = np.empty(LAGS)
-        coef_r = np.empty(LAGS)
-        fresh_l = residual_predictor(phase, 0, coef_l)
-        fresh_r = residual_predictor(phase, 1, coef_r)
         propagate_moments_quantised(x, P, d_left, d_right, wheel_base, var_left, var_right,
-                                    q * params[QUANT_VAR], walk_var, slip, coef_l, coef_r, fresh_l, fresh_r)
+                                    q * params[QUANT_VAR], walk_var, slip, phase)
     elif params[BIASED] > 0.0:
         motion.propagate_moments_biased(x, P, d_left, d_right, wheel_base, var_left, var_right, walk_var, slip)
     else:

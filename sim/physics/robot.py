@@ -26,6 +26,17 @@ _CASTER_MASS_FRACTION = 0.01   # casters are light plastic balls; a share of the
 _WHEEL_GAP = 0.01              # clearance between chassis side and wheel [m]
 _FRONT_LOAD = 0.1              # share of the chassis weight the front caster carries [-]
 
+#: The drive's position loop [1/s]: each wheel's rate setpoint is its command plus this gain
+#: times the angle the wheel is behind the command's integral. Bullet's velocity motor alone
+#: leaves a wheel ~1e-4 of its rate short under load, for good (a proportional loop); a motor
+#: controller's integral action does not, and the encoders' phase follows the command (issue 23:
+#: the filter predicts it, ``estimators.motion_quantised``). Set at each command, every control
+#: tick (1/60 s), the loop takes off half the lag a tick: fast, and stable for ticks up to 1/15 s.
+DRIVE_GAIN = 30.0
+#: The lag past which the loop stops integrating the command [rad]: a wheel held back by a
+#: wall (or torque-limited for long) is not sent after the whole angle it missed.
+FOLLOWING_LIMIT = 0.2
+
 
 @dataclass(frozen=True)
 class RobotGeometry:
@@ -144,6 +155,10 @@ def urdf_text(spec: RobotSpec, config: PhysicsConfig) -> str:
 class DiffDriveRobot:
     """The simulated robot in one pybullet client: wheel motors, encoders, true pose.
 
+    The motors are velocity-controlled with a position loop around them (``DRIVE_GAIN``): a
+    command holds until the next one, the setpoint angles advance by it as the world steps
+    (:meth:`elapse`), and each command adds the gain times the wheel's lag behind its setpoint.
+
     Parameters
     ----------
     client : int
@@ -186,6 +201,8 @@ class DiffDriveRobot:
         # Plain floats: true_pose() runs at every control step, and numpy scalars are slow.
         self._com_local = tuple(float(v) for v in pb.getDynamicsInfo(self.body, -1, physicsClientId=client)[3])
         self._torque = [spec.max_wheel_torque, spec.max_wheel_torque]
+        self._rates = [0.0, 0.0]     # the command [rad/s]
+        self._setpoint = [0.0, 0.0]  # its integral since the reset [rad]
 
     def reset(self, pose: tuple[float, float, float] | np.ndarray) -> None:
         """Put the robot level at ``pose`` (x [m], y [m], theta [rad]), at rest, motors at zero."""
@@ -200,17 +217,40 @@ class DiffDriveRobot:
         pb.resetBaseVelocity(self.body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=cid)
         for j in self.wheel_joints:
             pb.resetJointState(self.body, j, 0.0, 0.0, physicsClientId=cid)
+        self._setpoint = [0.0, 0.0]
         self.set_wheel_speeds(0.0, 0.0)
+
+    def elapse(self, seconds: float) -> None:
+        """Advance the setpoint angles by ``seconds`` [s] of the command (the world's step calls it)."""
+        self._setpoint[0] += self._rates[0] * seconds
+        self._setpoint[1] += self._rates[1] * seconds
 
     def set_wheel_speeds(self, left: float, right: float) -> None:
         """Command wheel rates ``left``, ``right`` [rad/s] (velocity control, torque-limited).
 
-        A positive rate drives the robot forward. The command holds until the next call.
+        A positive rate drives the robot forward. The command holds until the next call; the
+        motors are set to it plus ``DRIVE_GAIN`` times each wheel's lag behind the command's
+        integral (at most ``FOLLOWING_LIMIT``).
         """
+        angles = self.wheel_angle_pair()
+        rates = (float(left), float(right))
+        setpoints = []
+        for w in range(2):
+            lag = self._setpoint[w] - angles[w]
+            if abs(lag) > FOLLOWING_LIMIT:
+                lag = math.copysign(FOLLOWING_LIMIT, lag)
+                self._setpoint[w] = angles[w] + lag
+            setpoints.append(rates[w] + DRIVE_GAIN * lag)
+        self._rates = list(rates)
         pb.setJointMotorControlArray(
             self.body, self.wheel_joints, pb.VELOCITY_CONTROL,
-            targetVelocities=[float(left), float(right)], forces=self._torque,
-            physicsClientId=self.client)
+            targetVelocities=setpoints, forces=self._torque, physicsClientId=self.client)
+
+    @property
+    def following_error(self) -> tuple[float, float]:
+        """Each wheel's angle minus its setpoint (left, right) [rad]: the drive's lag, negative."""
+        left, right = self.wheel_angle_pair()
+        return left - self._setpoint[0], right - self._setpoint[1]
 
     def wheel_angles(self) -> np.ndarray:
         """Unwrapped wheel joint angles (left, right), shape (2,) [rad]."""

@@ -250,6 +250,8 @@ class PhysicsWorld:
         for _ in range(n):
             pb.stepSimulation(physicsClientId=cid)
         self._steps += n
+        for robot in self.robots:
+            robot.elapse(n * self.config.time_step)
 
     @property
     def time(self) -> float:

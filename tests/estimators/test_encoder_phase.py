@@ -94,12 +94,17 @@ def test_the_boundaries_are_the_last_reads_newest_first():
     for m in spans:
         state[encoder_phase.STEPS] = m
         phase_advance(state, 0.0, 0.0)
-    lags = encoder_phase.LAGS
-    turns, steps, segments = np.empty(lags + 1), np.empty(lags + 1), np.empty(lags + 1)
+    n = encoder_phase.BOUNDARIES
+    turns, steps, segments = np.empty(n), np.empty(n), np.empty(n)
     per = encoder_phase.boundaries(state, 1, turns, steps, segments)
     assert math.isinf(per)                                          # 30 steps of history: unknown
-    ends = np.cumsum(spans)[::-1][:lags + 1]
+    ends = np.cumsum(spans)[::-1][:n]
     np.testing.assert_array_equal(steps, ends)
     np.testing.assert_allclose(turns, -1.0 * k_rad * ends, rtol=1e-12)
-    # every read so far had an unknown sigma: each its own segment
-    assert len(set(segments)) == lags + 1
+    # every read's span was known: its turn is predicted, whatever the history says of sigma
+    # (the drive holds the wheels to the command's integral, sim.physics.robot)
+    assert len(set(segments)) == 1
+    state[encoder_phase.STEPS] = 0                                  # a read without a span
+    phase_advance(state, 0.0, 0.0)
+    encoder_phase.boundaries(state, 1, turns, steps, segments)
+    assert segments[0] == segments[1] + 1

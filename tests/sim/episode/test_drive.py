@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import scenarios
-from estimators import encoder_phase
+from estimators import motion_quantised
 from sim.episode.drive import prepare, run_episode
 from sim.export.tum import read_tum
 from tests.sim.episode.digest import digest
@@ -285,5 +285,6 @@ def test_each_run_draws_its_encoder_phases_and_the_filter_is_not_told():
     loc = episode_localizer(sc, np.zeros(3), np.eye(3) * 1e-6)
     tick = 2 * math.pi * sc.robot.wheel_radius / sc.robot.encoder_ticks
     assert np.all(loc.full_x[4:] == 0.0)
-    assert loc.full_x.size == 4 + 2 * encoder_phase.LAGS
-    np.testing.assert_allclose(np.diag(loc.full_P)[4:], tick**2 / 12, rtol=1e-12)
+    assert loc.full_x.size == 4 + 2 * motion_quantised.BLOCK
+    np.testing.assert_allclose(np.diag(loc.full_P)[4:], tick**2 / 12 * np.tile(motion_quantised.block_prior(), 2),
+                               rtol=1e-12)

@@ -33,8 +33,9 @@ import numpy as np
 import pytest
 
 import scenarios
-from estimators import consistency, encoder_phase
+from estimators import consistency
 from estimators.motion import arc_step
+from estimators.motion_quantised import residual_block
 from estimators.predict import predict_step
 from sim.episode.drive import CONTROL_STEPS, episode_localizer
 from sim.physics.config import PhysicsConfig
@@ -122,8 +123,9 @@ def _window_nees(seed: int, n_windows: int = N_WINDOWS) -> dict[str, np.ndarray]
                             rng=np.random.default_rng(0))
         odo.normals = slip_normals      # every filter sees the same slip draws
         odo.state[NEXT_NORMAL] = 0.0
-        # each wheel's block: its last residuals, all the start one
-        blocks = np.repeat(residual0, encoder_phase.LAGS, axis=1)
+        # each wheel's block: the start residual's harmonics and remainder
+        tick = 2.0 * math.pi * ROBOT.wheel_radius / ROBOT.encoder_ticks
+        blocks = np.array([np.r_[residual_block(q[0], tick), residual_block(q[1], tick)] for q in residual0])
         x0 = np.column_stack([poses, np.full(n_windows, e)] + ([blocks] if quantised else []))
         xs, Ps = np.empty_like(x0), np.empty((n_windows, *loc.full_P.shape))
         truths = np.empty((n_windows, 3))

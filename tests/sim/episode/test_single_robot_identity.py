@@ -74,6 +74,13 @@ relative; with ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL"`` the same machine
 digests). The planner computes those columns and nothing in the episode feeds back into them, so
 the ulps do not grow. Integers, flags and strings are compared exactly; floats to ``RTOL``: the
 summation-order changes above (2e-21 m^2 in P) pass it, any change of the model does not.
+
+Issue 23 (random-23-016's and -033's NIS, pessimistic): the drive holds each wheel to its
+command's integral (``sim.physics.robot.DRIVE_GAIN``), and the filter carries each wheel's
+residual as the phasors of its first 8 harmonics, constant in the commanded frame, and a
+remainder (``estimators.motion_quantised``): the motion, the counts, the estimate and every
+column after them moved. The tables were written again (with ``NPY_DISABLE_CPU_FEATURES="X86_V4
+AVX512_ICL"``, as before).
 """
 
 from __future__ import annotations
