@@ -210,7 +210,8 @@ class Localizer:
             k = motion_quantised.BLOCK
             if residual0 is None:   # counted from an unknown point in a tick
                 x0_arr = np.r_[x0_arr, np.zeros(2 * k)]
-                blocks = quant_var * np.diag(np.tile(motion_quantised.block_prior(), 2))
+                # q_scale scales the residual's variance, as it scales the remainder's per read
+                blocks = self.q_scale * quant_var * np.diag(np.tile(motion_quantised.block_prior(), 2))
             else:
                 q0 = _check_matrix("residual0", residual0, (2,))
                 tick = 2.0 * math.pi * robot.wheel_radius / robot.encoder_ticks
@@ -322,7 +323,7 @@ class Localizer:
         part sets the residuals' correlation across it (:mod:`estimators.motion_quantised`);
         :attr:`phase` holds it, where a compiled caller's predict reads it too.
         """
-        self.phase[encoder_phase.STEPS] = 0.0 if steps is None else float(steps)
+        self.phase[encoder_phase.STEPS] = encoder_phase.UNKNOWN_SPAN if steps is None else float(steps)
 
     def set_command(self, rate_left: float, rate_right: float) -> None:
         """Record the wheel rates commanded from now on [rad/s] (left, right; forward positive)."""

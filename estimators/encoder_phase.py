@@ -22,9 +22,11 @@ the filter for the part of the residual it does not carry as harmonics, over a r
 (:mod:`estimators.motion_quantised`). The drive holds each wheel to its command's integral
 (``sim.physics.robot``, a position loop), so the phase at every read boundary is the start's plus
 the commanded turn since, whatever the lag: the filter carries the residual's harmonics through
-the commanded sums (:func:`boundaries`) from the first read on. With no span (``STEPS`` 0: a
-filter used outside an episode) the read's turn is not predicted: it starts a new segment, and
-``sigma`` is infinite; so it is while the history is shorter than half a ``WINDOW``.
+the commanded sums (:func:`boundaries`) from the first read on. With no span (``STEPS``
+``UNKNOWN_SPAN``: a filter used outside an episode) the read's turn is not predicted: it starts a
+new segment, and ``sigma`` is infinite; so it is while the history is shorter than half a
+``WINDOW``. A read of span 0 (a second read at the same physics step: the robot stopped at its
+goal) turns the wheels by 0, exactly.
 
 State (float64, shape ``(RECENT0 + BOUNDARY * BOUNDARIES,)``, :func:`new_state`): the command,
 the read's span, constants, running sums [ticks], a ring of checkpoints (``ENTRY`` running sums
@@ -58,6 +60,8 @@ RING = WINDOW // CHECKPOINT + 8
 BOUNDARIES = 2
 BOUNDARY = 4
 RECENT0 = HEAD0 + ENTRY * RING
+#: ``STEPS`` of a read whose span is not known (0 is a span: a read at the step of the last one)
+UNKNOWN_SPAN = -1.0
 
 
 def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, slip_std: float = 0.0) -> np.ndarray:
@@ -81,6 +85,7 @@ def new_state(encoder_ticks: int, wheel_radius: float, step_time: float | None, 
     s[STEP_TIME] = 0.0 if step_time is None else float(step_time)
     s[TICK] = 2.0 * math.pi * wheel_radius / encoder_ticks
     s[FILLED] = 1.0   # the start: step 0, nothing counted or commanded
+    s[STEPS] = UNKNOWN_SPAN
     return s
 
 
@@ -154,7 +159,8 @@ def phase_advance(state, d_left, d_right):
     ----------
     state : ndarray
         :func:`new_state`'s array, with ``CMD_LEFT``/``CMD_RIGHT`` the wheel rates commanded
-        over the read [rad/s] and ``STEPS`` its span [physics steps]; updated.
+        over the read [rad/s] and ``STEPS`` its span [physics steps] (``UNKNOWN_SPAN``: not
+        known); updated.
     d_left, d_right : float
         The read's wheel travel from the encoders [m].
 
@@ -164,14 +170,14 @@ def phase_advance(state, d_left, d_right):
         Predicted turn [ticks] and its standard deviation [ticks] (inf: unknown).
     """
     m = state[STEPS]
-    if not (m > 0.0 and state[STEP_TIME] > 0.0):
+    if not (m >= 0.0 and state[STEP_TIME] > 0.0):
         state[PER_L] = state[PER_R] = math.inf
         _push_boundary(state, state[SEGMENT] + 1.0)
         return 0.0, 0.0, math.inf, math.inf
     k = state[TICKS_PER_RAD] * state[STEP_TIME] * m
     turn_l, turn_r = state[CMD_LEFT] * k, state[CMD_RIGHT] * k
     per_l, per_r = sigma_per_step(state)
-    sig_l, sig_r = m * per_l, m * per_r
+    sig_l, sig_r = (m * per_l, m * per_r) if m > 0.0 else (0.0, 0.0)
     now, head, filled = state[NOW], int(state[HEAD]), int(state[FILLED])
     state[NOW] = now + m
     cl, cr = d_left / state[TICK], d_right / state[TICK]
@@ -189,7 +195,7 @@ def phase_advance(state, d_left, d_right):
         state[o + 5], state[o + 6] = state[SQ_L], state[SQ_R]
         state[HEAD] = head
         state[FILLED] = min(filled + 1, RING)
-    state[STEPS] = 0.0   # a span is set for each read
+    state[STEPS] = UNKNOWN_SPAN   # a span is set for each read
     state[PER_L], state[PER_R] = per_l, per_r
     _push_boundary(state, state[SEGMENT])
     return turn_l, turn_r, sig_l, sig_r

@@ -26,13 +26,19 @@ decay with the lag (a line spectrum); a chain of the last few residuals, the mod
 one, extrapolated it as decaying and was pessimistic (random-23-016: NIS 0.970, NEES 2.871 at 200
 runs; ``docs/design.md`` section 6).
 
-What the harmonics leave, ``r``, holds ``1 - sum_m<=M 6 / (pi m)^2`` of the variance (7.2 % for
+What the harmonics leave, ``r``, holds ``1 - sum_m<=M 6 / (pi m)^2`` of the variance (7.1 % for
 ``M = 8``), in frequencies where the drive's following error decorrelates it: it is carried as
 one state, an AR(1) over a read with the correlation of those harmonics for the read's turn ``f``
 known to ``sigma`` ticks (:func:`remainder_correlation`; ``sigma`` the tracking sigma of
 :func:`estimators.encoder_phase.sigma_per_step` over the read's span). A read whose turn is not
 predicted (no span: a filter used outside an episode) starts the wheel's residual afresh: its
-phasors and remainder are redrawn from their prior.
+phasors and remainder are redrawn from their prior; a read of span 0 keeps everything.
+
+Not modelled: the drive's steady lag grows with the speed (``shortfall / DRIVE_GAIN``, 0.003 and
+0.016 ticks at 0.5 m/s on the built-in robots), and a change of ``d`` ticks turns harmonic ``m``
+by ``2 pi m d`` (0.8 rad for the 8th at 0.016 ticks), which the phasors' constant frame does not
+allow for. ``tests/sim/physics/test_world.py`` bounds the cruise's lag by ``1 / (16 pi)`` ticks
+(1 rad for the 8th); the 40 random worlds of issue 23 pass every check with it.
 
 The wheel's rotation over the read is ``u_w = d_w - q_w(c_old) + q_w(c_new)``, linear in the
 block. With the relative wheel-radius error ``e`` (optional state,
@@ -72,7 +78,7 @@ def harmonic_share(m):
 
 @compiled.njit(cache=True)
 def remainder_share():
-    """Share of a residual's variance past the carried harmonics [-] (0.072 for 8)."""
+    """Share of a residual's variance past the carried harmonics [-] (0.071 for 8)."""
     rest = 1.0
     for m in range(1, HARMONICS + 1):
         # a_m cos + b_m sin: one component's variance at any turn
@@ -153,7 +159,9 @@ def _wheel_read(phase, wheel, h_new, h_old):
         h_old[2 * m - 1] = math.sin(a_old)
     if segments[0] != segments[1]:
         return 0.0, 0.0
-    return 1.0, remainder_correlation(turns[0] - turns[1], per_step * abs(steps[0] - steps[1]))
+    span = abs(steps[0] - steps[1])
+    # a read of span 0 turned the wheel by 0, exactly (whatever the history says of sigma)
+    return 1.0, remainder_correlation(turns[0] - turns[1], per_step * span if span > 0.0 else 0.0)
 
 
 @compiled.njit(cache=True)

@@ -31,7 +31,9 @@ _FRONT_LOAD = 0.1              # share of the chassis weight the front caster ca
 #: leaves a wheel ~1e-4 of its rate short under load, for good (a proportional loop); a motor
 #: controller's integral action does not, and the encoders' phase follows the command (issue 23:
 #: the filter predicts it, ``estimators.motion_quantised``). Set at each command, every control
-#: tick (1/60 s), the loop takes off half the lag a tick: fast, and stable for ticks up to 1/15 s.
+#: tick (1/60 s), the loop takes off half the lag a tick: fast, and stable for ticks shorter than
+#: 1/15 s (gain x tick < 2). A lag clamped at FOLLOWING_LIMIT is a turn the wheel never makes up:
+#: the filter's commanded sums keep it, so its encoder phase is off from then on.
 DRIVE_GAIN = 30.0
 #: The lag past which the loop stops integrating the command [rad]: a wheel held back by a
 #: wall (or torque-limited for long) is not sent after the whole angle it missed.

@@ -104,7 +104,11 @@ def test_the_boundaries_are_the_last_reads_newest_first():
     # every read's span was known: its turn is predicted, whatever the history says of sigma
     # (the drive holds the wheels to the command's integral, sim.physics.robot)
     assert len(set(segments)) == 1
-    state[encoder_phase.STEPS] = 0                                  # a read without a span
+    state[encoder_phase.STEPS] = 0                                  # a read at the same step
     phase_advance(state, 0.0, 0.0)
+    encoder_phase.boundaries(state, 1, turns, steps, segments)
+    assert segments[0] == segments[1] and steps[0] == steps[1] and turns[0] == turns[1]
+    assert state[encoder_phase.STEPS] == encoder_phase.UNKNOWN_SPAN   # until the next read's is set
+    phase_advance(state, 0.0, 0.0)                                  # a read without a span
     encoder_phase.boundaries(state, 1, turns, steps, segments)
     assert segments[0] == segments[1] + 1

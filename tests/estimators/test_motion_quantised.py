@@ -101,7 +101,8 @@ def test_moments_match_sampling_the_model(biased, predicted):
     # from their prior. The wheels roll (1 -/+ e)(d - q(c_old) + q(c_new) + slip).
     rng = np.random.default_rng(5)
     turns = (3.3, 7.9)
-    phase = _phase_after(turns, predicted)
+    # 150 reads: a history of 600 steps, so the remainder's spread is known and rho is not 0
+    phase = _phase_after(turns, predicted, reads=150)
     nb = 2 * BLOCK
     prior = QUANT_VAR * np.tile(block_prior(), 2)
     root = rng.normal(0, 0.15, (4 + nb, 4 + nb))
@@ -132,6 +133,7 @@ def test_moments_match_sampling_the_model(biased, predicted):
         q_old = block[:, :-1] @ h[1] + block[:, -1]
         if predicted:
             rho = remainder_correlation(c[0] - c[1], per_step * (steps[0] - steps[1]))
+            assert 0.01 < abs(rho) < 0.99, rho
             z = block[:, :-1]
         else:
             rho = 0.0
@@ -192,7 +194,7 @@ def _window_count_error_var(turn: float, reads: int, predicted: bool = True) -> 
     P[:3, :] = 0.0
     P[:, :3] = 0.0
     for _ in range(reads):
-        loc.predict(-turn * TICK, turn * TICK, 0.0, 4 if predicted else 0)
+        loc.predict(-turn * TICK, turn * TICK, 0.0, 4 if predicted else None)
     return loc.P[2, 2] * ROBOT.wheel_base**2 / 2 / TICK**2
 
 
@@ -246,7 +248,22 @@ def test_a_known_phase_stays_known_over_a_long_drive():
     a, b = _harmonics(np.array([0.3 + 0.5]), m)
     carried = float((a[0] * np.cos(2 * np.pi * m * c) + b[0] * np.sin(2 * np.pi * m * c)).sum())
     assert block[:-1] @ h / TICK == pytest.approx(carried, abs=1e-9)
-    # the truth's residual differs from the carried harmonics by the remainder, which the
-    # filter has forgotten to its prior (sd sqrt(r0 / 12) = 0.077 tick)
-    truth = float(_saw(np.array([0.8 + c]))[0])
-    assert abs(truth - carried) < 4 * math.sqrt(remainder_share() / 12)
+
+
+def test_a_read_of_span_zero_keeps_the_residual():
+    # A second read at the same physics step (the robot stopped at its goal) turned the wheels
+    # by 0: the block and its covariance stay as they were, remainder included. Negative
+    # control: a read whose span is not known redraws the block from its prior.
+    loc = Localizer(NO_SLIP, SensorSpec(), MARKERS, [1.0, 2.0, 0.0], np.eye(3) * 1e-8, encoder_residual_state=True,
+                    step_time=DT)
+    rate = 7.18 / (4 * DT) / (ROBOT.encoder_ticks / (2 * math.pi))
+    loc.set_command(rate, rate)
+    for _ in range(200):
+        loc.predict(7.18 * TICK, 7.18 * TICK, 0.0, 4)
+    x, P = loc.full_x[3:], loc.full_P[3:, 3:]
+    loc.predict(0.0, 0.0, 0.0, 0)
+    np.testing.assert_allclose(loc.full_x[3:], x, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(loc.full_P[3:, 3:], P, rtol=1e-9, atol=1e-30)
+    loc.predict(0.0, 0.0, 0.0, None)
+    np.testing.assert_array_equal(loc.full_x[3:], 0.0)
+    np.testing.assert_allclose(np.diag(loc.full_P)[3:], QUANT_VAR * np.tile(block_prior(), 2), rtol=1e-12)

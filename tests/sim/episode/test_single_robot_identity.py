@@ -80,7 +80,9 @@ command's integral (``sim.physics.robot.DRIVE_GAIN``), and the filter carries ea
 residual as the phasors of its first 8 harmonics, constant in the commanded frame, and a
 remainder (``estimators.motion_quantised``): the motion, the counts, the estimate and every
 column after them moved. The tables were written again (with ``NPY_DISABLE_CPU_FEATURES="X86_V4
-AVX512_ICL"``, as before).
+AVX512_ICL"``, as before). Then a read of span 0 (the first read of an episode, reads at the
+goal) keeps the residual blocks instead of drawing a fresh residual difference: the estimate's
+covariance from the first read on moved, and with it every column; written again the same way.
 """
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ import pytest
 
 import scenarios
 from scenarios.errors import SimulationError
+from sim.episode.drive import CONTROL_STEPS
 from sim.physics import robot as robot_module
 from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced
@@ -187,7 +188,8 @@ def shortfall(robot_of: str) -> np.ndarray:
     """Each wheel's turn minus its commanded turn over 2.5 s of cruise at 0.5 m/s [rad], shape (600, 2).
 
     The robot of built-in ``robot_of`` ramps at 1 m/s^2 on an open floor, wheels commanded to
-    the same ground speed; sampled at every physics step from 1.5 s on.
+    the same ground speed once per control tick (4 physics steps, as an episode does); sampled
+    at every physics step from 1.5 s on.
     """
     actual = scenarios.load(robot_of).robot_actual
     sc = dataclasses.replace(scenarios.loads(FLAT), robot_actual=actual)
@@ -195,10 +197,12 @@ def shortfall(robot_of: str) -> np.ndarray:
     with PhysicsWorld(sc, config, pose=(15.0, 15.0, 0.0)) as w:
         g, dt = w.robot.geometry, config.time_step
         start, commanded, out = w.robot.wheel_angles(), np.zeros(2), []
+        rates = np.zeros(2)
         for k in range(round(4.0 / dt)):
-            vc = min(v, (k + 1) * dt)
-            rates = np.array([vc / g.left_radius, vc / g.right_radius])
-            w.robot.set_wheel_speeds(*rates)
+            if k % CONTROL_STEPS == 0:
+                vc = min(v, (k + CONTROL_STEPS) * dt)
+                rates = np.array([vc / g.left_radius, vc / g.right_radius])
+                w.robot.set_wheel_speeds(*rates)
             w.step(1)
             commanded += rates * dt
             out.append(w.robot.wheel_angles() - start - commanded)
@@ -213,17 +217,34 @@ def lag_ticks(robot_of: str) -> tuple[float, float]:
 
 @pytest.mark.parametrize("robot_of", ["warehouse", "paper-two-markers"])
 def test_the_drive_holds_the_wheels_to_their_commands_integral(robot_of, monkeypatch):
-    # Why the filter predicts the encoders' phase from the command (estimators.motion_quantised):
-    # the drive's position loop keeps each wheel's angle at the command's integral. The filter
-    # carries the residual past its harmonics with sd sqrt(0.072 / 12) = 0.077 ticks; the lag
-    # has to stay well inside it (a third: 0.025 ticks; measured 0.003 and 0.016) and must not
-    # grow (measured 1e-9 and 6e-5 ticks over 2.5 s). Negative control: Bullet's velocity motor
-    # alone (gain 0) falls behind by a steady ~1e-4 of the rate, 0.2-1.2 ticks over the cruise.
+    # Why the filter carries the encoders' residual harmonics by the commanded turn
+    # (estimators.motion_quantised): the drive's position loop keeps each wheel's angle at the
+    # command's integral. A steady lag is absorbed in the unknown start phase; what turns the
+    # carried phasors is its change, from 0 at rest to the cruise's: harmonic m by 2 pi m d for
+    # a change of d ticks, so for the 8th to stay within 1 rad the cruise's lag must stay under
+    # 1 / (16 pi) = 0.02 ticks (measured 0.003 and 0.016), and it must not grow (measured 4e-9
+    # and 1e-4 ticks over 2.5 s). Negative control: Bullet's velocity motor alone (gain 0) falls
+    # behind by a steady ~1e-4 of the rate, 0.2-1.2 ticks over the cruise.
     largest, growth = lag_ticks(robot_of)
-    assert largest < 0.025 and growth < 0.005, (largest, growth)
+    assert largest < 1 / (16 * math.pi) and growth < 0.001, (largest, growth)
     monkeypatch.setattr(robot_module, "DRIVE_GAIN", 0.0)
     largest, growth = lag_ticks(robot_of)
     assert growth > 0.1, (largest, growth)
+
+
+def test_the_position_loop_stops_integrating_past_the_following_limit():
+    # A wheel that cannot follow (held, or commanded far ahead of what it turned) is sent after
+    # FOLLOWING_LIMIT at most, not the whole angle it missed; a reset forgets the lag.
+    sc = scenarios.loads(FLAT)
+    with PhysicsWorld(sc, PhysicsConfig(), pose=(15.0, 15.0, 0.0)) as w:
+        w.robot.set_wheel_speeds(5.0, -5.0)
+        w.robot.elapse(1.0)                       # 5 rad of command the wheels never turned
+        assert w.robot.following_error == pytest.approx((-5.0, 5.0))
+        w.robot.set_wheel_speeds(0.0, 0.0)
+        limit = robot_module.FOLLOWING_LIMIT
+        assert w.robot.following_error == pytest.approx((-limit, limit))
+        w.reset((15.0, 15.0, 0.0))
+        assert w.robot.following_error == (0.0, 0.0)
 
 
 def test_bad_inputs_raise_simulation_error():
