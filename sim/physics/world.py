@@ -52,9 +52,10 @@ class PhysicsWorld:
         The world; the robot is built from ``scenario.robot_actual``.
     config : PhysicsConfig, optional
         Physics settings (time step, solver, geometry constants).
-    pose : (3,) array_like, optional
+    pose : (3,) or (R, 3) array_like, optional
         Initial robot pose (x [m], y [m], theta [rad]); default the first dock's pose, or the
-        workspace centre when there are no docks.
+        workspace centre when there are no docks. With ``fleet``, one pose per robot of
+        ``scenario.robots``; default each robot's first dock (the start of its first task).
     fleet : bool
         Build every robot of ``scenario.robots`` (each from its ``robot_actual``), each with a
         *body*: a cylinder of its radius and height that the other robots' laser rays hit (and
@@ -96,6 +97,12 @@ class PhysicsWorld:
         except BaseException:
             self.close()
             raise
+        if fleet:
+            # every robot is loaded at the local origin: each needs its own place before a step
+            if pose is None:
+                pose = [scenario.dock(scenario.tasks[r.tasks[0]].start).pose for r in scenario.robots]
+            self.reset_fleet(pose)
+            return
         if pose is None:
             x0, y0, x1, y1 = scenario.workspace.bounds
             pose = scenario.docks[0].pose if scenario.docks else (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0)
@@ -221,8 +228,11 @@ class PhysicsWorld:
         """Put the robot at ``pose`` (x [m], y [m], theta [rad]) at rest and the clock at 0.
 
         Restores the state saved after building (contacts included), then sets the robot's
-        base pose, velocities, wheel joint states and motor targets. Nothing is rebuilt.
+        base pose, velocities, wheel joint states and motor targets. Nothing is rebuilt. A fleet
+        world takes :meth:`reset_fleet`: its other robots need places and drives of their own.
         """
+        if self.fleet:
+            raise SimulationError("reset: a fleet world puts every robot at once: reset_fleet(poses)")
         pose = np.asarray(pose, dtype=float)
         if pose.shape != (3,) or not np.all(np.isfinite(pose)):
             raise SimulationError(f"reset pose: expected finite (x, y, theta), got {pose.tolist()}")

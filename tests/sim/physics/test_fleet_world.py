@@ -119,3 +119,22 @@ def test_a_fleet_world_needs_robots():
     sc = loads(TEXT.format(extra="").split("[[robots]]")[0], source="row.toml")
     with pytest.raises(SimulationError, match="a fleet world needs \\[\\[robots\\]\\]"):
         PhysicsWorld(sc, fleet=True)
+
+
+def test_a_fleet_world_starts_each_robot_on_its_first_dock_and_resets_only_as_a_fleet():
+    with world() as w:
+        # built, every robot stands on the start of its first task, apart, and stays there
+        starts = [(2.0, 3.0), (10.0, 3.0)]
+        w.step(240)
+        for r, (x, y) in zip(w.robots, starts, strict=True):
+            px, py, _ = r.true_pose()
+            assert math.hypot(px - x, py - y) < 1e-3
+        # a lone robot's reset would leave the others' drives chasing what they were told before
+        w.robots[1].set_wheel_speeds(5.0, 5.0)
+        w.step(48)
+        with pytest.raises(SimulationError, match="reset_fleet"):
+            w.reset((2.0, 3.0, 0.0))
+        w.reset_fleet([(2.0, 3.0, 0.0), (10.0, 1.0, 0.0)])
+        w.step(240)
+        x, y, _ = w.robots[1].true_pose()
+        assert math.hypot(x - 10.0, y - 1.0) < 1e-3
