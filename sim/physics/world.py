@@ -94,19 +94,20 @@ class PhysicsWorld:
             raise SimulationError(f"pybullet: could not connect a DIRECT client (got {self.client})")
         try:
             self._build()
+            if fleet:
+                # every robot is loaded at the local origin: each needs its own place before a step
+                if pose is None:
+                    pose = [scenario.dock(scenario.tasks[r.tasks[0]].start).pose for r in scenario.robots]
+                self.reset_fleet(pose)
+            else:
+                if pose is None:
+                    x0, y0, x1, y1 = scenario.workspace.bounds
+                    pose = scenario.docks[0].pose if scenario.docks else (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0)
+                self.reset(pose)
         except BaseException:
+            # a bad pose must not leave a physics client behind
             self.close()
             raise
-        if fleet:
-            # every robot is loaded at the local origin: each needs its own place before a step
-            if pose is None:
-                pose = [scenario.dock(scenario.tasks[r.tasks[0]].start).pose for r in scenario.robots]
-            self.reset_fleet(pose)
-            return
-        if pose is None:
-            x0, y0, x1, y1 = scenario.workspace.bounds
-            pose = scenario.docks[0].pose if scenario.docks else (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0)
-        self.reset(pose)
 
     # -- building -------------------------------------------------------------------------
 

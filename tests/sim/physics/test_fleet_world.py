@@ -138,3 +138,6 @@ def test_a_fleet_world_starts_each_robot_on_its_first_dock_and_resets_only_as_a_
         w.step(240)
         x, y, _ = w.robots[1].true_pose()
         assert math.hypot(x - 10.0, y - 1.0) < 1e-3
+    sc = loads(TEXT.format(extra=""), source="row.toml")
+    with pytest.raises(SimulationError, match="reset poses: expected 2 finite"):
+        PhysicsWorld(sc, pose=[(2.0, 3.0, 0.0)], fleet=True)
