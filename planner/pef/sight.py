@@ -19,9 +19,13 @@ pose):
    whose segment to ``M`` enters it) widened by ``margin``: every half-plane of the shadow moved
    out by ``margin`` (a mitred superset of the exact set), the same half-planes for arbitrary
    points and for grid rows (:func:`planner.pef.visibility.shadow_table`). The mount of a
-   marker is every obstacle piece that, grown by ``margin + CONTACT_REACH``, would take in
-   ``M`` (a reflector on a wall, on a rack face or on a pillar): the segment necessarily comes
-   close to it at ``M`` itself, and 3 takes its place;
+   marker is every obstacle piece its body touches: grown by ``REFLECTOR_RADIUS +
+   CONTACT_REACH``, it takes in ``M`` (a reflector on a wall, on a rack face or on a pillar).
+   The segment necessarily comes close to it at ``M`` itself, and 3 takes its place. A piece
+   farther away is a blocker like any other, however near: a pillar 5 cm in front of a wall
+   hides the reflector behind it from a wide cone, and a robot within the margin of that
+   cone's edge may lose it (random-23-032's R9, 2026-12-06: a mount then reached out by the
+   margin, and the plan counted on rays the laser stopped on the pillar);
 3. on its mount, the ray meets the marker's own body before coming within ``CONTACT_REACH`` of
    the mount face. The ray enters the post at distance ``REFLECTOR_RADIUS`` before ``M``, where
    it is ``REFLECTOR_RADIUS sin(theta')`` from the face (``theta'`` the angle between the ray and
@@ -87,8 +91,8 @@ class SightRule:
 
     @property
     def grow(self) -> float:
-        """A piece that, grown by this much [m], takes in a marker is the marker's mount."""
-        return self.margin + self.reach
+        """A piece that, grown by this much [m], takes in a marker is the marker's mount: its body touches it."""
+        return self.radius + self.reach
 
     @property
     def slope(self) -> float:

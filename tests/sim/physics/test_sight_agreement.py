@@ -11,7 +11,8 @@ laser does not see (the hall's O1 from the west aisle, grazing the office wall);
 without Bullet's reach and the rule without the margin, on the corridor.
 
 Besides the built-ins, small worlds written for the purpose: a corridor with posts and flat
-reflectors on its walls and a rack whose face carries posts, sampled on a grid of free points.
+reflectors on its walls and a rack whose face carries posts, and a flat reflector behind a pillar,
+sampled on a grid of free points; and (e2e) random worlds that once disagreed.
 """
 
 from __future__ import annotations
@@ -101,6 +102,22 @@ def test_the_laser_sees_every_line_of_sight_the_plan_counts_on(planned, name):
     assert not bad, f"{len(bad)} lines of sight the plan counts on and the laser does not see, first {bad[:3]}"
 
 
+#: Random worlds (``pefsim worlds --seed 23``) whose plans counted on lines of sight the laser did
+#: not see while a mount reached out by the margin (a pillar or post a few cm off the reflector).
+RANDOM_23 = (19, 21, 31, 32)
+
+
+@pytest.mark.e2e
+@pytest.mark.parametrize("index", RANDOM_23)
+def test_the_laser_sees_every_line_of_sight_the_plan_counts_on_in_random_worlds(index):
+    sc = pefsim.worlds(1, seed=23, first=index)[0].scenario
+    poses = np.vstack([_path_poses(pefsim.plan(sc, t)) for t in range(len(sc.tasks))])
+    vis, free = scenario_visible_points(sc, poses[:, :2])
+    assert free.all() and vis.any(axis=0).mean() > 0.5
+    bad = _misses(sc, poses, vis, scenario_sight_rule(sc).margin)
+    assert not bad, f"{len(bad)} lines of sight the plan counts on and the laser does not see, first {bad[:3]}"
+
+
 @pytest.mark.e2e
 def test_negative_control_the_margin_free_rule_counts_on_what_the_laser_does_not_see(planned):
     sc, poses = planned("hall")
@@ -185,6 +202,56 @@ def test_negative_control_rules_without_the_reach_or_the_margin_count_on_what_th
     # and the margin-free rule of old, from the poses themselves
     old, _ = visible_points(*args)
     assert _misses(sc, poses, old, 0.0, first=True)
+
+
+PILLAR_WORLD = """
+name = "pillar"
+[workspace]
+size = [16.0, 6.0]
+[[obstacles]]
+center = [10.0, 0.35]
+radius = 0.3
+[[markers]]
+id = "W"
+position = [10.13, 0.0]
+kind = "flat"
+facing_deg = 90.0
+[[markers]]
+id = "P"
+position = [4.0, 6.0]
+[sensor]
+relative_error = 1.0e-4
+absolute_error = 0.002
+max_range = 15.0
+max_incidence_deg = 78.0
+[planning]
+eps_max = 0.05
+"""
+
+
+class _MountWithinMargin(SightRule):
+    """The rule before 2026-12-06: every piece within the margin (plus reach) of a marker was its mount."""
+
+    @property
+    def grow(self) -> float:
+        return self.margin + self.reach
+
+
+def test_a_pillar_in_front_of_a_wall_reflector_blocks_it_like_any_obstacle():
+    # random-23-032's R9: a flat reflector on the wall, a round pillar 5 cm in front of it
+    sc = scenarios.loads(PILLAR_WORLD, "pillar.toml")
+    poses = _free_grid(sc, sc.robot.radius)
+    rule = scenario_sight_rule(sc)
+    vis, _ = scenario_visible_points(sc, poses[:, :2])
+    w = [m.id for m in sc.markers].index("W")
+    assert vis[w].mean() > 0.05  # not vacuous: seen past the pillar from much of the floor
+    bad = _misses(sc, poses, vis, rule.margin)
+    assert not bad, f"{len(bad)} misses, first {bad[:3]}"
+    # negative control: the pillar taken as the reflector's mount (not widened, no reach)
+    old, _ = visible_points(poses[:, :2], sc.marker_positions(), sc.obstacle_pieces(), sc.sensor.max_range,
+                            sc.workspace.bounds, sc.marker_normals(), sc.sensor.max_incidence,
+                            _MountWithinMargin(margin=rule.margin))
+    assert {b[0] for b in _misses(sc, poses, old, rule.margin, first=True)} == {"W"}
 
 
 REACH_WORLD = """
