@@ -29,8 +29,11 @@ which a point is seen at all (a flat reflector is seen only within ``max_inciden
 normal: from 1 m off a rack face, a 2 m stretch of it). Where points are left uncovered, the
 faces are sampled again at half the spacing, and the new sites that form a good pair for an
 uncovered point (with any site) join the candidates; this repeats down to
-``spacing / 2**REFINE_LEVELS``. Points still uncovered then are reported (uncoverable at that
-sampling). Only the sites that help those points are added, so the problem stays small.
+``spacing / 2**REFINE_LEVELS``. With ``planning.redundancy`` = r a point counts as uncovered
+until all sites together keep it covered with any r of them blocked (a point a face sees from
+only one good pair needs a finer sampling as much as one it does not see at all). Points still
+uncovered then are reported (uncoverable at that sampling). Only the sites that help those
+points are added, so the problem stays small.
 
 Keeping what is installed (``placement.existing = "keep"``): the scenario's markers are sites
 that are always chosen (held at 1 in the LP and MILP, never dropped by the greedy or the local
@@ -341,8 +344,9 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
     allx = lambda c: np.vstack([np.asarray(scenario.marker_positions(), dtype=float).reshape(-1, 2)[:n_kept], c])
     cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept)
     finest = None
-    if sites is None and not scenario.placement.candidates and not coverable.all():
-        cand, finest = _refine(scenario, pts, cand, coverable, eps, kept)
+    if sites is None and not scenario.placement.candidates \
+            and not _servable(cov, coverable, k, redundancy).all():
+        cand, finest = _refine(scenario, pts, cand, _servable(cov, coverable, k, redundancy), eps, kept)
         if finest is not None:
             cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept)
     fixed = np.zeros(n_kept + len(cand), dtype=bool)
@@ -376,6 +380,18 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
                            redundancy=redundancy, kept=tuple(kept), target=eps, finest_spacing=finest)
 
 
+def _servable(cov: PairCover, coverable: np.ndarray, k: int, redundancy: int) -> np.ndarray:
+    """Points, shape (N,) bool, that every site together covers with any ``redundancy`` of them blocked.
+
+    ``coverable`` (N,) bool is :func:`build_cover`'s; with ``redundancy`` = 0 it is the answer.
+    """
+    if redundancy == 0 or not coverable.any():
+        return coverable
+    out = coverable.copy()
+    out[np.flatnonzero(coverable)] = robust_rows(cov, np.ones(cov.n_sites, dtype=bool), k, redundancy)[cov.row_of]
+    return out
+
+
 def _refine(scenario: Scenario, pts: np.ndarray, cand: np.ndarray, coverable: np.ndarray, eps: float,
             kept: tuple[Marker, ...]) -> tuple[np.ndarray, float | None]:
     """Add finer candidate sites where points are uncovered (see module doc).
@@ -401,6 +417,7 @@ def _refine(scenario: Scenario, pts: np.ndarray, cand: np.ndarray, coverable: np
             continue
         base = len(kept) + len(cand)
         sub, ok = build_cover(scenario, bad, np.vstack([have, finer]), eps, kept)
+        ok = _servable(sub, ok, scenario.sensor.markers_per_fix, scenario.planning.redundancy)
         helpful = np.unique(np.concatenate([sub.pj, sub.pl]))
         helpful = helpful[helpful >= base] - base
         cand = np.vstack([cand, finer[helpful]])

@@ -12,8 +12,9 @@ between fixes needs room under eps_max), the cover is solved again for a tighter
 
 Points that no subset of candidate sites can cover are always reported: without ``--json``
 the summary is printed and the command fails with one line naming how many and the first
-few (exit 2); with ``--json`` they are listed under ``uncovered`` and the exit code is 2 as
-well. ``-o`` and ``--png`` are still written in that case (covering the coverable points).
+few (exit 2); with ``--json`` they are listed under ``uncovered`` as well, and the same line
+goes to stderr (exit 2). ``-o`` and ``--png`` are still written in that case (covering the
+coverable points).
 """
 
 from __future__ import annotations
@@ -51,7 +52,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import pefsim
-    from scenarios.errors import PlanningError
     from sim.cli import print_json
 
     sc = pefsim.load(args.scenario)
@@ -61,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
     n_bad = len(result.uncovered)
     if args.json:
         print_json(result.summary())
-        return 2 if n_bad or result.unplanned else 0
+        _refuse(sc, result, args.output is not None and not wrote_toml)
+        return 0
     state = "optimal" if result.optimal else f"not proven optimal, lower bound {result.lower_bound}"
     n_pts = len(result.points)
     eps = sc.planning.eps_max
@@ -83,9 +84,22 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {args.output}")
     if args.png is not None:
         print(f"wrote {args.png}")
+    _refuse(sc, result, args.output is not None and not wrote_toml)
+    return 0
+
+
+def _refuse(sc, result, unwritten: bool) -> None:
+    """Raise the one-line PlanningError of a placement that left points uncovered or tasks unplanned.
+
+    ``unwritten``: ``-o`` was asked for but not written (no markers). With ``--json`` the
+    summary is on stdout already; the line still goes to stderr (exit 2).
+    """
+    from scenarios.errors import PlanningError
+
+    n_bad, n_pts = len(result.uncovered), len(result.points)
     if n_bad:
         first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in result.uncovered[:3])
-        note = "; -o not written: no markers" if args.output and not wrote_toml else ""
+        note = "; -o not written: no markers" if unwritten else ""
         if sc.placement.candidates:
             hint = ""
         else:
@@ -99,4 +113,3 @@ def run(args: argparse.Namespace) -> int:
         raise PlanningError(f"{len(result.unplanned)} of {len(sc.tasks)} tasks have no admissible route on the "
                             f"placed markers, even with the cover target at {result.target:g} m: "
                             f"{result.unplanned[0]}")
-    return 0

@@ -59,11 +59,12 @@ def test_uncoverable_points_exit_2(capsys, tmp_path):
     assert code == 2
     assert err.count("\n") == 1 and "points cannot be covered by any candidate sites (first: (" in err
     assert "markers" in out  # the summary is still printed
-    code, out, _ = run_cli(capsys, "place", str(path), "--json")
+    code, out, err_json = run_cli(capsys, "place", str(path), "--json")
     assert code == 2
-    doc = json.loads(out)
+    doc = json.loads(out)  # stdout holds the JSON alone
     n = int(err.split(f"pefsim: error: {path}: ")[1].split()[0])  # the scenario named first
     assert len(doc["uncovered"]) == n > 0 and all(len(p) == 2 for p in doc["uncovered"])
+    assert err_json == err  # the refusal's one line goes to stderr under --json too
 
 
 def test_bad_time_limit(capsys):
