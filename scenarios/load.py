@@ -291,11 +291,15 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
     description = root.string("description", "")
 
     ws_t = root.table("workspace")
+    walls = ws_t.raw("walls", True)
+    if not isinstance(walls, bool):
+        ws_t.fail(ws_t.key("walls"), "expected true or false", walls)
     workspace = Workspace(ws_t.vector("size", 2, what="[width, height] in metres", positive=True),
-                          origin=ws_t.vector("origin", 2, (0.0, 0.0), what="[x0, y0] in metres"))
+                          origin=ws_t.vector("origin", 2, (0.0, 0.0), what="[x0, y0] in metres"), walls=walls)
     ws_t.done()
 
     obstacles = [read_obstacle(t) for t in root.array_of_tables("obstacles")]
+    unknown = [read_obstacle(t) for t in root.array_of_tables("unknown")]
 
     def free_point(t: Table, key: str, value: tuple[float, ...], what: str) -> None:
         p = value[:2]  # a dock's value is (x, y, yaw): only the position must be free
@@ -304,6 +308,9 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         for j, ob in enumerate(obstacles):
             if ob.contains(p, margin=-1e-6):
                 t.fail(t.key(key), f"expected {what} outside obstacles (inside obstacles[{j}])", list(value))
+        for j, ob in enumerate(unknown):
+            if ob.contains(p, margin=-1e-6):
+                t.fail(t.key(key), f"expected {what} outside unknown areas (inside unknown[{j}])", list(value))
 
     markers = []
     for t in root.array_of_tables("markers"):
@@ -372,7 +379,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
 
     routes = None
     if root.has("routes"):
-        routes = read_routes(root.table("routes"), workspace=workspace, obstacles=obstacles,
+        routes = read_routes(root.table("routes"), workspace=workspace, obstacles=obstacles + unknown,
                              radius=robot.radius, docks=docks, free_point=free_point,
                              base_dir=None if base is None else Path(base))
     docks = place_node_docks(docks, dock_tables, routes, free_point)
@@ -421,7 +428,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         obstacles=tuple(obstacles), markers=tuple(markers), sensor=sensor,
         sensor_actual=sensor_actual, robot=robot, robot_actual=robot_actual, planning=planning,
         docks=tuple(docks), routes=routes, tasks=tuple(tasks), montecarlo=montecarlo,
-        placement=placement, source=source, floorplan=plan, robots=robots,
+        placement=placement, source=source, floorplan=plan, robots=robots, unknown=tuple(unknown),
         files=(*(plan.files if plan is not None else ()),
                *((routes.file,) if routes is not None and routes.file is not None else ())),
     )

@@ -52,11 +52,14 @@ class Workspace:
     """Rectangular workspace, x right, y up, in the user's frame.
 
     ``size`` = (width, height) [m]; ``origin`` = (x0, y0), its lower-left corner [m] (every
-    position of a scenario, and every output, is in that frame).
+    position of a scenario, and every output, is in that frame). ``walls``: its border is a
+    wall (a physics body, a face for reflectors); a ROS map's is not (the image edge is no wall:
+    only its occupied cells are), and routes still stay inside it.
     """
 
     size: tuple[float, float]
     origin: tuple[float, float] = (0.0, 0.0)
+    walls: bool = True
 
     @property
     def width(self) -> float:
@@ -395,6 +398,10 @@ class Scenario:
     robots: tuple[FleetRobot, ...] = ()
     """The fleet (``[[robots]]``), empty for a scenario of one robot (``robot``, driving the tasks
     one episode at a time, as without a fleet)."""
+    unknown: tuple[Obstacle, ...] = ()
+    """Areas nobody knows (``[[unknown]]``; a ROS map's unknown cells): neither floor nor wall. The
+    planner treats them as blocking (no route through them, no line of sight across them is
+    counted on, no candidate site on them); the simulation has nothing there."""
 
     @property
     def is_fleet(self) -> bool:
@@ -435,11 +442,13 @@ class Scenario:
 
     @cached_property
     def _obstacle_pieces(self) -> ConvexPieces:
-        return pack_pieces(self.obstacles)
+        return pack_pieces(self.obstacles + self.unknown)
 
     def obstacle_pieces(self) -> ConvexPieces:
         """Convex pieces of all obstacles, padded for kernels (:class:`~scenarios.obstacles.ConvexPieces`).
 
-        Computed once per scenario object (the same object every call; do not modify it).
+        The unknown areas' pieces follow the obstacles' (owners ``len(obstacles)`` on): what the
+        planner must not drive through nor count on seeing across. Computed once per scenario
+        object (the same object every call; do not modify it).
         """
         return self._obstacle_pieces

@@ -468,8 +468,11 @@ def _scenario_dict(sc: Scenario) -> dict:
     d: dict = {"name": sc.name, "seed": sc.seed, "description": sc.description,
                "workspace": {"size": list(sc.workspace.size), "origin": list(sc.workspace.origin)},
                "obstacles": [o.to_dict() for o in sc.obstacles],
+               **({"unknown": [o.to_dict() for o in sc.unknown]} if sc.unknown else {}),
                "markers": [_marker_dict(m) for m in sc.markers],
                "sensor": spec(sc.sensor), "robot": spec(sc.robot)}
+    if not sc.workspace.walls:
+        d["workspace"]["walls"] = False
     if sc.sensor_actual != sc.sensor:
         d["sensor"]["actual"] = spec(sc.sensor_actual, sc.sensor)
     if sc.robot_actual != sc.robot:

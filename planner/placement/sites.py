@@ -1,12 +1,14 @@
 """Where markers may go and which points they must serve: candidate sites and cover points.
 
 Candidate sites are the scenario's ``placement.candidates`` when given; otherwise points along
-the workspace walls and the obstacle faces (outer rings and holes' rings), ``placement.spacing``
-apart (each edge split into ``ceil(length / spacing)`` equal parts, one site at the middle of
+the workspace walls (when ``workspace.walls``: a ROS map's border is none) and the obstacle
+faces (outer rings and holes' rings), ``placement.spacing`` apart (each edge split into ``ceil(length / spacing)`` equal parts, one site at the middle of
 each part, so corners, where line of sight grazes, are avoided; round pillars get
 ``ceil(perimeter / spacing)`` sites spread over their faces). Sites sit exactly on the faces,
 as the built-in markers do; line of sight treats a face point as visible from its open side
-(:mod:`planner.pef.visibility`).
+(:mod:`planner.pef.visibility`). No site lies in an unknown area or on a face that looks into
+one (a wall whose other side the map does not know): probes at :data:`UNKNOWN_PROBES` cells
+(the map's, else the PEF's) out along the face's normal must all miss the unknown areas.
 
 Cover points are what placement must keep under ``eps_max`` (``placement.cover``):
 
@@ -25,12 +27,18 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import shapely
 
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
 MAX_FREE_POINTS = 2000
 """Largest number of free-space cover points; the grid is coarsened to stay under it."""
+
+UNKNOWN_PROBES = (0.5, 1.0, 2.0)
+"""Distances, in cells, of the probes out of a site's face that must miss the unknown areas:
+traced and simplified separately, an occupied face and the unknown area behind it lie up to a
+cell apart or overlap by as much, so one probe at the face could land in either."""
 
 
 def _edge_sites(a: np.ndarray, b: np.ndarray, spacing: float) -> np.ndarray:
@@ -59,18 +67,39 @@ def candidate_sites(scenario: Scenario, spacing: float | None = None) -> np.ndar
     if not spacing > 0.0:
         raise PlanningError(f"placement.spacing: expected a positive number of metres, got {spacing}")
     x0, y0, x1, y1 = scenario.workspace.bounds
-    rings = [np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])]
+    rings = [np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])] if scenario.workspace.walls else []
     rings += [ring for ob in scenario.obstacles if ob.kind != "circle" for ring in ob.rings()]  # holes too
     parts = [_edge_sites(r[i], r[(i + 1) % len(r)], spacing) for r in rings for i in range(len(r))]
     parts += [_circle_sites(ob.pieces()[0], spacing) for ob in scenario.obstacles if ob.kind == "circle"]
-    sites = np.vstack(parts)
+    sites = np.vstack(parts) if parts else np.zeros((0, 2))
     tol = 1e-9
     ok = (sites[:, 0] >= x0 - tol) & (sites[:, 0] <= x1 + tol) & (sites[:, 1] >= y0 - tol) & (sites[:, 1] <= y1 + tol)
     for ob in scenario.obstacles:
         ok &= ~ob.contains_points(sites, margin=-1e-6)
     sites = np.clip(sites[ok], [x0, y0], [x1, y1])
     _, first = np.unique(np.round(sites, 9), axis=0, return_index=True)
-    return sites[np.sort(first)]
+    sites = sites[np.sort(first)]
+    if scenario.unknown:
+        sites = sites[_clear_of_unknown(scenario, sites)]
+    return sites
+
+
+def _clear_of_unknown(scenario: Scenario, sites: np.ndarray) -> np.ndarray:
+    """Sites (S, 2) [m] outside the unknown areas whose face looks out into known space, (S,) bool."""
+    from planner.placement.facing import face_directions
+
+    cell = scenario.floorplan.resolution if scenario.floorplan is not None and scenario.floorplan.resolution > 0 \
+        else scenario.planning.resolution
+    facing = face_directions(scenario, sites)
+    ang = np.array([np.nan if f is None else f for f in facing], dtype=float)
+    normal = np.column_stack([np.cos(ang), np.sin(ang)])
+    normal[np.isnan(ang)] = 0.0  # a site on no face: only the site itself is probed
+    probes = np.vstack([sites] + [sites + d * cell * normal for d in UNKNOWN_PROBES])
+    tree = shapely.STRtree([area.geometry() for area in scenario.unknown])
+    hit, _ = tree.query(shapely.points(probes), predicate="intersects")  # boundary counts as in
+    ok = np.ones(len(probes), dtype=bool)
+    ok[hit] = False
+    return ok.reshape(len(UNKNOWN_PROBES) + 1, len(sites)).all(axis=0)
 
 
 def _circle_sites(polygon: np.ndarray, spacing: float) -> np.ndarray:

@@ -1,10 +1,11 @@
 """Floor plans read into a scenario: DXF drawings (``dxf``) and ROS occupancy maps (``rosmap``).
 
 :func:`apply` is the loader's one step: it reads the ``[floorplan]`` table, reads the file,
-and merges its obstacles and markers into the document's ``obstacles`` / ``markers`` lists
-(after the hand-written ones, so those keep their indices in error messages) before the
-document is validated; ``workspace.size`` and ``workspace.origin`` default to the plan's
-extent. The readers import ezdxf and Pillow only when a scenario has a floor plan.
+and merges its obstacles, markers and unknown areas into the document's ``obstacles`` /
+``markers`` / ``unknown`` lists (after the hand-written ones, so those keep their indices in
+error messages) before the document is validated; ``workspace.size`` and ``workspace.origin``
+default to the plan's extent (a ROS map: its known cells' bounding box) and ``workspace.walls``
+to false for a ROS map (its edge is no wall). The readers import ezdxf and Pillow only when a scenario has a floor plan.
 """
 
 from __future__ import annotations
@@ -85,7 +86,8 @@ def read(t: Table, base: Path | None) -> tuple[FloorPlan, FloorPlanData]:
                         wall_thickness=wall, simplify=simplify, where=where, shown=shown)
     plan = FloorPlan(file=path, kind=kind, units=data.units, unit_factor=data.unit_factor,
                      obstacle_layers=layers, marker_layer=marker_layer, wall_thickness=wall,
-                     simplify=data.simplify, extent=data.extent, files=(path, *data.images))
+                     simplify=data.simplify, extent=data.extent, files=(path, *data.images),
+                     resolution=data.resolution)
     return plan, data
 
 
@@ -115,7 +117,9 @@ def apply(data: dict[str, Any], source: str, base: Path | None) -> tuple[dict[st
     plan, found = read(t, base)
     out = dict(data)
     del out["floorplan"]
-    for key, items in (("obstacles", found.obstacles), ("markers", found.markers)):
+    for key, items in (("obstacles", found.obstacles), ("markers", found.markers), ("unknown", found.unknown)):
+        if key == "unknown" and not items and key not in out:
+            continue  # a drawing knows everything: the document stays as it was
         given = out.get(key, [])
         if isinstance(given, list):  # anything else: the loader names the bad value
             out[key] = given + items
@@ -123,8 +127,10 @@ def apply(data: dict[str, Any], source: str, base: Path | None) -> tuple[dict[st
     ws = out.get("workspace", {})
     if isinstance(ws, dict):
         ws = dict(ws)
-        xmin, ymin, xmax, ymax = found.extent
+        xmin, ymin, xmax, ymax = found.known or found.extent
         ws.setdefault("origin", [xmin, ymin])
+        if not found.walls:
+            ws.setdefault("walls", False)
         o = ws["origin"]
         if "size" not in ws and isinstance(o, list) and len(o) == 2 and all(isinstance(v, (int, float)) for v in o):
             # The far corner of the plan stays the far corner when only the origin is given.

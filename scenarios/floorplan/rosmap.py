@@ -6,9 +6,11 @@ mode an alpha channel is averaged in too), p = (255 − shade)/255, or shade/255
 ``negate``; a cell is occupied if p > occupied_thresh, free if p < free_thresh, else
 unknown; in ``scale`` mode a pixel that is not opaque is unknown; in ``raw`` mode the
 shade is the occupancy in percent (0..100, anything else unknown, ``negate`` ignored) and
-the same thresholds apply to it / 100. Occupied **and unknown** cells are obstacles (so
-are the probabilities between the thresholds in ``scale`` mode): the robot plans only
-through cells the map knows are free.
+the same thresholds apply to it / 100. Occupied cells are obstacles; unknown cells (and the
+probabilities between the thresholds in ``scale`` mode) are neither floor nor wall: they
+become the scenario's unknown areas (``[[unknown]]``), which the planner does not drive
+through nor see across and the simulation leaves empty. The map is cropped to the bounding
+box of its known cells (the default workspace); its edge is no wall.
 """
 
 from __future__ import annotations
@@ -161,20 +163,29 @@ def shade(img) -> tuple[np.ndarray, np.ndarray]:
     return rgb, a.mean(axis=2), a[..., -1] >= 255.0
 
 
-def classify(img, mode: str, negate: bool, occupied_thresh: float, free_thresh: float) -> np.ndarray:
-    """Obstacle cells (occupied or unknown) of a map image, shape (H, W), row 0 at the top."""
+def classify(img, mode: str, negate: bool, occupied_thresh: float,
+             free_thresh: float) -> tuple[np.ndarray, np.ndarray]:
+    """Occupied and unknown cells of a map image, each shape (H, W) bool, row 0 at the top.
+
+    A cell is occupied if p > occupied_thresh, free if p < free_thresh (and opaque in
+    ``scale`` mode), unknown otherwise (``raw``: also a value above 100).
+    """
     rgb, tri, opaque = shade(img)
     if mode == "raw":
         percent = np.round(rgb)
         known = percent <= 100.0
         p = percent / 100.0
-        return ~(known & (p < free_thresh))
+        occupied = known & (p > occupied_thresh)
+        free = known & (p < free_thresh)
+        return occupied, ~(occupied | free)
     value = tri if mode == "trinary" else rgb
     p = value / 255.0 if negate else (255.0 - value) / 255.0
+    occupied = p > occupied_thresh
     free = p < free_thresh
     if mode == "scale":
         free &= opaque
-    return ~free
+        occupied &= opaque
+    return occupied, ~(occupied | free)
 
 
 def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str | None = None,
@@ -195,8 +206,9 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     Returns
     -------
     FloorPlanData
-        Obstacles in metres in the map frame; extent = the whole map
-        (origin .. origin + size · resolution).
+        Obstacles (occupied cells) and unknown areas (unknown cells within the known cells'
+        bounding box) in metres in the map frame; extent = the whole map (origin .. origin +
+        size · resolution); known = the bounding box of the known (free or occupied) cells.
 
     Raises
     ------
@@ -248,7 +260,7 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
             with Image.open(image_path) as img:
                 _check_pixels(t, image_name, image_path, *img.size)  # header only: before decoding
                 img.load()  # decode now: a truncated file fails here, not later
-                occ_img = classify(img, mode, bool(negate), occupied_thresh, free_thresh)
+                occ_img, unk_img = classify(img, mode, bool(negate), occupied_thresh, free_thresh)
     except Image.DecompressionBombError:  # a format whose header we do not read: Pillow's own check
         t.fail(t.key("image"), f"{show_path(image_path)} has more than {2 * Image.MAX_IMAGE_PIXELS:.3g} pixels, "
                f"at most {MAX_MAP_PIXELS:.3g}", image_name)
@@ -263,15 +275,27 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     if h == 0 or w == 0:
         t.fail(t.key("image"), f"expected a non-empty image, {image_path} is {w} x {h}", image_name)
 
-    occ = occ_img[::-1]  # image row 0 is the top of the map; the grid's row 0 its bottom
-    polys = trace(occ)
+    occ, unk = occ_img[::-1], unk_img[::-1]  # image row 0 is the top of the map; the grid's row 0 its bottom
+    rows, cols = np.nonzero(~unk)
+    if not len(rows):
+        t.fail(t.key("image"), f"expected some known cells, every cell of {show_path(image_path)} is unknown",
+               image_name)
+    r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
     ox, oy = origin[0], origin[1]
-    # Cell units -> metres: x = ox + column · resolution, y = oy + row · resolution.
-    polys = shapely.transform(np.asarray(polys, dtype=object), lambda c: c * resolution + (ox, oy))
     tol = resolution if simplify is None else simplify
-    obstacles = geometry.obstacle_dicts(shapely.GeometryCollection(list(polys)), tol)
+
+    def polygons(cells: np.ndarray) -> list[dict]:
+        polys = trace(cells[r0:r1, c0:c1])
+        # Cell units -> metres: x = ox + column · resolution, y = oy + row · resolution.
+        polys = shapely.transform(np.asarray(polys, dtype=object),
+                                  lambda c: (c + (c0, r0)) * resolution + (ox, oy))
+        return geometry.obstacle_dicts(shapely.GeometryCollection(list(polys)), tol)
+
     extent = (ox, oy, ox + w * resolution, oy + h * resolution)
+    known = tuple(round(v, geometry.DECIMALS) for v in (ox + c0 * resolution, oy + r0 * resolution,
+                                                       ox + c1 * resolution, oy + r1 * resolution))
     if not all(math.isfinite(v) for v in extent):
         t.fail(t.key("origin"), "expected a finite map extent", list(origin))
-    return FloorPlanData(obstacles=obstacles, markers=[], extent=extent, unit_factor=1.0, units="m",
-                        simplify=tol, images=(image_path.resolve(),))
+    return FloorPlanData(obstacles=polygons(occ), markers=[], extent=extent, unit_factor=1.0, units="m",
+                        simplify=tol, images=(image_path.resolve(),), unknown=polygons(unk), known=known,
+                        walls=False, resolution=float(resolution))

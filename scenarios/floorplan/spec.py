@@ -54,6 +54,8 @@ class FloorPlan:
     extent: tuple[float, float, float, float]
     files: tuple[Path, ...] = ()
     """Every file read, absolute: the drawing, or the map YAML and its image."""
+    resolution: float = 0.0
+    """A ROS map's cell size [m] (its grid is ``extent`` in cells of this size); 0 for a drawing."""
 
 
 @dataclass(frozen=True)
@@ -70,7 +72,7 @@ class FloorPlanData:
         gives a direction (an INSERT's rotation).
     extent : tuple of float
         (xmin, ymin, xmax, ymax) [m] of the obstacles and markers read (a ROS map: the
-        whole map).
+        whole image).
     unit_factor : float
         Metres per drawing unit.
     units : str
@@ -87,6 +89,15 @@ class FloorPlanData:
     simplify: float = 0.0
     images: tuple[Path, ...] = ()
     """Files read besides the one named (a ROS map's image), absolute."""
+    unknown: list[dict] = field(default_factory=list)
+    """Areas the plan does not know (a ROS map's unknown cells), in the obstacles' form."""
+    known: tuple[float, float, float, float] | None = None
+    """(xmin, ymin, xmax, ymax) [m] of what the plan knows (a ROS map's free and occupied cells),
+    the default workspace; None: ``extent``."""
+    walls: bool = True
+    """Whether the workspace border is a wall (False for a ROS map: its edge is none)."""
+    resolution: float = 0.0
+    """A ROS map's cell size [m]; 0 for a drawing."""
 
 
 # Unit names accepted by ``floorplan.units``, in metres per unit.

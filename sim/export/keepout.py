@@ -7,9 +7,11 @@ of the image's bottom-left cell, in the map frame), ``negate``, ``occupied_thres
 is its top (largest y).
 
 The navigation region is where the robot may drive with the promised accuracy: inside the
-workspace, outside every obstacle, and τ < ε_max (the PEF at the cell's centre). Cells of
-``planning.resolution`` are laid from ``workspace.origin``; a last row or column that passes the
-workspace's edge is occupied (its centre may lie outside).
+workspace, outside every obstacle and unknown area, and τ < ε_max (the PEF at the cell's
+centre). For a scenario read from a ROS map the mask is the source map's own grid (its
+resolution, origin and size), so that Nav2 lays it over that map; otherwise cells of
+``planning.resolution`` are laid from ``workspace.origin``, and a last row or column that passes
+the workspace's edge is occupied (its centre may lie outside).
 """
 
 from __future__ import annotations
@@ -44,13 +46,16 @@ def keepout_mask(scenario: Scenario, pef) -> tuple[np.ndarray, float, tuple[floa
     origin : (float, float)
         Lower-left corner of the image [m], the map frame (the scenario's).
     """
+    fp = scenario.floorplan
+    if fp is not None and fp.resolution > 0.0:
+        return _map_grid_mask(scenario, pef, fp.resolution, fp.extent)
     res = scenario.planning.resolution
     (w, h), (x0, y0) = scenario.workspace.size, scenario.workspace.origin
     nx, ny = max(1, math.ceil(w / res - 1e-9)), max(1, math.ceil(h / res - 1e-9))
     xc, yc = x0 + (np.arange(nx) + 0.5) * res, y0 + (np.arange(ny) + 0.5) * res
     pts = np.column_stack([np.tile(xc, ny), np.repeat(yc, nx)])
     inside = (pts[:, 0] <= x0 + w) & (pts[:, 1] <= y0 + h)
-    for ob in scenario.obstacles:
+    for ob in scenario.obstacles + scenario.unknown:
         inside &= ~ob.contains_points(pts)
     tau = np.full(len(pts), np.inf)
     if inside.any():
@@ -58,6 +63,33 @@ def keepout_mask(scenario: Scenario, pef) -> tuple[np.ndarray, float, tuple[floa
     region = inside & (tau < scenario.planning.eps_max)
     image = np.where(region, FREE, OCCUPIED).astype(np.uint8).reshape(ny, nx)[::-1]
     return np.ascontiguousarray(image), float(res), (float(x0), float(y0))
+
+
+def _map_grid_mask(scenario: Scenario, pef, res: float,
+                   extent: tuple[float, float, float, float]) -> tuple[np.ndarray, float, tuple[float, float]]:
+    """:func:`keepout_mask` on a ROS map's grid: ``res`` [m] cells over ``extent`` (the whole image) [m]."""
+    import shapely
+
+    ox, oy = extent[0], extent[1]
+    nx, ny = max(1, round((extent[2] - ox) / res)), max(1, round((extent[3] - oy) / res))
+    xc, yc = ox + (np.arange(nx) + 0.5) * res, oy + (np.arange(ny) + 0.5) * res
+    x0, y0, x1, y1 = scenario.workspace.bounds
+    ix = np.flatnonzero((xc >= x0) & (xc <= x1))
+    iy = np.flatnonzero((yc >= y0) & (yc <= y1))
+    region = np.zeros((ny, nx), dtype=bool)  # row 0 at the bottom here
+    if len(ix) and len(iy):
+        pts = np.column_stack([np.tile(xc[ix], len(iy)), np.repeat(yc[iy], len(ix))])
+        inside = np.ones(len(pts), dtype=bool)
+        shapes = [ob.geometry() for ob in scenario.obstacles + scenario.unknown]
+        if shapes:  # a map has thousands of cells per obstacle: one tree query, not a loop
+            hit, _ = shapely.STRtree(shapes).query(shapely.points(pts), predicate="intersects")
+            inside[hit] = False
+        tau = np.full(len(pts), np.inf)
+        if inside.any():
+            tau[inside] = pef.at(pts[inside]).tau
+        region[np.ix_(iy, ix)] = (inside & (tau < scenario.planning.eps_max)).reshape(len(iy), len(ix))
+    image = np.where(region, FREE, OCCUPIED).astype(np.uint8)[::-1]
+    return np.ascontiguousarray(image), float(res), (float(ox), float(oy))
 
 
 def write_keepout(yaml_path: str | Path, scenario: Scenario, pef) -> tuple[Path, Path]:

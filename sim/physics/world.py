@@ -1,5 +1,8 @@
 """The PyBullet world of one scenario: floor, border walls, obstacles, marker posts, robot.
 
+Border walls only where ``workspace.walls`` (a ROS map's edge is none); a scenario's unknown
+areas are no body at all (what is there is unknown: the planner does not count on it).
+
 The world is built in *local* coordinates: the user's frame minus ``workspace.origin``, so
 that a floor whose corner sits at (250000, 80000) runs with small numbers (this pybullet
 build computes in double precision, where it hardly matters; a single-precision Bullet would
@@ -70,7 +73,8 @@ class PhysicsWorld:
     post_ids : ndarray of int, shape (M,)
         pybullet body id of each marker's post, in marker order.
     blocker_ids : ndarray of int
-        Body ids of the border walls and obstacles (several per polygon obstacle: its pieces).
+        Body ids of the border walls (when ``workspace.walls``) and obstacles (several per
+        polygon obstacle: its pieces).
     robots : list of DiffDriveRobot
         Every robot ([robot] without ``fleet``).
     body_ids : list of int
@@ -126,7 +130,8 @@ class PhysicsWorld:
         # Walls lie outside the workspace rectangle; the left/right ones span the corners.
         walls = [((w / 2, -t / 2), (w + 2 * t, t)), ((w / 2, h + t / 2), (w + 2 * t, t)),
                  ((-t / 2, h / 2), (t, h)), ((w + t / 2, h / 2), (t, h))]
-        blockers = [self._box(c, s, 0.0, cfg.wall_height) for c, s in walls]
+        # A map's border is no wall (its edge is not; only its occupied cells are): no body there.
+        blockers = [self._box(c, s, 0.0, cfg.wall_height) for c, s in walls] if sc.workspace.walls else []
         for ob in sc.obstacles:
             blockers += self._obstacle(ob, cfg.wall_height)
         self.blocker_ids = np.array(blockers, dtype=int)

@@ -17,6 +17,8 @@ import numpy as np
 from scenarios.schema import Scenario
 
 OBSTACLE_STYLE = dict(facecolor="#4a4a4a", edgecolor="black", linewidth=0.8)
+UNKNOWN_STYLE = dict(facecolor="#d9d9d9", edgecolor="#9a9a9a", linewidth=0.5, hatch="////")
+"""Unknown areas (a map's unknown cells): light and hatched, neither floor nor wall."""
 MARKER_STYLE = dict(marker="^", s=70, c="#e8412c", edgecolors="black", linewidths=0.7)
 DOCK_STYLE = dict(marker="s", s=60, c="white", edgecolors="black", linewidths=1.0)
 
@@ -126,7 +128,7 @@ def draw_facing(ax, scenario: Scenario, size: float) -> None:
 
 
 def draw_scene(ax, scenario: Scenario, labels: bool = True, docks: bool = True) -> None:
-    """Draw the workspace border, obstacles, markers and docks, and set limits and axis labels.
+    """Draw the workspace border, unknown areas, obstacles, markers and docks, and set limits and axis labels.
 
     Parameters
     ----------
@@ -142,13 +144,18 @@ def draw_scene(ax, scenario: Scenario, labels: bool = True, docks: bool = True) 
 
     x0, y0, x1, y1 = scenario.workspace.bounds
     width, height = scenario.workspace.size
+    for area in scenario.unknown:
+        path = MplPath.make_compound_path(*[MplPath(np.vstack([r, r[:1]]), closed=True) for r in area.rings()])
+        ax.add_patch(PathPatch(path, zorder=2, **UNKNOWN_STYLE))
     for ob in scenario.obstacles:
         # One compound path per obstacle: its outer ring and its holes run opposite ways
         # (shapely's normalised orientation), so the holes stay unfilled.
         path = MplPath.make_compound_path(*[MplPath(np.vstack([r, r[:1]]), closed=True) for r in ob.rings()])
         ax.add_patch(PathPatch(path, zorder=3, **OBSTACLE_STYLE))
+    # the border: a wall drawn solid, a map's edge (no wall) thin and dashed
     ax.add_patch(Polygon([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], closed=True, fill=False,
-                         edgecolor="black", linewidth=1.5, zorder=3))
+                         edgecolor="black", zorder=3,
+                         **(dict(linewidth=1.5) if scenario.workspace.walls else dict(linewidth=0.8, linestyle="--"))))
     mk = scenario.marker_positions()
     if len(mk):
         ax.scatter(mk[:, 0], mk[:, 1], zorder=5, clip_on=False, **MARKER_STYLE)

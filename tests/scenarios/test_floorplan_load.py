@@ -77,8 +77,10 @@ def test_ros_map_scenario_workspace_is_the_map(folder):
     s = load(folder, text)
     assert s.workspace.origin == (-1.0, -2.0) and s.workspace.size == pytest.approx((5.0, 4.0))
     assert s.floorplan.kind is FloorPlanKind.ROSMAP and s.floorplan.simplify == 0.0
-    assert sum(o.geometry().area for o in s.obstacles) == pytest.approx(
-        float((~((255.0 - dr.map_image()) / 255.0 < 0.196)).sum()) * 0.05 ** 2)
+    img = dr.map_image()
+    assert sum(o.geometry().area for o in s.obstacles) == pytest.approx(float((img == dr.OCCUPIED).sum()) * 0.05 ** 2)
+    assert sum(o.geometry().area for o in s.unknown) == pytest.approx(float((img == dr.UNKNOWN).sum()) * 0.05 ** 2)
+    assert not s.workspace.walls
 
 
 @pytest.mark.parametrize("floorplan, pattern", [

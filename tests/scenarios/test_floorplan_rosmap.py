@@ -16,8 +16,10 @@ from tests.scenarios import drawings as dr
 RES = 0.05
 
 
-def union(data):
-    return shapely.union_all([shapely.Polygon(o["polygon"], o.get("holes", [])) for o in data.obstacles])
+def union(data, parts=("obstacles", "unknown")):
+    """The area of what the map does not know as free: its obstacles and its unknown areas."""
+    return shapely.union_all([shapely.Polygon(o["polygon"], o.get("holes", []))
+                              for part in parts for o in getattr(data, part)])
 
 
 def expected_area(img, obstacle):
@@ -30,7 +32,7 @@ def not_free(img):
 
 
 @pytest.mark.parametrize("suffix", [".pgm", ".png"])
-def test_trinary_map_occupied_and_unknown_cells_are_obstacles(tmp_path, suffix):
+def test_trinary_map_occupied_cells_are_obstacles_unknown_cells_unknown(tmp_path, suffix):
     img = dr.map_image()
     path = dr.write_map(tmp_path, img, suffix=suffix)
     if suffix == ".pgm":
@@ -38,8 +40,11 @@ def test_trinary_map_occupied_and_unknown_cells_are_obstacles(tmp_path, suffix):
     data = read_rosmap(path, simplify=0.0)
     area = union(data)
     assert area.area == pytest.approx(expected_area(img, not_free))
-    # The workspace is the map: origin (-1, -2), 100 x 80 cells of 5 cm.
+    assert union(data, ("obstacles",)).area == pytest.approx(expected_area(img, lambda i: i == dr.OCCUPIED))
+    assert union(data, ("unknown",)).area == pytest.approx(expected_area(img, lambda i: i == dr.UNKNOWN))
+    # The map: origin (-1, -2), 100 x 80 cells of 5 cm, all of it known (its border is walls).
     assert data.extent == pytest.approx((-1.0, -2.0, -1.0 + 5.0, -2.0 + 4.0))
+    assert data.known == pytest.approx(data.extent) and not data.walls and data.resolution == RES
     # Image row r is y = -2 + (80 - r) * 0.05 at its top edge: the block's rows 20..29 and
     # columns 40..49 are y in [0.5, 1.0], x in [1.0, 1.5]; its hole rows 23..26, columns 43..46.
     block = [shapely.Polygon(o["polygon"], o.get("holes", [])) for o in data.obstacles]
@@ -47,8 +52,8 @@ def test_trinary_map_occupied_and_unknown_cells_are_obstacles(tmp_path, suffix):
     assert len(block) == 1 and block[0].bounds == pytest.approx((1.0, 0.5, 1.5, 1.0))
     assert len(block[0].interiors) == 1
     assert shapely.Polygon(block[0].interiors[0]).bounds == pytest.approx((1.15, 0.65, 1.35, 0.85))
-    # The unknown patch (shade 205: p = 0.196..., between the thresholds) is an obstacle.
-    assert area.covers(shapely.Point(-1.0 + 12 * RES, -2.0 + (80 - 62) * RES))
+    # The unknown patch (shade 205: p = 0.196..., between the thresholds) is unknown.
+    assert union(data, ("unknown",)).covers(shapely.Point(-1.0 + 12 * RES, -2.0 + (80 - 62) * RES))
     assert not area.covers(shapely.Point(2.0, 1.5))
 
 
@@ -67,7 +72,7 @@ def test_threshold_edges_follow_map_server(tmp_path):
     path = dr.write_map(tmp_path, img, yaml_extra="")
     path.write_text(path.read_text().replace("free_thresh: 0.196", "free_thresh: 0.2"))
     data = read_rosmap(path, simplify=0.0)
-    assert len(data.obstacles) == 1
+    assert len(data.obstacles) + len(data.unknown) == 1
     assert union(data).area == pytest.approx(RES * RES)
     assert union(data).bounds == pytest.approx((-1.0, -2.0 + 9 * RES, -1.0 + RES, -2.0 + 10 * RES))
 
@@ -77,7 +82,7 @@ def test_scale_mode_png_transparent_pixels_are_unknown(tmp_path):
     rgba[..., :3] = 254
     rgba[..., 3] = 255
     rgba[5:8, 5:8, 3] = 0        # transparent free-looking pixels: unknown in scale mode
-    rgba[12:14, 12:16, :3] = 100  # p = 0.61: between the thresholds, an obstacle too
+    rgba[12:14, 12:16, :3] = 100  # p = 0.61: between the thresholds, unknown too
     path = dr.write_map(tmp_path, rgba, suffix=".png", mode="scale")
     data = read_rosmap(path, simplify=0.0)
     assert union(data).area == pytest.approx((9 + 8) * RES * RES)
