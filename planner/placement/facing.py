@@ -6,15 +6,18 @@ into the workspace (when ``workspace.walls``); a site on no face (an explicit
 ``placement.candidates`` point in the open) stays a post. With ``placement.marker_kind =
 "post"`` every site is a post.
 
-On a ROS map the faces are traced cells, simplified: a wall a few degrees off the grid keeps
-one-cell jogs whose short edges point anywhere. There a face's direction is the normal of a
-line fitted to the boundary around the site (the principal axis of the ring's points within
-:data:`FIT_REACH` along it on either side), oriented out of the obstacle; where that stretch
-has no clear axis (a pillar smaller than the stretch) the edge's own normal stays.
+On a ROS map the faces are traced cells, simplified within a cell: a wall a few degrees off
+the grid keeps one-cell jogs whose short edges point anywhere, and the simplified outline
+itself may tilt by a cell over a metre. There a face's direction is the normal of a line
+fitted to the map's own cell boundary around the site: the principal axis of the midpoints of
+the occupied cells' faces within :data:`FIT_RADIUS` that look the site's way (their outward
+normal within 90 degrees of the simplified edge's), oriented out of the obstacle; where those
+points make no line (a pillar smaller than the disc) the edge's own normal stays.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -25,16 +28,13 @@ from scenarios.schema import Marker, MarkerKind, Scenario
 #: A site counts as on an edge within this distance of it [m].
 ON_FACE = 1e-6
 
-#: How far along a traced face, on either side of a site, the fitted line reaches [m]: a
-#: quarter of a 1 m pillar's perimeter each way, several cells of any map.
-FIT_REACH = 0.25
+#: Radius of the disc of cell faces a traced face's line is fitted to [m]: ten cells of a
+#: 5 cm map each way, a few steps of any staircase.
+FIT_RADIUS = 0.5
 
-#: Largest ratio of the fitted stretch's minor to major variance that still counts as a line
-#: (a straight stretch: 0; a half circle: 0.19; a whole ring: 1).
+#: Largest ratio of the fitted points' minor to major variance that still counts as a line
+#: (a straight face: about 0; a half circle: 0.19; a whole ring: 1).
 FIT_LINE = 0.3
-
-#: Points sampled along the fitted stretch.
-_FIT_SAMPLES = 41
 
 
 def _distances(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -92,7 +92,9 @@ def face_directions(scenario: Scenario, sites: np.ndarray) -> list[float | None]
     rings += [(r, ob) for ob in scenario.obstacles for r in ob.rings()]
     if not rings:
         return [None] * len(sites)
-    traced = scenario.floorplan is not None and scenario.floorplan.kind is FloorPlanKind.ROSMAP
+    fp = scenario.floorplan
+    faces = _cell_faces(str(fp.file), fp.file.stat().st_mtime_ns) \
+        if fp is not None and fp.kind is FloorPlanKind.ROSMAP else None
     # every ring's edges in one array (ring by ring): the distances of a chunk of sites at once
     a = np.vstack([r for r, _ in rings])
     b = np.vstack([np.roll(r, -1, axis=0) for r, _ in rings])
@@ -114,30 +116,46 @@ def face_directions(scenario: Scenario, sites: np.ndarray) -> list[float | None]
             n = np.array([-d[1], d[0]]) / math.hypot(*d)  # left normal
             if ob is not None and ob.contains(p + 1e-4 * n):
                 n = -n  # out of the obstacle, whichever way its ring runs
-            if traced and ob is not None:
-                n = _fitted_normal(rings[k][0], e - start[k], p, n)
+            if faces is not None and ob is not None:
+                n = _fitted_normal(faces, p, n)
             out.append(math.atan2(n[1], n[0]))
     return out
 
 
-def _fitted_normal(ring: np.ndarray, edge: int, p: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Normal of the line fitted to ``ring`` (R, 2) around ``p`` on edge ``edge``, on ``n``'s side.
+@functools.lru_cache(maxsize=4)
+def _cell_faces(file: str, stamp: int):
+    """Return midpoints [m] and outward normals of the faces between a ROS map's occupied and other cells.
 
-    The ring is sampled at :data:`_FIT_SAMPLES` points within :data:`FIT_REACH` [m] of ``p``
-    along it (both ways, wrapping round); the normal is the minor principal axis of those
-    points. ``n`` (2,), the edge's outward unit normal, gives the side, and is returned as it
-    is when the stretch is no line (minor / major variance above :data:`FIT_LINE`).
+    ``stamp``: the YAML's modification time, so an edited map is read again. Returns a KD-tree
+    of the midpoints (F, 2) and the normals (F, 2) (unit, axis-aligned).
     """
-    closed = np.vstack([ring, ring[:1]])
-    seg = np.hypot(*np.diff(closed, axis=0).T)
-    s_at = np.concatenate([[0.0], np.cumsum(seg)])
-    perimeter = float(s_at[-1])
-    if perimeter <= 0.0:
+    from scipy.spatial import cKDTree
+
+    from scenarios.floorplan.rosmap import read_cells
+
+    occ, _, res, (ox, oy) = read_cells(file)
+    r, c = np.nonzero(occ[:, 1:] != occ[:, :-1])          # between columns c and c + 1
+    vert = np.column_stack([ox + (c + 1) * res, oy + (r + 0.5) * res])
+    vn = np.column_stack([np.where(occ[r, c], 1.0, -1.0), np.zeros(len(r))])
+    r, c = np.nonzero(occ[1:, :] != occ[:-1, :])          # between rows r and r + 1
+    horiz = np.column_stack([ox + (c + 0.5) * res, oy + (r + 1) * res])
+    hn = np.column_stack([np.zeros(len(r)), np.where(occ[r, c], 1.0, -1.0)])
+    return cKDTree(np.vstack([vert, horiz])), np.vstack([vn, hn])
+
+
+def _fitted_normal(faces, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Return the normal of the line fitted to the cell faces around ``p`` (2,) that look ``n``'s way.
+
+    ``faces``: :func:`_cell_faces`; ``n`` (2,), the simplified edge's outward unit normal, gives
+    the side, and is returned as it is where the faces make no line.
+    """
+    tree, normals = faces
+    idx = np.asarray(tree.query_ball_point(p, FIT_RADIUS), dtype=np.int64)
+    if len(idx):
+        idx = idx[normals[idx] @ n > 0.0]
+    if len(idx) < 3:
         return n
-    s0 = s_at[edge] + float(np.hypot(*(p - ring[edge])))
-    s = np.mod(s0 + np.linspace(-FIT_REACH, FIT_REACH, _FIT_SAMPLES), perimeter)
-    q = np.column_stack([np.interp(s, s_at, closed[:, 0]), np.interp(s, s_at, closed[:, 1])])
-    q = q - q.mean(axis=0)
+    q = tree.data[idx] - tree.data[idx].mean(axis=0)
     val, vec = np.linalg.eigh(q.T @ q)  # ascending: vec[:, 0] is the minor axis
     if val[1] <= 0.0 or val[0] > FIT_LINE * val[1]:
         return n

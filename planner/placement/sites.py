@@ -2,13 +2,15 @@
 
 Candidate sites are the scenario's ``placement.candidates`` when given; otherwise points along
 the workspace walls (when ``workspace.walls``: a ROS map's border is none) and the obstacle
-faces (outer rings and holes' rings), ``placement.spacing`` apart (each edge split into ``ceil(length / spacing)`` equal parts, one site at the middle of
-each part, so corners, where line of sight grazes, are avoided; round pillars get
+faces (outer rings and holes' rings), ``placement.spacing`` apart (each edge split into
+``ceil(length / spacing)`` equal parts, one site at the middle of each part, so corners, where
+line of sight grazes, are avoided; round pillars get
 ``ceil(perimeter / spacing)`` sites spread over their faces). Sites sit exactly on the faces,
 as the built-in markers do; line of sight treats a face point as visible from its open side
 (:mod:`planner.pef.visibility`). No site lies in an unknown area or on a face that looks into
-one (a wall whose other side the map does not know): probes at :data:`UNKNOWN_PROBES` cells
-(the map's, else the PEF's) out along the face's normal must all miss the unknown areas.
+one (a wall whose other side the map does not know) or, where the border is no wall, out of
+the workspace: probes at :data:`UNKNOWN_PROBES` cells (the map's, else the PEF's) out along
+the face's normal must all miss the unknown areas and stay inside the workspace.
 
 Cover points are what placement must keep under ``eps_max`` (``placement.cover``):
 
@@ -79,13 +81,17 @@ def candidate_sites(scenario: Scenario, spacing: float | None = None) -> np.ndar
     sites = np.clip(sites[ok], [x0, y0], [x1, y1])
     _, first = np.unique(np.round(sites, 9), axis=0, return_index=True)
     sites = sites[np.sort(first)]
-    if scenario.unknown:
-        sites = sites[_clear_of_unknown(scenario, sites)]
+    if scenario.unknown or not scenario.workspace.walls:
+        sites = sites[_facing_known_space(scenario, sites)]
     return sites
 
 
-def _clear_of_unknown(scenario: Scenario, sites: np.ndarray) -> np.ndarray:
-    """Sites (S, 2) [m] outside the unknown areas whose face looks out into known space, (S,) bool."""
+def _facing_known_space(scenario: Scenario, sites: np.ndarray) -> np.ndarray:
+    """Sites (S, 2) [m] outside the unknown areas whose face looks into the workspace's known space, (S,) bool.
+
+    Where the border is no wall, a face on it (a wall's outer face at a map's edge) looks out of
+    the workspace, into what the map does not show: its probes lie outside.
+    """
     from planner.placement.facing import face_directions
 
     cell = scenario.floorplan.resolution if scenario.floorplan is not None and scenario.floorplan.resolution > 0 \
@@ -95,9 +101,12 @@ def _clear_of_unknown(scenario: Scenario, sites: np.ndarray) -> np.ndarray:
     normal = np.column_stack([np.cos(ang), np.sin(ang)])
     normal[np.isnan(ang)] = 0.0  # a site on no face: only the site itself is probed
     probes = np.vstack([sites] + [sites + d * cell * normal for d in UNKNOWN_PROBES])
-    tree = shapely.STRtree([area.geometry() for area in scenario.unknown])
-    hit, _ = tree.query(shapely.points(probes), predicate="intersects")  # boundary counts as in
-    ok = np.ones(len(probes), dtype=bool)
+    hit = np.zeros(0, dtype=np.int64)
+    if scenario.unknown:
+        tree = shapely.STRtree([area.geometry() for area in scenario.unknown])
+        hit, _ = tree.query(shapely.points(probes), predicate="intersects")  # boundary counts as in
+    x0, y0, x1, y1 = scenario.workspace.bounds
+    ok = (probes[:, 0] >= x0) & (probes[:, 0] <= x1) & (probes[:, 1] >= y0) & (probes[:, 1] <= y1)
     ok[hit] = False
     return ok.reshape(len(UNKNOWN_PROBES) + 1, len(sites)).all(axis=0)
 

@@ -188,38 +188,10 @@ def classify(img, mode: str, negate: bool, occupied_thresh: float,
     return occupied, ~(occupied | free)
 
 
-def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str | None = None,
-                shown: str | None = None) -> FloorPlanData:
-    """Read obstacle polygons from a ROS map_server map.
-
-    Parameters
-    ----------
-    path : path
-        The map YAML (``image``, ``resolution``, ``origin``, ``negate``, ``occupied_thresh``,
-        ``free_thresh``, optional ``mode``); the image path is relative to the YAML file.
-    simplify : float, optional
-        Polygon simplification tolerance [m]; default: the map resolution (it removes the
-        cell staircase of walls not aligned with the grid).
-    where, shown : str, optional
-        Key-path prefix and file name for error messages.
-
-    Returns
-    -------
-    FloorPlanData
-        Obstacles (occupied cells) and unknown areas (unknown cells within the known cells'
-        bounding box) in metres in the map frame; extent = the whole map (origin .. origin +
-        size · resolution); known = the bounding box of the known (free or occupied) cells.
-
-    Raises
-    ------
-    ScenarioError
-        Missing or unreadable YAML or image, bad keys, origin yaw ≠ 0.
-    """
+def _cells(path: Path, where: str, shown: str):
+    """:func:`read_cells`, plus the YAML table (for error lines) and the image path."""
     from PIL import Image, UnidentifiedImageError
 
-    path = Path(path)
-    shown = shown or str(path)
-    where = where or f"{shown}: floorplan"
     t = Table(read_yaml(path, where, shown), f"{where}.file: {shown}")
     image_name = t.string("image")
     resolution = t.number("resolution", low=0.0, low_open=True)
@@ -274,14 +246,74 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     h, w = occ_img.shape
     if h == 0 or w == 0:
         t.fail(t.key("image"), f"expected a non-empty image, {image_path} is {w} x {h}", image_name)
+    # image row 0 is the top of the map; the grid's row 0 its bottom
+    return occ_img[::-1], unk_img[::-1], float(resolution), (float(origin[0]), float(origin[1])), t, image_path
 
-    occ, unk = occ_img[::-1], unk_img[::-1]  # image row 0 is the top of the map; the grid's row 0 its bottom
+
+def read_cells(path: str | Path, *, where: str | None = None,
+               shown: str | None = None) -> tuple[np.ndarray, np.ndarray, float, tuple[float, float]]:
+    """Read a ROS map_server map's cells.
+
+    Returns
+    -------
+    occupied, unknown : ndarray of bool, shape (H, W)
+        Occupied and unknown cells, row 0 at the **bottom** (y up): cell (r, c) covers
+        [ox + c · res, ox + (c + 1) · res] x [oy + r · res, oy + (r + 1) · res].
+    resolution : float
+        Cell size [m].
+    origin : (float, float)
+        (ox, oy), the lower-left corner of the map [m].
+
+    Raises
+    ------
+    ScenarioError
+        Missing or unreadable YAML or image, bad keys, origin yaw ≠ 0.
+    """
+    path = Path(path)
+    shown = shown or str(path)
+    where = where or f"{shown}: floorplan"
+    occ, unk, resolution, origin, _, _ = _cells(path, where, shown)
+    return occ, unk, resolution, origin
+
+
+def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str | None = None,
+                shown: str | None = None) -> FloorPlanData:
+    """Read obstacle polygons from a ROS map_server map.
+
+    Parameters
+    ----------
+    path : path
+        The map YAML (``image``, ``resolution``, ``origin``, ``negate``, ``occupied_thresh``,
+        ``free_thresh``, optional ``mode``); the image path is relative to the YAML file.
+    simplify : float, optional
+        Polygon simplification tolerance [m]; default: the map resolution (it removes the
+        cell staircase of walls not aligned with the grid).
+    where, shown : str, optional
+        Key-path prefix and file name for error messages.
+
+    Returns
+    -------
+    FloorPlanData
+        Obstacles (occupied cells) and unknown areas (unknown cells within the known cells'
+        bounding box) in metres in the map frame; extent = the whole map (origin .. origin +
+        size · resolution); known = the bounding box of the known (free or occupied) cells.
+
+    Raises
+    ------
+    ScenarioError
+        Missing or unreadable YAML or image, bad keys, origin yaw ≠ 0.
+    """
+    path = Path(path)
+    shown = shown or str(path)
+    where = where or f"{shown}: floorplan"
+    occ, unk, resolution, (ox, oy), t, image_path = _cells(path, where, shown)
+    h, w = occ.shape
+    image_name = t.data["image"]
     rows, cols = np.nonzero(~unk)
     if not len(rows):
         t.fail(t.key("image"), f"expected some known cells, every cell of {show_path(image_path)} is unknown",
                image_name)
     r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
-    ox, oy = origin[0], origin[1]
     tol = resolution if simplify is None else simplify
 
     def polygons(cells: np.ndarray) -> list[dict]:
@@ -295,7 +327,7 @@ def read_rosmap(path: str | Path, *, simplify: float | None = None, where: str |
     known = tuple(round(v, geometry.DECIMALS) for v in (ox + c0 * resolution, oy + r0 * resolution,
                                                        ox + c1 * resolution, oy + r1 * resolution))
     if not all(math.isfinite(v) for v in extent):
-        t.fail(t.key("origin"), "expected a finite map extent", list(origin))
+        t.fail(t.key("origin"), "expected a finite map extent", [ox, oy, 0.0])
     return FloorPlanData(obstacles=polygons(occ), markers=[], extent=extent, unit_factor=1.0, units="m",
                         simplify=tol, images=(image_path.resolve(),), unknown=polygons(unk), known=known,
                         walls=False, resolution=float(resolution))

@@ -130,3 +130,35 @@ def write_map(folder: Path, img: np.ndarray, *, name: str = "map", suffix: str =
     path = folder / f"{name}.yaml"
     path.write_text("\n".join(lines) + "\n" + yaml_extra, encoding="utf-8")
     return path
+
+
+# A map as SLAM leaves it (map_saver's shades): an unknown band all round, a 4 x 6 m room of
+# 2-cell walls whose right wall has a 1 m opening (free cells up to the known area's edge),
+# an unknown pocket inside, and a rack wall at 30 degrees.
+ROOM_SHAPE = (100, 140)             # rows, columns of 5 cm
+ROOM_ORIGIN = (-1.0, -2.0)          # [m]
+ROOM_KNOWN = (-0.5, -1.5, 5.5, 2.5)  # bounding box of the known cells [m]
+ROOM_POCKET = (0.5, -0.8, 1.3, 0.0)  # the unknown pocket [m]
+ROOM_OPENING_Y = (0.0, 1.0)         # the opening in the right wall (x = 5.4 .. 5.5) [m]
+ROOM_RACK_DEG = 30.0                # direction of the rack wall [degrees]
+ROOM_RACK = ((2.5, -0.8), (4.5, -0.8 + 2.0 * math.tan(math.radians(ROOM_RACK_DEG))))  # its centre line [m]
+ROOM_RACK_HALF = 0.12               # half its thickness [m]
+
+
+def room_map() -> np.ndarray:
+    """Make the room map (see ``ROOM_*``), shape ROOM_SHAPE, uint8, row 0 at the top."""
+    h, w = ROOM_SHAPE
+    img = np.full((h, w), UNKNOWN, dtype=np.uint8)
+    img[10:90, 10:130] = FREE
+    img[10:12, 10:130] = img[88:90, 10:130] = OCCUPIED
+    img[10:90, 10:12] = img[10:90, 128:130] = OCCUPIED
+    img[40:60, 128:130] = FREE        # the opening: rows 40..59 are y 0 .. 1 m
+    img[60:76, 30:46] = UNKNOWN       # the pocket: x 0.5 .. 1.3, y -0.8 .. 0 m
+    r, c = np.mgrid[:h, :w]
+    x = ROOM_ORIGIN[0] + (c + 0.5) * 0.05
+    y = ROOM_ORIGIN[1] + (h - r - 0.5) * 0.05
+    (ax, ay), (bx, by) = ROOM_RACK
+    dx, dy = bx - ax, by - ay
+    t = np.clip(((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0)
+    img[np.hypot(x - ax - t * dx, y - ay - t * dy) <= ROOM_RACK_HALF] = OCCUPIED
+    return img

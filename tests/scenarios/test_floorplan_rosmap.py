@@ -17,7 +17,7 @@ RES = 0.05
 
 
 def union(data, parts=("obstacles", "unknown")):
-    """The area of what the map does not know as free: its obstacles and its unknown areas."""
+    """Return the area the map does not know as free: its obstacles and its unknown areas."""
     return shapely.union_all([shapely.Polygon(o["polygon"], o.get("holes", []))
                               for part in parts for o in getattr(data, part)])
 

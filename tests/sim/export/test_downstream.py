@@ -7,6 +7,7 @@ and its pixels against the PEF evaluated directly.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 
@@ -128,6 +129,34 @@ def test_keepout_mask_is_the_navigation_region(tmp_path):
     fp = tmp_path / "fp.toml"
     fp.write_text(f'name = "k"\n[floorplan]\nfile = "{yml.name}"\n[sensor]\n[planning]\neps_max = 0.03\n')
     assert scenarios.load(fp).obstacles
+
+
+def test_keepout_of_a_map_is_on_the_maps_grid(tmp_path):
+    """A map-based scenario's mask has the source map's resolution, origin and size (Nav2 lays it over)."""
+    import yaml
+    from PIL import Image
+
+    from tests.planner.placement.test_map_faces import room_text
+    from tests.scenarios import drawings as dr
+
+    dr.write_map(tmp_path, dr.room_map(), origin=(*dr.ROOM_ORIGIN, 0.0))
+    (tmp_path / "room.toml").write_text(room_text())
+    sc = scenarios.load(tmp_path / "room.toml")
+    source = yaml.safe_load((tmp_path / "map.yaml").read_text())
+    yml = tmp_path / "keepout.yaml"
+    pefsim.export(sc, keepout=yml)
+    meta = yaml.safe_load(yml.read_text())
+    img = np.asarray(Image.open(tmp_path / "keepout.pgm"))
+    assert meta["resolution"] == source["resolution"] and meta["origin"] == source["origin"]
+    assert img.shape == dr.ROOM_SHAPE
+    # unknown cells, and everything outside the known area, are kept out
+    assert (img[dr.room_map() == dr.UNKNOWN] == 0).all()
+    # negative control: the same world without its map is masked on the PEF's grid over the workspace
+    plain = dataclasses.replace(sc, floorplan=None)
+    pefsim.export(plain, keepout=tmp_path / "plain.yaml")
+    meta = yaml.safe_load((tmp_path / "plain.yaml").read_text())
+    assert meta["origin"][:2] == list(sc.workspace.origin)
+    assert np.asarray(Image.open(tmp_path / "plain.pgm")).shape == (80, 120)  # 4 x 6 m of 5 cm, not 5 x 7 m
 
 
 @pytest.mark.parametrize("flag,name", [("--lif", "out.geojson"), ("--keepout", "mask.pgm"), ("--dxf", "d.dwg"),
