@@ -155,7 +155,7 @@ class View:
 def _map_key(sc: Scenario) -> tuple:
     """Everything but the markers that the PEF map depends on (frozen dataclasses: equal by their fields)."""
     p = sc.planning
-    return (sc.workspace, sc.obstacles, sc.sensor, p.pef_model, p.resolution, p.redundancy, p.gdop_level)
+    return (sc.workspace, sc.obstacles, sc.unknown, sc.sensor, p.pef_model, p.resolution, p.redundancy, p.gdop_level)
 
 
 def _marker_rows(sc: Scenario) -> list[tuple]:
