@@ -151,13 +151,14 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
             raise PlanningError(f"unknown dock {name!r} (docks: {', '.join(names) or 'none'})")
     if start == goal:
         raise PlanningError(f"start and goal are the same dock {start!r}")
+    from planner.pef.map import PEF
+
     k = scenario.sensor.markers_per_fix
-    if len(scenario.markers) < k and pef is None:  # a given PEF (placement's, 0 everywhere) needs none
+    if len(scenario.markers) < k and (pef is None or isinstance(pef, PEF)):  # placement's flat PEF needs none
         raise PlanningError(f"no admissible route from {start!r} to {goal!r}: the scenario has "
                             f"{len(scenario.markers)} markers and a fix needs {k}, so tau is inf everywhere "
                             "(pefsim place finds where to put reflectors)")
     if pef is None:
-        from planner.pef.map import PEF
         pef = PEF(scenario)
     tau_fn = lambda p: np.asarray(pef.at(np.asarray(p, float).reshape(-1, 2)).tau, float)
     use_free = scenario.routes is None if free is None else free

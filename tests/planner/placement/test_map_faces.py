@@ -38,12 +38,6 @@ eps_max = 0.05
 resolution = 0.05
 [placement]
 spacing = 0.5
-[[markers]]
-id = "M1"
-position = [-0.3, 2.3]
-[[markers]]
-id = "M2"
-position = [5.3, -1.3]
 [[docks]]
 name = "A"
 pose = [0.0, -0.4, 0.0]
@@ -151,6 +145,8 @@ def test_facings_of_a_slanted_wall_within_a_degree(room):
 
 
 def test_routes_keep_out_of_unknown_space(room):
+    """The drivable route between the docks (planned before any marker is placed) skirts the pocket."""
+    assert not room.markers
     pocket = shapely.box(*dr.ROOM_POCKET)
     pts = route_points(room)
     d = shapely.distance(pocket, shapely.points(pts))
