@@ -162,3 +162,32 @@ def room_map() -> np.ndarray:
     t = np.clip(((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0)
     img[np.hypot(x - ax - t * dx, y - ay - t * dy) <= ROOM_RACK_HALF] = OCCUPIED
     return img
+
+
+def room_text(extra: str = "") -> str:
+    """Return a scenario on the room map (``map.yaml`` beside it); ``extra``: lines of ``[workspace]``."""
+    return f"""name = "room"
+[floorplan]
+file = "map.yaml"
+[workspace]
+{extra}
+[sensor]
+max_range = 10.0
+[robot]
+radius = 0.2
+wheel_base = 0.3
+[planning]
+eps_max = 0.05
+resolution = 0.05
+[placement]
+spacing = 0.5
+[[docks]]
+name = "A"
+pose = [0.0, -0.4, 0.0]
+[[docks]]
+name = "B"
+pose = [2.0, -0.4, 0.0]
+[[tasks]]
+from = "A"
+to = "B"
+"""

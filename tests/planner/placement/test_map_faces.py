@@ -18,36 +18,9 @@ import scenarios
 from planner.placement.facing import face_directions
 from planner.placement.sites import candidate_sites, route_points
 from tests.scenarios import drawings as dr
+from tests.scenarios.drawings import room_text
 
 RES = 0.05
-
-
-def room_text(extra: str = "") -> str:
-    return f"""name = "room"
-[floorplan]
-file = "map.yaml"
-[workspace]
-{extra}
-[sensor]
-max_range = 10.0
-[robot]
-radius = 0.2
-wheel_base = 0.3
-[planning]
-eps_max = 0.05
-resolution = 0.05
-[placement]
-spacing = 0.5
-[[docks]]
-name = "A"
-pose = [0.0, -0.4, 0.0]
-[[docks]]
-name = "B"
-pose = [2.0, -0.4, 0.0]
-[[tasks]]
-from = "A"
-to = "B"
-"""
 
 
 @pytest.fixture(scope="module")

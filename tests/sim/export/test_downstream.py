@@ -136,11 +136,10 @@ def test_keepout_of_a_map_is_on_the_maps_grid(tmp_path):
     import yaml
     from PIL import Image
 
-    from tests.planner.placement.test_map_faces import room_text
     from tests.scenarios import drawings as dr
 
     dr.write_map(tmp_path, dr.room_map(), origin=(*dr.ROOM_ORIGIN, 0.0))
-    (tmp_path / "room.toml").write_text(room_text())
+    (tmp_path / "room.toml").write_text(dr.room_text())
     sc = scenarios.load(tmp_path / "room.toml")
     source = yaml.safe_load((tmp_path / "map.yaml").read_text())
     yml = tmp_path / "keepout.yaml"

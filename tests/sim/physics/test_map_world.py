@@ -10,8 +10,8 @@ import pytest
 import scenarios
 from sim.physics.quiet import pb
 from sim.physics.world import PhysicsWorld
-from tests.planner.placement.test_map_faces import room_text
 from tests.scenarios import drawings as dr
+from tests.scenarios.drawings import room_text
 
 LASER_Z = 0.3  # [m]: below every wall's top
 
