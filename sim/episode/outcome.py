@@ -221,7 +221,7 @@ class RunWatch:
         return worst_status(self.contacts.episodes, self.stuck, self.deadlocked)
 
     def summary(self) -> dict:
-        """The run's columns of the runs table (:data:`sim.montecarlo.rows.RUN_SCHEMA`) this watch fills."""
+        """Return the columns of the runs table (:data:`sim.montecarlo.rows.RUN_SCHEMA`) this watch fills."""
         first_t, first_with = self.contacts.first if self.contacts.first is not None else (math.nan, "")
         out = {"status": self.status, "collisions": int(self.contacts.episodes),
                "contact_t": first_t, "contact_x": self.contact_at[0], "contact_y": self.contact_at[1],

@@ -77,6 +77,8 @@ class PhysicsWorld:
         With ``fleet``: each robot's body (the cylinder the others' rays hit); empty otherwise.
     origin : ndarray, shape (2,)
         The workspace origin [m]: local (physics) coordinates = user's frame - origin.
+    body_labels : dict of int to str
+        What each body is (border wall, obstacle j, marker post, robot), for messages.
     """
 
     def __init__(self, scenario: Scenario, config: PhysicsConfig | None = None,
@@ -148,7 +150,8 @@ class PhysicsWorld:
         self.post_ids = np.array([
             pb.createMultiBody(0.0, post, basePosition=[mx, my, 0.5 * post_height], physicsClientId=cid)
             for mx, my in sc.marker_positions() - self.origin], dtype=int)
-        self.body_labels.update({int(b): f"marker post {m}" for b, m in zip(self.post_ids, sc.marker_ids(), strict=True)})
+        self.body_labels.update({int(b): f"marker post {m}"
+                                 for b, m in zip(self.post_ids, sc.marker_ids(), strict=True)})
 
         self.robots = [DiffDriveRobot(cid, spec, cfg, origin=self.origin) for spec in specs]
         self.robot = self.robots[0]
