@@ -222,7 +222,7 @@ class RunWatch:
 
     def summary(self) -> dict:
         """Return the columns of the runs table (:data:`sim.montecarlo.rows.RUN_SCHEMA`) this watch fills."""
-        first_t, first_with = self.contacts.first if self.contacts.first is not None else (math.nan, "")
+        first_t, first_with = self.contacts.first if self.contacts.first is not None else (math.nan, None)
         out = {"status": self.status, "collisions": int(self.contacts.episodes),
                "contact_t": first_t, "contact_x": self.contact_at[0], "contact_y": self.contact_at[1],
                "contact_s": self.contact_at[2], "contact_with": first_with,
@@ -232,5 +232,6 @@ class RunWatch:
         if math.isfinite(self.wait_limit):
             out.update(longest_wait=float(self.longest_wait), wait_bound=self.wait_limit,
                        wait_t=self.wait_at[0], wait_x=self.wait_at[1], wait_y=self.wait_at[2],
-                       waited_for=self.waited_for)
-        return out
+                       waited_for=self.waited_for or None)
+        # none of it happened: null in the runs table (NaN would not equal itself between two sweeps)
+        return {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in out.items()}
