@@ -92,6 +92,9 @@ def format_report(report, kept: str | None, wall: float) -> str:
     where = f"sweep {kept}" if kept else "temporary sweep, deleted"
     lines = [f"pefsim validate: {report.scenario}, {report.runs} runs, {report.fixes} fixes ({where}, "
              f"{wall:.1f} s)"]
+    if report.missing:
+        lines.append(f"incomplete sweep: {report.missing} runs missing (pefsim mc SCENARIO --out {kept} --resume "
+                     f"completes it); judged on the finished ones")
     # what made runs fail comes before any statistic: a robot pressed against a pillar fails every check
     lines.extend(report.causes)
     if report.q_scale != 1.0:

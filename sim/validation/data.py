@@ -229,6 +229,8 @@ class SweepData:
     steps: StepTable | None = None
     steps_mode: str = "all"
     alone: bool = False
+    missing: int = 0
+    """Runs the sweep was asked for (``sweep.json``) that have not finished: an incomplete sweep."""
 
 
 def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
@@ -363,7 +365,9 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
         raise OutputError(f"{directory}: holds no finished run")
     q_scale, alone = read_mark(layout.root)
     # A directory assembled by hand may lack sweep.json: it then holds whatever steps it has.
-    mode = stored_steps_mode(read_settings(layout.root) if layout.sweep_json.exists() else {})
+    settings = read_settings(layout.root) if layout.sweep_json.exists() else {}
+    mode = stored_steps_mode(settings)
+    missing = max(int(settings.get("runs", 0)) - len(results.finished_runs(layout)), 0)
     # Only a sweep of every step feeds the N-run NEES test (the only reader of steps here), so
     # the others' step rows are not read at all.
     fleet = ["robot"] if stored.is_fleet else []
@@ -371,4 +375,4 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     blocking = FLEET_BLOCKING_COLUMNS if stored.is_fleet else []
     data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet + blocking),
                        source=str(directory), q_scale=q_scale, steps=steps)
-    return replace(data, steps_mode=mode.value, alone=alone)
+    return replace(data, steps_mode=mode.value, alone=alone, missing=missing)

@@ -60,6 +60,8 @@ class ValidationReport:
         checks (:func:`sim.validation.outcome.causes`).
     waits : list of str
         A fleet's robots: the plan's longest predicted wait against the simulated ones.
+    missing : int
+        Runs the sweep was asked for that have not finished (an interrupted sweep).
     """
 
     scenario: str
@@ -74,6 +76,7 @@ class ValidationReport:
     alone: bool = False
     causes: list[str] = field(default_factory=list)
     waits: list[str] = field(default_factory=list)
+    missing: int = 0
 
     @property
     def failed(self) -> list[str]:
@@ -96,7 +99,8 @@ class ValidationReport:
         return {"scenario": self.scenario, "source": self.source, "runs": self.runs, "fixes": self.fixes,
                 "alpha": self.alpha, "statistical_checks": self.statistical,
                 "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "alone": self.alone,
-                "causes": list(self.causes), "waits": list(self.waits), "passed": self.passed,
+                "causes": list(self.causes), "waits": list(self.waits), "missing_runs": self.missing,
+                "passed": self.passed,
                 "failed": self.failed, "checks": [c.to_dict() for c in self.checks]}
 
 
@@ -141,4 +145,4 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
     return ValidationReport(scenario=data.scenario.name, source=data.source, runs=len(data.runs),
                             fixes=len(data.fixes), alpha=float(alpha), statistical=m,
                             alpha_per_check=per_check, q_scale=data.q_scale, checks=out, alone=data.alone,
-                            causes=outcome.causes(data), waits=outcome.waits(data))
+                            causes=outcome.causes(data), waits=outcome.waits(data), missing=data.missing)

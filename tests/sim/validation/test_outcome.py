@@ -42,3 +42,19 @@ def test_runs_that_did_what_was_asked_give_no_cause_line(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[1].startswith("family alpha")
     assert [line.split()[-1] for line in out if line.startswith("runs ")] == [CheckStatus.PASS.value]
+
+
+def test_an_incomplete_sweep_says_how_many_runs_are_missing(tmp_path, capsys):
+    """sweep.json asks for more runs than finished: one line says how many are missing."""
+    from sim.montecarlo.directory import init_sweep_dir
+    from sim.montecarlo.results import SweepLayout
+    from sim.montecarlo.steps import StepsMode
+
+    sc = _scenario()
+    write_sweep(tmp_path / "mc", sc, seed=1)
+    init_sweep_dir(SweepLayout(tmp_path / "mc"), sc, None, RUNS + 3, StepsMode.ALL)
+    assert cli.main(["validate", "--from", str(tmp_path / "mc")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line for line in out if "missing" in line] == [
+        f"incomplete sweep: 3 runs missing (pefsim mc SCENARIO --out {tmp_path / 'mc'} --resume completes it); "
+        "judged on the finished ones"]
