@@ -2,9 +2,39 @@
 
 from __future__ import annotations
 
+import numpy as np
+
+import scenarios
 from sim import cli
+from sim.montecarlo import results
+from sim.montecarlo.results import RunRecord, SweepLayout
+from sim.montecarlo.rows import fix_columns, run_row
 from sim.validation.data import CheckStatus
-from tests.sim.validation.test_suite import RUNS, _scenario, write_sweep
+from tests.sim.validation.synthetic_fixes import FIXES_PER_RUN, fix_log
+
+RUNS = 5
+
+
+def _scenario():
+    return scenarios.load("paper-two-markers")
+
+
+def write_sweep(root, scenario, seed: int, outcomes: dict | None = None) -> None:
+    """Write a synthetic sweep of a consistent model (as ``test_suite.py`` does); ``outcomes``: run -> what it did.
+
+    What a run did is the summary keys of :mod:`sim.episode.outcome` (status, collisions, ...).
+    """
+    rng = np.random.default_rng(seed)
+    layout = SweepLayout(root)
+    layout.make_dirs()
+    results.write_atomic(layout.scenario_toml, scenario.text.encode())
+    for run in range(RUNS):
+        log = fix_log(scenario, rng, 1.0)
+        log.nis[:] = rng.chisquare(1, (FIXES_PER_RUN, 2)).sum(axis=1)
+        summary = {"reached": True, "violations": 0, "fixes": FIXES_PER_RUN,
+                   "mean_nees": rng.chisquare(3, 50).mean(), **(outcomes or {}).get(run, {})}
+        results.write_record(layout, RunRecord(run, run_row(run, f"s{run}", 0, summary, 0.1), None,
+                                               fix_columns(run, log)))
 
 #: Runs 1 and 3 pressed against a pillar: what sim.episode.outcome writes for them.
 TOUCHED = {"status": "collided", "collisions": 2, "contact_t": 3.25, "contact_x": 0.52, "contact_y": -0.48,

@@ -47,12 +47,11 @@ def _scenario(noise: str = "uniform"):
 
 
 def write_sweep(root, scenario, seed: int, error_scale: float = 1.0, nees_scale: float = 1.0,
-                nis_scale: float = 1.0, failed_runs: int = 0, outcomes: dict | None = None):
+                nis_scale: float = 1.0, failed_runs: int = 0):
     """Write a synthetic sweep and read it back.
 
     NEES is a run's time average of chi2(3) samples, NIS the sum of two chi2(1) per fix (times
-    the scales: 1 is a consistent filter); ``failed_runs`` runs exceeded eps_max. ``outcomes``:
-    run -> what it did (summary keys of ``sim.episode.outcome``: status, collisions, ...).
+    the scales: 1 is a consistent filter); ``failed_runs`` runs exceeded eps_max.
     """
     rng = np.random.default_rng(seed)
     layout = SweepLayout(root)
@@ -62,7 +61,7 @@ def write_sweep(root, scenario, seed: int, error_scale: float = 1.0, nees_scale:
         log = fix_log(scenario, rng, error_scale)
         log.nis[:] = nis_scale * rng.chisquare(1, (FIXES_PER_RUN, 2)).sum(axis=1)
         summary = {"reached": True, "violations": int(run < failed_runs), "fixes": FIXES_PER_RUN,
-                   "mean_nees": nees_scale * rng.chisquare(3, NEES_STEPS).mean(), **(outcomes or {}).get(run, {})}
+                   "mean_nees": nees_scale * rng.chisquare(3, NEES_STEPS).mean()}
         row = run_row(run, f"s{run}", 0, summary, 0.1)
         results.write_record(layout, RunRecord(run, row, None, fix_columns(run, log)))
     return validation.load_sweep(root)
