@@ -39,8 +39,8 @@ WAIT_SLACK = 1.5
 """How much later than planned a simulated fleet may run (:func:`wait_bound`) [-]."""
 WAIT_MARGIN = 10.0
 """Fixed part of the wait bound [s]: the fixes a robot takes at its goals and zone-stops' braking."""
-CHECK_EVERY = 15
-"""Control ticks between two projections of the true position on the path (0.25 s at 60 Hz)."""
+CHECK_EVERY = 30
+"""Control ticks of driving between two projections of the true position on the path (0.5 s at 60 Hz)."""
 
 
 def stuck_bound(max_yaw_rate: float, max_yaw_accel: float, max_speed: float, max_accel: float) -> float:
@@ -178,13 +178,16 @@ class RunWatch:
             if self._wait > self.longest_wait:
                 self.longest_wait, self.wait_at = self._wait, self._wait_start
                 self.waited_for = self.names[holder] if 0 <= holder < len(self.names) else ""
-        else:
+        elif self._wait:
             self._wait = 0.0
-        if not driving or waiting:
-            return
-        self._n += 1
-        if self._n % CHECK_EVERY:
-            return
+        if driving and not waiting:
+            self._n += 1
+            if self._n >= CHECK_EVERY:   # the stall clock's resolution, far below any bound
+                self._n = 0
+                self._progress(t, pose)
+
+    def _progress(self, t: float, pose: tuple[float, float, float]) -> None:
+        """Project the true position on the path; restart the stall clock or advance it by CHECK_EVERY ticks."""
         s = self._project(pose[0], pose[1])
         if s >= self._best + PROGRESS_STEP:
             self._best, self._stall = s, 0.0
