@@ -58,7 +58,7 @@ from sim.episode.drive import (
     seed_sequence,
 )
 from sim.episode.follower import SPEED, YAW_RATE, PurePursuit, wheel_speeds
-from sim.episode.outcome import longest_run, wait_bound
+from sim.episode.outcome import longest_run, wait_bound, wait_cycles
 from sim.episode.types import EpisodeResult, FixNote, StepLog
 from sim.physics.turn_lag import read_turn_slip
 
@@ -492,6 +492,9 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
         world.place_bodies()
         for r in robots:
             r.control(t)
+        circles = wait_cycles([r.watch.waiting for r in robots], [zones.refused_by[r.i] for r in robots])
+        for r, in_circle in zip(robots, circles, strict=True):
+            r.watch.circle(in_circle)
         n += 1
         _advance(world, robots, dt_phys)
         now = set(world.touching())

@@ -11,7 +11,9 @@ Both drivers (a lone robot's :func:`sim.episode.drive._drive` and a fleet's
   :func:`stuck_bound` (progress is the *true* position's projection on the path, not the
   estimate's: a robot pressed against a pillar whose estimate drives on is stuck);
 * ``deadlocked``: a fleet robot waited for a zone without a break for longer than
-  :func:`wait_bound`.
+  :func:`wait_bound`, or stood in a circle of robots each waiting for the next
+  (:func:`wait_cycles`) for longer than :data:`CYCLE_TIME`: a circular wait is a deadlock by
+  definition (a waiting robot releases nothing), whenever it forms.
 
 The status names the worst of them, in the order of :data:`sim.episode.types.RUN_STATUSES`
 (ok < collided < stuck < deadlocked). A run whose status is not ``ok`` never counts as having
@@ -39,6 +41,9 @@ WAIT_SLACK = 1.5
 """How much later than planned a simulated fleet may run (:func:`wait_bound`) [-]."""
 WAIT_MARGIN = 10.0
 """Fixed part of the wait bound [s]: the fixes a robot takes at its goals and zone-stops' braking."""
+CYCLE_TIME = 1.0
+"""A circle of waiting robots that lasts this long is a deadlock [s]: a waiting robot releases nothing,
+so a circle never breaks; the second only absorbs the tick on which waits and refusals are read."""
 CHECK_EVERY = 30
 """Control ticks of driving between two projections of the true position on the path (0.5 s at 60 Hz)."""
 
@@ -102,6 +107,28 @@ def longest_run(flags: np.ndarray, t: np.ndarray) -> float:
     return best
 
 
+def wait_cycles(waiting: list[bool], holder: list[int]) -> list[bool]:
+    """Tell which robots stand in a circle of waits: i waits for holder[i], who waits for ..., who waits for i.
+
+    Parameters
+    ----------
+    waiting : list of bool
+        Robot i stands waiting for a zone.
+    holder : list of int
+        The robot holding the zone robot i waits for (-1: none).
+    """
+    n = len(waiting)
+    out = [False] * n
+    for i in range(n):
+        j, seen = i, 0
+        while waiting[j] and 0 <= holder[j] < n and seen < n:
+            j, seen = holder[j], seen + 1
+            if j == i:
+                out[i] = True
+                break
+    return out
+
+
 def worst_status(collisions: int, stuck: bool, deadlocked: bool) -> str:
     """Return the worst status of a run: ``deadlocked`` > ``stuck`` > ``collided`` > ``ok``."""
     causes = (True, collisions > 0, stuck, deadlocked)
@@ -137,6 +164,8 @@ class RunWatch:
         self.longest_stall, self.stall_at = 0.0, (math.nan, math.nan, math.nan, math.nan)   # t, x, y, s
         self.longest_wait, self.wait_at, self.waited_for = 0.0, (math.nan, math.nan, math.nan), ""
         self._wait, self._wait_start = 0.0, (math.nan, math.nan, math.nan)
+        self.waiting = False   # waiting for a zone at the last tick
+        self.circular, self._circle = False, 0.0
         self._n = 0
         self.follow(path, 0.0)
 
@@ -171,6 +200,7 @@ class RunWatch:
         """
         if self.contacts.poll(t) and self.contacts.episodes == 1:
             self.contact_at = (pose[0], pose[1], self._offset + self._project(pose[0], pose[1]))
+        self.waiting = waiting
         if waiting:
             if self._wait == 0.0:
                 self._wait_start = (t, pose[0], pose[1])
@@ -214,9 +244,14 @@ class RunWatch:
         self._i = lo + k
         return float(self._s[lo + k] + u[k] * (self._s[lo + k + 1] - self._s[lo + k]))
 
+    def circle(self, in_circle: bool) -> None:
+        """Account for one control period in (or out of) a circle of waiting robots (:func:`wait_cycles`)."""
+        self._circle = self._circle + self.dt if in_circle else 0.0
+        self.circular |= self._circle > CYCLE_TIME
+
     @property
     def deadlocked(self) -> bool:
-        return self.longest_wait > self.wait_limit
+        return self.longest_wait > self.wait_limit or self.circular
 
     @property
     def status(self) -> str:

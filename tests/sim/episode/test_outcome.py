@@ -18,7 +18,7 @@ from scenarios import loads
 from scenarios.obstacles import Obstacle
 from sim.episode.drive import prepare, run_episode
 from sim.episode.fleet import prepare_fleet, run_fleet_episode
-from sim.episode.outcome import longest_run, wait_bound
+from sim.episode.outcome import longest_run, wait_bound, wait_cycles
 from tests.sim.fleets import CROSS
 
 LONE = """
@@ -130,3 +130,29 @@ def test_a_fleet_robot_refused_every_zone_is_deadlocked(monkeypatch):
     assert north["waited_for"] == "east"
     assert math.hypot(north["wait_x"] - 6.0, north["wait_y"] - 1.0) < 0.1   # at its dock C
     assert east["status"] == "ok" and not east["deadlocked"]   # it drove on and arrived
+
+
+def test_two_robots_waiting_for_each_other_are_deadlocked_at_once(monkeypatch):
+    """A circular wait is a deadlock whenever it forms: both are refused by each other from the start."""
+    sc = loads(CROSS, source="cross.toml")
+    prepared = prepare_fleet(sc)
+
+    def refuse_both(self, i, s):
+        self.refused_by[i] = 1 - i
+        return False
+
+    monkeypatch.setattr(zone_module.ZoneControl, "request", refuse_both)
+    res = run_fleet_episode(sc, seed=5, prepared=prepared, time_limit=4.0)
+    for r, other in zip(res.robots, ("north", "east"), strict=True):
+        s = r.result.summary
+        assert s["status"] == "deadlocked" and s["waited_for"] == other
+        assert s["longest_wait"] < s["wait_bound"]   # caught by the circle, long before the bound
+
+
+def test_wait_cycles():
+    assert wait_cycles([True, True, False], [1, 0, -1]) == [True, True, False]
+    assert wait_cycles([True, True, True], [1, 2, 0]) == [True, True, True]
+    # negative controls: a chain that ends at a robot still driving, or at nobody, is no circle
+    assert wait_cycles([True, True, False], [1, 2, 0]) == [False, False, False]
+    assert wait_cycles([True, False], [1, 0]) == [False, False]
+    assert wait_cycles([True], [-1]) == [False]
