@@ -198,7 +198,7 @@ class RunWatch:
         holder : int
             The robot holding the zone it waits for (-1: unknown).
         """
-        if self.contacts.poll(t) and self.contacts.episodes == 1:
+        if self.contacts.poll(t, pose[0], pose[1]) and self.contacts.episodes == 1:
             self.contact_at = (pose[0], pose[1], self._offset + self._project(pose[0], pose[1]))
         self.waiting = waiting
         if waiting:
