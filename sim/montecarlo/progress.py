@@ -2,7 +2,7 @@
 
 Off a terminal (a log, CI, a pipe) a bar's carriage returns are noise, and silence for the
 minutes a sweep of a large map takes looks like a hang: :class:`Lines` prints
-``pefsim: runs D of N done (E s, R runs/min)`` every :data:`PERIOD` seconds, from a timer thread,
+``pefsim: D of N runs done (E s, R runs/min)`` every :data:`PERIOD` seconds, from a timer thread,
 so that a line comes even while a single long run holds every worker. A sweep shorter than
 :data:`PERIOD` prints nothing. Standard output is never written (``--json`` stays alone there).
 """
@@ -44,7 +44,9 @@ class Lines:
     total, initial : int
         Runs the sweep will have, and those already done.
     desc : str
-        What is counted.
+        What is counted (plural).
+    verb : str
+        What happened to them.
     period : float, optional
         Seconds between lines [s]; default :data:`PERIOD`.
     clock : callable
@@ -54,8 +56,9 @@ class Lines:
     """
 
     def __init__(self, total: int, initial: int = 0, desc: str = "runs", period: float | None = None,
-                 clock: Callable[[], float] = time.monotonic, emit: Callable[[str], None] | None = None) -> None:
-        self.total, self.done, self.desc, self.clock = total, initial, desc, clock
+                 clock: Callable[[], float] = time.monotonic, emit: Callable[[str], None] | None = None,
+                 verb: str = "done") -> None:
+        self.total, self.done, self.desc, self.verb, self.clock = total, initial, desc, verb, clock
         self.period = PERIOD if period is None else period
         self._initial = initial
         self.emit = emit or (lambda line: print(line, file=sys.stderr, flush=True))
@@ -83,7 +86,8 @@ class Lines:
             self.last = now
             elapsed = now - self.start
             rate = 60.0 * (self.done - self._initial) / elapsed if elapsed > 0 else 0.0
-            line = f"pefsim: {self.desc} {self.done} of {self.total} done ({elapsed:.0f} s, {rate:.1f} {self.desc}/min)"
+            line = (f"pefsim: {self.done} of {self.total} {self.desc} {self.verb} ({elapsed:.0f} s, "
+                    f"{rate:.1f} {self.desc}/min)")
         self.emit(line)
 
 
@@ -100,7 +104,7 @@ class _Bar:
 
 @contextlib.contextmanager
 def progress_bar(total: int, initial: int = 0, enabled: bool | None = None,
-                 desc: str = "runs") -> Iterator[Progress]:
+                 desc: str = "runs", verb: str = "done") -> Iterator[Progress]:
     """Show a tqdm bar on stderr counting runs from ``initial`` to ``total``.
 
     Parameters
@@ -114,11 +118,13 @@ def progress_bar(total: int, initial: int = 0, enabled: bool | None = None,
         :data:`PERIOD` seconds (:class:`Lines`), so that logs and CI output stay free of
         carriage-return noise and still show a long sweep moving.
     desc : str
-        Label in front of the bar.
+        Label in front of the bar: what is counted.
+    verb : str
+        What happened to them (the lines off a terminal).
     """
     if enabled is None:
         if not sys.stderr.isatty():
-            with progress_lines(total, initial, desc) as lines:
+            with progress_lines(total, initial, desc, verb) as lines:
                 yield lines
             return
         enabled = True
@@ -136,9 +142,9 @@ def progress_bar(total: int, initial: int = 0, enabled: bool | None = None,
 
 
 @contextlib.contextmanager
-def progress_lines(total: int, initial: int = 0, desc: str = "runs") -> Iterator[Lines]:
+def progress_lines(total: int, initial: int = 0, desc: str = "runs", verb: str = "done") -> Iterator[Lines]:
     """Yield a :class:`Lines` whose timer thread prints its line whenever one is due, until the block ends."""
-    lines = Lines(total, initial, desc)
+    lines = Lines(total, initial, desc, verb=verb)
     stop = threading.Event()
 
     def beat() -> None:

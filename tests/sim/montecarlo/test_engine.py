@@ -345,7 +345,7 @@ def test_progress_lines_off_a_terminal_come_every_period():
     assert got == []   # a sweep shorter than the period prints nothing
     now[0] += 0.1
     lines.tick()
-    assert got == [f"pefsim: runs 5 of 10 done ({PERIOD:.0f} s, {60 * 3 / PERIOD:.1f} runs/min)"]
+    assert got == [f"pefsim: 5 of 10 runs done ({PERIOD:.0f} s, {60 * 3 / PERIOD:.1f} runs/min)"]
     lines.tick()
     assert len(got) == 1 and 0 < lines.due() <= PERIOD   # the next one a period later
 
@@ -361,4 +361,4 @@ def test_a_sweep_without_a_terminal_prints_progress_lines(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
     lines = out.stderr.splitlines()
     assert out.stdout == "" and len(lines) >= 2, out.stderr
-    assert lines[0].startswith("pefsim: runs 1 of 4 done") and lines[-1].startswith("pefsim: runs 2 of 4 done")
+    assert lines[0].startswith("pefsim: 1 of 4 runs done") and lines[-1].startswith("pefsim: 2 of 4 runs done")
