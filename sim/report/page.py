@@ -238,6 +238,10 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
         parts.append(_table(["run", "task", "max error [mm]", "steps above ε_max", "reached"],
                             [[r["run"], r["task"], f"{r['max_error'] * 1e3:.3f}", r["violations"],
                               r["reached"]] for r in worst]))
+    failed = [r for r in rows if ran(r["status"]) and r["status"] != "ok"]
+    if failed:   # touched something, stuck or deadlocked: the statistics above say nothing about why
+        parts.append(f"<h2>Runs that collided, stuck or deadlocked ({len(failed)})</h2>")
+        parts.append(_table(["run", "task", "status"], [[r["run"], r["task"], r["status"]] for r in failed[:50]]))
     crashed = [r for r in rows if not ran(r["status"])]
     if crashed:
         parts.append(f"<h2>Crashed runs ({len(crashed)})</h2>")
