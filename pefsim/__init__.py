@@ -419,7 +419,9 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
     -------
     EpisodeResult
         ``steps`` (per control step: poses, covariance, error, NEES), ``fixes`` (per fix: the
-        realised fault area against its promise), ``plan`` and ``summary``.
+        realised fault area against its promise), ``plan`` and ``summary`` (with what the run did:
+        ``status`` ok / collided / stuck, ``collisions``, the first contact, the longest stall,
+        :mod:`sim.episode.outcome`).
     """
     from scenarios import SimulationError
     from sim.episode.drive import check_task, prepare
@@ -460,8 +462,10 @@ def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: 
     -------
     sim.episode.fleet.FleetResult
         Per robot its :class:`EpisodeResult` over all its tasks (summary keys as
-        :func:`run_episode`'s plus ``robot``, ``wait_time`` [s], ``robot_blocked`` and
-        ``collisions``), and the fleet's collisions and duration.
+        :func:`run_episode`'s, what the run did among them (``status``, ``collisions``: contact
+        episodes of its body, ``stuck``, ``deadlocked``, ...: :mod:`sim.episode.outcome`), plus ``robot``,
+        ``wait_time`` [s] and ``robot_blocked``), and how often the robots' footprints overlapped
+        (``collisions``) and the duration.
     """
     from scenarios import SimulationError
     from sim.episode.fleet import prepare_fleet, run_fleet_episode

@@ -54,12 +54,11 @@ def run(args: argparse.Namespace) -> int:
 
 def format_summary(s) -> str:
     """Format a :class:`~sim.montecarlo.engine.SweepSummary` as the lines ``pefsim mc`` prints."""
-    lines = [f"{s.runs} runs in {s.out}: {s.ok} ok, {s.crashed} crashed, {s.reached} reached the goal, "
-             f"{s.violation_runs} exceeded eps_max"]
+    did = f"{s.ok} ok, {s.collided} collided, {s.stuck} stuck, {s.deadlocked} deadlocked, {s.crashed} crashed"
+    lines = [f"{s.runs} runs in {s.out}: {did}, {s.reached} reached the goal, {s.violation_runs} exceeded eps_max"]
     if getattr(s, "robots", 0):
-        lines[0] = (f"{s.runs} robot runs ({s.robots} robots a run) in {s.out}: {s.ok} ok, {s.crashed} crashed, "
-                    f"{s.reached} reached the goal, {s.violation_runs} exceeded eps_max, "
-                    f"{s.collisions // 2} collisions")
+        lines[0] = (f"{s.runs} robot runs ({s.robots} robots a run) in {s.out}: {did}, "
+                    f"{s.reached} reached the goal, {s.violation_runs} exceeded eps_max")
     if s.runs:
         lo, hi = s.success_ci
         lines.append(f"success {s.success_fraction:.3f} (95% CI {lo:.3f} .. {hi:.3f}), "

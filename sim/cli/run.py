@@ -59,9 +59,10 @@ def _run_fleet(args: argparse.Namespace, scenario) -> int:
         return 0
     mm = 1000.0
     print(f"{scenario.name}: fleet of {len(result.robots)}, seed {result.robots[0].result.summary['seed']}, "
-          f"{result.duration:.1f} s, collisions {result.collisions}")
+          f"{result.duration:.1f} s, footprints overlapped {result.collisions} times")
     for r in result.robots:
         s = r.result.summary
+        print(f"  {r.name}: {status_line(s)}")
         arrived = f"reached its dock at {s['arrival']:.1f} s" if s["reached"] else "NOT reached"
         print(f"  {r.name}: {arrived}, "
               f"waited {s['wait_time']:.1f} s; {s['fixes']} fixes, {s['robot_blocked']} scheduled lines of "
@@ -73,10 +74,29 @@ def _run_fleet(args: argparse.Namespace, scenario) -> int:
     return 0
 
 
+def status_line(s: dict) -> str:
+    """Say what a run did (its ``status``, and where it touched, stalled or waited) in one line."""
+    parts = [f"status {s.get('status', 'ok')}"]
+    if s.get("collisions"):
+        at = f"({s['contact_x']:.2f}, {s['contact_y']:.2f})" if s.get("contact_x") is not None else "(?)"
+        along = f" s={s['contact_s']:.1f} m" if s.get("contact_s") is not None else ""
+        parts.append(f"{s['collisions']} contact(s), first with {s.get('contact_with') or 'something'} at {at}"
+                     f"{along} t={s['contact_t']:.1f} s")
+    if s.get("stuck"):
+        parts.append(f"no progress for {s['stall_time']:.1f} s (bound {s['stuck_bound']:.1f} s) from "
+                     f"({s['stall_x']:.2f}, {s['stall_y']:.2f}) t={s['stall_t']:.1f} s")
+    if s.get("deadlocked"):
+        other = f" for {s['waited_for']}" if s.get("waited_for") else ""
+        parts.append(f"waited {s['longest_wait']:.1f} s (bound {s['wait_bound']:.1f} s) at "
+                     f"({s['wait_x']:.2f}, {s['wait_y']:.2f}){other}")
+    return "; ".join(parts)
+
+
 def _print_human(scenario, task_index: int, s: dict) -> None:
     task = scenario.tasks[task_index]
     mm = 1000.0
     print(f"{scenario.name}: task {task_index} {task.start} -> {task.goal}, seed {s['seed']}")
+    print(f"  {status_line(s)}")
     print(f"  {'reached' if s['reached'] else 'NOT reached'} after {s['duration']:.1f} s "
           f"({s['steps']} steps, {s['fixes']} fixes)")
     print(f"  position error: rmse {s['rmse'] * mm:.2f} mm, max {s['max_error'] * mm:.2f} mm; "

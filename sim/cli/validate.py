@@ -92,6 +92,11 @@ def format_report(report, kept: str | None, wall: float) -> str:
     where = f"sweep {kept}" if kept else "temporary sweep, deleted"
     lines = [f"pefsim validate: {report.scenario}, {report.runs} runs, {report.fixes} fixes ({where}, "
              f"{wall:.1f} s)"]
+    if report.missing:
+        lines.append(f"incomplete sweep: {report.missing} runs missing (pefsim mc SCENARIO --out {kept} --resume "
+                     f"completes it); judged on the finished ones")
+    # what made runs fail comes before any statistic: a robot pressed against a pillar fails every check
+    lines.extend(report.causes)
     if report.q_scale != 1.0:
         lines.append(f"NEGATIVE CONTROL: the filter's process noise was multiplied by {report.q_scale:g}")
     if report.alone:
@@ -107,6 +112,9 @@ def format_report(report, kept: str | None, wall: float) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
     for r in rows:
         lines.append("  ".join(cell.ljust(w) for cell, w in zip(r, widths, strict=True)).rstrip())
+    if report.waits:
+        lines.append("waits for zones (plan against simulation):")
+        lines.extend(f"  {w}" for w in report.waits)
     lines.append("notes:")
     lines.extend(f"  {c.name}: {c.detail}" for c in report.checks)
     lines.append("FAILED: " + ", ".join(report.failed) if report.failed else "all applicable checks passed")

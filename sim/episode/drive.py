@@ -250,6 +250,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
     n_max = int(t_max / dt_ctrl) + 2
     log = np.empty((n_max, LOG_COLUMNS))
     tick = ControlTick(odo, loc, follower, log, dt_ctrl)
+    watch = run_watch(world, 0, follower, dt_ctrl)
 
     wheel_angles, predict = world.robot.wheel_angle_pair, loc.predict
 
@@ -339,8 +340,9 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         t = world.time
         # odometry, predict, log row n (the arc length of this step's estimate) and, unless the
         # robot is held or done, the follower's command from this step's estimate
-        v, omega, cmd_done, s_cmd = tick(wheel_angles(), true_pose(), t, n, s_now, not (holding or done),
-                                         *read_span())
+        pose = true_pose()
+        v, omega, cmd_done, s_cmd = tick(wheel_angles(), pose, t, n, s_now, not (holding or done), *read_span())
+        watch.tick(t, pose, not (holding or done))
         n += 1
         if done:
             if fixes.pending is None and next_fix >= len(fix_s_list):
@@ -388,8 +390,10 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         lost_guarantee = int(np.sum((certified > scenario.planning.eps_max * (1.0 + POLYGON_TOLERANCE)) & ~excused))
         steps.excused = excused
     goal = np.array(scenario.dock(task.goal).position)
+    outcome = watch.summary()
+    # a run that touched something, or stuck, did not do what was asked, wherever it ended
     reached = bool(done and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=
-                   follower.goal_tolerance + scenario.planning.eps_max)
+                   follower.goal_tolerance + scenario.planning.eps_max and outcome["status"] == "ok")
     return EpisodeResult(
         scenario_name=scenario.name, task_index=task_index, seed=_seed_repr(ss),
         eps_max=scenario.planning.eps_max, steps=steps, fixes=fix_log, plan=plan,
@@ -397,7 +401,18 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                             counts["merged"]), "scheduled_fixes": len(fix_s),
                  "blocked_markers": fixes.blocked_markers, "fallback_fixes": int(np.sum(fix_log.fallback)),
                  "failed_fixes": fixes.skipped, "unreached_fixes": unreached,
-                 "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee})
+                 "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee,
+                 **outcome})
+
+
+def run_watch(world, i: int, follower: PurePursuit, dt_ctrl: float, wait_limit: float = math.inf,
+              names: list[str] | None = None):
+    """Build the :class:`~sim.episode.outcome.RunWatch` of robot ``i`` of ``world``, following ``follower``'s path."""
+    from sim.episode.outcome import RunWatch, stuck_bound
+    from sim.physics.contacts import ContactMonitor
+
+    bound = stuck_bound(follower.max_yaw_rate, follower.max_yaw_accel, follower.max_speed, follower.max_accel)
+    return RunWatch(ContactMonitor(world, i), follower.path, bound, dt_ctrl, wait_limit, names)
 
 
 def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:

@@ -20,8 +20,10 @@ robots share the physics steps and the control ticks. At each control tick a rob
 
 Robot bodies are cylinders of each robot's radius and height that only rays see
 (:meth:`sim.physics.world.PhysicsWorld.place_bodies`); the bodies are moved to the robots before
-every fix start and measurement. A collision is a pair of bodies that start to overlap
-(pybullet's closest points below 0), counted at the control ticks.
+every fix start and measurement. ``FleetResult.collisions`` counts pairs of those bodies that start to
+overlap (pybullet's closest points below 0) at the control ticks; each robot's row counts the contact
+episodes of its own physical body with anything but the floor, other robots included, and says
+whether it stuck or deadlocked (:mod:`sim.episode.outcome`).
 
 Each robot drives its tasks in order; its results are one :class:`EpisodeResult` over all of
 them (steps and fixes concatenated, the certified bound along its whole path).
@@ -52,9 +54,11 @@ from sim.episode.drive import (
     check_markers,
     encoder_phases,
     episode_localizer,
+    run_watch,
     seed_sequence,
 )
 from sim.episode.follower import SPEED, YAW_RATE, PurePursuit, wheel_speeds
+from sim.episode.outcome import longest_run, wait_bound, wait_cycles
 from sim.episode.types import EpisodeResult, FixNote, StepLog
 from sim.physics.turn_lag import read_turn_slip
 
@@ -127,7 +131,7 @@ class FleetResult:
     robots : list of RobotResult
         ``robots[i]`` for ``scenario.robots[i]``.
     collisions : int
-        Times two robots' bodies began to overlap.
+        Times two robots' footprint bodies (cylinders of their radius) began to overlap.
     duration : float
         Simulated time until the last robot arrived (or the time limit) [s].
     names : list of str
@@ -180,6 +184,8 @@ class _Robot:
         self.robot_blocked = 0
         self.reserved: list[tuple[float, float, float]] = []
         self._FixRecorder, self._WheelOdometry = FixRecorder, WheelOdometry
+        self.wait_limit, self.names = math.inf, [fr.name]   # set by the fleet's driver (sim.episode.outcome)
+        self.watch = None
 
     def begin(self, dt_ctrl: float) -> None:
         """After the world's reset: zero the encoders, build the filter, start task 0."""
@@ -197,7 +203,9 @@ class _Robot:
         self.task = -1
         self.finished = False
         self.arrival = math.nan
+        self.waiting = False   # stood at the end of its reservation at the last tick
         self._next_task()
+        self.watch = run_watch(self.world, self.i, self.follower, dt_ctrl, self.wait_limit, self.names)
 
     def _next_task(self) -> None:
         self.task += 1
@@ -208,6 +216,8 @@ class _Robot:
         self.follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
                                     max_yaw_rate=robot.max_yaw_rate)
         self.tick = ControlTick(self.odo, self.loc, self.follower, self.log, self.dt_ctrl)
+        if self.watch is not None:
+            self.watch.follow(plan.path, self.offset)
         self.fix_s = [f.s for f in plan.schedule.fixes]
         # the plan's probability that robots hide a scheduled marker at each fix (the blocking check)
         self.p_fix = [math.nan] * len(self.fix_s)
@@ -278,8 +288,12 @@ class _Robot:
         body = self.body
         waiting_start = t < self.start_time - 1e-9
         steer = not (self.holding or self.done or self.at_goal or self.finished or waiting_start)
-        v, omega, cmd_done, s_cmd = self.tick(body.wheel_angle_pair(), body.true_pose_tuple(), t, self.n,
-                                              self.s_now, steer, *self.read_span())
+        pose = body.true_pose_tuple()
+        v, omega, cmd_done, s_cmd = self.tick(body.wheel_angle_pair(), pose, t, self.n, self.s_now, steer,
+                                              *self.read_span())
+        waiting = steer and self.waiting
+        self.watch.tick(t, pose, steer and not waiting, waiting, self.zones.refused_by[self.i])
+        self.waiting = False
         self.n += 1
         if self.finished or waiting_start:
             self.command(0.0, 0.0)
@@ -348,13 +362,14 @@ class _Robot:
             return v, omega
         if cap < 0.02:
             self.waited += self.dt_ctrl
+            self.waiting = True
         w = omega * cap / v if v > 0.0 else omega
         self.follower.state[SPEED], self.follower.state[YAW_RATE] = cap, w
         return cap, w
 
     # -- result ---------------------------------------------------------------------------------
 
-    def result(self, scenario: Scenario, collisions: int) -> RobotResult:
+    def result(self, scenario: Scenario) -> RobotResult:
         n, log, sc = self.n, self.log[:self.n], self.sc
         k = sc.sensor.markers_per_fix
         bounds = [*self.task_rows, n]
@@ -383,8 +398,10 @@ class _Robot:
             lost_guarantee = int(np.sum((certified > sc.planning.eps_max * (1.0 + POLYGON_TOLERANCE)) & ~excused))
             steps.excused = excused
         goal = np.array(scenario.dock(self.rp.plans[-1].goal).position)
+        outcome = self.watch.summary()
+        # a robot that touched something, stuck or deadlocked did not do what was asked
         reached = bool(self.finished and np.hypot(*(steps.true_pose[-1, :2] - goal)) <=
-                       self.follower.goal_tolerance + sc.planning.eps_max)
+                       self.follower.goal_tolerance + sc.planning.eps_max and outcome["status"] == "ok")
         summary = {**_summary(steps, fix_log, reached, sc.planning.eps_max, self.ss, self.fixes.skipped,
                               self.counts["merged"]),
                    "scheduled_fixes": self.scheduled, "blocked_markers": self.fixes.blocked_markers,
@@ -393,7 +410,9 @@ class _Robot:
                    "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee,
                    "robot": self.name, "arrival": self.arrival, "wait_time": self.waited,
                    "robot_blocked": self.robot_blocked,
-                   "collisions": collisions}
+                   "predicted_wait": longest_run(self.rp.timeline.waiting, self.rp.timeline.t)
+                   if self.rp.timeline is not None else math.nan,
+                   **outcome}
         res = EpisodeResult(scenario_name=scenario.name, task_index=int(scenario.robots[self.i].tasks[0]),
                             seed=_seed_repr(self.ss), eps_max=sc.planning.eps_max, steps=steps, fixes=fix_log,
                             plan=self.rp.plans[0], summary=summary)
@@ -452,6 +471,10 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
     n_max = int(t_max / dt_ctrl) + 2
     zones = zones_of(plans)
     robots = [_Robot(i, scenario, rp, world, prepared.pef, ss, zones, n_max, q_scale) for i, rp in enumerate(plans)]
+    names = [r.name for r in robots]
+    for r, rp in zip(robots, plans, strict=True):
+        longest = longest_run(rp.timeline.waiting, rp.timeline.t) if rp.timeline is not None else 0.0
+        r.wait_limit, r.names = wait_bound(longest, predicted_end), names
     world.reset_fleet([r.true_start for r in robots])
     k = scenario.sensor.markers_per_fix
     for r in robots:
@@ -469,6 +492,9 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
         world.place_bodies()
         for r in robots:
             r.control(t)
+        circles = wait_cycles([r.watch.waiting for r in robots], [zones.refused_by[r.i] for r in robots])
+        for r, in_circle in zip(robots, circles, strict=True):
+            r.watch.circle(in_circle)
         n += 1
         _advance(world, robots, dt_phys)
         now = set(world.touching())
@@ -482,7 +508,7 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
         if r.n < n_max:
             r.finished = True
             r.control(t)
-    out = [r.result(scenario, collisions[i]) for i, r in enumerate(robots)]
+    out = [r.result(scenario) for r in robots]
     return FleetResult(robots=out, collisions=sum(collisions) // 2, duration=float(world.time),
                        names=[r.name for r in robots])
 

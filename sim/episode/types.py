@@ -174,3 +174,12 @@ SUMMARY_KEYS = ("reached", "duration", "steps", "fixes", "rmse", "max_error", "m
                 "eps_max", "violations", "seed", "mean_nees", "mean_nis", "blocked_markers", "fallback_fixes",
                 "failed_fixes", "certified_max", "lost_guarantee")
 """Keys of :attr:`EpisodeResult.summary` (``pefsim run --json`` prints them)."""
+
+RUN_STATUSES = ("ok", "collided", "stuck", "deadlocked")
+"""What a run that ran to its end did, from best to worst (:mod:`sim.episode.outcome`); a run that
+did not run to its end has the status ``crashed: <error>``."""
+
+
+def ran(status: str | None) -> bool:
+    """Tell whether a run with ``status`` ran to its end (any of :data:`RUN_STATUSES`, not crashed)."""
+    return status in RUN_STATUSES

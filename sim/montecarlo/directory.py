@@ -21,6 +21,7 @@ from typing import Any
 
 from scenarios.errors import OutputError, output_errors
 from scenarios.schema import Scenario
+from sim.episode.types import ran as finished
 from sim.montecarlo import lock, parts, results
 from sim.montecarlo.results import SweepLayout
 from sim.montecarlo.rows import schemas
@@ -149,7 +150,7 @@ def _move_aside(layout: SweepLayout, path: Path) -> Path:
 def repair(layout: SweepLayout, steps: StepsMode, warn: Callable[[str], None]) -> list[int]:
     """Move aside the parts of finished runs that do not read back; returns the runs to redo (sorted).
 
-    A finished run must have a ``runs`` part of one row and, when it ran (status ok), a fixes
+    A finished run must have a ``runs`` part of one row and, when it ran (not crashed), a fixes
     part and (unless ``steps`` is none) a steps part. Each damaged or missing part is one warning.
     """
     redo = []
@@ -159,7 +160,7 @@ def repair(layout: SweepLayout, steps: StepsMode, warn: Callable[[str], None]) -
         problems: list[tuple[Path, str]] = []
         try:
             parts.check_part(path, sch.runs, run, rows=None if fleet else 1)   # a fleet's: a row per robot
-            ran = parts.read_part(path, sch.runs, ["status"]).column("status")[0].as_py() == "ok"
+            ran = finished(parts.read_part(path, sch.runs, ["status"]).column("status")[0].as_py())
         except parts.DamagedPartError as exc:
             problems.append((path, exc.reason))
             ran = False

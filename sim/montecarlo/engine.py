@@ -400,7 +400,12 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
     """Plan the tasks, run ``todo`` and write each record as it comes; returns (runs executed, wall seconds)."""
     api = api if api is not None else (fleet_api() if scenario.is_fleet else default_api())
     # Planning once here catches bad input (no route) before any worker starts.
-    prepared = {t: api.prepare(scenario, t) for t in sorted({s.task for s in todo})}
+    tasks = sorted({s.task for s in todo})
+    prepared = {}
+    with progress_bar(total=len(tasks), enabled=progress, desc="tasks", verb="planned") as bar:
+        for t in tasks:   # a large map's tasks take minutes to plan: say how far it is
+            prepared[t] = api.prepare(scenario, t)
+            bar.update(1)
     if settings:
         results.clean_unfinished(layout)
     directory.init_sweep_dir(layout, scenario, task, max(runs, int(settings.get("runs", 0))), mode)

@@ -19,7 +19,7 @@ RUN_SCHEMA = pa.schema([
     ("run", pa.int64()),
     ("seed", pa.string()),          # the run's SeedSequence, as Python that rebuilds it
     ("task", pa.int32()),
-    ("status", pa.string()),        # "ok" or "crashed: <error>"
+    ("status", pa.string()),        # ok, collided, stuck, deadlocked (the worst) or "crashed: <error>"
     ("reached", pa.bool_()),
     ("duration", pa.float64()),     # simulated time [s]
     ("steps", pa.int64()),
@@ -36,6 +36,15 @@ RUN_SCHEMA = pa.schema([
     ("failed_fixes", pa.int64()),      # scheduled fixes that could not be taken
     ("certified_max", pa.float64()),   # [m] largest certified bound (sim.episode.certify)
     ("lost_guarantee", pa.int64()),    # steps the single-failure test judged lost (blocking only)
+    # what the run did (sim.episode.outcome): contact episodes of the body with anything but the floor,
+    # the first one's time [s], true position [m], arc length along the plan [m] and what it touched
+    ("collisions", pa.int64()),
+    ("contact_t", pa.float64()), ("contact_x", pa.float64()), ("contact_y", pa.float64()),
+    ("contact_s", pa.float64()), ("contact_with", pa.string()),
+    # no progress along the path for longer than stuck_bound [s]; the longest stall [s] and where it began
+    ("stuck", pa.bool_()), ("stall_time", pa.float64()), ("stuck_bound", pa.float64()),
+    ("stall_t", pa.float64()), ("stall_x", pa.float64()), ("stall_y", pa.float64()), ("stall_s", pa.float64()),
+    ("deadlocked", pa.bool_()),        # a fleet robot waited for a zone past its bound (never a lone one)
     ("wall_time", pa.float64()),    # [s] of the episode call
     ("cpu_time", pa.float64()),     # [s] CPU time of the worker process during the episode call
 ])
@@ -82,7 +91,12 @@ FLEET_RUN_SCHEMA = pa.schema([*RUN_SCHEMA, pa.field("robot", pa.string()),
                               pa.field("arrival", pa.float64()),     # [s] when it reached its final dock
                               pa.field("wait_time", pa.float64()),   # [s] waiting for zones
                               pa.field("robot_blocked", pa.int64()),  # scheduled lines of sight robots hid
-                              pa.field("collisions", pa.int64())])   # contacts of its body with another's
+                              # its longest unbroken wait for a zone [s], the bound it was held to [s],
+                              # where and when it began, whom it waited for; the plan's longest wait [s]
+                              pa.field("longest_wait", pa.float64()), pa.field("wait_bound", pa.float64()),
+                              pa.field("wait_t", pa.float64()), pa.field("wait_x", pa.float64()),
+                              pa.field("wait_y", pa.float64()), pa.field("waited_for", pa.string()),
+                              pa.field("predicted_wait", pa.float64())])
 """A fleet sweep's runs table: :data:`RUN_SCHEMA` plus the robot, one row per robot per run (its
 ``duration`` is the fleet's episode, ``arrival`` the robot's own end; NaN if it never arrived)."""
 FLEET_STEP_SCHEMA = pa.schema([*STEP_SCHEMA, pa.field("robot", pa.string())])
@@ -129,6 +143,8 @@ def run_row(run: int, seed: str, task: int, summary: dict[str, Any] | None, wall
             status: str = "ok", cpu_time: float | None = None, schema: pa.Schema = RUN_SCHEMA) -> dict[str, Any]:
     """Build the ``runs`` row of one run from an episode summary (``None`` for a crashed run)."""
     row: dict[str, Any] = {name: None for name in schema.names}
+    if summary is not None and "status" in summary:
+        status = summary["status"]   # what the run did (sim.episode.outcome)
     row.update(run=run, seed=seed, task=task, status=status, wall_time=wall_time, cpu_time=cpu_time)
     if summary is not None:
         for name in schema.names:

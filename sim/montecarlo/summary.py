@@ -17,7 +17,9 @@ class SweepSummary:
     """What a sweep directory holds, as ``pefsim mc --json`` prints it.
 
     A run succeeds when it ran (status ok), reached its goal and never exceeded ε_max;
-    crashed runs count as failures. ``success_ci`` is the 95 % Clopper-Pearson interval.
+    crashed runs count as failures, and so do runs that collided, stuck or deadlocked (their status
+    says so; ``ok`` counts the runs that did none of that). ``success_ci`` is the 95 % Clopper-Pearson
+    interval.
     """
 
     out: str
@@ -43,12 +45,18 @@ class SweepSummary:
     """A fleet sweep's robots per run (its counts above are of robot rows, one per robot per run);
     0 for a single robot."""
     collisions: int = 0
-    """A fleet sweep's collisions, summed over its robot rows (each counts both robots)."""
+    """Contact episodes summed over the rows (a fleet's robot-robot contact counts for both robots)."""
+    collided: int = 0
+    """Rows whose status is ``collided`` (touched something, :mod:`sim.episode.outcome`)."""
+    stuck: int = 0
+    """Rows whose status is ``stuck``."""
+    deadlocked: int = 0
+    """Rows whose status is ``deadlocked``."""
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
-        if not self.robots:   # a single robot's summary keeps the keys it always had
-            del d["robots"], d["collisions"]
+        if not self.robots:
+            del d["robots"]
         return d
 
 
@@ -58,8 +66,9 @@ def succeeded(runs: pa.Table) -> np.ndarray:
     With lines of sight blocked (``sensor.block_probability`` > 0) a run must also pass the
     single-failure test: its certified bound stayed under ε_max wherever no more lines of sight
     were lost at a fix than one (column ``lost_guarantee``,
-    :func:`sim.episode.certify.single_failure_excused`; 0 without blocking). A fleet's robot
-    (a row with column ``collisions``) must also not have touched another robot.
+    :func:`sim.episode.certify.single_failure_excused`; 0 without blocking). A run that touched
+    anything but the floor (``collisions``), stuck or deadlocked has another status than ``ok`` and
+    fails (:mod:`sim.episode.outcome`).
     """
     status = np.asarray(runs.column("status").to_pylist(), dtype=object)
     reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
@@ -76,9 +85,11 @@ def summarize(out: str | Path, success_target: float, executed: int = 0,
     """Count the finished runs of sweep directory ``out``."""
     from scipy.stats import binomtest
 
+    from sim.episode.types import ran
+
     table = results.read_runs(out)
     status = np.asarray(table.column("status").to_pylist(), dtype=object)
-    ok = status == "ok"
+    ok = np.array([ran(s) for s in status], dtype=bool).reshape(-1)
     reached = np.asarray(table.column("reached").fill_null(False).to_numpy(zero_copy_only=False), dtype=bool)
     violations = np.asarray(table.column("violations").fill_null(0).to_numpy(zero_copy_only=False))
     n = len(status)
@@ -89,17 +100,19 @@ def summarize(out: str | Path, success_target: float, executed: int = 0,
         interval = binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
         ci = [float(interval.low), float(interval.high)]
     rate = 60.0 * executed / wall_time if executed and wall_time > 0 else None
-    return SweepSummary(out=str(out), runs=n, ok=int(ok.sum()), crashed=int(np.sum(~ok)),
+    hits = table.column("collisions").fill_null(0).to_numpy(zero_copy_only=False) if n else np.zeros(0)
+    return SweepSummary(out=str(out), runs=n, ok=int(np.sum(status == "ok")), crashed=int(np.sum(~ok)),
                         reached=int((reached & ok).sum()), violation_runs=int(np.sum(ok & (violations > 0))),
                         successes=k, success_fraction=fraction, success_ci=ci, success_target=success_target,
                         executed=executed, wall_time=wall_time, runs_per_minute=rate, steps=steps,
-                        bytes_per_run=dict(bytes_per_run or {}), **_fleet_counts(table))
+                        bytes_per_run=dict(bytes_per_run or {}), collisions=int(np.sum(hits)),
+                        collided=int(np.sum(status == "collided")), stuck=int(np.sum(status == "stuck")),
+                        deadlocked=int(np.sum(status == "deadlocked")), **_fleet_counts(table))
 
 
 def _fleet_counts(table: pa.Table) -> dict[str, int]:
-    """Robots per run and collisions of a fleet's runs table (nothing for a single robot's)."""
+    """Robots per run of a fleet's runs table (nothing for a single robot's)."""
     if "robot" not in table.column_names or table.num_rows == 0:
         return {}
     names = {n for n in table.column("robot").to_pylist() if n is not None}
-    hits = table.column("collisions").fill_null(0).to_numpy(zero_copy_only=False)
-    return {"robots": len(names), "collisions": int(np.sum(hits))}
+    return {"robots": len(names)}

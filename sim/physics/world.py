@@ -81,6 +81,8 @@ class PhysicsWorld:
         With ``fleet``: each robot's body (the cylinder the others' rays hit); empty otherwise.
     origin : ndarray, shape (2,)
         The workspace origin [m]: local (physics) coordinates = user's frame - origin.
+    body_labels : dict of int to str
+        What each body is (border wall, obstacle j, marker post, robot), for messages.
     """
 
     def __init__(self, scenario: Scenario, config: PhysicsConfig | None = None,
@@ -132,8 +134,13 @@ class PhysicsWorld:
                  ((-t / 2, h / 2), (t, h)), ((w + t / 2, h / 2), (t, h))]
         # A map's border is no wall (its edge is not; only its occupied cells are): no body there.
         blockers = [self._box(c, s, 0.0, cfg.wall_height) for c, s in walls] if sc.workspace.walls else []
-        for ob in sc.obstacles:
-            blockers += self._obstacle(ob, cfg.wall_height)
+        #: What each static body is, for messages about what a robot touched (sim.physics.contacts).
+        self.body_labels = {b: "the border wall" for b in blockers}
+        for j, ob in enumerate(sc.obstacles):
+            pieces = self._obstacle(ob, cfg.wall_height)
+            blockers += pieces
+            cx, cy = ob.center
+            self.body_labels.update({b: f"obstacle {j} ({ob.kind} at ({cx:.2f}, {cy:.2f}))" for b in pieces})
         self.blocker_ids = np.array(blockers, dtype=int)
 
         # Posts are capsules (a cylinder with round ends, floor to post_height): Bullet ray-casts
@@ -148,9 +155,13 @@ class PhysicsWorld:
         self.post_ids = np.array([
             pb.createMultiBody(0.0, post, basePosition=[mx, my, 0.5 * post_height], physicsClientId=cid)
             for mx, my in sc.marker_positions() - self.origin], dtype=int)
+        self.body_labels.update({int(b): f"marker post {m}"
+                                 for b, m in zip(self.post_ids, sc.marker_ids(), strict=True)})
 
         self.robots = [DiffDriveRobot(cid, spec, cfg, origin=self.origin) for spec in specs]
         self.robot = self.robots[0]
+        names = [r.name for r in sc.robots] if self.fleet else ["the robot"]
+        self.body_labels.update({r.body: f"robot {name}" for r, name in zip(self.robots, names, strict=True)})
         for r in self.robots:
             laser_at = r.spec.height if self.fleet else cfg.laser_height
             if r.geometry.top_height >= laser_at:

@@ -19,6 +19,7 @@ import scenarios
 from estimators.consistency import clopper_pearson
 from scenarios.errors import PefsimError, output_errors
 from scenarios.schema import Scenario
+from sim.episode.types import ran
 from sim.montecarlo import results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
 from sim.montecarlo.results import SweepLayout
@@ -207,7 +208,8 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
                    f"against a target of {s.success_target:.1%}.")
     else:
         verdict = "No finished runs yet."
-    key = [["runs", s.runs], ["ok", s.ok], ["crashed", s.crashed], ["reached goal", s.reached],
+    key = [["runs", s.runs], ["ok", s.ok], ["collided", s.collided], ["stuck", s.stuck],
+           ["deadlocked", s.deadlocked], ["crashed", s.crashed], ["reached goal", s.reached],
            ["runs exceeding ε_max", s.violation_runs], ["ε_max [mm]", f"{scenario.planning.eps_max * 1e3:g}"],
            ["seed", scenario.seed], ["directory", str(root)]]
     name = html.escape(scenario.name)
@@ -236,7 +238,11 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
         parts.append(_table(["run", "task", "max error [mm]", "steps above ε_max", "reached"],
                             [[r["run"], r["task"], f"{r['max_error'] * 1e3:.3f}", r["violations"],
                               r["reached"]] for r in worst]))
-    crashed = [r for r in rows if r["status"] != "ok"]
+    failed = [r for r in rows if ran(r["status"]) and r["status"] != "ok"]
+    if failed:   # touched something, stuck or deadlocked: the statistics above say nothing about why
+        parts.append(f"<h2>Runs that collided, stuck or deadlocked ({len(failed)})</h2>")
+        parts.append(_table(["run", "task", "status"], [[r["run"], r["task"], r["status"]] for r in failed[:50]]))
+    crashed = [r for r in rows if not ran(r["status"])]
     if crashed:
         parts.append(f"<h2>Crashed runs ({len(crashed)})</h2>")
         parts.append(_table(["run", "task", "status"],

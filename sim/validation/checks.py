@@ -23,7 +23,7 @@ from estimators.consistency import chi2_interval, clopper_pearson, fraction_test
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from estimators.fault.linearized import chi2_2dof_ppf
 from scenarios.schema import NoiseModel, PefModel
-from sim.validation import nrun, null
+from sim.validation import nrun, null, outcome
 from sim.validation.blocking import blocking, blocking_why_not
 from sim.validation.data import EPISODE_GATE_PROBABILITY, CheckResult, CheckStatus, SweepData
 from sim.validation.promise import promise, promise_why_not
@@ -280,6 +280,7 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
 
 
 CHECKS: tuple[Check, ...] = (
+    Check("runs", False, outcome.runs_why_not, outcome.runs),
     Check("containment", False, _containment_why_not, containment),
     Check("promise", False, promise_why_not, promise),
     Check("bound", False, _bound_why_not, bound),

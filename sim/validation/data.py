@@ -82,13 +82,16 @@ class RunTable:
     ----------
     run : (N,) int
     ok : (N,) bool
-        The episode ran to its end (status "ok").
+        The episode ran to its end (not crashed; it may have collided, stuck or deadlocked).
     succeeded : (N,) bool
         Ran, reached its goal and never exceeded eps_max (:func:`sim.montecarlo.engine.succeeded`).
     mean_nees : (N,) float
         Time-averaged NEES of the pose (3 dof); NaN for a crashed run.
     untested : int
         Finished runs written before the single-failure test existed (``lost_guarantee`` null).
+    outcome : pyarrow.Table or None
+        What each run did, N rows (:data:`OUTCOME_COLUMNS` that the table has, ``run`` as above):
+        its status, contacts, stalls and waits (:mod:`sim.episode.outcome`); None: not given.
     """
 
     run: np.ndarray
@@ -96,6 +99,7 @@ class RunTable:
     succeeded: np.ndarray
     mean_nees: np.ndarray
     untested: int = 0
+    outcome: pa.Table | None = None
 
     def __len__(self) -> int:
         return len(self.run)
@@ -225,6 +229,8 @@ class SweepData:
     steps: StepTable | None = None
     steps_mode: str = "all"
     alone: bool = False
+    missing: int = 0
+    """Runs the sweep was asked for (``sweep.json``) that have not finished: an incomplete sweep."""
 
 
 def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
@@ -232,16 +238,26 @@ def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
     return np.asarray(col.to_numpy(zero_copy_only=False), dtype=dtype)
 
 
+OUTCOME_COLUMNS = ["run", "task", "robot", "status", "collisions", "contact_t", "contact_x", "contact_y",
+                   "contact_s", "contact_with", "stuck", "stall_time", "stuck_bound", "stall_t", "stall_x", "stall_y",
+                   "stall_s", "deadlocked", "longest_wait", "wait_bound", "wait_t", "wait_x", "wait_y", "waited_for",
+                   "predicted_wait", "wait_time"]
+"""The columns of a runs table that say what each run did (:mod:`sim.validation.outcome` reads them)."""
+
+
 def run_table(runs: pa.Table) -> RunTable:
     """Convert a ``runs`` table (:data:`sim.montecarlo.rows.RUN_SCHEMA`) to a :class:`RunTable`."""
+    from sim.episode.types import ran
     from sim.montecarlo.engine import succeeded
 
-    status = np.asarray(runs.column("status").to_pylist(), dtype=object)
-    return RunTable(run=_np(runs, "run", np.int64, -1), ok=status == "ok",
+    status = runs.column("status").to_pylist()
+    ok = np.array([ran(s) for s in status], dtype=bool)
+    return RunTable(run=_np(runs, "run", np.int64, -1), ok=ok,
                     succeeded=np.asarray(succeeded(runs), dtype=bool),
                     mean_nees=_np(runs, "mean_nees", float, math.nan),
-                    untested=int(np.sum((status == "ok") & np.asarray(runs.column("lost_guarantee").is_null())))
-                    if "lost_guarantee" in runs.column_names else 0)
+                    untested=int(np.sum(ok & np.asarray(runs.column("lost_guarantee").is_null())))
+                    if "lost_guarantee" in runs.column_names else 0,
+                    outcome=runs.select([c for c in OUTCOME_COLUMNS if c in runs.column_names]))
 
 
 def fix_table(fixes: pa.Table, k: int) -> FixTable:
@@ -349,7 +365,9 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
         raise OutputError(f"{directory}: holds no finished run")
     q_scale, alone = read_mark(layout.root)
     # A directory assembled by hand may lack sweep.json: it then holds whatever steps it has.
-    mode = stored_steps_mode(read_settings(layout.root) if layout.sweep_json.exists() else {})
+    settings = read_settings(layout.root) if layout.sweep_json.exists() else {}
+    mode = stored_steps_mode(settings)
+    missing = max(int(settings.get("runs", 0)) - len(results.finished_runs(layout)), 0)
     # Only a sweep of every step feeds the N-run NEES test (the only reader of steps here), so
     # the others' step rows are not read at all.
     fleet = ["robot"] if stored.is_fleet else []
@@ -357,4 +375,4 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     blocking = FLEET_BLOCKING_COLUMNS if stored.is_fleet else []
     data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet + blocking),
                        source=str(directory), q_scale=q_scale, steps=steps)
-    return replace(data, steps_mode=mode.value, alone=alone)
+    return replace(data, steps_mode=mode.value, alone=alone, missing=missing)

@@ -13,12 +13,13 @@ is "not applicable", never a pass.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from scenarios.errors import SimulationError
+from sim.validation import outcome
 from sim.validation.checks import CHECKS, Check
 from sim.validation.data import CheckResult, CheckStatus, SweepData, from_tables, load_sweep
 
@@ -54,6 +55,13 @@ class ValidationReport:
     checks : list of CheckResult
     alone : bool
         A fleet sweep whose schedules were planned as if each robot drove alone (a negative control).
+    causes : list of str
+        One line per cause that made runs fail (contact, stall, deadlock, crash), printed before the
+        checks (:func:`sim.validation.outcome.causes`).
+    waits : list of str
+        A fleet's robots: the plan's longest predicted wait against the simulated ones.
+    missing : int
+        Runs the sweep was asked for that have not finished (an interrupted sweep).
     """
 
     scenario: str
@@ -66,6 +74,9 @@ class ValidationReport:
     q_scale: float
     checks: list[CheckResult]
     alone: bool = False
+    causes: list[str] = field(default_factory=list)
+    waits: list[str] = field(default_factory=list)
+    missing: int = 0
 
     @property
     def failed(self) -> list[str]:
@@ -88,6 +99,7 @@ class ValidationReport:
         return {"scenario": self.scenario, "source": self.source, "runs": self.runs, "fixes": self.fixes,
                 "alpha": self.alpha, "statistical_checks": self.statistical,
                 "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "alone": self.alone,
+                "causes": list(self.causes), "waits": list(self.waits), "missing_runs": self.missing,
                 "passed": self.passed,
                 "failed": self.failed, "checks": [c.to_dict() for c in self.checks]}
 
@@ -132,4 +144,5 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
             out.append(c.evaluate(data, per_check if c.statistical else 0.0, rng))
     return ValidationReport(scenario=data.scenario.name, source=data.source, runs=len(data.runs),
                             fixes=len(data.fixes), alpha=float(alpha), statistical=m,
-                            alpha_per_check=per_check, q_scale=data.q_scale, checks=out, alone=data.alone)
+                            alpha_per_check=per_check, q_scale=data.q_scale, checks=out, alone=data.alone,
+                            causes=outcome.causes(data), waits=outcome.waits(data), missing=data.missing)

@@ -331,3 +331,34 @@ def test_progress_bar_on_stderr_only_when_asked(capsys):
     with progress_bar(total=3) as bar:  # stderr is not a terminal under pytest
         bar.update(3)
     assert capsys.readouterr().err == ""
+
+
+def test_progress_lines_off_a_terminal_come_every_period():
+    """Off a terminal: no line before PERIOD seconds, then runs done of runs asked (a fake clock)."""
+    from sim.montecarlo.progress import PERIOD, Lines
+
+    now, got = [100.0], []
+    lines = Lines(total=10, initial=2, clock=lambda: now[0], emit=got.append)
+    lines.update(3)
+    now[0] += PERIOD - 0.1
+    lines.tick()
+    assert got == []   # a sweep shorter than the period prints nothing
+    now[0] += 0.1
+    lines.tick()
+    assert got == [f"pefsim: 5 of 10 runs done ({PERIOD:.0f} s, {60 * 3 / PERIOD:.1f} runs/min)"]
+    lines.tick()
+    assert len(got) == 1 and 0 < lines.due() <= PERIOD   # the next one a period later
+
+
+def test_a_sweep_without_a_terminal_prints_progress_lines(tmp_path):
+    """A child process whose stderr is a pipe: the timer thread prints while no run finishes."""
+    import subprocess
+    import sys
+
+    code = ("import time; from sim.montecarlo import progress as p; p.PERIOD = 0.2\n"
+            "with p.progress_bar(total=4, initial=1) as bar:\n"
+            "    time.sleep(0.5); bar.update(1); time.sleep(0.3)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    lines = out.stderr.splitlines()
+    assert out.stdout == "" and len(lines) >= 2, out.stderr
+    assert lines[0].startswith("pefsim: 1 of 4 runs done") and lines[-1].startswith("pefsim: 2 of 4 runs done")

@@ -77,7 +77,8 @@ def _status(report) -> dict[str, CheckStatus]:
 
 
 def test_model_sweep_passes_every_applicable_check(uniform_model):
-    assert _status(uniform_model) == {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS,
+    assert _status(uniform_model) == {"runs": PASS, "containment": PASS, "promise": PASS, "bound": PASS,
+                                      "tightness": PASS,
                                       "coverage": NA,
                                       "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS,
                                       "plan": PASS, "blocking": NA}
@@ -91,7 +92,8 @@ def test_bonferroni_split_over_the_statistical_checks_that_apply(uniform_model):
     assert uniform_model.statistical == 5
     assert uniform_model.alpha_per_check == pytest.approx(0.01 / 5)
     alphas = {c.name: c.alpha for c in uniform_model.checks}
-    assert alphas == {"containment": 0.0, "promise": 0.0, "bound": 0.0, "tightness": 0.002, "coverage": None,
+    assert alphas == {"runs": 0.0, "containment": 0.0, "promise": 0.0, "bound": 0.0, "tightness": 0.002,
+                      "coverage": None,
                       "nees": 0.002, "nis": 0.002, "nees_nrun": None, "nis_nrun": 0.002, "plan": 0.002,
                       "blocking": None}
     json.dumps(uniform_model.to_dict(), allow_nan=False)  # JSON-ready, no NaN
@@ -127,7 +129,8 @@ def test_a_third_of_the_noise_fails_tightness(tmp_path):
 def test_gaussian_coverage_passes_and_an_understated_covariance_fails(tmp_path):
     sc = _scenario("gaussian")
     good = validation.validate(write_sweep(tmp_path / "good", sc, seed=4))
-    assert _status(good) == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
+    assert _status(good) == {"runs": PASS, "containment": NA, "promise": NA, "bound": NA, "tightness": NA,
+                             "coverage": PASS,
                              "nees": PASS, "nis": PASS, "nees_nrun": NA, "nis_nrun": PASS, "plan": PASS, "blocking": NA}
     bad = validation.validate(write_sweep(tmp_path / "bad", sc, seed=5, error_scale=2.0))
     assert bad.check("coverage").status is FAIL
