@@ -80,3 +80,22 @@ own in the physics (so that its own laser looks through it), and Bullet's groups
 whose low bits it uses itself; zone control checks each path against every other's."""
 MAX_ROBOT_TASKS = 1000
 """Most tasks one robot of a fleet drives (``[[robots]] tasks``): each is planned on its own."""
+MAX_NAME_BYTES = 255
+"""Longest component of an output path [bytes of UTF-8]: NAME_MAX of ext4, XFS, Btrfs, APFS
+and NTFS; a longer name fails only when the file is opened, after the work (``File name too
+long``), so every output name (a default ``mc-<scenario name>`` too) is checked before it."""
+MAX_PATH_BYTES = 4096
+"""Longest output path [bytes of UTF-8]: Linux's PATH_MAX, for the same reason."""
+MAX_WORLDS = 10_000
+"""Most random worlds of one ``pefsim worlds`` (``--count``): each is drawn and planned, 1-10 s
+a world, so the budget is already a day of drawing; each world is written as it is drawn."""
+MAX_MARKERS = 2000
+"""Most markers of a scenario (``[[markers]]`` and a drawing's reflectors together): the PEF
+scores the C(M, k) subsets at every point, at most 2e6 of them, and C(2000, 2) = 1 999 000 is
+the largest M that any k >= 2 allows; checked before the markers are read."""
+MAX_CANDIDATES = 20_000
+"""Most ``placement.candidates``: the cover problem is a sites x points matrix (up to 2000 free
+points, or the route points), 4e7 entries at the budget, before the LP and the search."""
+MAX_SCENARIO_BYTES = 4_000_000
+"""Largest scenario file (TOML) [bytes]: Python's TOML parser reads about 0.5 MB a second, so
+the budget is seconds; a hand-written scenario is kilobytes (floor plans come from drawings)."""

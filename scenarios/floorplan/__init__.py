@@ -14,6 +14,7 @@ from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table, show, show_path
+from scenarios.files import unreadable_because
 from scenarios.floorplan.spec import UNITS, FloorPlan, FloorPlanData, FloorPlanKind
 
 __all__ = ["FloorPlan", "FloorPlanData", "FloorPlanKind", "apply", "portable_text", "read"]
@@ -32,12 +33,8 @@ def _file(t: Table, base: Path | None) -> tuple[Path, str, FloorPlanKind]:
     kind = _SUFFIX.get(path.suffix.lower())
     if kind is None:
         t.fail(t.key("file"), "expected a DXF drawing (.dxf) or a ROS map_server YAML (.yaml)", shown)
-    try:
-        regular = path.is_file()  # a FIFO or a device is not a floor plan (reading it could block)
-    except OSError as exc:  # a name too long for the file system, ...
-        t.fail(t.key("file"), f"cannot read: {exc.strerror or exc}", shown)
-    if not regular:
-        why = "not a regular file" if path.exists() else "no such file"
+    why = unreadable_because(path)  # a FIFO or a device is not a floor plan (reading it could block)
+    if why is not None:
         t.fail(t.key("file"), f"cannot read {show_path(path)}: {why}", shown)
     return path.resolve(), shown, kind
 
@@ -171,5 +168,9 @@ def portable_text(text: str, data: dict[str, Any], base: Path | None) -> str:
     import tomli_w
 
     out = dict(data)
-    out["floorplan"] = {**fp, "file": str((base / fp["file"]).resolve())}
+    try:
+        absolute = (base / fp["file"]).resolve()
+    except (OSError, RuntimeError):  # a link loop, a name too long: the reader names the cause
+        return text
+    out["floorplan"] = {**fp, "file": str(absolute)}
     return tomli_w.dumps(out)

@@ -42,6 +42,7 @@ from sim.montecarlo.rows import (
     step_columns,
 )
 from sim.montecarlo.steps import StepsMode, steps_mode
+from sim.output_names import check_output_names
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
@@ -359,6 +360,8 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
         executors.import_ray()
     if runs is not None:
         check_runs(runs)  # before the directory is made
+    check_output_names({"--out": out} if out is not None else {"--out (default mc-<scenario name>)":
+                                                                 default_out(scenario)})
     out = Path(out) if out is not None else default_out(scenario)
     wanted = None if steps is None else steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
