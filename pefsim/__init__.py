@@ -64,8 +64,9 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
-           "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "iter_worlds", "load", "paper",
-           "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet", "sweep", "validate", "watch", "worlds"]
+           "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "iter_worlds", "load",
+           "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet", "sweep", "validate", "watch",
+           "worlds"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}

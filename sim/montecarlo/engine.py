@@ -42,8 +42,8 @@ from sim.montecarlo.rows import (
     step_columns,
 )
 from sim.montecarlo.steps import StepsMode, steps_mode
-from sim.output_names import check_output_names
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
+from sim.output_names import check_output_names
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
            "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
