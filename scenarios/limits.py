@@ -99,3 +99,9 @@ points, or the route points), 4e7 entries at the budget, before the LP and the s
 MAX_SCENARIO_BYTES = 4_000_000
 """Largest scenario file (TOML) [bytes]: Python's TOML parser reads about 0.5 MB a second, so
 the budget is seconds; a hand-written scenario is kilobytes (floor plans come from drawings)."""
+MAX_SPLINE_FIT_POINTS = 2000
+"""Most fit points of one DXF SPLINE: ezdxf interpolates them by a dense n x n solve (32 MB and
+~0.6 s at the budget; 30 000 fit points asked for 7.4 GB)."""
+MAX_FIT_POINTS = 50_000
+"""Most SPLINE fit points of a drawing in all (blocks expanded): at most 25 splines at the
+per-spline budget, ~15 s of interpolation."""

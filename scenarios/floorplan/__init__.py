@@ -112,6 +112,7 @@ def apply(data: dict[str, Any], source: str, base: Path | None) -> tuple[dict[st
     plan, found = read(t, base)
     out = dict(data)
     del out["floorplan"]
+    _check_ids(out.get("markers"), found, source, plan)
     for key, items in (("obstacles", found.obstacles), ("markers", found.markers)):
         given = out.get(key, [])
         if isinstance(given, list):  # anything else: the loader names the bad value
@@ -128,6 +129,25 @@ def apply(data: dict[str, Any], source: str, base: Path | None) -> tuple[dict[st
             ws["size"] = [round(xmax - o[0], 9), round(ymax - o[1], 9)]  # no float noise in the file
         out["workspace"] = ws
     return out, plan
+
+
+def _check_ids(given: Any, found: FloorPlanData, source: str, plan: FloorPlan) -> None:
+    """Name both sides when a hand-written marker's id is also a reflector's of the drawing.
+
+    The drawing's reflectors are appended after the ``[[markers]]`` tables, so the loader's
+    own check would name an index the file does not have.
+    """
+    if not isinstance(given, list) or not found.markers:
+        return
+    drawn = {m["id"]: m for m in found.markers}
+    for i, t in enumerate(given):
+        mid = t.get("id") if isinstance(t, dict) else None
+        if isinstance(mid, str) and mid in drawn:
+            how = ("the id generated for the drawing's reflector without an ID attribute" if mid in found.generated_ids
+                   else "the ID of the drawing's reflector")
+            raise ScenarioError(f"{source}: markers[{i}].id: expected a unique marker id, {show(mid)} is also {how} "
+                                f"at {show(drawn[mid]['position'])} in {plan.file.name} "
+                                f"(layer {show(plan.marker_layer)}): rename one")
 
 
 def _check_markers(found: FloorPlanData, source: str, plan: FloorPlan) -> None:

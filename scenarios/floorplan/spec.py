@@ -87,6 +87,8 @@ class FloorPlanData:
     simplify: float = 0.0
     images: tuple[Path, ...] = ()
     """Files read besides the one named (a ROS map's image), absolute."""
+    generated_ids: frozenset[str] = frozenset()
+    """Ids of ``markers`` the reader generated (``R1``, ... for reflectors without an ``ID``)."""
 
 
 # Unit names accepted by ``floorplan.units``, in metres per unit.
