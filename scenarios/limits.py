@@ -9,6 +9,7 @@ is: far above any real floor, far below what a machine with a few GB of memory s
 from __future__ import annotations
 
 import re
+import sys
 
 import numpy as np
 
@@ -71,6 +72,17 @@ def nesting_depth(text: str) -> int:
     return int(np.cumsum(step).max(initial=0))
 
 
+def long_integer(text: str) -> str:
+    """Describe the first integer of ``text`` too long for Python to convert (its line and digit count)."""
+    limit = sys.get_int_max_str_digits()
+    found = re.search(r"[0-9][0-9_]{%d,}" % limit, text)
+    if found is None:
+        return f"an integer of more than {limit} digits"
+    line = text.count("\n", 0, found.start()) + 1
+    digits = sum(c.isdigit() for c in found.group())
+    return f"an integer of {digits} digits (at line {line}), at most {limit}"
+
+
 MAX_HEIGHT = 20.0
 """Tallest robot (``robot.height``) and highest reflector (``[[markers]] height``) [m]: a hall's
 roof; anything higher is a unit mistake (millimetres)."""
@@ -105,3 +117,10 @@ MAX_SPLINE_FIT_POINTS = 2000
 MAX_FIT_POINTS = 50_000
 """Most SPLINE fit points of a drawing in all (blocks expanded): at most 25 splines at the
 per-spline budget, ~15 s of interpolation."""
+MAX_GRAPH_NODES = 100_000
+"""Most nodes of a route graph file (Nav2 GeoJSON, VDA LIF): each node is checked against the
+obstacles and every edge's clearance swept, seconds per 10 000; a site's graph has hundreds."""
+MAX_GRAPH_EDGES = 400_000
+"""Most edges of a route graph file (four per node on average: a grid's)."""
+MAX_GRAPH_BYTES = 50_000_000
+"""Largest route graph file [bytes]: JSON is parsed whole (about 10 times its size in memory)."""

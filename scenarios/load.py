@@ -7,7 +7,6 @@ Every error names the file, the key path and the value, on one line, e.g.
 from __future__ import annotations
 
 import math
-import re
 import tomllib
 from dataclasses import fields, replace
 from pathlib import Path
@@ -31,6 +30,7 @@ from scenarios.limits import (
     MAX_SCENARIO_BYTES,
     MIN_GRID_CELLS,
     SAMPLES_PER_FIX,
+    long_integer,
     nesting_depth,
 )
 from scenarios.obstacle_table import read_obstacle
@@ -133,19 +133,6 @@ def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scen
     portable = floorplan.portable_text(text, data, base)
     portable = portable_routes_text(portable, data if portable is text else tomllib.loads(portable), base)
     return replace(from_dict(data, source, base), text=portable)
-
-
-def long_integer(text: str) -> str:
-    """Describe the first integer of ``text`` too long for Python to convert (its line and digit count)."""
-    import sys
-
-    limit = sys.get_int_max_str_digits()
-    found = re.search(r"[0-9][0-9_]{%d,}" % limit, text)
-    if found is None:
-        return f"an integer of more than {limit} digits"
-    line = text.count("\n", 0, found.start()) + 1
-    digits = sum(c.isdigit() for c in found.group())
-    return f"an integer of {digits} digits (at line {line}), at most {limit}"
 
 
 def _sensor(t: Table, base: SensorSpec, required: bool) -> SensorSpec:

@@ -594,7 +594,7 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
         raise ScenarioError(f"{where}.obstacle_layers: expected lines, polylines, circles, arcs, hatches or "
                             f"blocks on these layers of {shown}, found none, got {show(obstacle_layers)}")
     markers = _markers(found.markers, factor, where, shown, marker_layer)
-    generated = frozenset(m["id"] for m, raw in zip(markers, found.markers) if raw[3] is None)
+    generated = frozenset(m["id"] for m, raw in zip(markers, found.markers, strict=True) if raw[3] is None)
     pts = np.array([m["position"] for m in markers], dtype=float).reshape(-1, 2)
     disks = [shapely.Point(x, y).buffer(r, quad_segs=2) for x, y, r in circles]
     extent = geometry.bounds([area, *disks], pts)
