@@ -81,7 +81,7 @@ class Kinematics:
 
 
 def mean_speed(kin: Kinematics, t0: np.ndarray, duration: float) -> np.ndarray:
-    """Mean speed over ``[t0, t0 + duration]`` (any shape) [m/s]; ``duration`` 0 (an instantaneous fix): the speed at ``t0``.
+    """Mean speed over ``[t0, t0 + duration]`` (any shape) [m/s]; ``duration`` 0: the speed at ``t0``.
 
     A fix whose ranges take no time (``sensor.measurement_time = 0``) is the limit of ever
     shorter fixes, whose mean speed tends to the speed at their start.
