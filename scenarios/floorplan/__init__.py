@@ -34,8 +34,9 @@ def _file(t: Table, base: Path | None) -> tuple[Path, str, FloorPlanKind]:
     if kind is None:
         t.fail(t.key("file"), "expected a DXF drawing (.dxf) or a ROS map_server YAML (.yaml)", shown)
     why = unreadable_because(path)  # a FIFO or a device is not a floor plan (reading it could block)
-    if why is not None:
-        t.fail(t.key("file"), f"cannot read {show_path(path)}: {why}", shown)
+    if why is not None:  # the file system's own reason (a name too long) is said without the path
+        t.fail(t.key("file"), f"cannot read {show_path(path)}: {why}" if why[0].islower() else f"cannot read: {why}",
+               shown)
     return path.resolve(), shown, kind
 
 
