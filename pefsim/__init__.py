@@ -353,12 +353,12 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
     asked = {k: Path(v) for k, v in asked.items() if v is not None}
     if not asked:
         raise OutputError("export: give at least one of --routes, --markers, --dxf, --lif, --keepout")
-    keepout_pgm = {"--keepout (its image)": asked["keepout"].with_suffix(".pgm")} if "keepout" in asked else {}
-    _check_outputs(named={**{f"--{k}": v for k, v in asked.items()}, **keepout_pgm})
     for name, path in asked.items():
         if path.suffix.lower() not in EXPORT_FORMATS[name]:
             raise OutputError(f"{path}: --{name}: expected a {' or '.join(EXPORT_FORMATS[name])} file, got "
                               f"{path.suffix or 'no extension'!r}")
+    keepout_pgm = {"--keepout (its image)": asked["keepout"].with_suffix(".pgm")} if "keepout" in asked else {}
+    _check_outputs(named={**{f"--{k}": v for k, v in asked.items()}, **keepout_pgm})
     sc = _scenario(scenario)
     for name in ("routes", "lif"):
         if name in asked and sc.routes is None:
