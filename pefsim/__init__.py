@@ -33,7 +33,7 @@ from scenarios import PefsimError, Scenario
 
 if TYPE_CHECKING:
     import threading
-    from collections.abc import Callable
+    from collections.abc import Callable, Iterator
 
     from planner.pef.result import PefMap
     from planner.placement.placement import PlacementResult as Placement
@@ -64,8 +64,9 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
-           "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "load", "paper",
-           "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet", "sweep", "validate", "watch", "worlds"]
+           "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "iter_worlds", "load",
+           "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet", "sweep", "validate", "watch",
+           "worlds"]
 
 EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
                   "keepout": (".yaml", ".yml")}
@@ -142,7 +143,7 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     from planner.pef.map import PEF
 
     sc = _scenario(scenario)
-    _check_outputs(figure=out, rrd=rrd)
+    _check_outputs(figure=out, rrd=rrd, named={"--output": out, "--npz": npz, "--rrd": rrd})
     pef = PEF(sc, model=model)
     if speed is not None:
         from planner.schedule.promise import moving_map
@@ -201,7 +202,7 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         from scenarios import PlanningError
 
         raise PlanningError("plan: give both start and goal, or neither (then a task is planned)")
-    _check_outputs(figure=out, rrd=rrd)
+    _check_outputs(figure=out, rrd=rrd, named={"--output": out, "--rrd": rrd})
     pef = PEF(sc)
     if start is not None:
         result = plan_route(sc, start, goal, free=free, pef=pef)
@@ -294,6 +295,7 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     for path, suffix, what in ((out, ".toml", "out (-o)"), (png, ".png", "png (--png)")):
         if path is not None and Path(path).suffix.lower() != suffix:
             raise OutputError(f"{path}: {what}: expected a {suffix} file, got {Path(path).suffix or 'no extension'!r}")
+    _check_outputs(named={"--output": out, "--png": png})
     sc = _scenario(scenario)
     if plannable:
         from planner.placement.plannable import place_plannable
@@ -355,6 +357,8 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
         if path.suffix.lower() not in EXPORT_FORMATS[name]:
             raise OutputError(f"{path}: --{name}: expected a {' or '.join(EXPORT_FORMATS[name])} file, got "
                               f"{path.suffix or 'no extension'!r}")
+    keepout_pgm = {"--keepout (its image)": asked["keepout"].with_suffix(".pgm")} if "keepout" in asked else {}
+    _check_outputs(named={**{f"--{k}": v for k, v in asked.items()}, **keepout_pgm})
     sc = _scenario(scenario)
     for name in ("routes", "lif"):
         if name in asked and sc.routes is None:
@@ -432,7 +436,7 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
     seed = sc.seed if seed is None else seed
     if seed < 0:
         raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
-    _check_outputs(rrd=rrd, folder=tum)
+    _check_outputs(rrd=rrd, folder=tum, named={"--rrd": rrd, "--tum": tum})
     prepared = prepare(sc, task)
     result = _run(sc, task, seed=seed, prepared=prepared)
     if tum is not None:
@@ -698,8 +702,15 @@ def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str 
 
 
 def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None = None,
-                   folder: str | Path | None = None) -> None:
-    """Refuse, before any work, an output that cannot be written: one line naming the path."""
+                   folder: str | Path | None = None, named: dict[str, str | Path | None] | None = None) -> None:
+    """Refuse, before any work, an output that cannot be written: one line naming the path.
+
+    ``named`` maps each output's option to its path: names too long for the file system and
+    two outputs at one path are refused (:func:`sim.output_names.check_output_names`).
+    """
+    from sim.output_names import check_output_names
+
+    check_output_names(named if named is not None else {"--output": figure, "--rrd": rrd, "--tum": folder})
     if figure is not None:
         from sim.report.figure_format import figure_format
 
@@ -725,7 +736,7 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
     Parameters
     ----------
     count : int
-        Number of worlds (>= 1).
+        Number of worlds (1 .. :data:`scenarios.limits.MAX_WORLDS`).
     seed : int
         Root seed (>= 0).
     out : str or path, optional
@@ -748,16 +759,32 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
     list of planner.worlds.PlannedWorld
         Each with ``name``, ``text`` (the TOML with its header comment), ``scenario``,
         ``attempts`` and ``summary``; with ``out``, ``path`` is where it was written.
+        :func:`iter_worlds` yields them one at a time instead, each written as it is drawn.
     """
-    from dataclasses import replace
+    return list(iter_worlds(count, seed=seed, out=out, first=first, max_size=max_size, bounded=bounded,
+                            workers=workers))
 
+
+def iter_worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0,
+                max_size: float | None = None, bounded: bool = False, workers: int = 1) -> Iterator:
+    """Yield the worlds of :func:`worlds` in order, each written into ``out`` as soon as it is drawn.
+
+    The arguments are checked and ``out`` is made when this is called, before any world is
+    drawn; memory does not grow with ``count``, and an interrupted run keeps the worlds written.
+    Parameters and the worlds yielded: :func:`worlds`.
+    """
     from planner.worlds import Drawing
     from scenarios import ScenarioError
     from scenarios.errors import output_errors
+    from scenarios.limits import MAX_WORLDS
     from scenarios.worlds import SMALLEST_MAX_SIZE
+    from sim.output_names import check_output_names
 
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise ScenarioError(f"count: expected a whole number of worlds >= 1, got {count!r}")
+    if count > MAX_WORLDS:
+        raise ScenarioError(f"count: expected at most {MAX_WORLDS} worlds (each is drawn and planned, seconds "
+                            f"a world), got {count}")
     for key, value in (("seed", seed), ("first", first)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ScenarioError(f"{key}: expected a whole number >= 0, got {value!r}")
@@ -768,28 +795,46 @@ def worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: i
         raise ScenarioError(f"workers: expected a whole number >= 1, got {workers!r}")
     knobs = {"max_size": None if max_size is None else float(max_size), "bounded": bool(bounded)}
     indices = range(first, first + count)
+    drawn = _draw_worlds(Drawing(seed, **knobs), indices, workers)
     if out is None:
-        return _draw_worlds(Drawing(seed, **knobs), indices, workers)
+        return drawn
+    check_output_names({"--out": out})
     folder = Path(out)
     with output_errors(folder, "create the output directory"):  # before the drawing, which takes seconds a world
         folder.mkdir(parents=True, exist_ok=True)
-    drawn = _draw_worlds(Drawing(seed, **knobs), indices, workers)
-    written = []
+    return _write_worlds(drawn, folder)
+
+
+def _write_worlds(drawn: Iterator, folder: Path) -> Iterator:
+    """Write each world of ``drawn`` into ``folder`` as it comes, and yield it with its ``path``."""
+    from dataclasses import replace
+
+    from scenarios.errors import output_errors
+
     for w in drawn:
         path = folder / f"{w.name}.toml"
         with output_errors(path, "write the world"):
             path.write_text(w.text, encoding="utf-8")
-        written.append(replace(w, path=path))
-    return written
+        yield replace(w, path=path)
 
 
-def _draw_worlds(drawing, indices: range, workers: int) -> list:
-    """Return the worlds of ``indices`` in order, drawn here (1 worker) or on a local process pool."""
+def _draw_worlds(drawing, indices: range, workers: int) -> Iterator:
+    """Yield the worlds of ``indices`` in order, drawn here (1 worker) or on a local process pool.
+
+    The pool's records arrive as they finish; those ahead of the next index wait (about one per
+    worker), so memory does not grow with the count.
+    """
     from planner.worlds import plannable_world
     from sim.montecarlo.executors import ExecutorKind, execute
 
     if workers == 1 or len(indices) == 1:
-        return [plannable_world(drawing.seed, i, max_size=drawing.max_size, bounded=drawing.bounded)
-                for i in indices]
-    records = execute(ExecutorKind.LOCAL, drawing, None, list(indices), min(workers, len(indices)))
-    return [drawing.world(r) for r in sorted(records)]
+        for i in indices:
+            yield plannable_world(drawing.seed, i, max_size=drawing.max_size, bounded=drawing.bounded)
+        return
+    ahead: dict[int, tuple] = {}
+    following = indices.start
+    for record in execute(ExecutorKind.LOCAL, drawing, None, list(indices), min(workers, len(indices))):
+        ahead[record[0]] = record
+        while following in ahead:
+            yield drawing.world(ahead.pop(following))
+            following += 1

@@ -128,6 +128,9 @@ class Table:
         v = self.raw(name, default)
         if isinstance(v, bool) or not isinstance(v, int):
             self.fail(self.key(name), "expected an integer", v)
+        bound = MAX_NUMBER if high is None else max(high, MAX_NUMBER)  # a key may allow more (a seed)
+        if abs(v) > bound:
+            self.fail(self.key(name), f"expected an integer of magnitude at most {bound:.3g}", v)
         if low is not None and v < low:
             self.fail(self.key(name), f"expected an integer >= {low}", v)
         if high is not None and v > high:

@@ -9,6 +9,7 @@ is: far above any real floor, far below what a machine with a few GB of memory s
 from __future__ import annotations
 
 import re
+import sys
 
 import numpy as np
 
@@ -71,6 +72,17 @@ def nesting_depth(text: str) -> int:
     return int(np.cumsum(step).max(initial=0))
 
 
+def long_integer(text: str) -> str:
+    """Describe the first integer of ``text`` too long for Python to convert (its line and digit count)."""
+    limit = sys.get_int_max_str_digits()
+    found = re.search(r"[0-9][0-9_]{%d,}" % limit, text)
+    if found is None:
+        return f"an integer of more than {limit} digits"
+    line = text.count("\n", 0, found.start()) + 1
+    digits = sum(c.isdigit() for c in found.group())
+    return f"an integer of {digits} digits (at line {line}), at most {limit}"
+
+
 MAX_HEIGHT = 20.0
 """Tallest robot (``robot.height``) and highest reflector (``[[markers]] height``) [m]: a hall's
 roof; anything higher is a unit mistake (millimetres)."""
@@ -80,3 +92,35 @@ own in the physics (so that its own laser looks through it), and Bullet's groups
 whose low bits it uses itself; zone control checks each path against every other's."""
 MAX_ROBOT_TASKS = 1000
 """Most tasks one robot of a fleet drives (``[[robots]] tasks``): each is planned on its own."""
+MAX_NAME_BYTES = 255
+"""Longest component of an output path [bytes of UTF-8]: NAME_MAX of ext4, XFS, Btrfs, APFS
+and NTFS; a longer name fails only when the file is opened, after the work (``File name too
+long``), so every output name (a default ``mc-<scenario name>`` too) is checked before it."""
+MAX_PATH_BYTES = 4096
+"""Longest output path [bytes of UTF-8]: Linux's PATH_MAX, for the same reason."""
+MAX_WORLDS = 10_000
+"""Most random worlds of one ``pefsim worlds`` (``--count``): each is drawn and planned, 1-10 s
+a world, so the budget is already a day of drawing; each world is written as it is drawn."""
+MAX_MARKERS = 2000
+"""Most markers of a scenario (``[[markers]]`` and a drawing's reflectors together): the PEF
+scores the C(M, k) subsets at every point, at most 2e6 of them, and C(2000, 2) = 1 999 000 is
+the largest M that any k >= 2 allows; checked before the markers are read."""
+MAX_CANDIDATES = 20_000
+"""Most ``placement.candidates``: the cover problem is a sites x points matrix (up to 2000 free
+points, or the route points), 4e7 entries at the budget, before the LP and the search."""
+MAX_SCENARIO_BYTES = 4_000_000
+"""Largest scenario file (TOML) [bytes]: Python's TOML parser reads about 0.5 MB a second, so
+the budget is seconds; a hand-written scenario is kilobytes (floor plans come from drawings)."""
+MAX_SPLINE_FIT_POINTS = 2000
+"""Most fit points of one DXF SPLINE: ezdxf interpolates them by a dense n x n solve (32 MB and
+~0.6 s at the budget; 30 000 fit points asked for 7.4 GB)."""
+MAX_FIT_POINTS = 50_000
+"""Most SPLINE fit points of a drawing in all (blocks expanded): at most 25 splines at the
+per-spline budget, ~15 s of interpolation."""
+MAX_GRAPH_NODES = 100_000
+"""Most nodes of a route graph file (Nav2 GeoJSON, VDA LIF): each node is checked against the
+obstacles and every edge's clearance swept, seconds per 10 000; a site's graph has hundreds."""
+MAX_GRAPH_EDGES = 400_000
+"""Most edges of a route graph file (four per node on average: a grid's)."""
+MAX_GRAPH_BYTES = 50_000_000
+"""Largest route graph file [bytes]: JSON is parsed whole (about 10 times its size in memory)."""

@@ -15,17 +15,22 @@ from typing import Any
 from scenarios import floorplan
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table, show_path
+from scenarios.files import unreadable_because
 from scenarios.limits import (
+    MAX_CANDIDATES,
     MAX_GRID_CELLS,
     MAX_HEIGHT,
+    MAX_MARKERS,
     MAX_NESTING,
     MAX_PATH_SAMPLES,
     MAX_PEF_PASSES,
     MAX_ROBOT_TASKS,
     MAX_ROBOTS,
     MAX_RUNS,
+    MAX_SCENARIO_BYTES,
     MIN_GRID_CELLS,
     SAMPLES_PER_FIX,
+    long_integer,
     nesting_depth,
 )
 from scenarios.obstacle_table import read_obstacle
@@ -61,6 +66,9 @@ MAX_MARKERS_PER_FIX = 8
 """Largest k: the PEF scores every k-subset of the markers, C(M, k) of them."""
 MIN_SPACING = 0.01
 """Smallest placement.spacing [m]: finer sampling only multiplies the candidate sites."""
+MAX_SEED = 2**63 - 1
+"""Largest ``seed``: a signed 64-bit integer, which every table and tool downstream keeps exactly
+(``pefsim worlds`` draws seeds below 2**31)."""
 CRITERIA = tuple(f.name for f in fields(Weights))
 
 
@@ -72,13 +80,14 @@ def builtin_names() -> list[str]:
 def resolve(name_or_path: str | Path) -> Path:
     """Return the path of a scenario given as a path or a built-in name."""
     p = Path(name_or_path)
-    try:
-        if p.suffix == ".toml" or p.exists():
-            if not p.is_file():
-                raise ScenarioError(f"{p}: no such scenario file")
-            return p
-    except OSError as exc:  # a name too long for the file system, a path through a file, ...
-        raise ScenarioError(f"{show_path(p)}: cannot read: {exc.strerror or exc}") from None
+    why = unreadable_because(p)
+    if why is None:
+        return p
+    if p.suffix == ".toml" or why != "no such file":  # a path, not a built-in name
+        if why == "no such file":
+            why = "no such scenario file"
+        raise ScenarioError(f"{show_path(p)}: cannot read: {why}" if why != "no such scenario file"
+                            else f"{show_path(p)}: {why}")
     candidate = LIBRARY / f"{name_or_path}.toml"
     if candidate.is_file():
         return candidate
@@ -90,6 +99,9 @@ def load(name_or_path: str | Path) -> Scenario:
     """Load and validate a scenario from a path or a built-in name."""
     path = resolve(name_or_path)
     try:
+        size = path.stat().st_size
+        if size > MAX_SCENARIO_BYTES:  # parsing takes seconds a megabyte: refused before it is read
+            raise ScenarioError(f"{show_path(path)}: a scenario of {size} bytes, at most {MAX_SCENARIO_BYTES:.0e}")
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
@@ -106,6 +118,7 @@ def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scen
     current directory); ``Scenario.text`` names them absolutely, since it is stored beside
     results and loaded again from there.
     """
+    text = text.removeprefix("\ufeff")  # a byte-order mark is legal at the start of UTF-8 text (Windows editors)
     depth = nesting_depth(text)
     if depth > MAX_NESTING:  # tomllib recurses per level: refused before it parses
         raise ScenarioError(f"{source}: arrays and tables nested {depth} deep, at most {MAX_NESTING}")
@@ -113,6 +126,8 @@ def loads(text: str, source: str = "<string>", base: Path | None = None) -> Scen
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
+    except ValueError:  # Python's int-string limit (4300 digits): no number of a scenario is that long
+        raise ScenarioError(f"{source}: malformed TOML: {long_integer(text)}") from None
     # Scenario.text names relative files (floor plan, route graph) absolutely: it is stored beside
     # results and loaded again from there.
     portable = floorplan.portable_text(text, data, base)
@@ -287,7 +302,9 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
     data, plan = floorplan.apply(data, source, base)  # [floorplan] -> obstacles, markers, workspace
     root = Table(data, source)
     name = root.string("name")
-    seed = root.integer("seed", 0, low=0)
+    if not name.strip():
+        root.fail(root.key("name"), "expected a non-empty name", name)
+    seed = root.integer("seed", 0, low=0, high=MAX_SEED)
     description = root.string("description", "")
 
     ws_t = root.table("workspace")
@@ -312,13 +329,20 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
             if ob.contains(p, margin=-1e-6):
                 t.fail(t.key(key), f"expected {what} outside unknown areas (inside unknown[{j}])", list(value))
 
-    markers = []
-    for t in root.array_of_tables("markers"):
+    markers: list[Marker] = []
+    marker_tables = root.array_of_tables("markers")
+    if len(marker_tables) > MAX_MARKERS:  # before the tables are read: C(M, k) subsets would follow
+        drawn = f" (with the reflectors of {plan.file.name})" if plan is not None else ""
+        root.fail(root.key("markers"), f"expected at most {MAX_MARKERS} markers (the PEF scores C(M, k) subsets, "
+                  f"at most 2e6){drawn}", len(marker_tables))
+    ids: set[str] = set()
+    for t in marker_tables:
         mid = t.string("id")
         pos = t.vector("position", 2, what="[x, y]")
         free_point(t, "position", pos, "[x, y]")
-        if any(m.id == mid for m in markers):
+        if mid in ids:
             t.fail(t.key("id"), "expected a unique marker id", mid)
+        ids.add(mid)
         facing = t.number("facing_deg", None) if t.has("facing_deg") else None
         kind = MarkerKind(t.string("kind", MarkerKind.POST.value, choices=tuple(k.value for k in MarkerKind)))
         if kind is MarkerKind.FLAT and facing is None:
@@ -406,7 +430,10 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
 
     pl_t = root.table("placement", {})
     cands = []
-    for i, c in enumerate(pl_t.raw("candidates", [])):
+    raw_cands = pl_t.raw("candidates", [])
+    if isinstance(raw_cands, list) and len(raw_cands) > MAX_CANDIDATES:
+        pl_t.fail(pl_t.key("candidates"), f"expected at most {MAX_CANDIDATES} candidate sites", len(raw_cands))
+    for i, c in enumerate(raw_cands):
         key = f"{pl_t.key('candidates')}[{i}]"
         p = pl_t.check_vector(key, c, 2, what="[x, y]")
         if not workspace.contains(p):

@@ -517,3 +517,454 @@ def test_random_route_graphs_keep_the_contract(tmp_path, text):
     (tmp_path / "s.toml").write_text(graph_toml())
     line = holds(*run(["map", str(tmp_path / "s.toml")]))
     event(line.split(": ")[-2][:40] if line else "exit 0")  # --hypothesis-show-statistics
+
+
+# =========================================================================== second round (issue 46)
+#
+# By class of defect: each test draws its inputs (hypothesis, few examples) and holds the same
+# contract; the sizes are drawn just over each budget, so a budget that moved or a check that
+# ran after the work would show.
+
+from scenarios.limits import (  # noqa: E402
+    MAX_CANDIDATES,
+    MAX_FIT_POINTS,
+    MAX_GRAPH_NODES,
+    MAX_MARKERS,
+    MAX_NAME_BYTES,
+    MAX_SCENARIO_BYTES,
+    MAX_SPLINE_FIT_POINTS,
+    MAX_WORLDS,
+)
+
+
+def mini(**parts: str) -> str:
+    return MINI.format(**{"planning": "", "robot": "", "routes": "", "extra": "", **parts})
+
+
+def run_warned(argv: list[str]) -> tuple[int, str, list[str]]:
+    """Run ``pefsim ARGV`` in-process; return the exit code, stderr without warnings, and pefsim's warnings.
+
+    The CLI prints pefsim's own warnings as ``pefsim: warning: ...`` lines (each must be one
+    line); any other warning fails.
+    """
+    from scenarios.errors import ScenarioWarning
+
+    out, err = io.StringIO(), io.StringIO()
+    with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(out), \
+            contextlib.redirect_stderr(err):
+        warnings.simplefilter("always")
+        code = main(argv)
+    others = [w for w in caught if not issubclass(w.category, ScenarioWarning)]
+    assert not others, [f"{w.category.__name__}: {w.message} ({w.filename}:{w.lineno})" for w in others]
+    lines = [str(w.message) for w in caught]
+    assert all("\n" not in line for line in lines), lines  # each warning is one line
+    printed = [ln for ln in err.getvalue().splitlines() if ln.startswith("pefsim: warning: ")]
+    rest = "".join(ln + "\n" for ln in err.getvalue().splitlines() if not ln.startswith("pefsim: warning: "))
+    return code, rest, lines + [ln.removeprefix("pefsim: warning: ") for ln in printed]
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Make every PEF fail loudly: a refusal must come before the work."""
+    from planner.pef import map as pef_map
+
+    def boom(*_a, **_k):
+        raise AssertionError("the work started before the input was refused")
+
+    monkeypatch.setattr(pef_map.PEF, "__init__", boom)
+
+
+# --- class 1: tracebacks (long integers, link loops, huge splines, long output names) -------------
+
+@profile(6)
+@given(digits=st.integers(4301, 6000), where=st.sampled_from(["seed", "position", "size"]))
+def test_an_integer_too_long_for_python_is_one_line(tmp_path, digits, where):
+    big = "7" * digits
+    text = {"seed": mini().replace('name = "mini"', f'name = "mini"\nseed = {big}'),
+            "position": mini().replace("position = [0.0, 0.0]", f"position = [{big}, 0.0]"),
+            "size": mini().replace("size = [10.0, 10.0]", f"size = [{big}, 10.0]")}[where]
+    refused(tmp_path, text, f"an integer of {digits} digits", "s.toml")
+
+
+@profile(6)
+@given(digits=st.integers(4301, 6000), kind=st.sampled_from(["nav2", "lif"]))
+def test_a_route_graph_integer_too_long_is_one_line(tmp_path, digits, kind):
+    doc = (nav2([(0, [1.0, 123456789]), (1, [9.0, 9.0])], [(0, 1)]) if kind == "nav2" else
+           {"layouts": [{"layoutId": "L", "nodes": [{"nodeId": "a", "nodePosition": {"x": 123456789, "y": 1}}],
+                         "edges": []}]})
+    (tmp_path / "g.json").write_text(json.dumps(doc).replace("123456789", "9" * digits))
+    refused(tmp_path, graph_toml(), "g.json", f"an integer of {digits} digits")
+
+
+@pytest.mark.parametrize("what", ["scenario", "drawing", "route graph", "map yaml"])
+def test_a_symbolic_link_loop_is_named_as_one(tmp_path, what):
+    names = {"scenario": "s.toml", "drawing": "f.dxf", "route graph": "g.json", "map yaml": "m.yaml"}
+    os.symlink(names[what], tmp_path / names[what])  # a link to itself
+    if what == "scenario":
+        line = holds(*run(["map", str(tmp_path / "s.toml")]))
+    else:
+        text = {"drawing": drawing_toml(), "route graph": graph_toml(), "map yaml": map_toml()}[what]
+        line = refused(tmp_path, text)
+    assert "symbolic link loop" in line and names[what] in line, line
+
+
+@pytest.mark.parametrize("path,cause", [("/dev/zero", "character device"), (".", "directory"),
+                                        ("fifo.toml", "FIFO")])
+def test_a_scenario_that_is_no_regular_file_is_named_for_what_it_is(tmp_path, monkeypatch, path, cause):
+    monkeypatch.chdir(tmp_path)
+    if path == "fifo.toml":
+        os.mkfifo(tmp_path / path)
+    line = holds(*run(["map", path]))
+    assert cause in line and "no such" not in line, line
+
+
+@profile(4)
+@given(n=st.integers(MAX_SPLINE_FIT_POINTS + 1, MAX_SPLINE_FIT_POINTS + 3000))
+def test_a_spline_over_its_fit_point_budget_is_refused_before_interpolation(tmp_path, n):
+    doc = walled()
+    doc.modelspace().add_spline(fit_points=[(1 + 8 * i / n, 5 + 0.01 * (i % 2)) for i in range(n)],
+                                dxfattribs={"layer": "W"})
+    doc.saveas(tmp_path / "f.dxf")
+    refused(tmp_path, drawing_toml(), "SPLINE #", f"at most {MAX_SPLINE_FIT_POINTS} fit points", f"found {n}")
+
+
+def test_splines_over_the_drawings_fit_point_budget_are_refused(tmp_path):
+    doc = walled()
+    b = doc.blocks.new("S")
+    b.add_spline(fit_points=[(i / 500, 0.01 * (i % 2)) for i in range(500)], dxfattribs={"layer": "0"})
+    doc.modelspace().add_blockref("S", (1, 5), dxfattribs={"layer": "W"}).grid(
+        size=(MAX_FIT_POINTS // 500 + 1, 1), spacing=(0.001, 1.0))
+    doc.saveas(tmp_path / "f.dxf")
+    refused(tmp_path, drawing_toml(), f"at most {MAX_FIT_POINTS} spline fit points in the drawing")
+
+
+def test_a_30000_point_spline_under_an_8_gb_cap(tmp_path):
+    doc = walled()
+    doc.modelspace().add_spline(fit_points=[(1 + i * 2.5e-4, 5 + 0.01 * (i % 2)) for i in range(30_000)],
+                                dxfattribs={"layer": "W"})
+    doc.saveas(tmp_path / "f.dxf")
+    (tmp_path / "s.toml").write_text(drawing_toml())
+    p = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path / "s.toml")], capture_output=True, text=True,
+                       timeout=60)
+    assert "fit points" in holds(p.returncode, p.stderr)
+
+
+@profile(5)
+@given(extra=st.integers(1, 200), command=st.sampled_from(["map", "plan", "mc"]))
+def test_an_output_name_too_long_is_refused_before_the_work(tmp_path_factory, no_work, extra, command):
+    folder = tmp_path_factory.mktemp("out")
+    (folder / "s.toml").write_text(mini())
+    name = "x" * (MAX_NAME_BYTES + extra)
+    if command == "mc":  # the default folder mc-<scenario name>
+        (folder / "s.toml").write_text(mini().replace('name = "mini"', f'name = "{name}"'))
+        argv = ["mc", str(folder / "s.toml"), "--runs", "1", "--workers", "1"]
+    else:
+        argv = [command, str(folder / "s.toml"), "-o", str(folder / f"{name}.png")]
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        line = holds(*run(argv))
+    finally:
+        os.chdir(cwd)
+    assert "file name too long" in line and f"at most {MAX_NAME_BYTES}" in line, line
+    assert sorted(p.name for p in folder.iterdir()) == ["s.toml"]  # nothing made
+
+
+# --- class 2: a library warning (measurement_time = 0) --------------------------------------------
+
+@profile(20)
+@given(v=st.lists(st.floats(0.05, 2.0), min_size=2, max_size=6), ds=st.lists(st.floats(0.1, 5.0), min_size=5,
+                                                                              max_size=5),
+       frac=st.floats(0.0, 1.2))
+def test_an_instantaneous_fix_has_the_speed_where_it_is_taken(v, ds, frac):
+    """``mean_speed(..., 0)`` is the limit of ever shorter fixes: the mean speed of a 1e-6 s fix.
+
+    Bound: the acceleration between vertices is at most (2 m/s)^2 / (2 * 0.1 m) = 20 m/s^2, so
+    over d = 1e-6 s the mean speed differs from the speed at the start by at most 20 d / 2 =
+    1e-5 m/s; rounding of s (<= 25 m, two ulps of 3.6e-15 m) adds at most 7.2e-15 / d < 1e-8 m/s.
+    """
+    from planner.schedule.pathtime import Kinematics, mean_speed
+
+    s_v = np.concatenate([[0.0], np.cumsum(ds[: len(v) - 1])])
+    kin = Kinematics(s_v, np.array(v))
+    t = np.array([frac * kin.t_v[-1]])
+    at = mean_speed(kin, t, 0.0)
+    assert np.isfinite(at).all()
+    if t[0] + 1e-6 < kin.t_v[-1]:
+        assert abs(at[0] - mean_speed(kin, t, 1e-6)[0]) <= 1e-5 + 1e-8
+    else:
+        assert at[0] == 0.0  # the path is done
+
+
+def test_measurement_time_zero_plans_without_nan_or_warnings():
+    """An instantaneous fix plans: finite speeds everywhere, no numpy warning (run with every warning an error)."""
+    import pefsim
+    from scenarios import loads
+
+    text = (Path(__file__).resolve().parents[1] / "scenarios" / "library" / "paper-docks.toml").read_text()
+    assert "measurement_time = 0.02" in text
+    sc = loads(text.replace("measurement_time = 0.02", "measurement_time = 0.0"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plan = pefsim.plan(sc)
+    assert np.isfinite(plan.speed).all() and plan.schedule
+    assert all(math.isfinite(f.speed) for f in plan.schedule.fixes)
+
+
+# --- class 3: sizes with no budget ----------------------------------------------------------------
+
+@profile(3)
+@given(over=st.integers(1, 50))
+def test_markers_over_budget_are_refused_before_they_are_read(tmp_path, over):
+    n = MAX_MARKERS + over
+    markers = "".join(f'[[markers]]\nid = "m{i}"\nposition = [{(i % 90) * 0.1:.1f}, {i // 90 * 0.001:.3f}]\n'
+                      for i in range(n))
+    refused(tmp_path, mini(extra=markers), "markers:", f"at most {MAX_MARKERS} markers", f"got {n + 2}")
+
+
+@profile(3)
+@given(over=st.integers(1, 1000))
+def test_placement_candidates_over_budget_are_refused(tmp_path, over):
+    n = MAX_CANDIDATES + over
+    refused(tmp_path, mini(extra="[placement]\ncandidates = [" + ", ".join(["[1.0, 1.0]"] * n) + "]\n"),
+            "placement.candidates", f"at most {MAX_CANDIDATES}", f"got {n}")
+
+
+def test_a_scenario_file_over_budget_is_refused_before_it_is_parsed(tmp_path):
+    text = mini() + "# " + "x" * MAX_SCENARIO_BYTES + "\n"
+    refused(tmp_path, text, "s.toml", f"at most {MAX_SCENARIO_BYTES:.0e}")
+
+
+@profile(2)
+@given(kind=st.sampled_from(["nav2", "lif"]), over=st.integers(1, 100))
+def test_a_route_graph_over_its_node_budget_is_refused(tmp_path, kind, over):
+    n = MAX_GRAPH_NODES + over
+    if kind == "nav2":
+        node = '{"type":"Feature","geometry":{"type":"Point","coordinates":[1,1]},"properties":{"id":%d}}'
+        text = '{"type":"FeatureCollection","features":[' + ",".join(node % i for i in range(n)) + "]}"
+    else:
+        node = '{"nodeId":"%d","nodePosition":{"x":1,"y":1}}'
+        text = '{"layouts":[{"layoutId":"L","nodes":[' + ",".join(node % i for i in range(n)) + '],"edges":[]}]}'
+    (tmp_path / "g.json").write_text(text)
+    refused(tmp_path, graph_toml(), "g.json", f"a route graph of {n} nodes", f"at most {MAX_GRAPH_NODES}")
+
+
+@profile(5)
+@given(exponent=st.integers(-320, -6))
+def test_a_map_resolution_over_the_cell_budget_is_refused_before_allocation(tmp_path, exponent):
+    (tmp_path / "s.toml").write_text(mini())
+    line = holds(*run(["map", str(tmp_path / "s.toml"), "--resolution", f"1e{exponent}"]))
+    assert "resolution" in line and "cells (at most" in line, line
+
+
+def test_a_map_resolution_of_1e_7_under_a_small_memory_cap(tmp_path):
+    """1e-7 m used to allocate 1.2 GB of cell centres before refusing: now refused under a 1 GB cap."""
+    (tmp_path / "s.toml").write_text(mini())
+    child = CHILD.replace("8_000_000_000", "1_000_000_000").replace('["map", sys.argv[1]]',
+                                                                        '["map", sys.argv[1], "--resolution", "1e-7"]')
+    p = subprocess.run([sys.executable, "-c", child, str(tmp_path / "s.toml")], capture_output=True, text=True,
+                       timeout=60)
+    assert "cells (at most" in holds(p.returncode, p.stderr)
+
+
+def test_worlds_count_over_budget_is_refused_before_anything_is_made(tmp_path):
+    line = holds(*run(["worlds", "--count", str(MAX_WORLDS + 1), "--out", str(tmp_path / "w")]))
+    assert f"at most {MAX_WORLDS} worlds" in line and not (tmp_path / "w").exists()
+
+
+def test_worlds_are_written_as_they_are_drawn(tmp_path, monkeypatch):
+    """A run stopped at world 2 keeps worlds 0 and 1 on disk (they used to be written only at the end)."""
+    import pefsim
+    from planner import worlds as planner_worlds
+    from planner.worlds import PlannedWorld
+
+    def fake(seed, index, **_k):
+        if index == 2:
+            assert (tmp_path / "w" / "random-0-1.toml").exists()  # written before the next is drawn
+            raise KeyboardInterrupt
+        return PlannedWorld(name=f"random-0-{index}", text=f"# world {index}\n", scenario=None, attempts=1,
+                            summary=("drawn",))
+
+    monkeypatch.setattr(planner_worlds, "plannable_world", fake)
+    with pytest.raises(KeyboardInterrupt):
+        pefsim.worlds(5, out=tmp_path / "w")
+    assert sorted(p.name for p in (tmp_path / "w").iterdir()) == ["random-0-0.toml", "random-0-1.toml"]
+
+
+# --- class 4: geometry dropped in silence ---------------------------------------------------------
+
+def open_room() -> ezdxf.document.Drawing:
+    """Return a 20 x 20 m room drawn as four wall lines on layer W (its inside is free)."""
+    doc = ezdxf.new("R2018")
+    doc.layers.add("W")
+    msp = doc.modelspace()
+    for a, b in (((0, 0), (20, 0)), ((20, 0), (20, 20)), ((20, 20), (0, 20)), ((0, 20), (0, 0))):
+        msp.add_line(a, b, dxfattribs={"layer": "W"})
+    return doc
+
+
+def obstacle_area(tmp_path) -> "shapely.Geometry":  # noqa: F821
+    import shapely
+
+    from scenarios.floorplan.dxf import read_dxf
+
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        found = read_dxf(tmp_path / "f.dxf", obstacle_layers=["W"], units="m", simplify=0.0)
+    return shapely.union_all([shapely.Polygon(o["polygon"], o.get("holes", [])) if "polygon" in o
+                              else shapely.Point(o["center"]).buffer(o["radius"]) for o in found.obstacles])
+
+
+BOX = st.tuples(st.floats(3.0, 15.0), st.floats(3.0, 15.0), st.floats(0.3, 2.0), st.floats(0.3, 2.0))
+
+
+@profile(8)
+@given(box=BOX, z=st.floats(-5.0, 5.0), kind=st.sampled_from(["3dface", "polyface", "polymesh"]))
+def test_faces_and_meshes_are_read_as_their_footprint(tmp_path, box, z, kind):
+    import shapely
+
+    x, y, w, h = box
+    corners = [(x, y, z), (x + w, y, z), (x + w, y + h, z + 1.0), (x, y + h, z + 1.0)]
+    doc = open_room()
+    msp = doc.modelspace()
+    if kind == "3dface":
+        msp.add_3dface(corners, dxfattribs={"layer": "W"})
+    elif kind == "polyface":
+        pf = msp.add_polyface(dxfattribs={"layer": "W"})
+        pf.append_face(corners)
+    else:
+        pm = msp.add_polymesh((2, 2), dxfattribs={"layer": "W"})
+        for (i, j), p in zip([(0, 0), (1, 0), (1, 1), (0, 1)], corners, strict=True):
+            pm.set_mesh_vertex((i, j), p)
+    doc.saveas(tmp_path / "f.dxf")
+    footprint = shapely.box(x, y, x + w, y + h)
+    assert obstacle_area(tmp_path).intersection(footprint).area == pytest.approx(footprint.area, rel=1e-6)
+    (tmp_path / "s.toml").write_text(drawing_toml())
+    code, err, said = run_warned(["map", str(tmp_path / "s.toml")])
+    assert holds(code, err) == "" and said == []
+
+
+@profile(8)
+@given(widths=st.lists(st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)), min_size=3, max_size=3))
+def test_an_open_polyline_with_widths_is_a_wall_of_its_largest_width(tmp_path, widths):
+    import shapely
+
+    doc = open_room()
+    pts = [(4.0, 10.0), (10.0, 10.0), (16.0, 10.0)]
+    doc.modelspace().add_lwpolyline([(*p, *w, 0.0) for p, w in zip(pts, widths, strict=True)], format="xyseb",
+                                    dxfattribs={"layer": "W"})
+    doc.saveas(tmp_path / "f.dxf")
+    widest = max(max(w) for w in widths)
+    assume(widest > 0.01)
+    band = obstacle_area(tmp_path).intersection(shapely.box(5.0, 1.0, 15.0, 19.0))  # not the room walls
+    assert band.area == pytest.approx(10.0 * widest, rel=1e-6)  # 10 m of wall, widest across
+
+
+@profile(8)
+@given(texts=st.integers(0, 3), points=st.integers(0, 3), xrefs=st.integers(0, 3))
+def test_what_is_not_read_on_an_obstacle_layer_is_said_in_one_line(tmp_path, texts, points, xrefs):
+    doc = open_room()
+    msp = doc.modelspace()
+    for i in range(texts):
+        msp.add_text(f"T{i}", dxfattribs={"layer": "W"})
+    for i in range(points):
+        msp.add_point((5 + i, 5), dxfattribs={"layer": "W"})
+    if xrefs:
+        doc.blocks.new("XREF1", dxfattribs={"flags": 4, "xref_path": "other.dxf"})
+        for i in range(xrefs):
+            msp.add_blockref("XREF1", (2 + i, 2), dxfattribs={"layer": "W"})
+    doc.saveas(tmp_path / "f.dxf")
+    (tmp_path / "s.toml").write_text(drawing_toml())
+    code, err, said = run_warned(["map", str(tmp_path / "s.toml")])
+    assert code == 0 and "Traceback" not in err
+    if not (texts or points or xrefs):
+        assert said == []
+        return
+    assert len(said) == 1, said
+    for n, what in ((texts, "TEXT"), (points, "POINT")):
+        assert (f"{n} {what}" in said[0]) == bool(n), said
+    assert (f'{xrefs} of "XREF1"' in said[0]) == bool(xrefs), said
+
+
+# --- class 5: ambiguity accepted ------------------------------------------------------------------
+
+@profile(5)
+@given(lid=st.text(st.characters(min_codepoint=48, max_codepoint=122), min_size=1, max_size=5),
+       extra=st.integers(0, 2))
+def test_two_lif_layouts_with_one_id_are_refused(tmp_path, lid, extra):
+    layouts = [{"layoutId": f"other{i}", "nodes": [], "edges": []} for i in range(extra)]
+    layouts += [{"layoutId": lid, "nodes": [], "edges": []}, {"layoutId": lid, "nodes": [], "edges": []}]
+    (tmp_path / "g.json").write_text(json.dumps({"layouts": layouts}))
+    toml = graph_toml().replace('file = "g.json"\n', f'file = "g.json"\nlayout = {json.dumps(lid)}\n')
+    refused(tmp_path, toml, f"layouts[{extra + 1}].layoutId", "unique layout id", f"layouts[{extra}]")
+
+
+@profile(6)
+@given(key=st.sampled_from(["image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh"]))
+def test_a_map_yaml_key_written_twice_is_refused_by_name(tmp_path, key):
+    text = map_yaml()
+    line = next(ln for ln in text.splitlines() if ln.startswith(f"{key}:"))
+    (tmp_path / "m.yaml").write_text(text + line + "\n")
+    (tmp_path / "m.pgm").write_bytes(b"P5\n40 40\n255\n" + bytes([254] * 1600))
+    refused(tmp_path, map_toml(), "m.yaml", f"duplicate key '{key}'")
+
+
+@profile(6)
+@given(pair=st.sampled_from([("--routes", "--lif", ".json"), ("--lif", "--routes", ".json")]),
+       spelling=st.sampled_from(["same", "./same", "sub/../same"]))
+def test_two_outputs_at_one_path_are_refused_before_the_work(tmp_path_factory, no_work, pair, spelling):
+    folder = tmp_path_factory.mktemp("export")
+    (folder / "sub").mkdir()
+    (folder / "s.toml").write_text(mini())
+    a, b, suffix = pair
+    argv = ["export", str(folder / "s.toml"), a, str(folder / f"same{suffix}"), b, str(folder / f"{spelling}{suffix}")]
+    line = holds(*run(argv))
+    assert "name the same file" in line and a in line and b in line, line
+    assert sorted(p.name for p in folder.iterdir()) == ["s.toml", "sub"]
+
+
+# --- class 6: messages that named the wrong cause -------------------------------------------------
+
+@profile(5)
+@given(cut=st.floats(0.05, 0.95))
+def test_a_drawing_cut_short_is_named_truncated(tmp_path, cut):
+    walled().saveas(tmp_path / "whole.dxf")
+    data = (tmp_path / "whole.dxf").read_bytes()
+    (tmp_path / "f.dxf").write_bytes(data[: int(cut * len(data))])
+    line = refused(tmp_path, drawing_toml(), "f.dxf", "truncated")
+    assert "expected a layer" not in line
+
+
+@profile(5)
+@given(text=st.sampled_from([mini(), map_toml(), drawing_toml()]))
+def test_a_byte_order_mark_is_read(tmp_path, text):
+    from scenarios import loads
+
+    walled().saveas(tmp_path / "f.dxf")
+    (tmp_path / "m.yaml").write_text(map_yaml())
+    (tmp_path / "m.pgm").write_bytes(b"P5\n40 40\n255\n" + bytes([254] * 1600))
+    (tmp_path / "s.toml").write_text("\ufeff" + text, encoding="utf-8")
+    from scenarios import load
+
+    assert load(tmp_path / "s.toml").obstacles == loads(text, base=tmp_path).obstacles
+
+
+@profile(5)
+@given(n=st.integers(1, 3), clash=st.integers(1, 3))
+def test_a_clash_with_a_generated_reflector_id_names_it_as_generated(tmp_path, n, clash):
+    assume(clash <= n)
+    doc = walled()
+    for i in range(n):
+        doc.modelspace().add_point((11.0 + i, 1.0), dxfattribs={"layer": "M"})
+    doc.saveas(tmp_path / "f.dxf")
+    toml = drawing_toml(marker=True) + f'[[markers]]\nid = "R{clash}"\nposition = [10.5, 5.0]\n'
+    line = refused(tmp_path, toml, "markers[0].id", f'"R{clash}"', "generated", "f.dxf")
+    assert f"markers[{clash}]" not in line
+
+
+@pytest.mark.parametrize("key,value,message", [
+    ("seed", str(2**70), "at most 9.22e+18"), ("seed", "-1", "expected an integer >= 0"),
+    ("name", '""', "expected a non-empty name"), ("name", '"   "', "expected a non-empty name")])
+def test_top_level_values_the_readme_refuses(tmp_path, key, value, message):
+    text = mini().replace('name = "mini"\n', "" if key == "name" else 'name = "mini"\n')
+    refused(tmp_path, f"{key} = {value}\n" + text, f"{key}:", message)

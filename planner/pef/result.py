@@ -100,11 +100,12 @@ def grid_centres(size: tuple[float, float], resolution: float,
     """
     if not (resolution > 0.0 and math.isfinite(resolution)):
         raise PlanningError(f"resolution: expected a positive number of metres, got {resolution}")
+    # float counts (1e-300 m gives inf, not a 300-digit int), before any array is allocated
+    counts = [q if q > 1e15 else max(1.0, float(round(q))) for q in (extent / resolution for extent in size)]
+    cells = counts[0] * counts[1]
+    if cells > MAX_CELLS:  # before the axes are allocated (1e-7 m asked for 1.6 GB of them)
+        raise PlanningError(f"resolution: {resolution} m gives {cells:.3g} cells (at most {MAX_CELLS})")
     out = []
-    for extent, start in zip(size, origin, strict=True):
-        n = max(1, int(round(extent / resolution)))
-        out.append(float(start) + (np.arange(n) + 0.5) * (extent / n))
-    cells = out[0].size * out[1].size
-    if cells > MAX_CELLS:
-        raise PlanningError(f"resolution: {resolution} m gives {cells} cells (at most {MAX_CELLS})")
+    for extent, start, n in zip(size, origin, counts, strict=True):
+        out.append(float(start) + (np.arange(int(n)) + 0.5) * (extent / n))
     return out[0], out[1]

@@ -80,6 +80,23 @@ class Kinematics:
         return np.minimum(self.s_v[i] + self.v[i] * tau + 0.5 * self.acc[i] * tau * tau, self.s_v[i + 1])
 
 
+def mean_speed(kin: Kinematics, t0: np.ndarray, duration: float) -> np.ndarray:
+    """Mean speed over ``[t0, t0 + duration]`` (any shape) [m/s]; ``duration`` 0: the speed at ``t0``.
+
+    A fix whose ranges take no time (``sensor.measurement_time = 0``) is the limit of ever
+    shorter fixes, whose mean speed tends to the speed at their start.
+    """
+    t0 = np.asarray(t0, dtype=float)
+    if duration > 0.0:
+        return (kin.s_at(t0 + duration) - kin.s_at(t0)) / duration
+    if len(kin.dur) == 0:
+        return np.zeros(t0.shape)
+    i = np.clip(np.searchsorted(kin.t_v, t0, side="right") - 1, 0, len(kin.dur) - 1)
+    tau = np.clip(t0 - kin.t_v[i], 0.0, kin.dur[i])
+    at_end = t0 >= kin.t_v[-1]  # the path is done: standing still
+    return np.where(at_end, 0.0, kin.v[i] + kin.acc[i] * tau)
+
+
 def positions_at(kin: Kinematics, s_in: np.ndarray, path: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Positions reached at times ``t`` (any shape) [s] along ``path`` (N, 2), shape ``(*t.shape, 2)`` [m]."""
     s = kin.s_at(np.asarray(t, dtype=float))

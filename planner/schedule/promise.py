@@ -116,7 +116,7 @@ from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from estimators.fault.perturbed import perturbed_diameters
 from jit import compiled
 from planner.routes.smoothing import MAX_ACCEL, acceleration_limited
-from planner.schedule.pathtime import Kinematics, Track
+from planner.schedule.pathtime import Kinematics, Track, mean_speed
 from planner.schedule.sightcheck import unseen
 from scenarios.schema import Scenario
 
@@ -406,7 +406,7 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
     delta, travel = pose_bound(scenario, path, s_path, tr.kin.v, s_m, est, still)
     tau, flip = _parallelogram(scenario, markers, subsets, tr.xy_m, delta, travel, visible)
     out.append(Level(tau, flip, np.full(n, np.nan)))
-    v_plan = np.diff(tr.kin.s_at(tr.t_start[:, None] + np.array([0.0, k * mt])), axis=1)[:, 0] / (k * mt)
+    v_plan = mean_speed(tr.kin, tr.t_start, k * mt)
     v_plan[0] = 0.0
     for f in (*SPEED_LEVELS[1:], None):
         v = np.full(n, scenario.planning.min_fix_speed) if f is None else f * v_plan

@@ -53,7 +53,7 @@ from planner.routes.smoothing import acceleration_limited
 from planner.schedule import promise
 from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
 from planner.schedule.fallback import fallbacks
-from planner.schedule.pathtime import Kinematics, sample_track
+from planner.schedule.pathtime import Kinematics, mean_speed, sample_track
 from planner.schedule.promise import MAX_SUBSETS
 from planner.schedule.search import StretchError, Windows, search
 from scenarios.errors import PlanningError
@@ -507,7 +507,10 @@ def _covered_without(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: list
 
 def _fix_speeds(kin, s0: np.ndarray, k: int, mt: float) -> np.ndarray:
     """Mean planned speed over each fix started at ``s0`` (F,) [m/s] (0 for the standstill fix, the first)."""
-    speed = (kin.s_at(kin.t_at(s0) + k * mt) - s0) / (k * mt)
+    if mt > 0.0:
+        speed = (kin.s_at(kin.t_at(s0) + k * mt) - s0) / (k * mt)
+    else:  # an instantaneous fix: the speed where it is taken
+        speed = mean_speed(kin, kin.t_at(s0), 0.0)
     speed[:1] = 0.0
     return speed
 

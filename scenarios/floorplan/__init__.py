@@ -15,6 +15,7 @@ from typing import Any
 
 from scenarios.errors import ScenarioError
 from scenarios.fields import Table, show, show_path
+from scenarios.files import unreadable_because
 from scenarios.floorplan.spec import UNITS, FloorPlan, FloorPlanData, FloorPlanKind
 
 __all__ = ["FloorPlan", "FloorPlanData", "FloorPlanKind", "apply", "portable_text", "read"]
@@ -33,13 +34,10 @@ def _file(t: Table, base: Path | None) -> tuple[Path, str, FloorPlanKind]:
     kind = _SUFFIX.get(path.suffix.lower())
     if kind is None:
         t.fail(t.key("file"), "expected a DXF drawing (.dxf) or a ROS map_server YAML (.yaml)", shown)
-    try:
-        regular = path.is_file()  # a FIFO or a device is not a floor plan (reading it could block)
-    except OSError as exc:  # a name too long for the file system, ...
-        t.fail(t.key("file"), f"cannot read: {exc.strerror or exc}", shown)
-    if not regular:
-        why = "not a regular file" if path.exists() else "no such file"
-        t.fail(t.key("file"), f"cannot read {show_path(path)}: {why}", shown)
+    why = unreadable_because(path)  # a FIFO or a device is not a floor plan (reading it could block)
+    if why is not None:  # the file system's own reason (a name too long) is said without the path
+        t.fail(t.key("file"), f"cannot read {show_path(path)}: {why}" if why[0].islower() else f"cannot read: {why}",
+               shown)
     return path.resolve(), shown, kind
 
 
@@ -117,6 +115,7 @@ def apply(data: dict[str, Any], source: str, base: Path | None) -> tuple[dict[st
     plan, found = read(t, base)
     out = dict(data)
     del out["floorplan"]
+    _check_ids(out.get("markers"), found, source, plan)
     for key, items in (("obstacles", found.obstacles), ("markers", found.markers), ("unknown", found.unknown)):
         if key == "unknown" and not items and key not in out:
             continue  # a drawing knows everything: the document stays as it was
@@ -137,6 +136,25 @@ def apply(data: dict[str, Any], source: str, base: Path | None) -> tuple[dict[st
             ws["size"] = [round(xmax - o[0], 9), round(ymax - o[1], 9)]  # no float noise in the file
         out["workspace"] = ws
     return out, plan
+
+
+def _check_ids(given: Any, found: FloorPlanData, source: str, plan: FloorPlan) -> None:
+    """Name both sides when a hand-written marker's id is also a reflector's of the drawing.
+
+    The drawing's reflectors are appended after the ``[[markers]]`` tables, so the loader's
+    own check would name an index the file does not have.
+    """
+    if not isinstance(given, list) or not found.markers:
+        return
+    drawn = {m["id"]: m for m in found.markers}
+    for i, t in enumerate(given):
+        mid = t.get("id") if isinstance(t, dict) else None
+        if isinstance(mid, str) and mid in drawn:
+            how = ("the id generated for the drawing's reflector without an ID attribute" if mid in found.generated_ids
+                   else "the ID of the drawing's reflector")
+            raise ScenarioError(f"{source}: markers[{i}].id: expected a unique marker id, {show(mid)} is also {how} "
+                                f"at {show(drawn[mid]['position'])} in {plan.file.name} "
+                                f"(layer {show(plan.marker_layer)}): rename one")
 
 
 def _check_markers(found: FloorPlanData, source: str, plan: FloorPlan) -> None:
@@ -177,5 +195,9 @@ def portable_text(text: str, data: dict[str, Any], base: Path | None) -> str:
     import tomli_w
 
     out = dict(data)
-    out["floorplan"] = {**fp, "file": str((base / fp["file"]).resolve())}
+    try:
+        absolute = (base / fp["file"]).resolve()
+    except (OSError, RuntimeError):  # a link loop, a name too long: the reader names the cause
+        return text
+    out["floorplan"] = {**fp, "file": str(absolute)}
     return tomli_w.dumps(out)

@@ -1,13 +1,18 @@
 """Obstacles and reflectors from a DXF drawing (ezdxf).
 
 Read from the obstacle layers: LINE, ARC and open LWPOLYLINE/POLYLINE/SPLINE/ELLIPSE become
-walls of ``wall_thickness`` (an open LWPOLYLINE with a constant width: a wall that wide);
-closed polylines are filled, nested ones by the even-odd rule (an outer and an inner outline
-make a ring wall); HATCH (and MPOLYGON) boundaries, SOLID and TRACE, closed splines and
-ellipses are filled; CIRCLE is a circle obstacle. INSERT (block
-references, MINSERT grids, nested, rotated, scaled) is expanded; an entity on layer "0"
-inside a block takes the layer of its INSERT, as in CAD. Everything else (text, dimensions,
-other layers) is ignored. Arcs and bulges are flattened within the simplification tolerance.
+walls of ``wall_thickness`` (an open LWPOLYLINE or POLYLINE drawn with widths: a wall of its
+largest width, constant or per vertex); closed polylines are filled, nested ones by the
+even-odd rule (an outer and an inner outline make a ring wall); HATCH (and MPOLYGON)
+boundaries, SOLID and TRACE, closed splines and ellipses are filled; CIRCLE is a circle
+obstacle; 3DFACE, polyface and polygon meshes (POLYLINE) are their 2D footprint, each face
+filled (a vertical face, whose footprint is a segment, a wall of ``wall_thickness``). INSERT
+(block references, MINSERT grids, nested, rotated, scaled) is expanded; an entity on layer "0"
+inside a block takes the layer of its INSERT, as in CAD. Other layers are ignored; nothing of
+the obstacle layers is dropped without a word: other entity types there (TEXT, DIMENSION, ...)
+and INSERTs of external references (xrefs, whose geometry is in another file) are counted in
+one :class:`~scenarios.errors.ScenarioWarning` line. Arcs and bulges are flattened within the
+simplification tolerance.
 
 Reflectors come from ``marker_layer``: a POINT, a CIRCLE's centre or an INSERT's insertion
 point; the id from the INSERT's ``ID`` attribute, else ``R1``, ``R2``, ... in drawing order;
@@ -26,14 +31,14 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from scenarios.errors import ScenarioError
+from scenarios.errors import ScenarioError, ScenarioWarning
 from scenarios.fields import MAX_COORD, show
 from scenarios.floorplan import geometry
 from scenarios.floorplan.spec import INSUNITS, UNITS, FloorPlanData
-from scenarios.limits import MAX_DXF_ENTITIES, MIN_LENGTH
+from scenarios.limits import MAX_DXF_ENTITIES, MAX_FIT_POINTS, MAX_SPLINE_FIT_POINTS, MIN_LENGTH
 
 _OBSTACLE_TYPES = {"LINE", "ARC", "CIRCLE", "LWPOLYLINE", "POLYLINE", "SPLINE", "ELLIPSE",
-                   "HATCH", "MPOLYGON", "SOLID", "TRACE"}
+                   "HATCH", "MPOLYGON", "SOLID", "TRACE", "3DFACE"}
 
 
 @contextlib.contextmanager
@@ -60,6 +65,7 @@ def open_dxf(path: Path, where: str, shown: str):
     if path.suffix.lower() == ".dwg":
         raise ScenarioError(f"{where}.file: expected a DXF drawing (save or convert the DWG as DXF), "
                             f"got {show(shown)}")
+    _check_complete(path, where, shown)
     with quiet_ezdxf():
         try:
             return ezdxf.readfile(path)
@@ -75,6 +81,26 @@ def open_dxf(path: Path, where: str, shown: str):
             return doc
         except (OSError, ezdxf.DXFError, UnicodeDecodeError, ValueError) as exc:
             raise ScenarioError(f"{where}.file: expected a DXF drawing, cannot read {shown}: {exc}") from None
+
+
+def _check_complete(path: Path, where: str, shown: str) -> None:
+    """Refuse a drawing cut short: every DXF (text or binary) ends with its ``EOF`` marker.
+
+    ezdxf's recovery reads what is there, so a drawing cut in half would otherwise be read as a
+    drawing without the half that holds, say, the obstacle layer.
+    """
+    try:
+        with path.open("rb") as f:
+            head = f.read(4096)
+            size = f.seek(0, 2)
+            f.seek(max(size - 64, 0))
+            tail = f.read()
+    except OSError as exc:
+        raise ScenarioError(f"{where}.file: cannot read {shown}: {exc.strerror or exc}") from None
+    looks_dxf = b"SECTION" in head or head.startswith(b"AutoCAD Binary DXF")  # else ezdxf says what it is
+    if looks_dxf and b"EOF" not in tail:
+        raise ScenarioError(f"{where}.file: {shown}: the drawing is truncated: its {size} bytes end before the "
+                            f"end-of-file marker (0 / EOF); save it again or copy it whole")
 
 
 def unit_factor(doc, units: str | None, where: str, shown: str) -> tuple[str, float]:
@@ -128,7 +154,7 @@ _NUMERIC = {
     "ARC": ("center", "radius", "start_angle", "end_angle"),
     "ELLIPSE": ("center", "major_axis", "ratio", "start_param", "end_param"),
     "LWPOLYLINE": ("const_width", "elevation"), "SOLID": ("vtx0", "vtx1", "vtx2", "vtx3"),
-    "TRACE": ("vtx0", "vtx1", "vtx2", "vtx3"),
+    "TRACE": ("vtx0", "vtx1", "vtx2", "vtx3"), "3DFACE": ("vtx0", "vtx1", "vtx2", "vtx3"),
     "INSERT": ("insert", "xscale", "yscale", "zscale", "rotation", "row_spacing", "column_spacing"),
 }
 _EDGE_PARTS = ("start", "end", "center", "radius", "start_angle", "end_angle", "major_axis", "ratio",
@@ -152,6 +178,9 @@ class _Reader:
         self.shortest = MIN_LENGTH / factor  # the loader's floor of a size [drawing units]
         self.where, self.shown = where, shown
         self.found = _Found()
+        self.fit_points = 0  # SPLINE fit points read so far (blocks expanded)
+        self.unread: dict[str, int] = {}  # entity type on an obstacle layer -> count, not read
+        self.xrefs: dict[str, int] = {}  # block name of an external reference -> INSERTs of it
 
     # --- errors ---------------------------------------------------------------------------
 
@@ -167,12 +196,22 @@ class _Reader:
     def check(self, e, kind: str, name: str) -> None:
         """Refuse non-finite numbers and coordinates beyond the bound in ``e`` before ezdxf uses them."""
         values = [e.dxf.get(a) for a in _NUMERIC.get(kind, ())]
-        values.append(e.dxf.get("extrusion"))
+        ext = e.dxf.get("extrusion") if e.dxf.is_supported("extrusion") else None  # 3DFACE has none
+        values.append(ext)
         if kind == "LWPOLYLINE":
             values.append(list(e.get_points("xyseb")))
         elif kind == "POLYLINE":
-            values.append([v.dxf.get("location") for v in e.vertices] + [v.dxf.get("bulge") for v in e.vertices])
+            values.append([[v.dxf.get(a) for a in ("location", "bulge", "start_width", "end_width")]
+                           for v in e.vertices])
+            values.append([e.dxf.get("default_start_width"), e.dxf.get("default_end_width")])
         elif kind == "SPLINE":
+            n = e.fit_point_count()
+            if n > MAX_SPLINE_FIT_POINTS:  # ezdxf interpolates them by a dense n x n solve
+                self.fail(name, f"expected at most {MAX_SPLINE_FIT_POINTS} fit points a spline, found {n}")
+            self.fit_points += n
+            if self.fit_points > MAX_FIT_POINTS:
+                self.fail(name, f"expected at most {MAX_FIT_POINTS} spline fit points in the drawing, found more "
+                                f"({self.fit_points} up to this one)")
             values += [list(e.control_points), list(e.fit_points), list(e.knots), list(e.weights)]
         elif kind in ("HATCH", "MPOLYGON"):
             for bp in e.paths:
@@ -184,7 +223,6 @@ class _Reader:
         if numbers.size and np.abs(numbers).max() > self.bound:
             self.fail(name, f"expected coordinates and sizes of magnitude at most {MAX_COORD:g} m, "
                             f"found {np.abs(numbers).max():.3g} drawing units")
-        ext = e.dxf.get("extrusion")
         if ext is not None and not any(ext):
             self.fail(name, "expected a non-zero extrusion (OCS) vector, found (0, 0, 0)")
         if kind in ("CIRCLE", "ARC") and not e.dxf.radius >= self.shortest:
@@ -236,14 +274,20 @@ class _Reader:
                     self.marker_insert(e)
                     continue
                 block = e.dxf.get("name", "")
-                if e.block() is None:
+                layout = e.block()
+                if layout is None:
                     self.fail(name, f"expected a block defined in the drawing, found none named {show(block)}")
+                if layout.block is not None and (layout.block.is_xref or layout.block.is_xref_overlay):
+                    self.xrefs[block] = self.xrefs.get(block, 0) + max(int(e.mcount), 1)
+                    continue  # its geometry is in another file
                 inner = f"block {show(block)} of " + (via.split(" of ", 1)[1] if " of " in via else name)
                 stack.append((_expand(e), layer, inner, name))
                 continue
             obstacle = key in self.obstacle_layers and kind in _OBSTACLE_TYPES
             marker = key == self.marker_layer and kind in ("POINT", "CIRCLE")
             if not (obstacle or marker):
+                if key in self.obstacle_layers and key != self.marker_layer:
+                    self.unread[kind] = self.unread.get(kind, 0) + 1
                 continue
             self.check(e, kind, name)
             try:
@@ -293,9 +337,14 @@ class _Reader:
             f.filled.append([self.flatten(p, name) for p in dxfpath.from_hatch(e)])
         elif kind in ("SOLID", "TRACE"):
             f.filled.append([self.flatten(dxfpath.make_path(e), name)])
+        elif kind == "3DFACE":
+            self.faces([[e.dxf.get(f"vtx{i}") for i in range(4)]], name)
+        elif kind == "POLYLINE" and (e.is_polygon_mesh or e.is_poly_face_mesh):
+            from ezdxf.render import MeshBuilder
+
+            mesh = MeshBuilder.from_polyface(e)
+            self.faces([[mesh.vertices[i] for i in face] for face in mesh.faces], name)
         else:
-            if kind == "POLYLINE" and (e.is_polygon_mesh or e.is_poly_face_mesh):
-                return
             pts = self.flatten(dxfpath.make_path(e), name)
             if len(pts) < 2:
                 return
@@ -311,15 +360,59 @@ class _Reader:
                 closed = False
             # An outline whose last vertex is its first is closed, whatever its flag says.
             closed = closed or (len(pts) > 3 and np.allclose(pts[0], pts[-1]))
-            width = float(e.dxf.get("const_width", 0.0)) if kind == "LWPOLYLINE" else 0.0
+            width = _largest_width(e, kind)
             if not closed and width > 0.0:
-                f.wide.append((pts, width))  # a wall drawn as a wide polyline keeps its width
+                f.wide.append((pts, width))  # a wall drawn as a wide polyline keeps its (largest) width
             elif not closed:
                 f.lines.append(pts)
             elif kind in ("LWPOLYLINE", "POLYLINE"):
                 f.rings.append(pts)
             else:
                 f.filled.append([pts])
+
+
+    def faces(self, faces: list[list], name: str) -> None:
+        """Collect the 2D footprint of 3D ``faces`` (each a list of WCS vertices): filled, or a wall if vertical."""
+        for face in faces:
+            pts = self.points(_xy([v for v in face if v is not None]), name)
+            if len(pts) < 2:
+                continue
+            ring = shapely.Polygon(pts) if len(pts) >= 3 else None
+            if ring is not None and ring.is_valid and ring.area > self.shortest * max(np.ptp(pts, axis=0).max(), 0.0):
+                self.found.filled.append([pts])
+            else:  # seen edge-on from above (a vertical wall): the segment it spans
+                ends = pts[np.argsort(pts @ (pts[-1] - pts[0] if np.any(pts[-1] != pts[0]) else np.ones(2)))]
+                segment = np.array([ends[0], ends[-1]])
+                if np.ptp(segment, axis=0).max() > 0.0:
+                    self.found.lines.append(segment)
+
+    def warn_unread(self) -> None:
+        """Say in one warning line what of the obstacle layers was not read (types, xrefs), with counts."""
+        parts = []
+        if self.unread:
+            kinds = ", ".join(f"{n} {k}" for k, n in sorted(self.unread.items(), key=lambda kv: (-kv[1], kv[0])))
+            parts.append(f"entities not read as obstacles on the obstacle layers: {kinds}")
+        if self.xrefs:
+            blocks = ", ".join(f"{n} of {show(b)}" for b, n in sorted(self.xrefs.items()))
+            parts.append(f"INSERTs of external references (xref) not read, their geometry is in another file "
+                         f"(bind them in CAD to read them): {blocks}")
+        if parts:
+            import warnings
+
+            warnings.warn(f"{self.where}.file: {self.shown}: " + "; ".join(parts), ScenarioWarning, stacklevel=2)
+
+
+def _largest_width(e, kind: str) -> float:
+    """Return the largest width a (LW)POLYLINE is drawn with: constant, default or per vertex (0: none)."""
+    if kind == "LWPOLYLINE":
+        widths = [float(e.dxf.get("const_width", 0.0))]
+        widths += [w for p in e.get_points("se") for w in p]
+    elif kind == "POLYLINE" and not e.is_3d_polyline:
+        widths = [float(e.dxf.get(a, 0.0)) for a in ("default_start_width", "default_end_width")]
+        widths += [float(v.dxf.get(a, 0.0)) for v in e.vertices for a in ("start_width", "end_width")]
+    else:
+        return 0.0
+    return max(abs(w) for w in widths)
 
 
 def _expand(insert) -> Iterator:
@@ -485,6 +578,7 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
     expanded_size(doc, msp, where, shown)  # the budget, before anything is expanded
     reader = _Reader(obst, mark, flat, factor, where, shown)
     reader.walk(msp)
+    reader.warn_unread()
     found = reader.found
 
     rings = [r * factor for r in found.rings]
@@ -500,11 +594,12 @@ def read_dxf(path: str | Path, *, obstacle_layers: Iterable[str], marker_layer: 
         raise ScenarioError(f"{where}.obstacle_layers: expected lines, polylines, circles, arcs, hatches or "
                             f"blocks on these layers of {shown}, found none, got {show(obstacle_layers)}")
     markers = _markers(found.markers, factor, where, shown, marker_layer)
+    generated = frozenset(m["id"] for m, raw in zip(markers, found.markers, strict=True) if raw[3] is None)
     pts = np.array([m["position"] for m in markers], dtype=float).reshape(-1, 2)
     disks = [shapely.Point(x, y).buffer(r, quad_segs=2) for x, y, r in circles]
     extent = geometry.bounds([area, *disks], pts)
     return FloorPlanData(obstacles=obstacles, markers=markers, extent=extent, unit_factor=factor,
-                         units=unit_name, simplify=simplify)
+                         units=unit_name, simplify=simplify, generated_ids=generated)
 
 
 def _markers(raw, factor: float, where: str, shown: str, layer: str | None) -> list[dict]:

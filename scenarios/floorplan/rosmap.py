@@ -46,7 +46,17 @@ def _map_loader():
     import yaml
 
     class MapLoader(yaml.SafeLoader):
-        pass
+        def construct_mapping(self, node, deep=False):
+            # A key written twice is ambiguous (PyYAML keeps the last, other readers the first).
+            seen: set[str] = set()
+            for key, _ in node.value if isinstance(node, yaml.MappingNode) else ():
+                if isinstance(key, yaml.ScalarNode) and key.tag != "tag:yaml.org,2002:merge":
+                    if key.value in seen:
+                        raise yaml.constructor.ConstructorError(
+                            None, None, f"duplicate key {key.value!r} (at line {key.start_mark.line + 1}): "
+                                        f"expected each key once", key.start_mark)
+                    seen.add(key.value)
+            return super().construct_mapping(node, deep=deep)
 
     MapLoader.add_implicit_resolver("tag:yaml.org,2002:float",
                                     re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),

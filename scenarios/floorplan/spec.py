@@ -98,6 +98,8 @@ class FloorPlanData:
     """Whether the workspace border is a wall (False for a ROS map: its edge is none)."""
     resolution: float = 0.0
     """A ROS map's cell size [m]; 0 for a drawing."""
+    generated_ids: frozenset[str] = frozenset()
+    """Ids of ``markers`` the reader generated (``R1``, ... for reflectors without an ``ID``)."""
 
 
 # Unit names accepted by ``floorplan.units``, in metres per unit.

@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 from scenarios.errors import ScenarioError
-from scenarios.limits import MAX_NESTING, nesting_depth
+from scenarios.limits import MAX_GRAPH_BYTES, MAX_GRAPH_EDGES, MAX_GRAPH_NODES, MAX_NESTING, long_integer, nesting_depth
 from scenarios.routegraph import lif, nav2
 from scenarios.routegraph.graph import GraphEdge, GraphNode, fail
 
@@ -40,6 +40,9 @@ def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file
         Unreadable file, malformed JSON, an unknown format, or a bad value (naming file and key).
     """
     try:
+        size = path.stat().st_size
+        if size > MAX_GRAPH_BYTES:  # parsed whole: refused before it is read
+            raise ScenarioError(f"{shown}: a route graph of {size} bytes, at most {MAX_GRAPH_BYTES:.0e}")
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"{shown}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
@@ -52,6 +55,9 @@ def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file
         raise ScenarioError(f"{shown}: malformed JSON: {exc}") from None
     except RecursionError:  # only if the scan above under-counted a malformed file
         raise ScenarioError(f"{shown}: arrays and objects nested deeper than {MAX_NESTING}") from None
+    except ValueError:  # Python's int-string limit (4300 digits): no coordinate or id is that long
+        raise ScenarioError(f"{shown}: malformed JSON: {long_integer(text)}") from None
+    _check_counts(data, shown)
     if isinstance(data, dict) and data.get("type") == "FeatureCollection":
         if layout is not None:
             fail(scenario_file, layout_key, f"only for VDA LIF files ({shown} is a GeoJSON route graph)", layout)
@@ -63,3 +69,20 @@ def read_graph_file(path: Path, shown: str, *, layout: str | None, scenario_file
         raise ScenarioError(f"{shown}: expected a Nav2 route graph (a GeoJSON FeatureCollection) or a "
                             "VDA LIF file (an object with \"layouts\")")
     return nodes, edges, elsewhere
+
+
+def _check_counts(data, shown: str) -> None:
+    """Refuse a graph over the node or edge budget from its lists' lengths, before any element is read."""
+    counts = {}
+    if isinstance(data, dict) and isinstance(data.get("features"), list):
+        points = sum(1 for f in data["features"] if isinstance(f, dict) and isinstance(g := f.get("geometry"), dict)
+                     and g.get("type") == "Point")
+        counts["nodes (Point features)"] = (points, MAX_GRAPH_NODES)
+        counts["edges (other features)"] = (len(data["features"]) - points, MAX_GRAPH_EDGES)
+    if isinstance(data, dict) and isinstance(data.get("layouts"), list):
+        lays = [lay for lay in data["layouts"] if isinstance(lay, dict)]
+        counts["nodes"] = (sum(len(v) for lay in lays if isinstance(v := lay.get("nodes"), list)), MAX_GRAPH_NODES)
+        counts["edges"] = (sum(len(v) for lay in lays if isinstance(v := lay.get("edges"), list)), MAX_GRAPH_EDGES)
+    for what, (n, most) in counts.items():
+        if n > most:
+            raise ScenarioError(f"{shown}: a route graph of {n} {what}, at most {most}")

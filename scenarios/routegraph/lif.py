@@ -19,7 +19,11 @@ def _layout_ids(layouts: list, shown: str) -> list[str]:
     for i, lay in enumerate(layouts):
         if not isinstance(lay, dict) or "layoutId" not in lay:
             fail(shown, f"layouts[{i}].layoutId", "missing required key", with_value=False)
-        ids.append(graph_id(shown, f"layouts[{i}].layoutId", lay["layoutId"]))
+        lid = graph_id(shown, f"layouts[{i}].layoutId", lay["layoutId"])
+        if lid in ids:  # which one a scenario's routes.layout names would be a guess
+            fail(shown, f"layouts[{i}].layoutId", f"expected a unique layout id (also layouts[{ids.index(lid)}])",
+                 lay["layoutId"])
+        ids.append(lid)
     return ids
 
 

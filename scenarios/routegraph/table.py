@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.fields import Table, show, show_path
+from scenarios.files import unreadable_because
 from scenarios.route_network import RouteEdge, RouteNetwork
 from scenarios.routegraph.clearance import obstacle_geometry, segment_conflict
 from scenarios.routegraph.file import read_graph_file
@@ -67,13 +68,10 @@ def _from_file(t: Table, workspace, obstacles, radius, base_dir) -> RouteNetwork
             t.fail(t.key(other), "expected either routes.file or routes.nodes/segments, not both", t.data[other])
     name = t.string("file")
     path = Path(name) if Path(name).is_absolute() or base_dir is None else base_dir / name
-    try:
-        regular = path.is_file()  # a FIFO or a device is not a graph file (reading it could block)
-    except OSError as exc:  # a name too long for the file system, ...
-        t.fail(t.key("file"), f"cannot read: {exc.strerror or exc}", name)
-    if not regular:
-        why = "not a regular file" if path.exists() else "no such file"
-        t.fail(t.key("file"), f"{why} {show_path(path)}", name)
+    why = unreadable_because(path)  # a FIFO or a device is not a graph file (reading it could block)
+    if why is not None:
+        t.fail(t.key("file"), f"no such file {show_path(path)}" if why == "no such file"
+               else f"cannot read {show_path(path)}: {why}", name)
     layout = t.string("layout") if t.has("layout") else None
     nodes, edges, elsewhere = read_graph_file(path, str(path), layout=layout, scenario_file=t.file,
                                               layout_key=t.key("layout"))
@@ -181,5 +179,9 @@ def portable_routes_text(text: str, data: dict[str, Any], base: Path | None) -> 
     import tomli_w
 
     out = dict(data)
-    out["routes"] = {**routes, "file": str((Path(base) / routes["file"]).resolve())}
+    try:
+        absolute = (Path(base) / routes["file"]).resolve()
+    except (OSError, RuntimeError):  # a link loop, a name too long: the reader names the cause
+        return text
+    out["routes"] = {**routes, "file": str(absolute)}
     return tomli_w.dumps(out)

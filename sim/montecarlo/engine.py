@@ -43,6 +43,7 @@ from sim.montecarlo.rows import (
 )
 from sim.montecarlo.steps import StepsMode, steps_mode
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
+from sim.output_names import check_output_names
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
            "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
@@ -359,6 +360,8 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
         executors.import_ray()
     if runs is not None:
         check_runs(runs)  # before the directory is made
+    check_output_names({"--out": out} if out is not None else {"--out (default mc-<scenario name>)":
+                                                                 default_out(scenario)})
     out = Path(out) if out is not None else default_out(scenario)
     wanted = None if steps is None else steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
