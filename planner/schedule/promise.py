@@ -226,6 +226,31 @@ def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.n
     return settle_bound(path, s_v, s, look)
 
 
+def offset_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray, estimate) -> np.ndarray:
+    """Bound on the true position's distance from ``path(s)`` when the robot drives past ``s`` [m].
+
+    The follower keeps its *estimate* within :func:`tracking_bound` of the path, and the truth
+    is within the estimate's error of the estimate: the sum bounds the true pose's offset
+    (the module docstring's ``Delta_i`` without the start lag and the speed terms, which move a
+    measurement along the path, not away from it). The body's clearance check
+    (:mod:`planner.schedule.clearance`) and the line-of-sight margin take it from here.
+
+    Parameters
+    ----------
+    path, s_v, speed : ndarray, shape (N, 2), (N,), (N,)
+        Path vertices [m], their arc length [m] and planned speeds [m/s].
+    s : ndarray, any shape
+        Arc lengths [m].
+    estimate : float or ndarray, shape of ``s``
+        Bound on the estimate's error there (what the plan certifies) [m].
+
+    Returns
+    -------
+    numpy.ndarray, shape of ``s``
+    """
+    return tracking_bound(path, s_v, speed, s) + np.asarray(estimate, dtype=float)
+
+
 def settle_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarray) -> np.ndarray:
     """Return the follower's tracking bound: its chord bound, or the largest one it settles from [m].
 
