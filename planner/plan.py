@@ -18,15 +18,12 @@ from planner.routes import criteria
 from planner.routes.candidates import Candidate, TauFn, free_candidates, network_candidates
 from planner.routes.ranking import Ranking, rank
 from planner.schedule import clearance
-from planner.schedule.schedule import Schedule, make_schedule
+from planner.schedule.schedule import Schedule
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
 # The chosen path is re-checked at this fraction of the PEF resolution.
 FINE_FRACTION = 0.25
-# Schedules tried, each slower where the body's clearance fell short (halving the speed there
-# takes a 1 m/s robot to its shortest lookahead in two).
-CLEARANCE_ROUNDS = 4
 
 
 @dataclass
@@ -119,23 +116,11 @@ def _no_route(scenario: Scenario, start: str, goal: str, cands: list[Candidate])
 
 
 def _make_schedule(scenario: Scenario, pef, cand: Candidate, start: str, goal: str) -> tuple[Schedule, str]:
-    """The candidate's measurement schedule at speeds whose tracking keeps the body clear; or why not.
-
-    The body's clearance is checked on the scheduled path (:mod:`planner.schedule.clearance`);
-    where it falls short the stretch is slowed (the follower's tracking bound shrinks with its
-    lookahead) and scheduled again, until it clears or slower does not help: then the reason
-    names the place.
-    """
-    speed = cand.speed
-    for _ in range(CLEARANCE_ROUNDS):
-        sched = make_schedule(scenario, pef, cand.path.points, speed)
-        m = clearance.margin(scenario, cand.path.points, sched.speed, sched.s, sched.predicted_error)
-        if not m.short.any():
-            return sched, ""
-        speed = clearance.slowed(cand.path.points, sched.speed, m.s[m.short])
-        if speed is None:
-            break
-    return sched, clearance.Shortfall.worst(scenario, m).message(start, goal)
+    """Schedule the candidate at speeds whose tracking keeps the body clear; or say why not (names the place)."""
+    try:
+        return clearance.cleared_schedule(scenario, pef, cand.path.points, cand.speed, start, goal), ""
+    except clearance.ClearanceError as exc:
+        return None, str(exc)
 
 
 def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = None, pef=None,

@@ -111,7 +111,7 @@ class Reach:
 
 
 def body_reach(spec: RobotSpec, wheel_width: float = WHEEL_WIDTH) -> Reach:
-    """The farthest any part of the simulated body reaches from its centre, seen from above.
+    """Return how far the simulated body reaches from its centre, seen from above.
 
     Parameters
     ----------

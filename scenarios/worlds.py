@@ -163,7 +163,7 @@ def _chamfered(x0: float, y0: float, x1: float, y1: float, ch: float) -> list[li
 
 
 def _fitting_wheel_base(robot: dict[str, Any]) -> float:
-    """The drawn wheel base, narrowed in centimetres until the body lies within the radius.
+    """Return the drawn wheel base, narrowed in centimetres until the body lies within the radius.
 
     The loader refuses a radius that does not contain the simulated body
     (:func:`scenarios.body.body_reach`: the wheels' contact spheres reach ``wheel_base / 2 +

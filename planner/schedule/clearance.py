@@ -29,8 +29,13 @@ import numpy as np
 
 from planner.routes import criteria
 from planner.schedule import promise
+from planner.schedule.schedule import Schedule, make_schedule
+from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
+ROUNDS = 4
+"""Schedules tried, each slower where the body's clearance fell short (halving the speed there
+takes a 1 m/s robot to its shortest lookahead in two)."""
 CHECK_SPACING = 0.02
 """Largest spacing of the clearance check's samples along the path [m]."""
 SLOWEST_LOOKAHEAD_SPEED = promise.LOOKAHEAD_MIN / promise.LOOKAHEAD_GAIN
@@ -150,7 +155,7 @@ def slowed(path: np.ndarray, speed: np.ndarray, s_short: np.ndarray) -> np.ndarr
 
 
 def nearest_obstacle_point(scenario: Scenario, p: np.ndarray) -> tuple[float, float]:
-    """The point of an obstacle or the workspace's border nearest ``p`` (2,) [m]."""
+    """Return the point of an obstacle or the workspace's border nearest ``p`` (2,) [m]."""
     p = np.asarray(p, dtype=float)
     x0, y0, x1, y1 = scenario.workspace.bounds
     best = min(((abs(p[0] - x0), (x0, p[1])), (abs(x1 - p[0]), (x1, p[1])),
@@ -184,7 +189,7 @@ class Shortfall:
 
     @classmethod
     def worst(cls, scenario: Scenario, m: Margin) -> Shortfall:
-        """The sample of ``m`` short by the most."""
+        """Return the sample of ``m`` short by the most."""
         i = int(np.argmax(m.needed - m.clearance))
         return cls(float(m.s[i]), (float(m.points[i, 0]), float(m.points[i, 1])),
                    nearest_obstacle_point(scenario, m.points[i]), float(m.clearance[i]), m.radius,
@@ -198,3 +203,32 @@ class Shortfall:
         return (f"route {start} -> {goal} passes {self.clearance:.3f} m from the obstacle at ({ox:.2f}, {oy:.2f}) "
                 f"at s = {self.s:.1f} m ({x:.2f}, {y:.2f}), needs {need:.3f} m (radius {self.radius:.2f} + "
                 f"tracking {self.tracking:.2f} + estimate {self.estimate:.3f} + sampling {self.sampling:.2f})")
+
+
+def cleared_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray, start: str, goal: str,
+                     **kwargs) -> Schedule:
+    """Schedule ``path``'s fixes at speeds whose tracking keeps the body clear.
+
+    The schedule (:func:`planner.schedule.schedule.make_schedule`, ``kwargs`` passed on) is
+    checked (:func:`margin`); where the clearance falls short the stretch is slowed
+    (:func:`slowed`) and scheduled again, until it clears.
+
+    Raises
+    ------
+    PlanningError
+        Slower does not clear it (or :data:`ROUNDS` schedules did not): names the place
+        (:meth:`Shortfall.message`); or no schedule exists.
+    """
+    for _ in range(ROUNDS):
+        sched = make_schedule(scenario, pef, path, speed, **kwargs)
+        m = margin(scenario, path, sched.speed, sched.s, sched.predicted_error)
+        if not m.short.any():
+            return sched
+        speed = slowed(path, sched.speed, m.s[m.short])
+        if speed is None:
+            break
+    raise ClearanceError(Shortfall.worst(scenario, m).message(start, goal))
+
+
+class ClearanceError(PlanningError):
+    """The body's clearance falls short on a path at any speed that helps (names the place)."""

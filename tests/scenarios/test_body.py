@@ -67,8 +67,11 @@ def urdf_reach(spec: RobotSpec) -> float:
     RobotSpec(wheel_radius=0.12, wheel_base=0.2, radius=0.3),            # casters force a long chassis
 ])
 def test_reach_is_the_urdf_collision_body(spec):
-    """body_reach covers the URDF's collision shapes, and is one of them (a wheel's cylinder,
-    which only the inertia uses, is the only part body_reach adds): equal within float rounding."""
+    """body_reach covers the URDF's collision shapes, and is one of them.
+
+    A wheel's cylinder, which only the inertia uses, is the only part body_reach adds; otherwise
+    they are equal within float rounding.
+    """
     urdf = urdf_reach(spec)
     reach = body_reach(spec)
     assert reach.distance >= urdf - 1e-12

@@ -73,8 +73,10 @@ def world(x=None, y=None, r=0.3):
 
 
 def test_a_pillar_grazing_a_straight_is_refused_naming_it():
-    """On a straight the tracking bound is 0 and slower does not help: the estimate's error
-    (up to eps_max) and the sampling must fit between the radius and the pillar."""
+    """On a straight the tracking bound is 0 and slower does not help.
+
+    The estimate's error (up to eps_max) and the sampling must fit between the radius and the pillar.
+    """
     sc = world(5.0, 2.0 + 0.3 + 0.405)   # the path at y = 2 passes 0.405 m from the pillar
     # (the pillar is its circumscribed polygon: within 1 cm of the circle)
     with pytest.raises(PlanningError, match=r"route A -> B passes 0\.40\d m from the obstacle at \(\d\.\d\d, 2\.40\) "
@@ -93,7 +95,7 @@ def test_the_same_pillar_farther_off_plans():
 
 
 def _arc_middle(plan, m):
-    """The check's sample nearest the middle of the corner's arc, and the unit vector to its centre."""
+    """Return the check's sample nearest the middle of the corner's arc, and the unit vector to its centre."""
     r = 1.0 / plan.candidates[plan.chosen].path.curvature.max()
     centre = np.array([9.0 - r, 2.0 + r])           # the arc is tangent to y = 2 and x = 9
     mid = centre + r * np.array([1.0, -1.0]) / np.sqrt(2.0)
@@ -107,8 +109,10 @@ def _corner_margin(sc, speed_of):
 
 
 def test_a_corner_too_tight_at_cruising_speed_is_taken_slower():
-    """A pillar inside the corner, between what the body needs at cruising speed and at the
-    slowest lookahead: the plan slows there and clears it; at the cruising profile it would not."""
+    """A pillar inside the corner, between what the body needs at cruising speed and slowest.
+
+    The plan slows there and clears it; at the cruising profile it would not.
+    """
     bare = world()
     p0 = plan_route(bare, "A", "B")
     cruise = clearance.margin(bare, p0.path, speed_profile(p0.candidates[p0.chosen].path, bare.robot),
