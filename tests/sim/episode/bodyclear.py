@@ -50,3 +50,27 @@ def body_clearance(scenario: Scenario, xy: np.ndarray) -> np.ndarray:
     inside = shapely.contains_xy(shapely.union_all(
         [g for g in shapely.get_parts(geo) if isinstance(g, shapely.Polygon)]), xy[:, 0], xy[:, 1])
     return np.where(inside, -d, d) - body_reach(scenario.robot_actual).distance
+
+
+def footprint_gap(scenario: Scenario, poses: np.ndarray) -> np.ndarray:
+    """Distance from the true body's footprint to the nearest obstacle at each pose [m], shape (T,).
+
+    The footprint is the URDF's collision body seen from above (:func:`scenarios.body.robot_geometry`:
+    the chassis box, the wheels' contact discs, the casters' discs) at the true pose; 0 where it
+    touches or overlaps an obstacle.
+    """
+    from shapely import affinity
+
+    from scenarios.body import robot_geometry
+
+    spec = scenario.robot_actual
+    g = robot_geometry(spec)
+    r_w = max(g.left_radius, g.right_radius)
+    body = shapely.union_all([
+        shapely.box(-g.chassis_length / 2, -g.chassis_width / 2, g.chassis_length / 2, g.chassis_width / 2),
+        *(shapely.Point(0.0, sy * spec.wheel_base / 2).buffer(r_w, quad_segs=16) for sy in (1, -1)),
+        *(shapely.Point(sx * g.caster_x, 0.0).buffer(g.caster_radius, quad_segs=16) for sx in (1, -1))])
+    geo = obstacle_geometry(scenario)
+    placed = (affinity.translate(affinity.rotate(body, th, origin=(0, 0), use_radians=True), x, y)
+              for x, y, th in np.asarray(poses, dtype=float))
+    return np.array([shapely.distance(geo, b) for b in placed])
