@@ -102,3 +102,9 @@ def test_fleet_override_is_checked():
     fleet = "[robot]\nradius = 0.4\n[[robots]]\nname = \"r1\"\ntasks = [0]\nradius = 0.25\n"
     with pytest.raises(ScenarioError, match=r"robots\[0\]\.radius: 0\.25 is smaller than the robot's body"):
         scenarios.loads(WORLD + fleet)
+
+
+def test_a_wheel_base_too_narrow_for_a_chassis_is_refused_at_load():
+    with pytest.raises(ScenarioError, match=r"robot\.wheel_base: expected more than wheel width \+ gaps \(0\.05 m\), "
+                                            r"got 0\.04$"):
+        scenarios.loads(WORLD + "[robot]\nradius = 0.2\nwheel_base = 0.04\nwheel_radius = 0.03\n")
