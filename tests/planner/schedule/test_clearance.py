@@ -5,71 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import scenarios
 from planner.plan import plan_route
 from planner.routes.smoothing import speed_profile
 from planner.schedule import clearance
 from scenarios.errors import PlanningError
-
-# Posts around a 12 x 8 m hall, a route network A -> c -> B with one 90 deg corner at c; a
-# pillar is put in per test.
-WORLD = """
-name = "pillar-hall"
-seed = 3
-[workspace]
-size = [12.0, 8.0]
-{pillar}
-[[markers]]
-id = "M1"
-position = [0.0, 0.0]
-[[markers]]
-id = "M2"
-position = [6.0, 0.0]
-[[markers]]
-id = "M3"
-position = [12.0, 0.0]
-[[markers]]
-id = "M4"
-position = [0.0, 8.0]
-[[markers]]
-id = "M5"
-position = [6.0, 8.0]
-[[markers]]
-id = "M6"
-position = [12.0, 8.0]
-[[markers]]
-id = "M7"
-position = [0.0, 4.0]
-[[markers]]
-id = "M8"
-position = [12.0, 4.0]
-[sensor]
-relative_error = 1e-4
-absolute_error = 0.001
-noise = "uniform"
-max_range = 20.0
-[robot]
-radius = 0.4
-max_speed = 1.0
-max_yaw_rate = 0.5      # arcs of 2 m at cruising speed: the corner is an arc, not a stop
-[planning]
-eps_max = 0.05
-[[docks]]
-name = "A"
-pose = [1.5, 2.0, 0.0]
-[[docks]]
-name = "B"
-pose = [9.0, 6.5, 90.0]
-[routes]
-nodes = {{ A = [1.5, 2.0], c = [9.0, 2.0], B = [9.0, 6.5] }}
-segments = [["A", "c"], ["c", "B"]]
-"""
-
-PILLAR = "[[obstacles]]\ncenter = [{x}, {y}]\nradius = {r}\n"
-
-
-def world(x=None, y=None, r=0.3):
-    return scenarios.loads(WORLD.format(pillar="" if x is None else PILLAR.format(x=x, y=y, r=r)))
+from tests.planner.schedule.pillar_hall import arc_middle, world
 
 
 def test_a_pillar_grazing_a_straight_is_refused_naming_it():
@@ -94,15 +34,6 @@ def test_the_same_pillar_farther_off_plans():
     assert m.clearance.min() == pytest.approx(0.47, abs=0.01)
 
 
-def _arc_middle(plan, m):
-    """Return the check's sample nearest the middle of the corner's arc, and the unit vector to its centre."""
-    r = 1.0 / plan.candidates[plan.chosen].path.curvature.max()
-    centre = np.array([9.0 - r, 2.0 + r])           # the arc is tangent to y = 2 and x = 9
-    mid = centre + r * np.array([1.0, -1.0]) / np.sqrt(2.0)
-    i = int(np.argmin(np.hypot(*(m.points - mid).T)))
-    return i, (centre - m.points[i]) / np.hypot(*(centre - m.points[i]))
-
-
 def _corner_margin(sc, speed_of):
     p = plan_route(sc, "A", "B")
     return p, clearance.margin(sc, p.path, speed_of(p), p.schedule.s, p.schedule.predicted_error)
@@ -119,7 +50,7 @@ def test_a_corner_too_tight_at_cruising_speed_is_taken_slower():
                               p0.schedule.s, p0.schedule.predicted_error)
     slow = clearance.margin(bare, p0.path, np.minimum(p0.speed, clearance.SLOWEST_LOOKAHEAD_SPEED),
                             p0.schedule.s, p0.schedule.predicted_error)
-    i, inward = _arc_middle(p0, cruise)
+    i, inward = arc_middle(p0, cruise)
     assert cruise.tracking[i] > slow.tracking[i] + 0.03   # the lookahead's cut shrinks slower
     # the pillar's surface on the inside of the turn, midway between the two needs
     gap = 0.5 * (cruise.needed[i] + slow.needed[i])
@@ -140,7 +71,7 @@ def test_a_corner_too_tight_even_slow_is_refused():
     p0 = plan_route(bare, "A", "B")
     slow = clearance.margin(bare, p0.path, np.minimum(p0.speed, clearance.SLOWEST_LOOKAHEAD_SPEED),
                             p0.schedule.s, p0.schedule.predicted_error)
-    i, inward = _arc_middle(p0, slow)
+    i, inward = arc_middle(p0, slow)
     centre = slow.points[i] + (slow.needed[i] - 0.005 + 0.3) * inward
     sc = world(round(float(centre[0]), 3), round(float(centre[1]), 3))
     with pytest.raises(PlanningError, match=r"route A -> B passes 0\.\d+ m from the obstacle at .* needs 0\.\d+ m "

@@ -1,6 +1,6 @@
 """A route that grazes a pillar: refused by the plan; driven with the check off, the robot hits it.
 
-The pillar hall of ``tests/planner/schedule/test_clearance.py`` with the robot's radius at its
+The pillar hall of ``tests/planner/schedule/pillar_hall.py`` with the robot's radius at its
 body's reach (0.351 m, the wheels reach 0.3502 m) and a pillar inside the corner's arc 5 mm
 beyond the radius: the route graph and the smoother accept it (they keep the radius), the body's
 clearance check does not (the follower cuts the arc and the estimate may be off). Switched off,
@@ -19,7 +19,7 @@ from planner.schedule import clearance
 from planner.schedule.schedule import make_schedule
 from scenarios.errors import PlanningError
 from sim.episode.drive import prepare, run_episode
-from tests.planner.schedule.test_clearance import PILLAR, WORLD, _arc_middle
+from tests.planner.schedule.pillar_hall import PILLAR, WORLD, arc_middle
 from tests.sim.episode.bodyclear import footprint_gap
 
 pytestmark = pytest.mark.e2e
@@ -39,7 +39,7 @@ def world(offset: float | None):
     p0 = plan_route(bare, "A", "B")
     m = clearance.margin(bare, p0.path, speed_profile(p0.candidates[p0.chosen].path, bare.robot),
                          p0.schedule.s, p0.schedule.predicted_error)
-    i, inward = _arc_middle(p0, m)
+    i, inward = arc_middle(p0, m)
     c = m.points[i] + (RADIUS + offset + 0.3) * inward
     return scenarios.loads(text(PILLAR.format(x=round(float(c[0]), 3), y=round(float(c[1]), 3), r=0.3)))
 
