@@ -233,7 +233,7 @@ def offset_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.nda
     is within the estimate's error of the estimate: the sum bounds the true pose's offset
     (the module docstring's ``Delta_i`` without the start lag and the speed terms, which move a
     measurement along the path, not away from it). The body's clearance check
-    (:mod:`planner.schedule.clearance`) and the line-of-sight margin take it from here.
+    (:mod:`planner.schedule.clearance`) adds the same two terms, kept apart to name them.
 
     Parameters
     ----------
