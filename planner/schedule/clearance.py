@@ -3,7 +3,8 @@
 The planner keeps a disc of ``robot.radius`` (which contains the simulated body,
 :mod:`scenarios.body`) clear of obstacles around each path point; the robot does not drive on the
 path but within :func:`planner.schedule.promise.offset_bound` of it: the follower's tracking
-bound there (corners included: it cuts them and swings wide leaving them) plus the estimate's
+bound there (corners included: it cuts them and swings wide leaving them; and its departure
+from the dock, whose heading may differ from the path's) plus the estimate's
 error the plan certifies there (the schedule's predicted error). A path is driveable when, at
 every point,
 
@@ -83,7 +84,7 @@ class Margin:
 
 
 def margin(scenario: Scenario, path: np.ndarray, speed: np.ndarray, s_est: np.ndarray,
-           estimate: np.ndarray) -> Margin:
+           estimate: np.ndarray, heading: float | None = None) -> Margin:
     """Check the body's clearance along ``path`` driven at ``speed`` (module docstring).
 
     Parameters
@@ -99,6 +100,10 @@ def margin(scenario: Scenario, path: np.ndarray, speed: np.ndarray, s_est: np.nd
         ``s`` and ``predicted_error``); between them the larger neighbour is taken (the error
         grows between fixes by the drift over one spacing, which the neighbour's covers when it
         lies after the fix, and a fix completing between them lowers it).
+    heading : float, optional
+        The robot's heading at the start, on its dock [rad]: its departure
+        (:func:`planner.schedule.promise.departure_bound`) joins the tracking bound. None: the
+        robot starts along the path.
 
     Returns
     -------
@@ -113,9 +118,12 @@ def margin(scenario: Scenario, path: np.ndarray, speed: np.ndarray, s_est: np.nd
     hi = np.maximum(est, np.concatenate([est[1:], est[-1:]]))
     idx = np.clip(np.searchsorted(np.asarray(s_est, dtype=float), s, side="right") - 1, 0, len(est) - 1)
     est_s = np.maximum(hi[idx], hi[np.maximum(idx - 1, 0)])
+    speed = np.asarray(speed, dtype=float)
+    tracking = promise.tracking_bound(path, s_v, speed, s)
+    if heading is not None:
+        tracking = tracking + promise.departure_bound(path, s_v, speed, s, heading)
     return Margin(s=s, points=pts, clearance=criteria.clearance(pts, scenario), radius=scenario.robot.radius,
-                  tracking=promise.tracking_bound(path, s_v, np.asarray(speed, dtype=float), s),
-                  estimate=est_s, sampling=0.5 * spacing)
+                  tracking=tracking, estimate=est_s, sampling=0.5 * spacing)
 
 
 def slowed(path: np.ndarray, speed: np.ndarray, s_short: np.ndarray) -> np.ndarray | None:
@@ -221,7 +229,7 @@ def cleared_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarra
     """
     for _ in range(ROUNDS):
         sched = make_schedule(scenario, pef, path, speed, **kwargs)
-        m = margin(scenario, path, sched.speed, sched.s, sched.predicted_error)
+        m = margin(scenario, path, sched.speed, sched.s, sched.predicted_error, scenario.dock(start).pose[2])
         if not m.short.any():
             return sched
         speed = slowed(path, sched.speed, m.s[m.short])

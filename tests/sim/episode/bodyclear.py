@@ -17,11 +17,15 @@ def excess_offset(scenario: Scenario, plan: Plan, xy: np.ndarray, tracking: bool
     The bound (:func:`planner.schedule.promise.offset_bound`, as the clearance check takes it:
     :func:`planner.schedule.clearance.margin`) says the true position lies within
     ``tracking(s) + estimate(s)`` of the path point ``path(s)`` the robot is passing; the robot
-    is inside it when some path sample is that close. With ``tracking`` False the follower's
-    tracking bound is left out (a negative control).
+    is inside it when some path sample is that close, up to half the samples' spacing (the
+    departure from the dock's heading included). With ``tracking`` False the follower's tracking
+    and departure bounds are left out (a negative control).
     """
-    m = clearance.margin(scenario, plan.path, plan.speed, plan.schedule.s, plan.schedule.predicted_error)
-    bound = m.estimate + (m.tracking if tracking else 0.0)
+    m = clearance.margin(scenario, plan.path, plan.speed, plan.schedule.s, plan.schedule.predicted_error,
+                         scenario.dock(plan.start).pose[2] if tracking else None)
+    # the check's samples are a spacing apart: a point on the path lies within half of it of one,
+    # which the check adds to what each sample needs (``Margin.sampling``)
+    bound = m.estimate + (m.tracking if tracking else 0.0) + m.sampling
     out = np.empty(len(xy))
     for lo in range(0, len(xy), 256):
         p = xy[lo:lo + 256]
