@@ -17,7 +17,8 @@ import numpy as np
 from planner.routes import criteria
 from planner.routes.candidates import Candidate, TauFn, free_candidates, network_candidates
 from planner.routes.ranking import Ranking, rank
-from planner.schedule.schedule import Schedule, make_schedule
+from planner.schedule import clearance
+from planner.schedule.schedule import Schedule
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
@@ -114,8 +115,12 @@ def _no_route(scenario: Scenario, start: str, goal: str, cands: list[Candidate])
                          f"(eps_max {scenario.planning.eps_max:g} m); best {best.id}: {best.why_not}")
 
 
-def _make_schedule(scenario: Scenario, pef, cand: Candidate):
-    return make_schedule(scenario, pef, cand.path.points, cand.speed)
+def _make_schedule(scenario: Scenario, pef, cand: Candidate, start: str, goal: str) -> tuple[Schedule, str]:
+    """Schedule the candidate at speeds whose tracking keeps the body clear; or say why not (names the place)."""
+    try:
+        return clearance.cleared_schedule(scenario, pef, cand.path.points, cand.speed, start, goal), ""
+    except clearance.ClearanceError as exc:
+        return None, str(exc)
 
 
 def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = None, pef=None,
@@ -179,10 +184,10 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
         sched = None
         if not why and schedule:
             try:
-                sched = _make_schedule(scenario, pef, cand)
+                sched, why = _make_schedule(scenario, pef, cand, start, goal)
             except PlanningError as exc:
                 why = f"no measurement schedule ({exc})"
-            else:
+            if not why:
                 # the slow-downs for fixes are part of the drive
                 cand.slowdown = sched.slowdown_time
                 cand.time += sched.slowdown_time

@@ -13,7 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from scenarios import floorplan
-from scenarios.errors import ScenarioError
+from scenarios.body import body_reach
+from scenarios.errors import ScenarioError, SimulationError
 from scenarios.fields import Table, show_path
 from scenarios.files import unreadable_because
 from scenarios.limits import (
@@ -183,6 +184,27 @@ def _robot(t: Table, base: RobotSpec) -> RobotSpec:
     return spec
 
 
+def _check_body(t: Table, declared: RobotSpec, actual: RobotSpec, actual_t: Table | None) -> None:
+    """Refuse a declared ``radius`` that does not contain the simulated body (:mod:`scenarios.body`).
+
+    The planner keeps a disc of the declared radius clear of obstacles; the simulation builds
+    the body from the actual spec (and the declared robot's body must fit too: it is the one a
+    scenario without ``actual`` simulates). ``t`` is the table holding the declared radius,
+    ``actual_t`` the one overriding the simulated robot (None without it).
+    """
+    for spec, table, what in ((declared, t, ""), (actual, actual_t, " simulated")):
+        if table is None and spec is not declared:
+            continue
+        try:
+            reach = body_reach(spec)
+        except SimulationError as exc:
+            key = "wheel_base" if "wheel_base" in str(exc) else "wheel_radius_error"
+            (table or t).fail((table or t).key(key), str(exc).split(": ", 1)[1])
+        if reach.distance > declared.radius:
+            raise ScenarioError(f"{t.file}: {t.key('radius')}: {declared.radius:g} is smaller than the{what} "
+                                f"robot's body, whose {reach.part}")
+
+
 #: Keys of a ``[[robots]]`` table besides the robot keys it may override.
 _FLEET_KEYS = ("name", "tasks", "start_time", "actual")
 
@@ -224,6 +246,7 @@ def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[
             actual = _robot(a_t, actual)
             a_t.done()
             _check_path_samples(a_t, actual, workspace, fix_rate_hz)
+        _check_body(t, declared, actual, t.table("actual") if t.has("actual") else t)
         _check_path_samples(t, declared, workspace, fix_rate_hz)
         for key in t.data:
             if key not in _FLEET_KEYS and key not in t.used:
@@ -372,6 +395,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         robot_actual = _robot(a_t, robot)
         a_t.done()
     r_t.done()
+    _check_body(r_t, robot, robot_actual, r_t.table("actual") if r_t.has("actual") else None)
 
     p_t = root.table("planning")
     planning = _planning(p_t)

@@ -33,10 +33,13 @@ returns the factor ``eps_factor`` the caller multiplies the achievable error by
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+
+from scenarios.body import body_reach
+from scenarios.schema import RobotSpec
 
 KINDS = ("loop", "u-turn", "comb", "l-hall")
 """Layouts :func:`draw_world` chooses from, with equal probability."""
@@ -157,6 +160,20 @@ def _rect(x0: float, y0: float, x1: float, y1: float) -> list[list[float]]:
 def _chamfered(x0: float, y0: float, x1: float, y1: float, ch: float) -> list[list[float]]:
     return [[x0 + ch, y0], [x1 - ch, y0], [x1, y0 + ch], [x1, y1 - ch], [x1 - ch, y1], [x0 + ch, y1],
             [x0, y1 - ch], [x0, y0 + ch]]
+
+
+def _fitting_wheel_base(robot: dict[str, Any]) -> float:
+    """Return the drawn wheel base, narrowed in centimetres until the body lies within the radius.
+
+    The loader refuses a radius that does not contain the simulated body
+    (:func:`scenarios.body.body_reach`: the wheels' contact spheres reach ``wheel_base / 2 +
+    wheel radius``); the other draws stay as they were.
+    """
+    spec = RobotSpec(wheel_radius=robot["wheel_radius"], wheel_base=robot["wheel_base"], radius=robot["radius"],
+                     wheel_radius_error=robot["wheel_radius_error"])
+    while body_reach(spec).distance > spec.radius:
+        spec = replace(spec, wheel_base=round(spec.wheel_base - 0.01, 2))
+    return spec.wheel_base
 
 
 def _pillars(rng: np.random.Generator, walls: list[Wall], robot_radius: float,
@@ -398,6 +415,7 @@ def draw_world(rng: np.random.Generator, name: str, *, max_size: float | None = 
         "odometry_noise": _u(rng, *SLIP_RANGE, 4),
         "turn_slip": TURN_SLIP,
     }
+    robot["wheel_base"] = _fitting_wheel_base(robot)
     eps_factor = _u(rng, *EPS_FACTOR_RANGE)
     seed = int(rng.integers(2**31))
     docks = []

@@ -28,8 +28,8 @@ from planner.fleet import exposure
 from planner.fleet.zones import predict_timeline
 from planner.plan import Plan
 from planner.routes.smoothing import speed_profile
+from planner.schedule.clearance import ClearanceError, cleared_schedule
 from planner.schedule.pathtime import Kinematics
-from planner.schedule.schedule import make_schedule
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
@@ -65,10 +65,15 @@ def reschedule(scenario: Scenario, robot, own: Scenario, pef, tracks, i: int, li
         cand = plan.candidates[plan.chosen]
         base = speed_profile(cand.path, own.robot)
         block = exposure.risk(scenario, tracks, i, float(off))
+        # the body's clearance holds at the new speeds too (slowed where it needs, as the plan was)
         try:
-            sched = make_schedule(own, pef, cand.path.points, base, block=block, block_limit=limit)
+            sched = cleared_schedule(own, pef, cand.path.points, base, plan.start, plan.goal, block=block,
+                                     block_limit=limit)
+        except ClearanceError:
+            raise
         except PlanningError:
-            sched = make_schedule(own, pef, cand.path.points, base, block=block, block_limit=limit, protect=False)
+            sched = cleared_schedule(own, pef, cand.path.points, base, plan.start, plan.goal, block=block,
+                                     block_limit=limit, protect=False)
             loose.append(q)
         plans.append(replace(plan, speed=sched.speed, schedule=sched))
     return plans, loose

@@ -262,11 +262,25 @@ def free_candidates(scenario: Scenario, start: str, goal: str, pef, tau_fn: TauF
     for name in (start, goal):
         p = np.asarray(scenario.dock(name).position, float)
         cells.append(_dock_cell(grid, allowed, p, name, scenario, tau_fn))
-    found = gridsearch.alternatives(grid, tau_c, allowed, eps, cells[0], cells[1],
+    # Routes that leave room for the estimate's error (under eps_max) beside the body first: the
+    # plan keeps radius + tracking + estimate clear (planner.schedule.clearance), so a route
+    # hugging the radius is refused on a straight. The docks may stand closer: cells near them
+    # need the radius only; where no roomy route exists, the radius alone everywhere.
+    centres = grid.centres()
+    near_dock = np.zeros(grid.shape, bool)
+    for name in (start, goal):
+        d = np.hypot(*(centres - np.asarray(scenario.dock(name).position, float)).transpose(2, 0, 1))
+        near_dock |= d <= radius + eps + 2.0 * h
+    mask = allowed & ((clear - h / 2 >= radius + eps) | near_dock)
+    found = gridsearch.alternatives(grid, tau_c, mask, eps, cells[0], cells[1],
                                     scenario.planning.weights.accuracy, n_routes)
     if not found:
+        mask = allowed
+        found = gridsearch.alternatives(grid, tau_c, mask, eps, cells[0], cells[1],
+                                        scenario.planning.weights.accuracy, n_routes)
+    if not found:
         raise _free_infeasible(scenario, start, goal, grid, safe, tau_c, cells, tau_fn)
-    grid_ok = lambda pts: grid.lookup(allowed, pts)
+    grid_ok = lambda pts: grid.lookup(mask, pts)
     specs = []
     a, b = np.asarray(scenario.dock(start).position), np.asarray(scenario.dock(goal).position)
     for i, (label, gp) in enumerate(found):

@@ -136,6 +136,9 @@ SETTLE_LOOKAHEADS = 3.0
 """Length, in lookaheads, over which the follower settles back onto the path after a turn: it
 leaves a 90 deg corner of the corridor world (lookahead 0.8 m + 0.1 m vertex spacing) 9.5 cm
 wide and is back within 1.5 cm 2.5 m later. Measured on the follower, not derived (below)."""
+ROTATE_ABOVE = math.radians(60.0)
+"""The path follower turns on the spot while its target lies more than this off its heading [rad]
+(``sim.episode.follower.PurePursuit`` reads it); below it, it drives an arc towards the target."""
 FOLLOWER_MAX_ACCEL = MAX_ACCEL
 """The path follower's limit on the change of its speed [m/s^2] (the planner's own)."""
 START_LAG = 1.0 / 48.0
@@ -224,6 +227,76 @@ def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.n
     reach = LOOKAHEAD_MIN + LOOKAHEAD_GAIN * float(np.max(speed, initial=0.0)) + spacing
     look = np.maximum(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * local_speed(s_v, speed, s, reach)) + spacing
     return settle_bound(path, s_v, s, look)
+
+
+def offset_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray, estimate) -> np.ndarray:
+    """Bound on the true position's distance from ``path(s)`` when the robot drives past ``s`` [m].
+
+    The follower keeps its *estimate* within :func:`tracking_bound` of the path, and the truth
+    is within the estimate's error of the estimate: the sum bounds the true pose's offset
+    (the module docstring's ``Delta_i`` without the start lag and the speed terms, which move a
+    measurement along the path, not away from it). The body's clearance check
+    (:mod:`planner.schedule.clearance`) adds the same two terms, kept apart to name them.
+
+    Parameters
+    ----------
+    path, s_v, speed : ndarray, shape (N, 2), (N,), (N,)
+        Path vertices [m], their arc length [m] and planned speeds [m/s].
+    s : ndarray, any shape
+        Arc lengths [m].
+    estimate : float or ndarray, shape of ``s``
+        Bound on the estimate's error there (what the plan certifies) [m].
+
+    Returns
+    -------
+    numpy.ndarray, shape of ``s``
+    """
+    return tracking_bound(path, s_v, speed, s) + np.asarray(estimate, dtype=float)
+
+
+def departure_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray,
+                    heading: float) -> np.ndarray:
+    """Bound on the follower's extra distance from the path as it leaves its dock [m].
+
+    The robot stands at the path's start with the dock's ``heading``; its first target, one
+    lookahead ahead, lies ``alpha`` off that heading. Above :data:`ROTATE_ABOVE` it turns on the
+    spot until the target is :data:`ROTATE_ABOVE` off, then, like below it, drives the arc
+    tangent to its heading through the target: an arc of chord ``L`` and tangent angle
+    ``alpha`` strays ``L / 2 tan(alpha / 2)`` from its chord. The lookahead grows as the robot
+    speeds up, so ``L`` is the longest over the departure (plus one vertex spacing), and the
+    robot is back on the path, like leaving a corner, within :data:`SETTLE_LOOKAHEADS` more
+    lookaheads: the bound holds over ``[0, (SETTLE_LOOKAHEADS + 1) L]``, 0 after it. It adds to
+    :func:`tracking_bound` (which bounds the chord's distance from the path). Argued from the
+    follower's geometry like the settle factor; checked on episodes
+    (``tests/sim/test_realmap_tb3.py``).
+
+    Parameters
+    ----------
+    path, s_v, speed : ndarray, shape (N, 2), (N,), (N,)
+        Path vertices [m], their arc length [m] and planned speeds [m/s].
+    s : ndarray, any shape
+        Arc lengths [m].
+    heading : float
+        The robot's heading at the start [rad].
+
+    Returns
+    -------
+    numpy.ndarray, same shape as ``s``
+    """
+    s = np.asarray(s, dtype=float)
+    spacing = float(np.max(np.diff(s_v), initial=0.0))
+    reach = (SETTLE_LOOKAHEADS + 1.0) * (LOOKAHEAD_MIN + LOOKAHEAD_GAIN * float(np.max(speed, initial=0.0)) + spacing)
+    v_max = float(local_speed(s_v, speed, np.array([0.0]), reach)[0])
+    look = max(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * v_max) + spacing
+    # the first target: one shortest lookahead ahead (the robot stands still)
+    target = np.array([np.interp(LOOKAHEAD_MIN, s_v, path[:, 0]), np.interp(LOOKAHEAD_MIN, s_v, path[:, 1])])
+    d = target - path[0]
+    if not np.hypot(*d) > 0.0:
+        return np.zeros(s.shape)
+    off = math.atan2(d[1], d[0]) - heading
+    alpha = min(abs(math.atan2(math.sin(off), math.cos(off))), ROTATE_ABOVE)
+    dep = 0.5 * look * math.tan(0.5 * alpha)
+    return np.where(s <= (SETTLE_LOOKAHEADS + 1.0) * look, dep, 0.0)
 
 
 def settle_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarray) -> np.ndarray:

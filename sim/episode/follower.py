@@ -71,7 +71,7 @@ class PurePursuit:
     lookahead_min: float = design.LOOKAHEAD_MIN
     lookahead_gain: float = design.LOOKAHEAD_GAIN
     goal_tolerance: float = 0.05
-    rotate_in_place_above: float = math.radians(60.0)
+    rotate_in_place_above: float = design.ROTATE_ABOVE
     window: int = 40
     """Path points searched ahead of the last nearest one (the path is sampled every ~0.1 m)."""
     _s: np.ndarray = field(default=None, init=False, repr=False)

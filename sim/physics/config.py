@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 from planner.pef.sight import REFLECTOR_RADIUS
+from scenarios.body import WHEEL_WIDTH
 from scenarios.errors import SimulationError
 
 
@@ -61,7 +62,7 @@ class PhysicsConfig:
     gravity: float = 9.81
     floor_friction: float = 1.0
     wheel_friction: float = 1.0
-    wheel_width: float = 0.03
+    wheel_width: float = WHEEL_WIDTH
     wheel_mass_fraction: float = 0.05
     caster_clearance: float = 0.002
     post_radius: float = REFLECTOR_RADIUS

@@ -1,5 +1,8 @@
 """The differential-drive robot: its URDF (filled from the actual RobotSpec) and its motors.
 
+Its dimensions are :func:`scenarios.body.robot_geometry`'s, the same the loader checks the
+declared radius against (:func:`scenarios.body.body_reach`).
+
 The systematic odometry error is physical here: the right wheel's radius is
 ``r (1 + wheel_radius_error)`` and the left one's ``r (1 - wheel_radius_error)`` of the
 *actual* spec, while the odometry converts encoder angles with the *nominal* radius.
@@ -10,21 +13,19 @@ from __future__ import annotations
 import functools
 import math
 import tempfile
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from string import Template
 
 import numpy as np
 
+from scenarios.body import FRONT_LOAD, robot_geometry
 from scenarios.errors import SimulationError
 from scenarios.schema import RobotSpec
 from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced
 
 _CASTER_MASS_FRACTION = 0.01   # casters are light plastic balls; a share of the chassis mass [-]
-_WHEEL_GAP = 0.01              # clearance between chassis side and wheel [m]
-_FRONT_LOAD = 0.1              # share of the chassis weight the front caster carries [-]
 
 #: The drive's position loop [1/s]: each wheel's rate setpoint is its command plus this gain
 #: times the angle the wheel is behind the command's integral. Bullet's velocity motor alone
@@ -38,63 +39,6 @@ DRIVE_GAIN = 30.0
 #: The lag past which the loop stops integrating the command [rad]: a wheel held back by a
 #: wall (or torque-limited for long) is not sent after the whole angle it missed.
 FOLLOWING_LIMIT = 0.2
-
-
-@dataclass(frozen=True)
-class RobotGeometry:
-    """Dimensions of the simulated robot, derived from a RobotSpec and a PhysicsConfig [m]."""
-
-    left_radius: float
-    right_radius: float
-    axle_height: float
-    chassis_length: float
-    chassis_width: float
-    chassis_height: float
-    com_x: float
-    """Chassis centre of mass ahead of the axle; puts a share of the weight on the front caster."""
-    com_z: float
-    """Height of the chassis' centre of mass relative to the axle (negative: below it)."""
-    caster_radius: float
-    caster_x: float
-    top_height: float
-    """Height of the highest point of the robot above the floor."""
-
-
-def robot_geometry(spec: RobotSpec, config: PhysicsConfig) -> RobotGeometry:
-    """Derive the robot's dimensions from its spec.
-
-    Parameters
-    ----------
-    spec : RobotSpec
-        The actual (simulated) robot.
-    config : PhysicsConfig
-        Wheel width, caster clearance.
-
-    Returns
-    -------
-    RobotGeometry
-    """
-    r, e, b, w = spec.wheel_radius, spec.wheel_radius_error, spec.wheel_base, config.wheel_width
-    if not 0.0 <= abs(e) < 0.5:
-        raise SimulationError(f"robot.wheel_radius_error: expected |e| < 0.5, got {e}")
-    chassis_width = b - w - 2.0 * _WHEEL_GAP
-    if chassis_width <= 0.0:
-        raise SimulationError(
-            f"robot.wheel_base: expected more than wheel width + gaps ({w + 2 * _WHEEL_GAP} m), got {b}")
-    caster_radius = 0.5 * r
-    # The chassis fits inside the footprint circle where it can (corners within spec.radius),
-    # but is long enough to hold both casters and no longer than 1.5 wheel bases.
-    half_outer = 0.5 * b + 0.5 * w
-    fit = 2.0 * math.sqrt(max(spec.radius ** 2 - half_outer ** 2, 0.0))
-    chassis_length = min(max(fit, 4.0 * caster_radius + 0.02), 1.5 * b)
-    chassis_height = r
-    return RobotGeometry(
-        left_radius=r * (1.0 - e), right_radius=r * (1.0 + e), axle_height=r,
-        chassis_length=chassis_length, chassis_width=chassis_width, chassis_height=chassis_height,
-        com_x=_FRONT_LOAD * (0.5 * chassis_length - caster_radius), com_z=-0.5 * r,
-        caster_radius=caster_radius, caster_x=0.5 * chassis_length - caster_radius,
-        top_height=max(r + 0.5 * chassis_height, 2.0 * r * (1.0 + abs(e))),
-    )
 
 
 @functools.lru_cache(maxsize=1)
@@ -117,7 +61,7 @@ def urdf_text(spec: RobotSpec, config: PhysicsConfig) -> str:
     str
         URDF XML.
     """
-    g = robot_geometry(spec, config)
+    g = robot_geometry(spec, config.wheel_width)
     m = spec.mass
     mw = config.wheel_mass_fraction * m
     mc = _CASTER_MASS_FRACTION * m
@@ -135,7 +79,7 @@ def urdf_text(spec: RobotSpec, config: PhysicsConfig) -> str:
     right_ixx, right_iyy = wheel_inertia(g.right_radius)
     return _template().substitute(
         axle_height=f(g.axle_height), caster_clearance=f(config.caster_clearance),
-        front_load=f"{_FRONT_LOAD:.0%}", wheel_width=f(w),
+        front_load=f"{FRONT_LOAD:.0%}", wheel_width=f(w),
         com_x=f(g.com_x), com_z=f(g.com_z), chassis_mass=f(m), chassis_z=f(0.0),
         # Box inertia about its centre (the centre of mass sits lower, an approximation that
         # only changes how the body pitches between the casters).
@@ -180,7 +124,7 @@ class DiffDriveRobot:
         # Poses come and go in the user's frame; the body lives at pose - origin (see world.py).
         self._x0, self._y0 = float(origin[0]), float(origin[1])
         self.spec = spec
-        self.geometry = robot_geometry(spec, config)
+        self.geometry = robot_geometry(spec, config.wheel_width)
         text = urdf_text(spec, config)
         with tempfile.TemporaryDirectory(prefix="pefsim-") as tmp:
             path = Path(tmp) / "diffdrive.urdf"

@@ -70,7 +70,7 @@ def scenario_text(routes: str, docks: str = "", markers: bool = True, extra: str
                  for i, (x, y) in enumerate([(0.0, 0.0), (20.0, 0.0), (20.0, 10.0), (0.0, 10.0)], 1))
     return (f'name = "graphs"\n[workspace]\nsize = [20.0, 10.0]\n'
             f'[[obstacles]]\ncenter = [10.0, 5.0]\nsize = [2.0, 2.0]\n'
-            f'{mk if markers else ""}[sensor]\n[robot]\nradius = 0.3\n'
+            f'{mk if markers else ""}[sensor]\n[robot]\nradius = 0.3\nwheel_base = 0.38\n'
             f'[planning]\neps_max = 0.05\nresolution = 0.2\n{docks}[routes]\n{routes}\n{extra}')
 
 

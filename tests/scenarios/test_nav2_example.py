@@ -34,6 +34,7 @@ position = [30.0, 0.0]
 [sensor]
 [robot]
 radius = 0.3
+wheel_base = 0.38
 [planning]
 eps_max = 0.05
 resolution = 0.2

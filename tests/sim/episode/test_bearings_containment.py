@@ -72,7 +72,7 @@ fix_rate_hz = 5.0
 [robot]
 wheel_radius = 0.05
 wheel_base = 0.3
-radius = 0.2
+radius = 0.201
 max_speed = 0.8
 encoder_ticks = 1024
 wheel_radius_error = 0.002
