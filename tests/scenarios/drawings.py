@@ -176,6 +176,7 @@ max_range = 10.0
 [robot]
 radius = 0.2
 wheel_base = 0.3
+wheel_radius = 0.04
 [planning]
 eps_max = 0.05
 resolution = 0.05
