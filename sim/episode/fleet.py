@@ -69,6 +69,10 @@ slows for a reservation it would have got."""
 BRAKE = 0.8
 """Share of the follower's deceleration limit a zone stop uses (the follower brakes for its goal
 with the same share)."""
+WAIT_SPEED = 0.02
+"""A robot whose zone speed cap is below this [m/s] stands at the end of its reservation: it
+waits there, within ``STOP_MARGIN`` + 0.5 mm of its stop (a cap this low leaves ``0.02^2 / (2 BRAKE
+a)`` of room, a = 0.5 m/s^2), and holds the stop's cells alone (``margin`` of the zones covers the gap)."""
 
 
 @dataclass
@@ -321,6 +325,8 @@ class _Robot:
             self._next_task()
         else:
             self.finished, self.arrival = True, t
+            # parked within the goal tolerance of its final dock: it keeps the dock's cells alone
+            self.zones.stand(self.i)
 
     def unreached(self) -> int:
         """Scheduled fixes the time limit left untaken (the one under way included)."""
@@ -344,9 +350,13 @@ class _Robot:
             return v, omega
         room = zones.reserved_to(i) - STOP_MARGIN - s_glob
         cap = math.sqrt(2.0 * BRAKE * a * max(room, 0.0))
+        if cap < WAIT_SPEED:
+            # it stands at its stop: the samples just before a stop need not be safe, and a
+            # waiting robot that held them could block the robot it waits for (zones.stand)
+            zones.stand(i)
         if v <= cap:
             return v, omega
-        if cap < 0.02:
+        if cap < WAIT_SPEED:
             self.waited += self.dt_ctrl
         w = omega * cap / v if v > 0.0 else omega
         self.follower.state[SPEED], self.follower.state[YAW_RATE] = cap, w
