@@ -413,11 +413,12 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
                  "certified_max": float(np.max(certified, initial=0.0)), "lost_guarantee": lost_guarantee})
 
 
-def hold_fix(fixes, schedule, est_xy: np.ndarray, t: float, last_start: float, min_gap: float) -> float:
+def hold_fix(fixes, schedule, est_xy: np.ndarray, t: float, last_start: float, min_gap: float,
+             note=None) -> float:
     """Start a fix at the goal of a robot held there, if the laser is free; return the last fix start [s].
 
     The fix measures the schedule's last subset (its fallback where blocked), under that fix's
-    promise, at most one per ``min_gap`` [s].
+    promise, at most one per ``min_gap`` [s]; ``note`` is kept with its row (``FixRecorder.start``).
     """
     if fixes.pending is not None or t - last_start < min_gap - 1e-9 or not schedule.fixes:
         return last_start
@@ -425,7 +426,7 @@ def hold_fix(fixes, schedule, est_xy: np.ndarray, t: float, last_start: float, m
     subset = fixes.choose_subset(sched.markers, est_xy, sched)
     if subset is None:
         return last_start
-    fixes.start(subset, t, sched)
+    fixes.start(subset, t, sched, note=note)
     return t
 
 

@@ -336,10 +336,27 @@ class _Robot:
             self.body.park(True)
         if t < self.hold_until - 1e-9:
             # held there (montecarlo.hold), re-localising at the laser's rate
-            self.last_fix_start = hold_fix(self.fixes, self.plan.schedule, self.loc.x[:2], t, self.last_fix_start,
-                                           self.min_gap)
+            self._hold_fix(t)
             return
         self.finished = True
+
+    def _hold_fix(self, t: float) -> None:
+        """Start a fix at the final dock during the hold, as :func:`sim.episode.drive.hold_fix` does.
+
+        Robots driving past hide lines of sight: those count as blocked for the fix, as at a
+        scheduled fix (:meth:`start_fix`), so that the fix measures the fallback or improvises
+        beyond the plan instead of on a subset the plan never named.
+        """
+        if self.fixes.pending is not None or t - self.last_fix_start < self.min_gap - 1e-9:
+            return
+        laser = self.laser
+        laser.blocked = frozenset()
+        sched = self.plan.schedule.fixes[-1]
+        hidden = {int(m): laser.blocked_by[m] for m in sched.markers
+                  if not laser.visible(m) and m in laser.blocked_by}
+        laser.blocked = frozenset(hidden)
+        self.last_fix_start = hold_fix(self.fixes, self.plan.schedule, self.loc.x[:2], t, self.last_fix_start,
+                                       self.min_gap, note=FixNote(hidden, math.nan, {}))
 
     def unreached(self) -> int:
         """Scheduled fixes the time limit left untaken (the one under way included)."""
