@@ -50,6 +50,8 @@ MAX_PEF_PASSES = 64
 removed, recursively), so r = 6 with k = 2, r = 2 with k = 8."""
 MAX_RUNS = 10**7
 """Most Monte-Carlo runs of one sweep (montecarlo.runs, mc --runs): its tables keep a row per run."""
+MAX_HOLD = 3600.0
+"""Longest montecarlo.hold [s]: an hour at a dock is 216,000 control steps of a run's log."""
 
 # A TOML or JSON string (the four TOML kinds, JSON's is the basic one) or a TOML comment: their
 # brackets do not nest anything.

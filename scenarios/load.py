@@ -21,6 +21,7 @@ from scenarios.limits import (
     MAX_CANDIDATES,
     MAX_GRID_CELLS,
     MAX_HEIGHT,
+    MAX_HOLD,
     MAX_MARKERS,
     MAX_NESTING,
     MAX_PATH_SAMPLES,
@@ -449,6 +450,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
     montecarlo = MonteCarloSpec(
         runs=mc_t.integer("runs", MonteCarloSpec().runs, low=1, high=MAX_RUNS),
         success_target=mc_t.number("success_target", MonteCarloSpec().success_target, low=0.0, high=1.0),
+        hold=mc_t.number("hold", MonteCarloSpec().hold, low=0.0, high=MAX_HOLD),
     )
     mc_t.done()
 

@@ -359,6 +359,10 @@ class MonteCarloSpec:
 
     runs: int = 200
     success_target: float = 0.95
+    hold: float = 0.0
+    """Time each robot stands at its final dock after its last scheduled fix [s], parked, fixing
+    at the sensor's rate with the schedule's last subset (a docked robot re-localising); 0: the
+    episode ends there."""
 
 
 @dataclass(frozen=True)

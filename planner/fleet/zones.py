@@ -31,8 +31,15 @@ parked on another's path blocks it forever, whatever the rule). Then:
 
 1. A robot only ever waits at the end of its reservation, which is a stop: its start, its
    final dock, or a sample that was safe when it was reserved. Other robots' remaining paths only
-   shrink as they advance, so a safe sample stays safe: a waiting robot holds only cells no
-   other robot will ever need again. **A waiting robot blocks nobody.**
+   shrink as they advance, so a safe sample stays safe. A robot standing there holds that
+   sample's cells alone (:meth:`ZoneControl.stand`), so a waiting or arrived robot holds only
+   cells no other robot will ever need again. **A waiting robot blocks nobody.** (Only the stop
+   itself is safe: the samples just before it are not when it ends a shared stretch, nor those
+   just before a final dock on a short spur. The simulation used to free only the cells it had
+   passed by a slack behind its estimate, so a robot waiting there, or parked at its dock, kept
+   cells of another robot's path: two such robots waited for each other, or for the parked one,
+   for ever. Issue 47: 100 of 100 runs. ``tests/planner/fleet/test_deadlock_search.py`` drives
+   random fleets with the simulation's real stopping points and releases.)
 2. A robot that is not waiting holds every cell up to its next stop, so it reaches that stop
    without needing anything else, in finite time (it drives).
 3. So a refused request waits only for cells held by driving robots, which release them when
@@ -251,6 +258,16 @@ class ZoneControl:
             self._take(i, self.end[i] + 1, k + 1)
             self.end[i] = k
         return True
+
+    def stand(self, i: int) -> None:
+        """Robot i stands at the end of its reservation: free every cell but its stop's.
+
+        The simulation calls it when a robot waits (it stands within ``STOP_MARGIN`` of the
+        reservation's end, :mod:`sim.episode.fleet`) and when it has arrived at its final dock
+        (within the follower's goal tolerance of it): ``margin`` covers that gap, and the rule's
+        argument (module docstring, 1) needs a standing robot to hold its stop's cells alone.
+        """
+        self.release(i, float(self.s[i][self.end[i]]))
 
     def release(self, i: int, s: float) -> None:
         """Robot i is at arc length ``s`` [m]: free the cells only its passed samples cover."""

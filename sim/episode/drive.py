@@ -13,6 +13,8 @@ later one (``merged_fixes``: the laser was still busy when it fell due), failed 
 too few markers seen, or one lost mid-fix) or unreached (``unreached_fixes``: the time limit ran
 out first). The follower is done within its goal tolerance of the path's end, short of the
 schedule's last fixes; the robot then holds at the goal and takes them there, one after another.
+With ``montecarlo.hold`` it then stands at the goal that long, parked
+(:meth:`sim.physics.robot.DiffDriveRobot.park`), fixing at the laser's rate (:func:`hold_fix`).
 """
 
 from __future__ import annotations
@@ -246,7 +248,8 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         raise SimulationError(f"physics time_step {dt_phys:g} s: a fix may start {dt_ctrl + dt_phys:.4g} s late, "
                               f"the plan's promises allow {START_LAG:.4g} s")
     planned_time = float(np.sum(np.diff(plan.s) / np.maximum(plan.speed[1:], 0.05)))
-    t_max = time_limit if time_limit is not None else 3.0 * planned_time + 30.0
+    hold = scenario.montecarlo.hold
+    t_max = time_limit if time_limit is not None else 3.0 * planned_time + 30.0 + hold
     n_max = int(t_max / dt_ctrl) + 2
     log = np.empty((n_max, LOG_COLUMNS))
     tick = ControlTick(odo, loc, follower, log, dt_ctrl)
@@ -265,6 +268,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         counts["reads"] += 1
 
     next_fix, last_fix_start, done, n = 0, -math.inf, False, 0
+    hold_until: float | None = None   # when the hold at the goal ends (montecarlo.hold)
     # reads: odometry reads outside the control ticks; last_read: the physics step of the last read
     counts = {"merged": 0, "reads": 0, "last_read": world.steps}
 
@@ -346,7 +350,16 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         n += 1
         if done:
             if fixes.pending is None and next_fix >= len(fix_s_list):
-                break
+                if hold_until is None:
+                    hold_until = t + hold
+                if t >= hold_until - 1e-9:
+                    break
+                # held at the goal (montecarlo.hold): parked, re-localising at the laser's rate
+                world.robot.park(True)
+                set_wheel_speeds(0.0, 0.0)
+                last_fix_start = hold_fix(fixes, schedule, loc.x[:2], t, last_fix_start, min_gap)
+                advance()
+                continue
             # Stopped at the goal short of the schedule's last fixes (they lie within a fix gap
             # of it, where the follower is done): held there, the robot finishes the fix under
             # way and takes each of them in turn, at the goal, as the laser's rate allows.
@@ -413,6 +426,23 @@ def run_watch(world, i: int, follower: PurePursuit, dt_ctrl: float, wait_limit: 
 
     bound = stuck_bound(follower.max_yaw_rate, follower.max_yaw_accel, follower.max_speed, follower.max_accel)
     return RunWatch(ContactMonitor(world, i), follower.path, bound, dt_ctrl, wait_limit, names)
+
+
+def hold_fix(fixes, schedule, est_xy: np.ndarray, t: float, last_start: float, min_gap: float,
+             note=None) -> float:
+    """Start a fix at the goal of a robot held there, if the laser is free; return the last fix start [s].
+
+    The fix measures the schedule's last subset (its fallback where blocked), under that fix's
+    promise, at most one per ``min_gap`` [s]; ``note`` is kept with its row (``FixRecorder.start``).
+    """
+    if fixes.pending is not None or t - last_start < min_gap - 1e-9 or not schedule.fixes:
+        return last_start
+    sched = schedule.fixes[-1]
+    subset = fixes.choose_subset(sched.markers, est_xy, sched)
+    if subset is None:
+        return last_start
+    fixes.start(subset, t, sched, note=note)
+    return t
 
 
 def _step_log(t, true_pose, est_pose, est_cov, s_est, schedule, pef) -> StepLog:

@@ -7,8 +7,8 @@ robots share the physics steps and the control ticks. At each control tick a rob
 
 * asks zone control (:mod:`planner.fleet.zones`) for the floor up to its braking distance
   ahead, releases what it has left behind, and is slowed so that it stops at the end of its
-  reservation (it waits there, turning on the spot if the follower wants, which stays inside its
-  footprint);
+  reservation; it waits there parked (:meth:`sim.physics.robot.DiffDriveRobot.park`), holding
+  its stop's cells alone (:meth:`planner.fleet.zones.ZoneControl.stand`);
 * starts its scheduled fixes as a single robot does; before a fix it checks which scheduled
   markers another robot's body hides (the fix's note: ``FixLog.notes``, a ``FixNote``: marker
   index -> robot, and the plan's probability of it), and every other line of sight within range
@@ -54,6 +54,7 @@ from sim.episode.drive import (
     check_markers,
     encoder_phases,
     episode_localizer,
+    hold_fix,
     run_watch,
     seed_sequence,
 )
@@ -73,6 +74,10 @@ slows for a reservation it would have got."""
 BRAKE = 0.8
 """Share of the follower's deceleration limit a zone stop uses (the follower brakes for its goal
 with the same share)."""
+WAIT_SPEED = 0.02
+"""A robot whose zone speed cap is below this [m/s] stands at the end of its reservation: it
+waits there, within ``STOP_MARGIN`` + 0.5 mm of its stop (a cap this low leaves ``0.02^2 / (2 BRAKE
+a)`` of room, a = 0.5 m/s^2), and holds the stop's cells alone (``margin`` of the zones covers the gap)."""
 
 
 @dataclass
@@ -183,6 +188,8 @@ class _Robot:
         self.scheduled = 0
         self.robot_blocked = 0
         self.reserved: list[tuple[float, float, float]] = []
+        self.hold = scenario.montecarlo.hold
+        self.hold_until: float | None = None   # when its hold at the final dock ends
         self._FixRecorder, self._WheelOdometry = FixRecorder, WheelOdometry
         self.wait_limit, self.names = math.inf, [fr.name]   # set by the fleet's driver (sim.episode.outcome)
         self.watch = None
@@ -324,7 +331,9 @@ class _Robot:
 
         As a lone robot does (:mod:`sim.episode.drive`): the follower is done within its goal
         tolerance of the path's end, short of fixes the schedule puts within a fix gap of it; the
-        robot finishes the fix under way and takes each of them in turn, at the goal.
+        robot finishes the fix under way and takes each of them in turn, at the goal. At its
+        final dock it parks (:meth:`sim.physics.robot.DiffDriveRobot.park`) and stands there
+        ``montecarlo.hold`` s, fixing at the laser's rate, before it has finished.
         """
         self.command(0.0, 0.0)
         if self.fixes.pending is not None or self.next_fix < len(self.fix_s):
@@ -333,8 +342,35 @@ class _Robot:
             return
         if self.task + 1 < len(self.rp.plans):
             self._next_task()
-        else:
-            self.finished, self.arrival = True, t
+            return
+        if self.hold_until is None:
+            # parked within the goal tolerance of its final dock: it keeps the dock's cells alone
+            self.arrival, self.hold_until = t, t + self.hold
+            self.zones.stand(self.i)
+            self.body.park(True)
+        if t < self.hold_until - 1e-9:
+            # held there (montecarlo.hold), re-localising at the laser's rate
+            self._hold_fix(t)
+            return
+        self.finished = True
+
+    def _hold_fix(self, t: float) -> None:
+        """Start a fix at the final dock during the hold, as :func:`sim.episode.drive.hold_fix` does.
+
+        Robots driving past hide lines of sight: those count as blocked for the fix, as at a
+        scheduled fix (:meth:`start_fix`), so that the fix measures the fallback or improvises
+        beyond the plan instead of on a subset the plan never named.
+        """
+        if self.fixes.pending is not None or t - self.last_fix_start < self.min_gap - 1e-9:
+            return
+        laser = self.laser
+        laser.blocked = frozenset()
+        sched = self.plan.schedule.fixes[-1]
+        hidden = {int(m): laser.blocked_by[m] for m in sched.markers
+                  if not laser.visible(m) and m in laser.blocked_by}
+        laser.blocked = frozenset(hidden)
+        self.last_fix_start = hold_fix(self.fixes, self.plan.schedule, self.loc.x[:2], t, self.last_fix_start,
+                                       self.min_gap, note=FixNote(hidden, math.nan, {}))
 
     def unreached(self) -> int:
         """Scheduled fixes the time limit left untaken (the one under way included)."""
@@ -355,14 +391,22 @@ class _Robot:
             # reserved to its final dock: the follower's own goal stop rules (compared as arc
             # lengths: the room below and the way left summed in another order differed in the
             # last bit, and a robot 5 cm short of its goal was held there for good)
+            self.body.park(False)
             return v, omega
         room = zones.reserved_to(i) - STOP_MARGIN - s_glob
         cap = math.sqrt(2.0 * BRAKE * a * max(room, 0.0))
-        if v <= cap:
-            return v, omega
-        if cap < 0.02:
+        if cap < WAIT_SPEED:
+            # it stands at its stop, parked: the samples just before a stop need not be safe,
+            # and a waiting robot that held them could block the robot it waits for (zones.stand)
+            zones.stand(i)
+            self.body.park(True)
             self.waited += self.dt_ctrl
             self.waiting = True
+            self.follower.state[SPEED], self.follower.state[YAW_RATE] = 0.0, 0.0
+            return 0.0, 0.0
+        self.body.park(False)
+        if v <= cap:
+            return v, omega
         w = omega * cap / v if v > 0.0 else omega
         self.follower.state[SPEED], self.follower.state[YAW_RATE] = cap, w
         return cap, w
@@ -467,7 +511,7 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
                               f"the plan's promises allow {START_LAG:.4g} s")
     plans = prepared.plan.robots
     predicted_end = max(float(rp.timeline.end_time) for rp in plans)
-    t_max = time_limit if time_limit is not None else 3.0 * predicted_end + 30.0
+    t_max = time_limit if time_limit is not None else 3.0 * predicted_end + 30.0 + scenario.montecarlo.hold
     n_max = int(t_max / dt_ctrl) + 2
     zones = zones_of(plans)
     robots = [_Robot(i, scenario, rp, world, prepared.pef, ss, zones, n_max, q_scale) for i, rp in enumerate(plans)]

@@ -149,9 +149,14 @@ class DiffDriveRobot:
         self._torque = [spec.max_wheel_torque, spec.max_wheel_torque]
         self._rates = [0.0, 0.0]     # the command [rad/s]
         self._setpoint = [0.0, 0.0]  # its integral since the reset [rad]
+        self._pin: int | None = None  # the parking brake's constraint while parked (park)
+        #: The floor's body id (set by the world): a parked robot's links stop touching it.
+        self.floor: int | None = None
+        self._links = [-1, *range(pb.getNumJoints(self.body, physicsClientId=client))]
 
     def reset(self, pose: tuple[float, float, float] | np.ndarray) -> None:
         """Put the robot level at ``pose`` (x [m], y [m], theta [rad]), at rest, motors at zero."""
+        self.park(False)
         x, y, theta = (float(v) for v in pose)
         x, y = x - self._x0, y - self._y0
         c, s = math.cos(theta), math.sin(theta)
@@ -166,6 +171,51 @@ class DiffDriveRobot:
         self._setpoint = [0.0, 0.0]
         self.set_wheel_speeds(0.0, 0.0)
 
+    def park(self, on: bool) -> None:
+        """Set the parking brake: pin the chassis where it stands (``on``) or let it go.
+
+        Bullet's contact friction has no static phase: a robot standing on its held wheels
+        slides over the floor, 10-30 µm/s and 5-15 µrad/s depending on its heading (120 s at
+        rest on the warehouse floor, the wheels turning < 1 µrad), which no encoder sees; the
+        filter, told by the encoders that the robot stands, grew overconfident over minutes at a
+        dock (issue 47: NEES 65 after 200 s). Bullet's friction anchors stop most of it, but only
+        for contacts made after they are set, and they would change every drive. Parked, a fixed
+        constraint holds the chassis' pose, the wheels are held at their angles and no longer touch the
+        floor (whose drift would turn them under the held chassis, 0.13 mrad): the robot stands as a
+        real one on its brakes does. Wheel rates other than 0 while parked raise.
+        """
+        cid = self.client
+        if on and self._pin is None:
+            pos, orn = pb.getBasePositionAndOrientation(self.body, physicsClientId=cid)
+            self._pin = pb.createConstraint(self.body, -1, -1, -1, pb.JOINT_FIXED, [0.0, 0.0, 0.0],
+                                            [0.0, 0.0, 0.0], pos, childFrameOrientation=orn,
+                                            physicsClientId=cid)
+            pb.changeConstraint(self._pin, maxForce=1e6, physicsClientId=cid)
+            # the wheels held where they stand, as a brake holds them: under the velocity loop a
+            # held wheel wanders by up to 0.15 mrad, and one parked at a tick edge toggled its
+            # count (a tick of travel the robot never made, a jump of 0.6 mrad in heading)
+            self._floor_contact(False)
+            angles = list(self.wheel_angle_pair())
+            self._rates = [0.0, 0.0]
+            self._setpoint = angles
+            pb.setJointMotorControlArray(self.body, self.wheel_joints, pb.POSITION_CONTROL, targetPositions=angles,
+                                         targetVelocities=[0.0, 0.0], forces=self._torque, physicsClientId=cid)
+        elif not on and self._pin is not None:
+            pb.removeConstraint(self._pin, physicsClientId=cid)
+            self._pin = None
+            self._floor_contact(True)
+            self.set_wheel_speeds(0.0, 0.0)
+
+    def _floor_contact(self, on: bool) -> None:
+        if self.floor is not None:
+            for link in self._links:
+                pb.setCollisionFilterPair(self.body, self.floor, link, -1, int(on), physicsClientId=self.client)
+
+    @property
+    def parked(self) -> bool:
+        """Whether the parking brake holds the chassis (:meth:`park`)."""
+        return self._pin is not None
+
     def elapse(self, seconds: float) -> None:
         """Advance the setpoint angles by ``seconds`` [s] of the command (the world's step calls it)."""
         self._setpoint[0] += self._rates[0] * seconds
@@ -178,6 +228,10 @@ class DiffDriveRobot:
         motors are set to it plus ``DRIVE_GAIN`` times each wheel's lag behind the command's
         integral (at most ``FOLLOWING_LIMIT``).
         """
+        if self._pin is not None:
+            if left != 0.0 or right != 0.0:
+                raise SimulationError(f"robot: wheel rates ({left:g}, {right:g}) rad/s commanded while parked")
+            return
         angles = self.wheel_angle_pair()
         rates = (float(left), float(right))
         setpoints = []

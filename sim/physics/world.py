@@ -163,6 +163,8 @@ class PhysicsWorld:
         names = [r.name for r in sc.robots] if self.fleet else ["the robot"]
         self.body_labels.update({r.body: f"robot {name}" for r, name in zip(self.robots, names, strict=True)})
         for r in self.robots:
+            r.floor = self.floor_id   # parked, a robot lets go of it (DiffDriveRobot.park)
+        for r in self.robots:
             laser_at = r.spec.height if self.fleet else cfg.laser_height
             if r.geometry.top_height >= laser_at:
                 raise SimulationError(
@@ -253,6 +255,7 @@ class PhysicsWorld:
         pose = np.asarray(pose, dtype=float)
         if pose.shape != (3,) or not np.all(np.isfinite(pose)):
             raise SimulationError(f"reset pose: expected finite (x, y, theta), got {pose.tolist()}")
+        self.robot.park(False)
         pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
         self.robot.reset(pose)
         self._steps = 0
@@ -263,6 +266,8 @@ class PhysicsWorld:
         if poses.shape != (len(self.robots), 3) or not np.all(np.isfinite(poses)):
             raise SimulationError(f"reset poses: expected {len(self.robots)} finite (x, y, theta), "
                                   f"got {poses.tolist()}")
+        for r in self.robots:
+            r.park(False)
         pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
         for r, pose in zip(self.robots, poses, strict=True):
             r.reset(pose)

@@ -94,6 +94,8 @@ BAD = [
      r"^mini\.toml: planning\.eps_max: expected a number, got true$"),
     ("unknown key in actual", _bad("relative_error = 3e-4", "relative_eror = 3e-4"),
      r"^mini\.toml: sensor\.actual\.relative_eror: unknown key"),
+    ("negative hold", MINIMAL + "\n[montecarlo]\nhold = -5.0\n",
+     r"^mini\.toml: montecarlo\.hold: expected a number >= 0, got -5\.0$"),
 ]
 
 

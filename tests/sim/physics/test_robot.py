@@ -326,3 +326,39 @@ def test_abrupt_reversals_at_full_speed_keep_the_robot_upright(name):
                 w.step(2)
                 tilt = max(tilt, w.robot.tilt())
     assert 0.0 < tilt < 1.25 * bound
+
+
+def _stand(world: PhysicsWorld, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stand ``seconds`` with the wheels commanded to 0; return the change of pose [m, rad] and wheel angles [rad]."""
+    robot = world.robot
+    pose0, wheels0 = robot.true_pose(), robot.wheel_angles()
+    for _ in range(round(seconds / CONTROL_DT)):
+        robot.set_wheel_speeds(0.0, 0.0)
+        world.step(4)
+    return robot.true_pose() - pose0, robot.wheel_angles() - wheels0
+
+
+@pytest.mark.parametrize("parked", [True, False])
+def test_a_parked_robot_stands_still(parked):
+    # Bullet's friction has no static phase: on its held wheels the robot slid 0.7 mm and turned
+    # 0.8 mrad in a minute at this heading (issue 47), which no encoder sees. Parked, it stands to
+    # 1 um and 1 urad, its wheels within 1 urad (a tick is 3 mrad). Negative control: not parked,
+    # it slides.
+    with PhysicsWorld(flat()) as world:
+        world.reset((20.0, 20.0, 1.77))
+        ramp_to(world, (0.0, 0.0), (3.0, 3.0))
+        ramp_to(world, (3.0, 3.0), (0.0, 0.0))
+        hold(world, 2.0)
+        world.robot.park(parked)
+        moved, turned = _stand(world, 60.0)
+        still = np.all(np.abs(moved) < 1e-6) and np.all(np.abs(turned) < 1e-6)
+        assert still == parked, (moved, turned)
+        if parked:
+            with pytest.raises(scenarios.SimulationError, match="while parked"):
+                world.robot.set_wheel_speeds(1.0, 1.0)
+            at = world.robot.true_pose()
+            world.robot.park(False)
+            ramp_to(world, (0.0, 0.0), (3.0, 3.0))
+            world.robot.set_wheel_speeds(3.0, 3.0)
+            hold(world, 1.0)
+            assert np.hypot(*(world.robot.true_pose()[:2] - at[:2])) > 0.3   # it drives again
