@@ -247,7 +247,8 @@ def plan_fleet(scenario: Scenario | str | Path, *, traffic: bool = True):
 
 
 def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,
-          png: str | Path | None = None, plannable: bool = True, time_limit: float | None = None) -> Placement:
+          png: str | Path | None = None, plannable: bool = True, time_limit: float | None = None,
+          progress=None) -> Placement:
     """Find the fewest markers, among sites on walls and obstacle faces, that keep the routes under eps_max.
 
     With ``plannable`` (the default, as ``pefsim place``) the layout is planned for every task
@@ -270,6 +271,9 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     time_limit : float, optional
         Safety limit of the exact solver's LP and MILP rounds [s]; default
         :data:`planner.placement.cover.MILP_TIME_LIMIT`.
+    progress : callable, optional
+        ``progress(line)``, told each phase as it starts (cover, target, task planned,
+        tightening; :func:`planner.placement.plannable.place_plannable`).
 
     Returns
     -------
@@ -298,8 +302,10 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     if plannable:
         from planner.placement.plannable import place_plannable
 
-        result = place_plannable(sc, method=method, time_limit=limit).result
+        result = place_plannable(sc, method=method, time_limit=limit, progress=progress).result
     else:
+        if progress is not None:
+            progress(f"cover: target {sc.planning.eps_max * 1e3:.4g} mm")
         result = _place(sc, method=method, time_limit=limit)
     if out is not None and len(result.layout()) >= sc.sensor.markers_per_fix:
         write_scenario_with_markers(sc, result, out)

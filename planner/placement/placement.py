@@ -232,12 +232,17 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     """
     from estimators.fault.linearized import chi2_2dof_ppf
     from planner.pef.visibility import scenario_visible_points
+    from planner.routes.admissible import stretch_widen
 
     k = scenario.sensor.markers_per_fix
     # the sites' visibility only: a PEF over them would list every pair of sites (4e6 for 3000
-    # sites, past its limit), where a point's good pairs are among the few sites it sees
+    # sites, past its limit), where a point's good pairs are among the few sites it sees. Each
+    # point stands for the stretch of route around it (the points are planning.resolution apart,
+    # planner.placement.sites.route_points): a site counts only where it stays in sight over that
+    # stretch, as plan and export judge a path (planner.routes.admissible)
     points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points)[0].T)
+    widen = stretch_widen(scenario.planning.resolution)
+    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points, widen=widen)[0].T)
     model = _model(scenario)
     kernel_model = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                     PefModel.GDOP: pef_kernels.GDOP}[model]
