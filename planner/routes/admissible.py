@@ -89,7 +89,7 @@ class PathVerdict:
 
 
 def tau_condition(scenario: Scenario, target: float, points: np.ndarray, tau: np.ndarray) -> str:
-    """The τ condition: "" when every sample's τ is under ``target`` [m], else where it is not."""
+    """Return the τ condition: "" when every sample's τ is under ``target`` [m], else where it is not."""
     bad = ~(tau < target)
     if not bad.any():
         return ""

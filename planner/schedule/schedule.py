@@ -64,8 +64,8 @@ from itertools import combinations
 
 import numpy as np
 
-from planner.routes.smoothing import acceleration_limited
 from planner.pef.sight import estimate_floor
+from planner.routes.smoothing import acceleration_limited
 from planner.schedule import promise, sightcheck
 from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA, drift_bound
 from planner.schedule.fallback import fallbacks
@@ -275,7 +275,7 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
 
 
 def rungs(eps_max: float, floor: float) -> list[float]:
-    """The error bounds a schedule is searched for, in increasing order [m] (module docstring).
+    """Return the error bounds a schedule is searched for, in increasing order [m] (module docstring).
 
     Parameters
     ----------
@@ -305,7 +305,7 @@ def rungs(eps_max: float, floor: float) -> list[float]:
 
 def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error, increment,
                   block, block_limit, protect) -> Schedule:
-    """The schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone."""
+    """Return the schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone."""
     sensor, robot = scenario.sensor, scenario.robot
     fix_time = k * sensor.measurement_time
     gap = max(1.0 / sensor.fix_rate_hz, fix_time)
