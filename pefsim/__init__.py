@@ -390,10 +390,12 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
         written["dxf"] = (write_dxf(sc, asked["dxf"], region_contours=contours, route_lines=route_lines(sc),
                                     route_reports=reports),)
     if "lif" in asked:
+        from planner.routes.admissible import tau_along
         from sim.export.lif import write_lif
 
         names = list(sc.routes.nodes)
-        tau = pef.at([sc.routes.nodes[n] for n in names]).tau
+        # a node's deviation as its segments' end samples are judged (planner.routes.admissible)
+        tau = tau_along(pef, [sc.routes.nodes[n] for n in names], sc.planning.resolution)
         written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
     if "keepout" in asked:
         from sim.export.keepout import write_keepout

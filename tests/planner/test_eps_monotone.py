@@ -79,7 +79,7 @@ def outcomes(sc: scenarios.Scenario, eps_values=EPS, tasks: int | None = None) -
 
 
 def violations(res: dict[float, dict]) -> list[str]:
-    """What breaks monotonicity between consecutive ε_max values."""
+    """Return what breaks monotonicity between consecutive ε_max values."""
     bad = []
     eps = sorted(res)
     for a, b in zip(eps[:-1], eps[1:], strict=True):
