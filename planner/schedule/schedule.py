@@ -49,9 +49,12 @@ The bound searched for, and what ``eps_max`` does (issue 45)
     a path that had a schedule keeps the same one (the same fixes, the same promise), and a
     path that had none may get one. Between rungs this holds up to the last step: an
     ``eps_max`` that is not a rung is tried after every rung below it, so it may give a schedule
-    that the next rung does not. The price is the searches of the rungs that fail, and a
-    schedule that keeps a smaller error than asked for where the sensor allows it (with more
-    fixes or slow-downs).
+    that the next rung does not. Rungs not above the largest static τ at the path's vertices are
+    not searched (the error right after a fix is about the static τ there at least, and the
+    failed searches of small rungs were most of a plan's time); what is skipped depends on the
+    path alone, not on ``eps_max``, so the argument stands. The price is the searches of the
+    rungs that fail, and a schedule that keeps a smaller error than asked for where the sensor
+    allows it (with more fixes or slow-downs).
 """
 
 from __future__ import annotations
@@ -263,8 +266,12 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     if v.shape != (len(path),) or np.any(v < 0) or not np.all(np.isfinite(v)):
         raise PlanningError(f"schedule: expected {len(path)} finite speeds >= 0, got shape {v.shape}")
     eps_max = scenario.planning.eps_max
+    # no bound under the static PEF somewhere on the path is worth a search (module docstring)
+    tau = np.asarray(pef.at(path).tau, dtype=float)
+    floor = max(estimate_floor(sensor) * (1.0 + promise.POLYGON_TOLERANCE),
+                float(np.max(np.where(np.isnan(tau), np.inf, tau))))
     failed = None
-    for rung in rungs(eps_max, estimate_floor(sensor) * (1.0 + promise.POLYGON_TOLERANCE)):
+    for rung in rungs(eps_max, floor):
         sc = scenario if rung == eps_max else replace(scenario, planning=replace(scenario.planning, eps_max=rung))
         try:
             return _schedule_for(sc, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error,
