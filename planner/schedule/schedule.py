@@ -297,6 +297,8 @@ def rungs(eps_max: float, floor: float) -> list[float]:
         ``m 10^e`` for ``m`` in :data:`LADDER` with ``floor < m 10^e <= eps_max``, then
         ``eps_max`` itself when it is not one of them (always last; never empty).
     """
+    if not floor < eps_max:
+        return [float(eps_max)]
     out = []
     for e in range(math.floor(math.log10(max(floor, 1e-12))) - 1, math.floor(math.log10(eps_max)) + 1):
         for m in LADDER:

@@ -64,6 +64,9 @@ def test_fallbacks_by_static_pef_alone_break_it(reflectors, monkeypatch):
         return fallbacks(*args[:8])
 
     monkeypatch.setattr(schedule_module, "fallbacks", without_margin)
+    # searched for eps_max itself, as the previous version did: a smaller rung of the ladder
+    # leaves the fallbacks room to eps_max that hides the missing drift
+    monkeypatch.setattr(schedule_module, "rungs", lambda eps_max, floor: [eps_max])
     sc = reflectors
     plan = plan_task(sc, 0)
     assert len(_violations(sc, plan)) >= 3
