@@ -5,8 +5,11 @@ For ε_max growing over :data:`EPS`, on the same floor and markers:
 - the set of admissible routes of every task never shrinks: a route is admissible when the one
   admissibility keeps τ under ε_max along it (:mod:`planner.routes.admissible`) and it has a
   measurement schedule (:func:`planner.schedule.schedule.make_schedule`);
-- the promise of a route (its schedule's worst predicted error) never grows, so the chosen
-  route's promise at one ε_max is never exceeded by that route's at a larger one;
+- the promise of a route (its schedule's worst predicted error) never grows where its schedule
+  was taken at speed (slow-downs within :data:`planner.schedule.schedule.SLOWDOWN_SHARE`); a
+  schedule that had to slow down may give way to one at speed with a larger promise when ε_max
+  grows (warehouse: 29.8 mm at 0.1, slowed, then 41.2 mm at 0.2, at speed: the paper's speed
+  for accuracy; the ladder that never lets a promise grow drove paper-docks twice as long);
 - the placement's count never grows.
 
 All three are exact consequences of the construction, not statistics: the map's line of sight
@@ -31,7 +34,8 @@ from planner.pef.map import PEF
 from planner.pef.sight import SightRule
 from planner.routes.admissible import tau_along
 from planner.routes.candidates import free_candidates, network_candidates
-from planner.schedule.schedule import make_schedule
+from planner.schedule.pathtime import Kinematics
+from planner.schedule.schedule import SLOWDOWN_SHARE, make_schedule
 from planner.worlds import world_rng
 from scenarios.errors import PlanningError
 from scenarios.worlds import SMALLEST_MAX_SIZE, draw_world
@@ -53,7 +57,7 @@ def small_world(index: int, seed: int = 45) -> scenarios.Scenario:
 
 
 def outcomes(sc: scenarios.Scenario, eps_values=EPS, tasks: int | None = None) -> dict[float, dict]:
-    """``{eps: {(task, route key): promise}}`` of every admissible route (module docstring)."""
+    """``{eps: {(task, route key): (promise, taken at speed)}}`` of every admissible route (module docstring)."""
     out = {}
     for eps in eps_values:
         s = with_eps(sc, eps)
@@ -71,9 +75,12 @@ def outcomes(sc: scenarios.Scenario, eps_values=EPS, tasks: int | None = None) -
                     continue
                 key = (t.start, t.goal, c.polyline.round(6).tobytes())
                 try:
-                    got[key] = make_schedule(s, pef, c.path.points, c.speed).worst
+                    sched = make_schedule(s, pef, c.path.points, c.speed)
                 except PlanningError:
-                    pass
+                    continue
+                s_v = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(c.path.points, axis=0).T))])
+                at_speed = sched.slowdown_time <= SLOWDOWN_SHARE * Kinematics(s_v, c.speed).t_v[-1]
+                got[key] = (sched.worst, at_speed)
         out[eps] = got
     return out
 
@@ -87,8 +94,9 @@ def violations(res: dict[float, dict]) -> list[str]:
         if lost:
             bad.append(f"{len(lost)} admissible route(s) at eps {a:g} lost at {b:g}")
         for key in set(res[a]) & set(res[b]):
-            if res[b][key] > res[a][key]:
-                bad.append(f"promise grew from {res[a][key]:.5g} m at eps {a:g} to {res[b][key]:.5g} m at {b:g}")
+            (pa, fast), (pb, _) = res[a][key], res[b][key]
+            if fast and pb > pa:
+                bad.append(f"promise grew from {pa:.5g} m at eps {a:g} to {pb:.5g} m at {b:g}")
     return bad
 
 
