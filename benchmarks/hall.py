@@ -116,7 +116,7 @@ def numpy_reference(sc, points: np.ndarray) -> np.ndarray:
     from planner.pef.sight import sight_rule
     from planner.pef.visibility import BOX_SHRINK
 
-    rule = sight_rule(sc.planning.eps_max)
+    rule = sight_rule(sc.sensor)
     mk = sc.marker_positions()
     normals = sc.marker_normals()
     boxes = np.array([[o.center[0] - o.size[0] / 2, o.center[1] - o.size[1] / 2,

@@ -248,7 +248,8 @@ def plan_fleet(scenario: Scenario | str | Path, *, traffic: bool = True):
 
 
 def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | Path | None = None,
-          png: str | Path | None = None, plannable: bool = True, time_limit: float | None = None) -> Placement:
+          png: str | Path | None = None, plannable: bool = True, time_limit: float | None = None,
+          progress=None) -> Placement:
     """Find the fewest markers, among sites on walls and obstacle faces, that keep the routes under eps_max.
 
     With ``plannable`` (the default, as ``pefsim place``) the layout is planned for every task
@@ -271,6 +272,9 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     time_limit : float, optional
         Safety limit of the exact solver's LP and MILP rounds [s]; default
         :data:`planner.placement.cover.MILP_TIME_LIMIT`.
+    progress : callable, optional
+        ``progress(line)``, told each phase as it starts (cover, target, task planned,
+        tightening; :func:`planner.placement.plannable.place_plannable`).
 
     Returns
     -------
@@ -300,8 +304,10 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     if plannable:
         from planner.placement.plannable import place_plannable
 
-        result = place_plannable(sc, method=method, time_limit=limit).result
+        result = place_plannable(sc, method=method, time_limit=limit, progress=progress).result
     else:
+        if progress is not None:
+            progress(f"cover: target {sc.planning.eps_max * 1e3:.4g} mm")
         result = _place(sc, method=method, time_limit=limit)
     if out is not None and len(result.layout()) >= sc.sensor.markers_per_fix:
         write_scenario_with_markers(sc, result, out)
@@ -388,10 +394,12 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
         written["dxf"] = (write_dxf(sc, asked["dxf"], region_contours=contours, route_lines=route_lines(sc),
                                     route_reports=reports),)
     if "lif" in asked:
+        from planner.routes.admissible import tau_along
         from sim.export.lif import write_lif
 
         names = list(sc.routes.nodes)
-        tau = pef.at([sc.routes.nodes[n] for n in names]).tau
+        # a node's deviation as its segments' end samples are judged (planner.routes.admissible)
+        tau = tau_along(pef, [sc.routes.nodes[n] for n in names], sc.planning.resolution)
         written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
     if "keepout" in asked:
         from sim.export.keepout import write_keepout

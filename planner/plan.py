@@ -3,9 +3,11 @@
 :func:`plan_route` gathers candidate routes (through the scenario's route network, or by
 free-space grid search; :mod:`planner.routes.candidates`), each turned into a drivable path and
 scored at the PEF resolution, ranks the admissible ones (:mod:`planner.routes.criteria`),
-re-checks the best at a quarter of the resolution with :meth:`PEF.at` and gives it a
-measurement schedule (:mod:`planner.schedule.schedule`); a candidate that fails either is marked
-inadmissible and the next one is taken.
+re-checks the best at a quarter of the resolution and gives it a measurement schedule
+(:mod:`planner.schedule.schedule`); a candidate that fails either is marked inadmissible and the
+next one is taken. τ along a path is the one admissibility's
+(:func:`planner.routes.admissible.tau_along`: each sample stands for its stretch), the same as
+``place``, ``export`` and ``watch`` judge a path by.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.routes import criteria
-from planner.routes.candidates import Candidate, TauFn, free_candidates, network_candidates
+from planner.routes.admissible import judge_paths, tau_along
+from planner.routes.candidates import Candidate, free_candidates, network_candidates
 from planner.routes.ranking import Ranking, rank
 from planner.schedule import clearance
 from planner.schedule.schedule import Schedule
@@ -92,16 +95,14 @@ def _reason(scenario: Scenario, cands: list[Candidate], ranking: Ranking, chosen
             f"traffic {c.traffic:.2f}, clearance {c.min_clearance:.2f} m, turning {c.turning:.2f} rad{tail}")
 
 
-def _fine_check(scenario: Scenario, cand: Candidate, tau_fn: TauFn) -> str:
+def _fine_check(scenario: Scenario, cand: Candidate, pef) -> str:
     """Re-check a path at a quarter of the resolution; the reason it fails or ''."""
-    pts, _ = criteria.sample_polyline(cand.path.points, scenario.planning.resolution * FINE_FRACTION)
-    tau = np.asarray(tau_fn(pts), float)
-    i = int(np.argmax(np.where(np.isnan(tau), np.inf, tau)))
-    if not tau[i] < scenario.planning.eps_max:
+    verdict = judge_paths(scenario, pef, [cand.path.points], scenario.planning.resolution * FINE_FRACTION)[0]
+    pts, tau, i = verdict.points, verdict.tau, verdict.worst
+    if not verdict.admissible:
         cand.max_tau = max(cand.max_tau, float(tau[i]))
         cand.worst_point = (float(pts[i, 0]), float(pts[i, 1]))
-        return (f"tau {tau[i] * 1e3:.4g} mm >= eps_max {scenario.planning.eps_max * 1e3:g} mm at "
-                f"({pts[i, 0]:.2f}, {pts[i, 1]:.2f}) on fine re-check")
+        return f"{verdict.why_not} on fine re-check"
     cl = float(criteria.clearance(pts, scenario).min())
     if cl < scenario.robot.radius:
         cand.min_clearance = min(cand.min_clearance, cl)
@@ -165,7 +166,8 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
                             "(pefsim place finds where to put reflectors)")
     if pef is None:
         pef = PEF(scenario)
-    tau_fn = lambda p: np.asarray(pef.at(np.asarray(p, float).reshape(-1, 2)).tau, float)
+    # candidate paths are sampled at most the resolution apart (planner.routes.smoothing)
+    tau_fn = lambda p: tau_along(pef, p, scenario.planning.resolution)
     use_free = scenario.routes is None if free is None else free
     if not use_free and scenario.routes is None:
         raise PlanningError(f"scenario {scenario.name!r} has no route network: plan in free space")
@@ -180,7 +182,7 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
             raise _no_route(scenario, start, goal, cands)
         chosen = ranking.order[0]
         cand = cands[chosen]
-        why = _fine_check(scenario, cand, tau_fn)
+        why = _fine_check(scenario, cand, pef)
         sched = None
         if not why and schedule:
             try:

@@ -118,26 +118,33 @@ class PEF:
 
     # --- visibility ---------------------------------------------------------------------------
 
-    def visible(self, points: np.ndarray) -> np.ndarray:
+    def visible(self, points: np.ndarray, widen: float = 0.0) -> np.ndarray:
         """Markers visible from points (range and line of sight), shape (N, M) bool.
 
         Parameters
         ----------
         points : ndarray, shape (N, 2)
             Points [m]; rows all False where a point is not free.
+        widen : float
+            A marker counts only when it is seen from every position within this distance of
+            the point too [m] (:func:`planner.pef.visibility.scenario_visible_points`).
         """
-        vis, _ = scenario_visible_points(self.scenario, _points(points), self.sight)
+        vis, _ = scenario_visible_points(self.scenario, _points(points), self.sight, widen)
         return vis.T
 
     # --- evaluation ---------------------------------------------------------------------------
 
-    def at(self, points: np.ndarray) -> PefResult:
+    def at(self, points: np.ndarray, widen: float = 0.0) -> PefResult:
         """Evaluate the PEF at arbitrary points.
 
         Parameters
         ----------
         points : ndarray, shape (N, 2)
             Points [m].
+        widen : float
+            Count a marker only when it is seen from every position within this distance of
+            the point too [m] (:mod:`planner.routes.admissible`: a path's samples stand for
+            the stretches between them).
 
         Returns
         -------
@@ -146,7 +153,7 @@ class PEF:
             fallback subsets.
         """
         pts = _points(points)
-        vis, _ = scenario_visible_points(self.scenario, pts, self.sight)
+        vis, _ = scenario_visible_points(self.scenario, pts, self.sight, widen)
         px, py = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
         return self._redundant(lambda v: self._evaluate(px, py, v), vis)
 

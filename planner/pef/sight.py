@@ -42,13 +42,20 @@ A line of sight that grazes an obstacle within the tracking bound is therefore n
 counts on, and where the plan counts on one the physics ray sees the marker (a test compares
 them along the planned paths of every built-in, marker by marker).
 
-The margin is ``eps_max + TRACKING_ALLOWANCE``: the plan keeps the robot's *estimate* within
-``eps_max`` of the truth, and the follower keeps the estimate within the tracking error of the
-planned path. The tracking term is not derived here: :data:`TRACKING_ALLOWANCE` is the largest
-distance measured between a fix's true position and its planned pose (see its note). It only
-narrows the subsets the schedule tries: each scheduled measurement is then held to its own derived
-pose bound (:mod:`planner.schedule.sightcheck`), so where the allowance is too small the schedule
-searches again; it never makes a plan count on a line of sight the robot may lose.
+The margin of a map (a point with no path through it) is :func:`estimate_floor`: the smallest
+pose bound the plan can certify at a fix after the dock. A scheduled measurement is held to its own
+pose bound ``Δ_i`` (:func:`planner.schedule.promise.pose_bound`: the tracking bound on the path,
+the estimate's certified error, the start lag, the speed; :mod:`planner.schedule.sightcheck`), and
+``Δ_i`` is at least the certified estimate error, which is at least the promise of the fix before,
+which is at least ``2 min(rho) >= 2 absolute_error`` (every strip of the promise's polygon holds
+the disc of radius ``min(rho)``, :mod:`planner.schedule.promise`, "Polygon tolerance"). A line of
+sight the map does not count on is therefore one no scheduled fix after the dock could count on:
+the map's visibility is a superset of what the schedule keeps, never a guess of it. The dock's
+fix (at standstill, ``Δ_0`` may be smaller) is judged by the map, which is only stricter there.
+
+The margin does not depend on ``eps_max``: a looser requirement sees the same markers from the
+same points (issue 45: with ``eps_max`` plus a measured tracking allowance, 0.12 m, a looser
+requirement hid markers, removed admissible routes and made ``place`` add reflectors).
 """
 
 from __future__ import annotations
@@ -64,11 +71,6 @@ REFLECTOR_RADIUS = 0.02
 #: directions (``tests/sim/physics/test_sight_physics.py`` holds the world's shapes to it).
 CONTACT_REACH = 0.002
 
-#: The follower's tracking error allowed for [m]: the largest distance between a fix's true
-#: position and the planned path in episodes of ``hall`` (both tasks), ``warehouse`` (both) and
-#: ``paper-docks``, seeds 1-3, was 0.119 m (p99 0.10-0.11 m), rounded up to the centimetre.
-#: Measured, not derived: the schedule holds each fix to its derived bound (module docstring).
-TRACKING_ALLOWANCE = 0.12
 
 
 @dataclass(frozen=True)
@@ -113,6 +115,25 @@ class SightRule:
         return max(float(max_range) - self.margin, 0.0)
 
 
-def sight_rule(eps_max: float) -> SightRule:
-    """Return the rule for a plan that keeps the position estimate within ``eps_max`` [m] of the truth."""
-    return SightRule(margin=float(eps_max) + TRACKING_ALLOWANCE)
+def estimate_floor(sensor) -> float:
+    """Return the smallest estimate error the plan can certify after the dock's fix [m] (module docstring).
+
+    Parameters
+    ----------
+    sensor : scenarios.schema.Sensor
+        The declared sensor: its range noise bound is ``relative_error r + absolute_error``.
+
+    Returns
+    -------
+    float
+        ``2 absolute_error``: no fix's promise is smaller, so no later fix's pose bound is.
+    """
+    return 2.0 * float(sensor.absolute_error)
+
+
+def sight_rule(sensor) -> SightRule:
+    """Return the rule of a map's line of sight for a plan with this declared sensor (module docstring).
+
+    It does not depend on ``eps_max``; a scheduled fix is held to its own, larger, pose bound.
+    """
+    return SightRule(margin=estimate_floor(sensor))

@@ -749,15 +749,17 @@ def visible_grid(x: np.ndarray, y: np.ndarray, markers: np.ndarray, obstacles,
 
 
 def scenario_visible_points(scenario: Scenario, points: np.ndarray,
-                            sight: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                            sight: bool = True, widen: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """:func:`visible_points` for a scenario's markers (their kinds too), obstacles and declared sensor.
 
     With ``sight`` False the margin-free geometry (no :func:`scenario_sight_rule`): what the
-    drawing alone says. Returns ``vis`` (M, N) and ``free`` (N,).
+    drawing alone says. ``widen`` [m] is added to the rule's margin: a marker is then seen from
+    every position within ``widen`` of a point, as from the point (the samples of a path that
+    are ``2 widen`` apart, :mod:`planner.routes.admissible`). Returns ``vis`` (M, N) and ``free`` (N,).
     """
     return visible_points(points, scenario.marker_positions(), scenario.obstacle_pieces(),
                           scenario.sensor.max_range, scenario.workspace.bounds, scenario.marker_normals(),
-                          scenario.sensor.max_incidence, scenario_sight_rule(scenario) if sight else None)
+                          scenario.sensor.max_incidence, scenario_sight_rule(scenario, widen) if sight else None)
 
 
 def scenario_visible_grid(scenario: Scenario, x: np.ndarray, y: np.ndarray,
@@ -773,9 +775,13 @@ def scenario_visible_grid(scenario: Scenario, x: np.ndarray, y: np.ndarray,
                         scenario.sensor.max_incidence, scenario_sight_rule(scenario) if sight else None)
 
 
-def scenario_sight_rule(scenario: Scenario) -> SightRule:
-    """Return the line-of-sight rule of a scenario's plans (:func:`planner.pef.sight.sight_rule` at its eps_max)."""
-    return sight_rule(scenario.planning.eps_max)
+def scenario_sight_rule(scenario: Scenario, widen: float = 0.0) -> SightRule:
+    """Return the line-of-sight rule of a scenario's maps (:func:`planner.pef.sight.sight_rule` of its sensor).
+
+    ``widen`` [m] is added to its margin (:func:`scenario_visible_points`).
+    """
+    rule = sight_rule(scenario.sensor)
+    return rule if widen <= 0.0 else SightRule(margin=rule.margin + float(widen), radius=rule.radius, reach=rule.reach)
 
 
 compiled.keep_fresh(__name__)

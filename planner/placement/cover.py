@@ -391,6 +391,9 @@ def solve_exact(cov: PairCover, k: int, time_limit: float = MILP_TIME_LIMIT, int
             continue
         completed = complete(z)
         best = completed if size(completed) < size(best) else best
-        if not cuts.add(separate(z.astype(float)), 1.0 + r):
+        if not cuts.add(separate(z.astype(float)), 1.0 + r) and not cuts.add(~z[None, :], 1.0):
+            # no independent-set cut cuts z off, yet z is no cover (a robust row short of a pair
+            # left when one site is blocked): every cover holds a site outside z (coverage only
+            # grows with sites), the no-good cut; when even that is implied, stop unproven
             break
     return best, bound, math.ceil(bound - 1e-6) >= size(best)

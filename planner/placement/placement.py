@@ -220,11 +220,13 @@ def _model(scenario: Scenario) -> PefModel:
 
 
 def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_max: float,
-                kept: tuple[Marker, ...] = ()):
+                kept: tuple[Marker, ...] = (), widen: float = 0.0):
     """Good pairs of sites at every point.
 
     ``kept``: markers already installed, standing for the first ``len(kept)`` sites (their
-    own kinds and facings; see :func:`_site_scenario`).
+    own kinds and facings; see :func:`_site_scenario`). ``widen`` [m]: a site counts at a point
+    only when it is seen from every position within it too (the route points stand for the
+    stretches between them, :mod:`planner.routes.admissible`).
 
     Returns
     -------
@@ -240,7 +242,8 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     # the sites' visibility only: a PEF over them would list every pair of sites (4e6 for 3000
     # sites, past its limit), where a point's good pairs are among the few sites it sees
     points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points)[0].T)
+    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points,
+                                                       widen=widen)[0].T)
     model = _model(scenario)
     kernel_model = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                     PefModel.GDOP: pef_kernels.GDOP}[model]
@@ -342,13 +345,20 @@ def place(scenario: Scenario, points: np.ndarray | None = None, sites: np.ndarra
         cand = cand[np.hypot(*(cand[:, None, :] - have[None, :, :]).transpose(2, 0, 1)).min(axis=1) > 1e-6]
     n_kept = len(kept)
     allx = lambda c: np.vstack([np.asarray(scenario.marker_positions(), dtype=float).reshape(-1, 2)[:n_kept], c])
-    cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept)
+    # the route points (planning.resolution apart, planner.placement.sites.route_points) stand for
+    # the stretches between them: a site counts only where it stays in sight over the stretch, as
+    # plan and export judge a path (planner.routes.admissible); given points stand for themselves
+    from planner.routes.admissible import stretch_widen
+
+    routes = points is None and scenario.placement.cover != "free"
+    widen = stretch_widen(scenario.planning.resolution) if routes else 0.0
+    cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept, widen)
     finest = None
     if sites is None and not scenario.placement.candidates \
             and not _servable(cov, coverable, k, redundancy).all():
-        cand, finest = _refine(scenario, pts, cand, _servable(cov, coverable, k, redundancy), eps, kept)
+        cand, finest = _refine(scenario, pts, cand, _servable(cov, coverable, k, redundancy), eps, kept, widen)
         if finest is not None:
-            cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept)
+            cov, coverable = build_cover(scenario, pts, allx(cand), eps, kept, widen)
     fixed = np.zeros(n_kept + len(cand), dtype=bool)
     fixed[:n_kept] = True
     chosen, bound, optimal, used = fixed.copy(), 0.0, True, "greedy"
@@ -393,7 +403,7 @@ def _servable(cov: PairCover, coverable: np.ndarray, k: int, redundancy: int) ->
 
 
 def _refine(scenario: Scenario, pts: np.ndarray, cand: np.ndarray, coverable: np.ndarray, eps: float,
-            kept: tuple[Marker, ...]) -> tuple[np.ndarray, float | None]:
+            kept: tuple[Marker, ...], widen: float = 0.0) -> tuple[np.ndarray, float | None]:
     """Add finer candidate sites where points are uncovered (see module doc).
 
     Returns the candidate sites (the given ones first, then those added) and the finest spacing
@@ -416,7 +426,7 @@ def _refine(scenario: Scenario, pts: np.ndarray, cand: np.ndarray, coverable: np
         if not len(finer):
             continue
         base = len(kept) + len(cand)
-        sub, ok = build_cover(scenario, bad, np.vstack([have, finer]), eps, kept)
+        sub, ok = build_cover(scenario, bad, np.vstack([have, finer]), eps, kept, widen)
         ok = _servable(sub, ok, scenario.sensor.markers_per_fix, scenario.planning.redundancy)
         helpful = np.unique(np.concatenate([sub.pj, sub.pl]))
         helpful = helpful[helpful >= base] - base

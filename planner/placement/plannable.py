@@ -18,6 +18,7 @@ Without tasks, or when the cover leaves points uncovered, the plain cover is ret
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from planner.placement.placement import MILP_TIME_LIMIT, PlacementResult, place, scenario_with_markers
@@ -51,13 +52,19 @@ class PlannablePlacement:
     checked: bool
 
 
-def _unplanned(scenario: Scenario) -> tuple[str, ...]:
+Progress = Callable[[str], None]
+"""``progress(line)``: told each phase of the placement as it starts (one line, no newline)."""
+
+
+def _unplanned(scenario: Scenario, progress: Progress | None = None) -> tuple[str, ...]:
     from planner.pef.map import PEF
     from planner.plan import plan_task
 
     pef = PEF(scenario)  # one map for all tasks
     bad = []
     for i, t in enumerate(scenario.tasks):
+        if progress is not None:
+            progress(f"planning task {i + 1} of {len(scenario.tasks)}: {t.start} -> {t.goal}")
         try:
             plan_task(scenario, i, pef=pef)
         except PlanningError as exc:
@@ -66,7 +73,7 @@ def _unplanned(scenario: Scenario) -> tuple[str, ...]:
 
 
 def place_plannable(scenario: Scenario, *, method: str = "auto", time_limit: float = MILP_TIME_LIMIT,
-                    tighten: tuple[float, ...] = TIGHTEN) -> PlannablePlacement:
+                    tighten: tuple[float, ...] = TIGHTEN, progress: Progress | None = None) -> PlannablePlacement:
     """Place markers so that every task of ``scenario`` has an admissible plan.
 
     Parameters
@@ -77,6 +84,9 @@ def place_plannable(scenario: Scenario, *, method: str = "auto", time_limit: flo
         As for :func:`planner.placement.placement.place`.
     tighten : tuple of float
         Margins ``m`` tried in order; the cover target is ``eps_max (1 - m)``.
+    progress : callable, optional
+        Told each phase as it starts: each cover and its target, each task planned, each
+        tightening of the target (:data:`Progress`).
 
     Returns
     -------
@@ -89,11 +99,19 @@ def place_plannable(scenario: Scenario, *, method: str = "auto", time_limit: flo
     out = None
     for m in tighten:
         target = eps * (1.0 - m)
+        if progress is not None:
+            progress(f"cover: target {target * 1e3:.4g} mm")
         result = place(scenario, eps_max=target, method=method, time_limit=time_limit)
+        if progress is not None:
+            progress(f"cover: {result.count} markers, {len(result.points) - len(result.uncovered)} of "
+                     f"{len(result.points)} points covered under {target * 1e3:.4g} mm")
         if not scenario.tasks or len(result.uncovered) or result.count < k:
             return PlannablePlacement(result, target, (), checked=False)
-        unplanned = _unplanned(scenario_with_markers(scenario, result))
+        unplanned = _unplanned(scenario_with_markers(scenario, result), progress)
         out = PlannablePlacement(dataclasses.replace(result, unplanned=unplanned), target, unplanned, checked=True)
         if not unplanned:
             break
+        if progress is not None and m != tighten[-1]:
+            progress(f"{len(unplanned)} of {len(scenario.tasks)} tasks do not plan ({unplanned[0]}); "
+                     "tightening the cover target")
     return out

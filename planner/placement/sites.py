@@ -158,7 +158,7 @@ class _FlatPEF:
     def __init__(self, scenario: Scenario):
         self.scenario = scenario
 
-    def at(self, points):
+    def at(self, points, widen=0.0):
         p = np.asarray(points, dtype=float).reshape(-1, 2)
         return SimpleNamespace(tau=np.zeros(len(p)), best=np.zeros((len(p), 0), dtype=int))
 

@@ -1,11 +1,11 @@
 """The PEF along each segment of a route network: what an exported route graph carries.
 
-Each segment is sampled at the PEF resolution (:func:`planner.routes.criteria.sample_polyline`)
-and evaluated with the planner's PEF (:meth:`planner.pef.map.PEF.at`) and visibility
-(:meth:`planner.pef.map.PEF.visible`): the largest and the arc-length mean τ, the fewest
-markers visible, the clearance; admissible as a route is (:mod:`planner.routes.criteria`):
-τ < ε_max everywhere and clearance ≥ the robot radius, and not marked inadmissible when the
-graph was read (an imported edge too close to an obstacle).
+Each segment is judged by the one admissibility of ``place``, ``plan`` and ``watch``
+(:func:`planner.routes.admissible.judge_paths`: samples at the PEF resolution, each standing for
+its stretch) and the visibility over the same stretches: the largest and the arc-length mean τ,
+the fewest markers visible, the clearance; admissible as a route is: τ < ε_max everywhere
+along it, clearance ≥ the robot radius, and not marked inadmissible when the graph was read (an
+imported edge too close to an obstacle).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.routes import criteria
+from planner.routes.admissible import judge_paths, stretch_widen
 from scenarios.schema import Scenario
 
 
@@ -71,29 +72,27 @@ def segment_reports(scenario: Scenario, pef) -> list[SegmentReport]:
     if net is None or not net.segments:
         return []
     res = scenario.planning.resolution
-    eps, radius = scenario.planning.eps_max, scenario.robot.radius
-    samples = [criteria.sample_polyline(np.array([net.nodes[a], net.nodes[b]], float), res)
-               for a, b in net.segments]
-    pts = np.vstack([p for p, _ in samples])
-    # one PEF and one visibility evaluation for every segment: the kernels work best on many points
-    tau_all = np.asarray(pef.at(pts).tau, float)
-    vis_all = pef.visible(pts).sum(axis=1) if len(scenario.markers) else np.zeros(len(pts), int)
+    radius = scenario.robot.radius
+    verdicts = judge_paths(scenario, pef, [np.array([net.nodes[a], net.nodes[b]], float) for a, b in net.segments],
+                           res)
+    pts = np.vstack([v.points for v in verdicts])
+    # one visibility evaluation for every segment: the kernels work best on many points
+    vis_all = (pef.visible(pts, widen=stretch_widen(res)).sum(axis=1) if len(scenario.markers)
+               else np.zeros(len(pts), int))
     clear_all = criteria.clearance(pts, scenario)
     out, start = [], 0
-    for i, (p, s) in enumerate(samples):
+    for i, verdict in enumerate(verdicts):
+        p, s, tau = verdict.points, verdict.s, verdict.tau
         stop = start + len(p)
-        tau, vis, clear = tau_all[start:stop], vis_all[start:stop], clear_all[start:stop]
+        vis, clear = vis_all[start:stop], clear_all[start:stop]
         start = stop
-        worst = int(np.argmax(np.where(np.isnan(tau), np.inf, tau)))
+        worst = verdict.worst
         length = float(s[-1])
         if np.all(np.isfinite(tau)) and length > 0:
             mean = float(np.sum(np.diff(s) * 0.5 * (tau[1:] + tau[:-1])) / length)
         else:
             mean = math.inf if not np.all(np.isfinite(tau)) else float(tau.mean())
-        why = net.why_not(i)
-        if not why and not tau[worst] < eps:
-            x, y = p[worst]
-            why = f"tau {tau[worst] * 1e3:.4g} mm >= eps_max {eps * 1e3:g} mm at ({x:.2f}, {y:.2f})"
+        why = net.why_not(i) or verdict.why_not
         if not why and clear.min() < radius:
             why = f"clearance {clear.min():.3f} m < robot radius {radius:g} m"
         out.append(SegmentReport(index=i, max_tau=float(tau[worst]), mean_tau=mean, min_visible=int(vis.min()),

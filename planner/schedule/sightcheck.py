@@ -1,7 +1,8 @@
 """Whether a fix's lines of sight hold at every pose its promise covers.
 
-The PEF judges visibility at the path's samples with the margin of
-:func:`planner.pef.sight.sight_rule`: ``eps_max`` plus a measured tracking allowance. A fix's
+The PEF judges visibility with the margin of :func:`planner.pef.sight.sight_rule`, the smallest
+pose bound the plan can certify; the schedule's search (:func:`seen_within`) counts a subset at a
+sample only where it stays in sight within the pose bound the search assumes there. A fix's
 promise, however, covers every true measurement position within its own pose bound ``Δ_i``
 (:func:`planner.schedule.promise.pose_bound`: tracking error, the estimate's certified error, the
 start lag, the speed), and in a corner or after a weak fix ``Δ_i`` can exceed that margin. Where
@@ -76,3 +77,39 @@ def unseen(scenario: Scenario, subsets, poses: np.ndarray, delta: np.ndarray) ->
         out[rows[hidden]] = True
     return out
 
+
+
+def seen_within(scenario: Scenario, points: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Which markers stay in the laser's sight from every position within ``delta`` of each point.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its markers, obstacles and declared sensor.
+    points : ndarray, shape (N, 2)
+        Planned positions [m].
+    delta : ndarray, shape (N,)
+        Bound on ``|true - planned|`` at each point [m], rounded up to :data:`MARGIN_STEP`.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N, M)
+        True where marker ``m`` is seen under ``SightRule(margin=delta)`` (False where ``delta``
+        is not finite).
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    d = np.asarray(delta, dtype=float).reshape(-1)
+    markers = scenario.marker_positions()
+    out = np.zeros((len(p), len(markers)), dtype=bool)
+    finite = np.isfinite(d)
+    steps = np.where(finite, np.ceil(np.where(finite, d, 0.0) / MARGIN_STEP - 1e-9), -1).astype(np.int64)
+    normals = scenario.marker_normals()
+    pieces = scenario.obstacle_pieces()
+    sensor = scenario.sensor
+    for step in np.unique(steps[steps >= 0]).tolist():
+        rows = np.flatnonzero(steps == step)
+        rule = SightRule(margin=max(step, 0) * MARGIN_STEP)
+        vis, _ = visible_points(p[rows], markers, pieces, sensor.max_range, scenario.workspace.bounds,
+                                normals, sensor.max_incidence, rule)
+        out[rows] = vis.T
+    return out

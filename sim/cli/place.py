@@ -20,6 +20,8 @@ coverable points).
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 
 EPILOG = ("exit codes: 0 every point covered and every task plans; 2 bad input, some points cannot be "
           "covered by any candidate sites (listed under 'uncovered' with --json, else named in one error "
@@ -55,8 +57,14 @@ def run(args: argparse.Namespace) -> int:
     from sim.cli import print_json
 
     sc = pefsim.load(args.scenario)
+    t0 = time.monotonic()
+
+    def progress(line: str) -> None:
+        # stderr, so that --json keeps stdout to itself; a line per phase, flushed as it starts
+        print(f"place [{time.monotonic() - t0:5.1f} s] {line}", file=sys.stderr, flush=True)
+
     result = pefsim.place(sc, method=args.method, out=args.output, png=args.png, plannable=not args.cover_only,
-                          time_limit=args.time_limit)
+                          time_limit=args.time_limit, progress=progress)
     wrote_toml = args.output is not None and len(result.layout()) >= sc.sensor.markers_per_fix
     n_bad = len(result.uncovered)
     if args.json:

@@ -80,28 +80,29 @@ class _Reuse(PEF):
         self.memo[key] = value
         return value
 
-    def at(self, points: np.ndarray) -> PefResult:
+    def at(self, points: np.ndarray, widen: float = 0.0) -> PefResult:
         def merge(old: PefResult, rows: np.ndarray, new: PefResult) -> PefResult:
             parts = {}
             for f in ("tau", "best", "tau_plain", "fallback"):
                 a, b = getattr(old, f), getattr(new, f)
                 if a is None or b is None:
-                    parts[f] = None if a is None and b is None else getattr(super(_Reuse, self).at(points), f)
+                    parts[f] = (None if a is None and b is None
+                                else getattr(super(_Reuse, self).at(points, widen), f))
                     continue
                 a = a.copy()
                 a[rows] = b
                 parts[f] = a
             return PefResult(**parts)
 
-        return self._reused("at", points, super().at, merge)
+        return self._reused(("at", widen), points, lambda p: super(_Reuse, self).at(p, widen), merge)
 
-    def visible(self, points: np.ndarray) -> np.ndarray:
+    def visible(self, points: np.ndarray, widen: float = 0.0) -> np.ndarray:
         def merge(old: np.ndarray, rows: np.ndarray, new: np.ndarray) -> np.ndarray:
             out = old.copy()
             out[rows] = new
             return out
 
-        return self._reused("visible", points, super().visible, merge)
+        return self._reused(("visible", widen), points, lambda p: super(_Reuse, self).visible(p, widen), merge)
 
 
 @dataclass

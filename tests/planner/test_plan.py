@@ -25,7 +25,7 @@ class FakePEF:
     def __init__(self, fn):
         self.fn = fn
 
-    def at(self, points):
+    def at(self, points, widen=0.0):
         p = np.asarray(points, float).reshape(-1, 2)
         return SimpleNamespace(tau=self.fn(p))
 

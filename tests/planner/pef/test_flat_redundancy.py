@@ -27,7 +27,7 @@ from tests.scenarios.worlds import FLAT_TOML, flat_scenario
 
 OBSTACLE = box(4.5, 3.5, 7.5, 4.5)
 RES = 0.25
-RULE = sight_rule(0.05)   # the scenario's eps_max
+RULE = sight_rule(flat_scenario().sensor)   # the scenario's map rule
 # every face with its outward normal (the obstacle's) or inward one (the workspace's sides)
 FACES = [(LineString([(4.5, 3.5), (7.5, 3.5)]), (0.0, -1.0)), (LineString([(7.5, 3.5), (7.5, 4.5)]), (1.0, 0.0)),
          (LineString([(7.5, 4.5), (4.5, 4.5)]), (0.0, 1.0)), (LineString([(4.5, 4.5), (4.5, 3.5)]), (-1.0, 0.0)),

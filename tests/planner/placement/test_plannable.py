@@ -37,7 +37,8 @@ def test_tightens_until_the_planner_accepts(monkeypatch):
 
     monkeypatch.setattr(plannable, "place", place)
     monkeypatch.setattr(plannable, "_unplanned",
-                        lambda s: ("A->B: refused",) if targets[-1] > 0.8 * sc.planning.eps_max + 1e-12 else ())
+                        lambda s, progress=None: (("A->B: refused",) if targets[-1] > 0.8 * sc.planning.eps_max + 1e-12
+                                                  else ()))
     pp = plannable.place_plannable(sc, time_limit=20)
     eps = sc.planning.eps_max
     np.testing.assert_allclose(targets, [eps, 0.9 * eps, 0.8 * eps])
@@ -48,7 +49,7 @@ def test_reports_tasks_that_never_plan(monkeypatch):
     # negative control of the loop: a planner that refuses everything leaves the last layout
     # with its reason, after every margin was tried
     sc = scenarios.load("paper-docks")
-    monkeypatch.setattr(plannable, "_unplanned", lambda s: ("A->B: refused",))
+    monkeypatch.setattr(plannable, "_unplanned", lambda s, progress=None: ("A->B: refused",))
     pp = plannable.place_plannable(sc, time_limit=20, tighten=(0.0, 0.25))
     assert pp.unplanned == ("A->B: refused",)
     assert np.isclose(pp.target, 0.75 * sc.planning.eps_max)
