@@ -107,7 +107,9 @@ Bearings
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -322,16 +324,51 @@ def chord_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarr
     return _chords(path, s_v, s, look, 0.0, np.zeros(1))
 
 
+_CHORDS_MEMO: OrderedDict[bytes, dict[bytes, float]] = OrderedDict()
+#: Paths whose chord bounds :func:`_chords` keeps (least recently used first out): a schedule's
+#: search asks for the bound at the same arc lengths and lookaheads again for each rung of its
+#: ladder, slow-down level and clearance pass.
+CHORDS_MEMO_PATHS = 32
+
+
 def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
-    """Return the largest :func:`chord_bound` at ``s - reach look back_j`` over ``j``, shape of ``s`` [m]."""
+    """Return the largest :func:`chord_bound` at ``s - reach look back_j`` over ``j``, shape of ``s`` [m].
+
+    Each point's bound depends only on its own ``(s, look)`` and on the path, so the bounds are
+    remembered per path (keyed by the bytes of the path, ``reach`` and ``back``) and per point
+    (keyed by the bytes of ``s`` and ``look``): a remembered value is the number the kernel
+    computes, and only the points not seen before on that path are computed.
+    """
     s = np.asarray(s, dtype=float)
     look = np.broadcast_to(np.asarray(look, dtype=float), s.shape)
-    out = np.empty(s.shape)
-    path = np.asarray(path, dtype=float)
-    _chords_kernel(np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]),
-                   np.ascontiguousarray(s_v, dtype=float), np.ascontiguousarray(s).ravel(),
-                   np.ascontiguousarray(look).ravel(), float(reach), back, np.linspace(0.0, 1.0, 33), out.reshape(-1))
-    return out
+    path = np.ascontiguousarray(path, dtype=float)
+    s_v = np.ascontiguousarray(s_v, dtype=float)
+    back = np.ascontiguousarray(back, dtype=float)
+    h = hashlib.blake2b(digest_size=20)
+    for arr in (path, s_v, back):
+        h.update(np.int64(arr.size).tobytes())
+        h.update(arr.tobytes())
+    h.update(np.float64(reach).tobytes())
+    key = h.digest()
+    known = _CHORDS_MEMO.get(key)
+    if known is None:
+        known = _CHORDS_MEMO[key] = {}
+        if len(_CHORDS_MEMO) > CHORDS_MEMO_PATHS:
+            _CHORDS_MEMO.popitem(last=False)
+    else:
+        _CHORDS_MEMO.move_to_end(key)
+    pairs = np.ascontiguousarray(np.stack([s.ravel(), np.ascontiguousarray(look).ravel()], axis=1))
+    names = [row.tobytes() for row in pairs]
+    out = np.array([known.get(n, math.nan) for n in names], dtype=float)
+    todo = np.flatnonzero(np.isnan(out))
+    if todo.size:
+        new = np.empty(todo.size)
+        _chords_kernel(np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]), s_v,
+                       np.ascontiguousarray(pairs[todo, 0]), np.ascontiguousarray(pairs[todo, 1]), float(reach),
+                       back, np.linspace(0.0, 1.0, 33), new)
+        out[todo] = new
+        known.update(zip((names[i] for i in todo), new.tolist(), strict=True))
+    return out.reshape(s.shape)
 
 
 @compiled.njit(cache=True)
