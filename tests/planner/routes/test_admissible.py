@@ -87,6 +87,8 @@ absolute_error = 0.002
 max_range = 11.0
 [robot]
 radius = 0.2
+wheel_base = 0.3
+wheel_radius = 0.04
 [planning]
 eps_max = 1.0
 resolution = 0.1
