@@ -91,9 +91,10 @@ the heading by 1.8 urad in these 3 s, and with them every column; warehouse's ta
 bit for bit. Written again the same way.
 
 The line-of-sight margin from the plan's certified pose bound, and schedules searched on a fixed
-ladder of certified errors (``planner.schedule``): paper-two-markers' schedule moved (its fixes
-now certify 1.8 mm under its 3 mm eps_max), and with it every column; warehouse's plan, and its
-tables, stayed equal bit for bit. Written again the same way, on the merge of both changes.
+ladder of certified errors (``planner.schedule``): where no rung plans at speed the one that slows
+the drive least is taken, which for paper-two-markers is its eps_max rung, the schedule it had
+before the ladder: its steps and fixes are equal to those before the ladder; the runs rows carry
+the outcome columns. Written again the same way.
 """
 
 from __future__ import annotations
