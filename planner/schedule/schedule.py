@@ -37,7 +37,7 @@ Schedule choice (:func:`make_schedule`)
     otherwise take the best subset. ``switch`` marks the fixes whose subset differs from the
     previous fix's: the points where the robot must change the markers it measures.
 
-The bound searched for, and what ``eps_max`` does (issue 45)
+The bound searched for, and what ``eps_max`` does
     The search is not run for ``eps_max`` itself but for the rungs of a fixed ladder
     (:func:`rungs`: 1, 2, 3, 5 times a power of ten, above what the sensor can certify, up to
     ``eps_max``; then ``eps_max`` when it is not a rung), in increasing order, and the first
@@ -52,15 +52,17 @@ The bound searched for, and what ``eps_max`` does (issue 45)
     that the next rung does not. Rungs not above the largest static τ at the path's vertices are
     not searched (the error right after a fix is about the static τ there at least, and the
     failed searches of small rungs were most of a plan's time); what is skipped depends on the
-    path alone, not on ``eps_max``, so the argument stands. A rung whose schedule slows the drive
-    by more than :data:`SLOWDOWN_SHARE` of its time is passed over for the next (a smaller error
-    than asked for is not worth driving twice as long: paper-docks at 10 mm took 44 s instead of
-    21 s at 20 mm); only when every rung's does is the smallest that plans taken. The admissible
-    set still only grows with ``eps_max``, and a schedule taken at speed stays the same; a
-    schedule that had to slow down may give way, at a larger ``eps_max``, to one at speed with a
-    larger promise (the paper's compromise between speed and accuracy). The price is the
-    searches of the rungs passed over, and a schedule that keeps a smaller error than asked for
-    where the sensor allows it at speed.
+    path alone, not on ``eps_max``, so the argument stands.
+    The rungs are first tried at the planned speed, one attempt each, and the smallest rung with
+    a schedule at speed gives it: a smaller error than asked for is not worth a slower drive
+    (paper-docks at 10 mm took 44 s instead of 21 s at 20 mm), and the slow-down searches of the
+    small rungs were most of a plan's time when they ran first (the hall's 10 mm rung: 59
+    attempts, 91 s, for nothing). Only when no rung has a schedule at speed are they searched
+    again with slow-downs, in increasing order: the first whose slow-downs cost at most
+    :data:`SLOWDOWN_SHARE` of the planned time gives the schedule, otherwise the one that slows
+    the drive least. The admissible set only grows with ``eps_max``, and a schedule at speed
+    stays the same; a schedule that had to slow down may give way, at a larger ``eps_max``, to
+    one at speed with a larger promise (the paper's compromise between speed and accuracy).
 """
 
 from __future__ import annotations
@@ -91,8 +93,8 @@ BlockRisk = Callable[[np.ndarray, np.ndarray], np.ndarray]
 LADDER = (1.0, 2.0, 3.0, 5.0)
 """Mantissas of the error bounds a schedule is searched for (:func:`rungs`): 1, 2, 3, 5 times a power of ten [-]."""
 SLOWDOWN_SHARE = 0.05
-"""A rung whose schedule slows the drive by at most this share of its planned time is taken at
-once; when every rung's slows it more, the smallest rung that has a schedule (module docstring)."""
+"""Where no rung has a schedule at speed, one whose slow-downs cost at most this share of the
+planned time is taken at once; when every rung's cost more, the one that slows least (module docstring)."""
 UNSEEN_ROUNDS = 20
 """Searches tried, each without a subset that lost sight of a marker where a fix was chosen
 (:mod:`planner.schedule.sightcheck`), before the stretch is slowed down."""
@@ -281,25 +283,41 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
                 float(np.max(np.where(np.isnan(tau), np.inf, tau))))
     s_v = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
     allowed = SLOWDOWN_SHARE * Kinematics(s_v, v).t_v[-1]
-    failed, slow = None, None
-    for rung in rungs(eps_max, floor):
-        sc = scenario if rung == eps_max else replace(scenario, planning=replace(scenario.planning, eps_max=rung))
+    ladder = rungs(eps_max, floor)
+    failed = None
+    # at the planned speed first: one attempt a rung, no slow-downs (module docstring)
+    for rung in ladder:
         try:
-            sched = _schedule_for(sc, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error,
-                                  increment, block, block_limit, protect)
+            return _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
+                                 heading_error, increment, block, block_limit, protect, slow=False)
+        except PlanningError as exc:
+            failed = exc
+    slow = None
+    for rung in ladder:
+        try:
+            sched = _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
+                                  heading_error, increment, block, block_limit, protect)
         except PlanningError as exc:
             failed = exc
             continue
         if sched.slowdown_time <= allowed:
             return sched
-        # if none plans at speed: the one that slows the drive least (the smallest rung on a tie);
-        # a smaller rung that crawls (paper-two-markers: +47 s for 2 mm against +0.6 s for 3 mm)
-        # is a worse plan, and its hundreds of slowed fixes left the filter overconfident
+        # if none plans within the allowance: the one that slows the drive least (the smallest
+        # rung on a tie); a smaller rung that crawls (paper-two-markers: +47 s for 2 mm against
+        # +0.6 s for 3 mm) is a worse plan, and its hundreds of slowed fixes left the filter
+        # overconfident
         if slow is None or sched.slowdown_time < slow.slowdown_time:
             slow = sched
     if slow is not None:
         return slow
     raise failed
+
+
+def _at(scenario: Scenario, rung: float) -> Scenario:
+    """Return ``scenario`` with ``planning.eps_max`` set to ``rung`` [m] (itself when equal)."""
+    if rung == scenario.planning.eps_max:
+        return scenario
+    return replace(scenario, planning=replace(scenario.planning, eps_max=rung))
 
 
 def rungs(eps_max: float, floor: float) -> list[float]:
@@ -334,8 +352,12 @@ def rungs(eps_max: float, floor: float) -> list[float]:
 
 
 def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error, increment,
-                  block, block_limit, protect) -> Schedule:
-    """Return the schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone."""
+                  block, block_limit, protect, slow: bool = True) -> Schedule:
+    """Return the schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone.
+
+    With ``slow`` False the drive keeps the planned speeds ``v``: the first stretch without a
+    schedule raises instead of being slowed down.
+    """
     sensor, robot = scenario.sensor, scenario.robot
     fix_time = k * sensor.measurement_time
     gap = max(1.0 / sensor.fix_rate_hz, fix_time)
@@ -355,6 +377,8 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
                              t_planned, block, block_limit, protect)
             return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
         except StretchError as exc:
+            if not slow:
+                raise
             slower, moved = v_try, False
             for stretch in (exc.stretch, *exc.more):
                 cand = _slow_stretch(s_v, slower, stretch, scenario.planning.min_fix_speed)

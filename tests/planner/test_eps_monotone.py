@@ -6,7 +6,7 @@ For ε_max growing over :data:`EPS`, on the same floor and markers:
   admissibility keeps τ under ε_max along it (:mod:`planner.routes.admissible`) and it has a
   measurement schedule (:func:`planner.schedule.schedule.make_schedule`);
 - the promise of a route (its schedule's worst predicted error) never grows where its schedule
-  was taken at speed (slow-downs within :data:`planner.schedule.schedule.SLOWDOWN_SHARE`); a
+  was taken at speed (no fix slowed down); a
   schedule that had to slow down may give way to one at speed with a larger promise when ε_max
   grows (warehouse: 29.8 mm at 0.1, slowed, then 41.2 mm at 0.2, at speed: the paper's speed
   for accuracy; the ladder that never lets a promise grow drove paper-docks twice as long);
@@ -34,8 +34,7 @@ from planner.pef.map import PEF
 from planner.pef.sight import SightRule
 from planner.routes.admissible import tau_along
 from planner.routes.candidates import free_candidates, network_candidates
-from planner.schedule.pathtime import Kinematics
-from planner.schedule.schedule import SLOWDOWN_SHARE, make_schedule
+from planner.schedule.schedule import make_schedule
 from planner.worlds import world_rng
 from scenarios.errors import PlanningError
 from scenarios.worlds import SMALLEST_MAX_SIZE, draw_world
@@ -78,9 +77,7 @@ def outcomes(sc: scenarios.Scenario, eps_values=EPS, tasks: int | None = None) -
                     sched = make_schedule(s, pef, c.path.points, c.speed)
                 except PlanningError:
                     continue
-                s_v = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(c.path.points, axis=0).T))])
-                at_speed = sched.slowdown_time <= SLOWDOWN_SHARE * Kinematics(s_v, c.speed).t_v[-1]
-                got[key] = (sched.worst, at_speed)
+                got[key] = (sched.worst, sched.slowdown_time == 0.0)
         out[eps] = got
     return out
 
