@@ -123,3 +123,26 @@ def test_writing_the_placed_scenario_says_the_warning_no_more(scenario_file, tmp
     with pytest.warns(ScenarioWarning, match="repeated edge ids 10006"):
         again = scenarios.load(out)
     assert [m.id for m in again.markers] == ["P1", "P2"]
+
+
+def test_validating_a_sweep_of_it_says_the_warning_no_more(scenario_file, tmp_path):
+    """A sweep's stored scenario, read back to validate the scenario it was made from, warns nothing.
+
+    Negative control: validating the directory on its own (``--from`` without the scenario) says it once.
+    """
+    from scenarios.errors import OutputError
+    from sim.montecarlo.results import SweepLayout, write_atomic
+    from sim.validation.data import load_sweep
+
+    with pytest.warns(ScenarioWarning):
+        sc = scenarios.load(scenario_file)
+    layout = SweepLayout(tmp_path / "mc")
+    layout.make_dirs()
+    write_atomic(layout.scenario_toml, sc.text.encode())
+    with warnings.catch_warnings(record=True) as caught, pytest.raises(OutputError, match="holds no finished run"):
+        warnings.simplefilter("always")
+        load_sweep(layout.root, sc)
+    assert [str(w.message) for w in caught] == []
+    with pytest.warns(ScenarioWarning, match="repeated edge ids 10006"), \
+            pytest.raises(OutputError, match="holds no finished run"):
+        load_sweep(layout.root)
