@@ -42,9 +42,11 @@ search) and not counted; count and lower bound are those of the markers added.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import tomllib
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,7 +61,7 @@ from planner.placement.facing import site_facings, site_marker
 from planner.placement.pair_cover import PairCover, subset_rows
 from planner.placement.redundant import robust_rows
 from planner.placement.sites import candidate_sites, cover_points
-from scenarios.errors import PlanningError, output_errors
+from scenarios.errors import PlanningError, ScenarioWarning, output_errors
 from scenarios.load import MIN_SPACING
 from scenarios.schema import Marker, MarkerKind, PefModel, Scenario
 
@@ -512,6 +514,18 @@ def _scenario_dict(sc: Scenario) -> dict:
     return d
 
 
+@contextlib.contextmanager
+def _said_already():
+    """Silence pefsim's own warnings while the scenario is read again to check it.
+
+    They were said when the scenario was loaded (a route graph's repeated edge ids: Nav2's depot
+    graph gave the same line three times in one ``pefsim place -o``).
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ScenarioWarning)
+        yield
+
+
 def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, path: str | Path) -> Path:
     """Write ``scenario`` with the placement's markers as a new scenario TOML file.
 
@@ -536,8 +550,9 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     data = None
     if scenario.text:
         try:
-            if scn.loads(scenario.text, source=scenario.source) == scenario:
-                data = tomllib.loads(scenario.text)
+            with _said_already():
+                if scn.loads(scenario.text, source=scenario.source) == scenario:
+                    data = tomllib.loads(scenario.text)
         except (scn.PefsimError, tomllib.TOMLDecodeError):
             data = None
     if data is None:
@@ -563,7 +578,8 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
             data[table]["file"] = _relative(data[table]["file"], out.parent)
     data["description"] = _placed_description(scenario, result)
     text = tomli_w.dumps(data)
-    scn.loads(text, source=str(out), base=out.parent)  # a bug here must not leave a broken file behind
+    with _said_already():
+        scn.loads(text, source=str(out), base=out.parent)  # a bug here must not leave a broken file behind
     with output_errors(out, "write the placed scenario"):
         out.write_text(text, encoding="utf-8")
     return out

@@ -7,6 +7,7 @@ checks in :mod:`sim.validation.checks` are pure functions of it.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 from enum import Enum
 from pathlib import Path
@@ -16,7 +17,7 @@ import numpy as np
 import pyarrow as pa
 
 from scenarios import loads
-from scenarios.errors import OutputError
+from scenarios.errors import OutputError, ScenarioWarning
 from scenarios.schema import Scenario
 from sim.jsonable import json_number
 from sim.montecarlo import lock, results
@@ -359,7 +360,10 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     if scenario is not None and text != scenario.text:
         raise OutputError(f"{directory}: was made from another scenario (its scenario.toml differs from "
                           f"{scenario.source})")
-    stored = loads(text, source=str(layout.scenario_toml))
+    with warnings.catch_warnings():
+        if scenario is not None:  # its own text: its warnings were said when it was loaded
+            warnings.simplefilter("ignore", ScenarioWarning)
+        stored = loads(text, source=str(layout.scenario_toml))
     runs = results.read_runs(layout.root)
     if runs.num_rows == 0:
         raise OutputError(f"{directory}: holds no finished run")

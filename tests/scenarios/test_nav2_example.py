@@ -100,3 +100,49 @@ def test_export_keeps_the_ids_as_given(scenario_file, tmp_path, capsys):
     assert nodes == {str(f["properties"]["id"]) for f in json.loads(GRAPH.read_text())["features"]
                      if f["geometry"]["type"] == "Point"}
     assert not any("source_id" in f["properties"] for f in doc["features"])
+
+
+def test_writing_the_placed_scenario_says_the_warning_no_more(scenario_file, tmp_path):
+    """The placed scenario is read back to check it; the graph's warning, said at load, is not said again.
+
+    Negative control: reading the written file on its own says it (it is a new load).
+    """
+    import numpy as np
+
+    from planner.placement.placement import PlacementResult, write_scenario_with_markers
+
+    with pytest.warns(ScenarioWarning):
+        sc = scenarios.load(scenario_file)
+    result = PlacementResult(markers=[("P1", (0.0, 7.0)), ("P2", (30.0, 7.0))], count=2, lower_bound=2,
+                             optimal=True, uncovered=np.zeros((0, 2)), method="test", sites=np.zeros((0, 2)),
+                             points=np.zeros((0, 2)), chosen=np.arange(2))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = write_scenario_with_markers(sc, result, tmp_path / "placed.toml")
+    assert [str(w.message) for w in caught] == []
+    with pytest.warns(ScenarioWarning, match="repeated edge ids 10006"):
+        again = scenarios.load(out)
+    assert [m.id for m in again.markers] == ["P1", "P2"]
+
+
+def test_validating_a_sweep_of_it_says_the_warning_no_more(scenario_file, tmp_path):
+    """A sweep's stored scenario, read back to validate the scenario it was made from, warns nothing.
+
+    Negative control: validating the directory on its own (``--from`` without the scenario) says it once.
+    """
+    from scenarios.errors import OutputError
+    from sim.montecarlo.results import SweepLayout, write_atomic
+    from sim.validation.data import load_sweep
+
+    with pytest.warns(ScenarioWarning):
+        sc = scenarios.load(scenario_file)
+    layout = SweepLayout(tmp_path / "mc")
+    layout.make_dirs()
+    write_atomic(layout.scenario_toml, sc.text.encode())
+    with warnings.catch_warnings(record=True) as caught, pytest.raises(OutputError, match="holds no finished run"):
+        warnings.simplefilter("always")
+        load_sweep(layout.root, sc)
+    assert [str(w.message) for w in caught] == []
+    with pytest.warns(ScenarioWarning, match="repeated edge ids 10006"), \
+            pytest.raises(OutputError, match="holds no finished run"):
+        load_sweep(layout.root)

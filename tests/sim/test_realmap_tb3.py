@@ -67,7 +67,7 @@ def test_a_sweep_reaches_every_goal_without_contact(placed, tmp_path):
         gaps.append(body_clearance(placed, xy).min())
         excess.append(excess_offset(placed, plans[runs["task"][runs["run"].index(st["run"][0])]], xy).max())
     assert len(gaps) == RUNS
-    # measured at 200 runs: the smallest gap 5.4 cm, every step >= 4.6 mm inside the offset bound
+    # measured at 200 runs (7 reflectors placed): the smallest gap 6.0 cm, every step >= 5.1 mm inside the offset bound
     assert min(gaps) >= 0.0
     assert max(excess) <= 0.0   # the bound the clearance check assumes holds at every step
 
