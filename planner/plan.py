@@ -110,18 +110,41 @@ def _fine_check(scenario: Scenario, cand: Candidate, pef) -> str:
     return ""
 
 
-def _no_route(scenario: Scenario, start: str, goal: str, cands: list[Candidate]) -> PlanningError:
+class NoRouteError(PlanningError):
+    """No candidate route is admissible.
+
+    Parameters
+    ----------
+    message : str
+        Names the best candidate and why it fails.
+    markers_help : bool
+        False when every candidate failed on the body's clearance in a way no layout of markers
+        mends (:class:`planner.schedule.clearance.ClearanceError`): ``place`` need not try others.
+    """
+
+    def __init__(self, message: str, markers_help: bool = True):
+        super().__init__(message)
+        self.markers_help = markers_help
+
+
+def _no_route(scenario: Scenario, start: str, goal: str, cands: list[Candidate],
+              unmendable: set[str] = frozenset()) -> NoRouteError:
     best = min(cands, key=lambda c: (c.max_tau, -c.min_clearance))
-    return PlanningError(f"no admissible route from {start!r} to {goal!r} among {len(cands)} candidates "
-                         f"(eps_max {scenario.planning.eps_max:g} m); best {best.id}: {best.why_not}")
+    return NoRouteError(f"no admissible route from {start!r} to {goal!r} among {len(cands)} candidates "
+                        f"(eps_max {scenario.planning.eps_max:g} m); best {best.id}: {best.why_not}",
+                        markers_help=not all(c.id in unmendable for c in cands))
 
 
-def _make_schedule(scenario: Scenario, pef, cand: Candidate, start: str, goal: str) -> tuple[Schedule, str]:
-    """Schedule the candidate at speeds whose tracking keeps the body clear; or say why not (names the place)."""
+def _make_schedule(scenario: Scenario, pef, cand: Candidate, start: str, goal: str) -> tuple[Schedule, str, bool]:
+    """Schedule the candidate at speeds whose tracking keeps the body clear; or say why not (names the place).
+
+    The third value says whether a layout of markers could mend a refusal
+    (:attr:`planner.schedule.clearance.ClearanceError.markers_help`).
+    """
     try:
-        return clearance.cleared_schedule(scenario, pef, cand.path.points, cand.speed, start, goal), ""
+        return clearance.cleared_schedule(scenario, pef, cand.path.points, cand.speed, start, goal), "", True
     except clearance.ClearanceError as exc:
-        return None, str(exc)
+        return None, str(exc), exc.markers_help
 
 
 def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = None, pef=None,
@@ -176,17 +199,20 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
     else:
         cands = network_candidates(scenario, start, goal, tau_fn)
     dropped: list[str] = []
+    unmendable: set[str] = set()
     while True:
         ranking = _rank(scenario, cands)
         if not ranking.order:
-            raise _no_route(scenario, start, goal, cands)
+            raise _no_route(scenario, start, goal, cands, unmendable)
         chosen = ranking.order[0]
         cand = cands[chosen]
         why = _fine_check(scenario, cand, pef)
         sched = None
         if not why and schedule:
             try:
-                sched, why = _make_schedule(scenario, pef, cand, start, goal)
+                sched, why, mendable = _make_schedule(scenario, pef, cand, start, goal)
+                if not mendable:
+                    unmendable.add(cand.id)
             except PlanningError as exc:
                 why = f"no measurement schedule ({exc})"
             if not why:

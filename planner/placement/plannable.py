@@ -56,12 +56,13 @@ Progress = Callable[[str], None]
 """``progress(line)``: told each phase of the placement as it starts (one line, no newline)."""
 
 
-def _unplanned(scenario: Scenario, progress: Progress | None = None) -> tuple[str, ...]:
+def _unplanned(scenario: Scenario, progress: Progress | None = None) -> tuple[tuple[str, ...], bool]:
+    """Return ``"A->B: reason"`` of each task that does not plan, and whether markers could mend any of them."""
     from planner.pef.map import PEF
     from planner.plan import plan_task
 
     pef = PEF(scenario)  # one map for all tasks
-    bad = []
+    bad, mendable = [], False
     for i, t in enumerate(scenario.tasks):
         if progress is not None:
             progress(f"planning task {i + 1} of {len(scenario.tasks)}: {t.start} -> {t.goal}")
@@ -69,7 +70,8 @@ def _unplanned(scenario: Scenario, progress: Progress | None = None) -> tuple[st
             plan_task(scenario, i, pef=pef)
         except PlanningError as exc:
             bad.append(f"{t.start}->{t.goal}: {exc}")
-    return tuple(bad)
+            mendable = mendable or getattr(exc, "markers_help", True)
+    return tuple(bad), mendable
 
 
 def place_plannable(scenario: Scenario, *, method: str = "auto", time_limit: float = MILP_TIME_LIMIT,
@@ -107,9 +109,15 @@ def place_plannable(scenario: Scenario, *, method: str = "auto", time_limit: flo
                      f"{len(result.points)} points covered under {target * 1e3:.4g} mm")
         if not scenario.tasks or len(result.uncovered) or result.count < k:
             return PlannablePlacement(result, target, (), checked=False)
-        unplanned = _unplanned(scenario_with_markers(scenario, result), progress)
+        unplanned, mendable = _unplanned(scenario_with_markers(scenario, result), progress)
         out = PlannablePlacement(dataclasses.replace(result, unplanned=unplanned), target, unplanned, checked=True)
         if not unplanned:
+            break
+        if not mendable:
+            # the body does not clear these routes at any estimate: a tighter cover cannot help
+            if progress is not None:
+                progress(f"{len(unplanned)} of {len(scenario.tasks)} tasks do not plan ({unplanned[0]}); "
+                         "no layout of markers clears the body there, so the target is not tightened")
             break
         if progress is not None and m != tighten[-1]:
             progress(f"{len(unplanned)} of {len(scenario.tasks)} tasks do not plan ({unplanned[0]}); "

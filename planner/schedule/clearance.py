@@ -227,6 +227,7 @@ def cleared_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarra
         Slower does not clear it (or :data:`ROUNDS` schedules did not): names the place
         (:meth:`Shortfall.message`); or no schedule exists.
     """
+    slowest = False
     for _ in range(ROUNDS):
         sched = make_schedule(scenario, pef, path, speed, **kwargs)
         m = margin(scenario, path, sched.speed, sched.s, sched.predicted_error, scenario.dock(start).pose[2])
@@ -234,9 +235,27 @@ def cleared_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarra
             return sched
         speed = slowed(path, sched.speed, m.s[m.short])
         if speed is None:
+            slowest = True
             break
-    raise ClearanceError(Shortfall.worst(scenario, m).message(start, goal))
+    worst = Shortfall.worst(scenario, m)
+    # the estimate is the only term markers change, and it is >= 0: where the body falls short
+    # without it, at the slowest drive that helps, no layout of markers clears the path
+    short_without = worst.clearance < worst.radius + worst.tracking + worst.sampling
+    raise ClearanceError(worst.message(start, goal), markers_help=not (slowest and short_without))
 
 
 class ClearanceError(PlanningError):
-    """The body's clearance falls short on a path at any speed that helps (names the place)."""
+    """The body's clearance falls short on a path at any speed that helps (names the place).
+
+    Parameters
+    ----------
+    message : str
+        The one line of :meth:`Shortfall.message`.
+    markers_help : bool
+        False when the body falls short even with no estimate error at the slowest speed that
+        helps: no placement of markers makes the path drivable (``place`` stops tightening).
+    """
+
+    def __init__(self, message: str, markers_help: bool = True):
+        super().__init__(message)
+        self.markers_help = markers_help

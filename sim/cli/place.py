@@ -82,8 +82,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"candidate sites refined to {result.finest_spacing:g} m where {sc.placement.spacing:g} m "
               "left points uncovered")
     if result.target < eps:
-        print(f"cover target tightened to {result.target:g} m so that every task plans (the drift between "
-              f"fixes needs room under eps_max); the count and its bound are for that target")
+        why = ("so that every task plans (the drift between fixes needs room under eps_max)" if not result.unplanned
+               else "trying to make every task plan")
+        print(f"cover target tightened to {result.target:g} m {why}; the count and its bound are for that target")
     new = set(result.new_ids)
     for m in result.layout():
         tag = "new" if result.kept and m.id in new else ("kept" if result.kept else "")

@@ -37,8 +37,8 @@ def test_tightens_until_the_planner_accepts(monkeypatch):
 
     monkeypatch.setattr(plannable, "place", place)
     monkeypatch.setattr(plannable, "_unplanned",
-                        lambda s, progress=None: (("A->B: refused",) if targets[-1] > 0.8 * sc.planning.eps_max + 1e-12
-                                                  else ()))
+                        lambda s, progress=None: ((("A->B: refused",), True)
+                                                  if targets[-1] > 0.8 * sc.planning.eps_max + 1e-12 else ((), True)))
     pp = plannable.place_plannable(sc, time_limit=20)
     eps = sc.planning.eps_max
     np.testing.assert_allclose(targets, [eps, 0.9 * eps, 0.8 * eps])
@@ -49,7 +49,29 @@ def test_reports_tasks_that_never_plan(monkeypatch):
     # negative control of the loop: a planner that refuses everything leaves the last layout
     # with its reason, after every margin was tried
     sc = scenarios.load("paper-docks")
-    monkeypatch.setattr(plannable, "_unplanned", lambda s, progress=None: ("A->B: refused",))
+    monkeypatch.setattr(plannable, "_unplanned", lambda s, progress=None: (("A->B: refused",), True))
     pp = plannable.place_plannable(sc, time_limit=20, tighten=(0.0, 0.25))
     assert pp.unplanned == ("A->B: refused",)
     assert np.isclose(pp.target, 0.75 * sc.planning.eps_max)
+
+
+def test_stops_where_no_layout_mends_the_refusal(monkeypatch):
+    """A task refused on the body's clearance with no estimate term to gain is not tightened for.
+
+    Against the control above (same refusal, mendable: every margin tried), one cover only.
+    """
+    sc = scenarios.load("paper-docks")
+    targets = []
+    real_place = plannable.place
+
+    def place(scenario, eps_max, **kw):
+        targets.append(eps_max)
+        return real_place(scenario, eps_max=eps_max, **kw)
+
+    lines = []
+    monkeypatch.setattr(plannable, "place", place)
+    monkeypatch.setattr(plannable, "_unplanned", lambda s, progress=None: (("A->B: passes 0.348 m",), False))
+    pp = plannable.place_plannable(sc, time_limit=20, tighten=(0.0, 0.25), progress=lines.append)
+    assert targets == [sc.planning.eps_max]
+    assert pp.unplanned == ("A->B: passes 0.348 m",)
+    assert "no layout of markers clears the body there" in lines[-1]

@@ -77,3 +77,18 @@ def test_a_corner_too_tight_even_slow_is_refused():
     with pytest.raises(PlanningError, match=r"route A -> B passes 0\.\d+ m from the obstacle at .* needs 0\.\d+ m "
                                             r"\(radius 0\.40 \+ tracking 0\.\d+"):
         plan_route(sc, "A", "B")
+
+
+
+@pytest.mark.parametrize(("gap", "helps"), [(0.405, False), (0.415, True)])
+def test_whether_markers_could_mend_a_refusal(gap, helps):
+    """``markers_help``: False where the body falls short even with no estimate error.
+
+    On the straight (tracking 0) the body needs radius 0.40 + sampling 0.01 + the estimate
+    (8 mm here): a pillar 0.405 m off is short of it whatever the markers (``place`` stops
+    tightening its cover there), one 0.415 m off only by the estimate (a better layout may clear
+    it; the control).
+    """
+    with pytest.raises(PlanningError) as got:
+        plan_route(world(5.0, 2.0 + 0.3 + gap), "A", "B")
+    assert got.value.markers_help is helps
