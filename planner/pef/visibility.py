@@ -409,35 +409,83 @@ _SIGHT_KEPT = 32
 def _prepare_sight(obstacles, mk: np.ndarray, bounds, fn: np.ndarray, max_incidence: float, rule: SightRule | None,
                    bodies: np.ndarray | None) -> tuple[PieceArrays, SightArrays]:
     """:func:`prepare_sight` computed (``fn`` the markers' normals, (M, 2))."""
-    pa = prepare(obstacles)
     m_n = mk.shape[0]
     wedge = np.zeros((m_n, 1 if rule is None else _MAX_WEDGES, 4))
     wedge[:, 0, :2] = fn
     wedge[:, 0, 2] = math.cos(max_incidence)
     if rule is None:
+        pa = prepare(obstacles)
         twice = lambda a: np.ascontiguousarray(np.stack([a, a]))  # noqa: E731
         return pa, SightArrays(pa.planes, pa.count, twice(pa.sight), twice(pa.shrunk), twice(pa.sight_bbox),
                                twice(pa.blocks), np.full(pa.sight.shape, -np.inf), np.zeros((0, 2)),
                                int(pa.count.size), 0.0, wedge)
     flat = np.any(fn != 0.0, axis=1)
     wedge[flat, 0, 3] = rule.wedge_offset(math.cos(max_incidence))   # the incidence limit within the margin too
+    at = mk if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
+    geo = _sight_geometry(obstacles, mk, bounds, rule.radius, rule.reach, at)
+    for m, faces in enumerate(geo.faces):
+        for w, face in enumerate(faces, start=1):
+            wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
+    return geo.pa, SightArrays(geo.planes, geo.count, geo.sight, geo.shrunk, geo.sight_bbox, geo.blocks, geo.swallow,
+                               geo.bodies, geo.n_ob, float(rule.margin), wedge)
+
+
+@dataclass(frozen=True, eq=False)
+class _SightGeometry:
+    """The part of :class:`SightArrays` that does not depend on the rule's margin, and each marker's mount faces."""
+
+    pa: PieceArrays
+    planes: np.ndarray
+    count: np.ndarray
+    sight: np.ndarray
+    shrunk: np.ndarray
+    sight_bbox: np.ndarray
+    blocks: np.ndarray
+    swallow: np.ndarray
+    bodies: np.ndarray
+    n_ob: int
+    faces: list
+
+
+#: Margin-free sight geometry per set of obstacles (:func:`_sight_geometry`): the schedule's sight
+#: check asks for a rule per 5 mm of margin, and only the wedges' offsets and the margin differ.
+_GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GEOMETRY_KEPT = 4
+
+
+def _sight_geometry(obstacles, mk: np.ndarray, bounds, radius: float, reach: float,
+                    at: np.ndarray) -> _SightGeometry:
+    """The pieces (obstacles, then bodies ``at`` (B, 2)), grown and swallowing, and the mount faces of ``mk`` (M, 2).
+
+    Kept per obstacles (when :class:`~scenarios.ConvexPieces`), markers, bounds, body radius,
+    physics reach and bodies: the arrays are shared by every rule that differs only in its
+    margin (none of the callers writes into them).
+    """
+    key = (mk.tobytes(), at.tobytes(), tuple(float(b) for b in bounds), float(radius), float(reach))
+    memo = _GEOMETRY.setdefault(obstacles, {}) if isinstance(obstacles, ConvexPieces) else {}
+    got = memo.get(key)
+    if got is not None:
+        return got
+    rule = SightRule(margin=0.0, radius=radius, reach=reach)
+    pa = prepare(obstacles)
     pieces = _pieces(obstacles)
     n_ob = len(pieces.count)
     # the obstacles' pieces, then every marker's body (it blocks the others' lines of sight)
-    at = mk if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
     both = _with_bodies(pieces, at, rule.radius)
     base = piece_arrays(both, BOX_SHRINK)
     grown = piece_arrays(both, BOX_SHRINK, rule.reach)
     swallow = piece_arrays(both, BOX_SHRINK, rule.grow).sight
     mount = _mount_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), base.planes, swallow,
                          base.count, n_ob)
-    for m in range(m_n):
-        for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m], rule.radius, bounds), start=1):
-            wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
+    faces = [_mount_faces(pa, pieces, mk[m], mount[m], rule.radius, bounds) for m in range(mk.shape[0])]
     pair = lambda a, b: np.ascontiguousarray(np.stack([a, b]))  # noqa: E731
-    return pa, SightArrays(base.planes, base.count, pair(base.sight, grown.sight), pair(base.shrunk, grown.shrunk),
-                           pair(base.sight_bbox, grown.sight_bbox), pair(base.blocks, grown.blocks), swallow,
-                           np.ascontiguousarray(at), n_ob, float(rule.margin), wedge)
+    got = _SightGeometry(pa, base.planes, base.count, pair(base.sight, grown.sight), pair(base.shrunk, grown.shrunk),
+                         pair(base.sight_bbox, grown.sight_bbox), pair(base.blocks, grown.blocks), swallow,
+                         np.ascontiguousarray(at), n_ob, faces)
+    memo[key] = got
+    while len(memo) > _GEOMETRY_KEPT:
+        memo.pop(next(iter(memo)))
+    return got
 
 
 @compiled.njit(cache=True)
