@@ -23,7 +23,14 @@ It costs one hash of a few source files per module. Where the cache directory ca
 numba does not cache either, and nothing is stored.
 
 The first run on a machine compiles every kernel it calls (tens of seconds for a whole episode);
-:func:`announce_compiles` makes a program say so once, on stderr, when it ends.
+:func:`announce_compiles` makes a program say so on stderr as the first compilation starts (how
+long it may take), and once more when it ends (how long it took).
+
+Where the compiled code goes: numba's cache, ``__pycache__`` beside each kernel's source file
+(numba's own fallback, a per-user folder, where that is not writable; ``NUMBA_CACHE_DIR`` where
+set), one entry per kernel and argument types. Every command reads the same entries: a kernel
+that ``place`` compiled is loaded, not compiled, by ``validate`` (each command compiles only the
+kernels no command before it called).
 """
 
 from __future__ import annotations
@@ -49,6 +56,8 @@ _jitted = False
 _cached: set[int] = set()
 _timer = None  # the numba listener of _compile_timer, once jit() ran
 _announce = False
+_expect: float | None = None  # seconds the announcement before compiling states
+_said_start = False
 
 
 class Kernel:
@@ -195,6 +204,7 @@ def _compile_timer():
             if self._depth == 0:
                 if id(event.data["dispatcher"]) not in _cached:
                     return
+                _say_compiling()
                 self._t0 = time.perf_counter()
             self._depth += 1
 
@@ -213,16 +223,40 @@ def compile_seconds() -> float:
     return 0.0 if _timer is None else _timer.seconds
 
 
-def announce_compiles() -> None:
-    """Say once on stderr, when the program ends, that it compiled the kernels and how long it took.
+def announce_compiles(expect: float | None = None) -> None:
+    """Make the program say on stderr that it compiles the kernels: as it starts, and how long it took at exit.
 
-    Nothing is said where every kernel came from numba's cache, nor by a worker process.
+    The first line comes as numba starts the first compilation of a cached kernel (a cold cache),
+    before the seconds of silence; the second when the program ends. Nothing is said where every
+    kernel came from numba's cache, nor by a worker process.
+
+    Parameters
+    ----------
+    expect : float, optional
+        About how many seconds the compilation takes (the first line states it when given).
     """
-    global _announce
+    global _announce, _expect
     with _lock:
+        if expect is not None:
+            _expect = float(expect)
         if not _announce:
             _announce = True
             atexit.register(_say_compiled)
+
+
+def _say_compiling() -> None:
+    """The line before the first compilation (:func:`announce_compiles`), once, in the main process only."""
+    global _said_start
+    if not _announce or _said_start:
+        return
+    _said_start = True
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
+        return
+    about = "" if _expect is None else f", about {_expect:.0f} s"
+    print(f"pefsim: compiling the kernels once{about}; numba caches them for later runs", file=sys.stderr,
+          flush=True)
 
 
 def _say_compiled() -> None:
