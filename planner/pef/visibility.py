@@ -296,6 +296,47 @@ def _visible_points_markers(m0, m1, px, py, free, mx, my, wedge, max_range, plan
             vis[m, n] = ok
 
 
+@compiled.njit(cache=True, nogil=True)
+def _visible_pairs_markers(u0, u1, used, starts, order, px, py, free, mx, my, wedge, max_range, planes, count,
+                           sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob, margin, out):
+    """Markers ``used[u]``, ``u0 <= u < u1``: each one's pieces once, then only its points ``order[starts[u]:starts[u + 1]]``."""
+    npc = max(count.size, 1)
+    hp = np.zeros((npc, planes.shape[1] + 2, 3))
+    nhp = np.zeros(npc, dtype=np.int64)
+    clip = np.zeros((npc, 2), dtype=np.int64)
+    r2max = max_range * max_range
+    for u in range(u0, u1):
+        m = used[u]
+        ns, nc, _ = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies,
+                                  n_ob, margin, max_range, np.bool_(True), hp, nhp, clip)
+        bx, by = mx[m], my[m]
+        # the test of _visible_points_markers, written out again (a call per point costs more)
+        for i in range(starts[u], starts[u + 1]):
+            n = order[i]
+            ok = free[n]
+            ax, ay = px[n], py[n]
+            if ok:
+                dx, dy = ax - bx, ay - by
+                ok = dx * dx + dy * dy <= r2max and wedges_ok(dx, dy, wedge, m)
+            if ok:
+                lox, hix = min(ax, bx), max(ax, bx)
+                loy, hiy = min(ay, by), max(ay, by)
+                for j in range(nc):
+                    p, g = clip[j, 0], clip[j, 1]
+                    if (sight_bbox[g, p, 0] >= hix or sight_bbox[g, p, 2] <= lox or sight_bbox[g, p, 1] >= hiy
+                            or sight_bbox[g, p, 3] <= loy):
+                        continue
+                    if segment_enters(ax, ay, bx, by, planes, sight[g], count, p):
+                        ok = False
+                        break
+            if ok:
+                for s in range(ns):
+                    if in_shadow(ax, ay, hp[s], nhp[s]):
+                        ok = False
+                        break
+            out[n] = ok
+
+
 @dataclass(frozen=True)
 class SightArrays:
     """The pieces every marker's line of sight is tested on, and each marker's wedges (:func:`prepare_sight`).
@@ -625,6 +666,50 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
                (px, py, free, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), sa.wedge,
                 _range(max_range, rule), *sa.kernel_args(), vis), min_chunk=8)
     return vis, free
+
+
+def visible_pairs(points: np.ndarray, which: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
+                  bounds: tuple[float, float, float, float], normals: np.ndarray | None = None,
+                  max_incidence: float = math.pi / 2, rule: SightRule | None = None,
+                  bodies: np.ndarray | None = None) -> np.ndarray:
+    """Whether each point sees one marker: ``visible_points(points, ...)[which[n], n]`` for each n.
+
+    The same test, made only for the pairs asked (each marker's pieces prepared once, for the
+    markers named in ``which``): a fix's lines of sight, not every marker from every pose.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 2)
+        Query points [m].
+    which : ndarray of int, shape (N,)
+        The marker each point looks at (an index into ``markers``).
+    markers, obstacles, max_range, bounds, normals, max_incidence, rule, bodies
+        As in :func:`visible_points` (all the markers: the arrays are those it prepares).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N,)
+    """
+    p = np.ascontiguousarray(np.asarray(points, float).reshape(-1, 2))
+    which = np.asarray(which, dtype=np.int64).reshape(-1)
+    mk = np.asarray(markers, float).reshape(-1, 2)
+    pa, sa = prepare_sight(obstacles, mk, bounds, normals, max_incidence, rule, bodies)
+    x0, y0, x1, y1 = (float(v) for v in bounds)
+    out = np.zeros(p.shape[0], dtype=np.bool_)
+    if p.shape[0] == 0:
+        return out
+    free = np.empty(p.shape[0], dtype=np.bool_)
+    px, py = np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1])
+    run_ranges(_free_points_range, p.shape[0], (px, py, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free),
+               min_chunk=2048)
+    order = np.argsort(which, kind="stable")
+    used, first = np.unique(which[order], return_index=True)
+    starts = np.append(first, order.size).astype(np.int64)
+    run_ranges(_visible_pairs_markers, used.size,
+               (used.astype(np.int64), starts, order.astype(np.int64), px, py, free, np.ascontiguousarray(mk[:, 0]),
+                np.ascontiguousarray(mk[:, 1]), sa.wedge, _range(max_range, rule), *sa.kernel_args(), out),
+               min_chunk=8)
+    return out
 
 
 def _normals(normals: np.ndarray | None, m: int) -> np.ndarray:
