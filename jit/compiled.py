@@ -36,6 +36,7 @@ kernels no command before it called).
 from __future__ import annotations
 
 import atexit
+import collections
 import functools
 import hashlib
 import sys
@@ -330,7 +331,15 @@ def _imported_from(module_name: str) -> dict[str, str]:
     import ast
     import importlib.util
 
-    for node in ast.walk(ast.parse(Path(path).read_bytes())):
+    # the module's own statements (and those under if / try / with), not function bodies: an
+    # import inside a function binds a local name, never a global a kernel could read
+    todo = collections.deque(ast.parse(Path(path).read_bytes()).body)  # in ast.walk's order
+    while todo:
+        node = todo.popleft()
+        if isinstance(node, (ast.If, ast.Try, ast.With)):
+            todo += [*node.body, *getattr(node, "orelse", []), *getattr(node, "finalbody", []),
+                     *(h for handler in getattr(node, "handlers", []) for h in handler.body)]
+            continue
         if isinstance(node, ast.ImportFrom):
             package = module.__package__ if node.level else None
             source = importlib.util.resolve_name("." * node.level + (node.module or ""), package)
