@@ -463,7 +463,7 @@ def _prepare_sight(obstacles, mk: np.ndarray, bounds, fn: np.ndarray, max_incide
     flat = np.any(fn != 0.0, axis=1)
     wedge[flat, 0, 3] = rule.wedge_offset(math.cos(max_incidence))   # the incidence limit within the margin too
     at = mk if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
-    geo = _sight_geometry(obstacles, mk, bounds, rule.radius, rule.reach, at)
+    geo = _sight_geometry(obstacles, mk, bounds, rule.radius, rule.reach, rule.grow, at)
     for m, faces in enumerate(geo.faces):
         for w, face in enumerate(faces, start=1):
             wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
@@ -494,31 +494,31 @@ _GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _GEOMETRY_KEPT = 4
 
 
-def _sight_geometry(obstacles, mk: np.ndarray, bounds, radius: float, reach: float,
+def _sight_geometry(obstacles, mk: np.ndarray, bounds, radius: float, reach: float, grow: float,
                     at: np.ndarray) -> _SightGeometry:
     """The pieces (obstacles, then bodies ``at`` (B, 2)), grown and swallowing, and the mount faces of ``mk`` (M, 2).
 
-    Kept per obstacles (when :class:`~scenarios.ConvexPieces`), markers, bounds, body radius,
-    physics reach and bodies: the arrays are shared by every rule that differs only in its
-    margin (none of the callers writes into them).
+    ``radius``, ``reach`` and ``grow`` are the rule's (:class:`~planner.pef.sight.SightRule`).
+    Kept per obstacles (when :class:`~scenarios.ConvexPieces`), markers, bounds, those three
+    and bodies: the arrays are shared by every rule that differs only in its margin (none of
+    the callers writes into them).
     """
-    key = (mk.tobytes(), at.tobytes(), tuple(float(b) for b in bounds), float(radius), float(reach))
+    key = (mk.tobytes(), at.tobytes(), tuple(float(b) for b in bounds), float(radius), float(reach), float(grow))
     memo = _GEOMETRY.setdefault(obstacles, {}) if isinstance(obstacles, ConvexPieces) else {}
     got = memo.get(key)
     if got is not None:
         return got
-    rule = SightRule(margin=0.0, radius=radius, reach=reach)
     pa = prepare(obstacles)
     pieces = _pieces(obstacles)
     n_ob = len(pieces.count)
     # the obstacles' pieces, then every marker's body (it blocks the others' lines of sight)
-    both = _with_bodies(pieces, at, rule.radius)
+    both = _with_bodies(pieces, at, radius)
     base = piece_arrays(both, BOX_SHRINK)
-    grown = piece_arrays(both, BOX_SHRINK, rule.reach)
-    swallow = piece_arrays(both, BOX_SHRINK, rule.grow).sight
+    grown = piece_arrays(both, BOX_SHRINK, reach)
+    swallow = piece_arrays(both, BOX_SHRINK, grow).sight
     mount = _mount_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), base.planes, swallow,
                          base.count, n_ob)
-    faces = [_mount_faces(pa, pieces, mk[m], mount[m], rule.radius, bounds) for m in range(mk.shape[0])]
+    faces = [_mount_faces(pa, pieces, mk[m], mount[m], radius, bounds) for m in range(mk.shape[0])]
     pair = lambda a, b: np.ascontiguousarray(np.stack([a, b]))  # noqa: E731
     got = _SightGeometry(pa, base.planes, base.count, pair(base.sight, grown.sight), pair(base.shrunk, grown.shrunk),
                          pair(base.sight_bbox, grown.sight_bbox), pair(base.blocks, grown.blocks), swallow,
