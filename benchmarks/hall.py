@@ -300,14 +300,16 @@ def main() -> int:
               f"vs numpy reference {r['numpy_ref_cells_per_s']:.3g} cells/s (x{r['map_vs_numpy']:.0f}), "
               f"max rel diff {r['ref_max_rel_diff']:.1e}, inf cells agree {r['ref_inf_agree']}")
         r |= bench_plan(folder, hall, args.repeat)
-        print(f"plan D1 -> D{2 * (hs.n_rows(args.pitch) // 2 + 1)} (median of {args.repeat}): {r['plan_wall_s']:.2f} s wall, "
+        last = 2 * (hs.n_rows(args.pitch) // 2 + 1)  # the task's goal dock
+        print(f"plan D1 -> D{last} (median of {args.repeat}): {r['plan_wall_s']:.2f} s wall, "
               f"{r['plan_cpu_s']:.2f} s CPU, {r['plan_rss_mb']:.0f} MB "
               f"(target 2 s), exit {r['plan_code']}, chosen {r['plan_chosen']}")
         if not args.skip_place:
             # the default sites on faces are flat reflectors; posts (seen from every side) are
             # the harder cover: more pairs per point, a weaker LP bound
             for tag, kind in (("place", None), ("place_post", "post"))[:1 if args.skip_post else 2]:
-                floor = empty if kind is None else hs.write_hall(folder, markers=False, marker_kind=kind, **shape)
+                floor = (empty if kind is None
+                         else hs.write_hall(folder, markers=False, marker_kind=kind, **shape))
                 one = bench_place(folder, floor, tag)
                 r |= one
                 g = {key[len(tag) + 1:]: v for key, v in one.items()}.__getitem__

@@ -55,8 +55,8 @@ def hall_toml(markers: bool = True, resolution: float = 0.1, marker_kind: str | 
             f'{n_segs} route segments"',
             "seed = 3", "", "[workspace]", f"size = [{WIDTH}, {HEIGHT}]", ""]
     for i in range(rows):
-        out += ["[[obstacles]]", f"center = [{rack_x(i, pitch)}, {ROW_Y0 + ROW_LEN / 2}]", f"size = [{ROW_W}, {ROW_LEN}]",
-                ""]
+        out += ["[[obstacles]]", f"center = [{rack_x(i, pitch)}, {ROW_Y0 + ROW_LEN / 2}]",
+                f"size = [{ROW_W}, {ROW_LEN}]", ""]
     if markers:
         pts = []
         pts += [(x, 0.0) for x in range(5, 120, 10)] + [(x, HEIGHT) for x in range(5, 120, 10)]

@@ -246,7 +246,7 @@ def announce_compiles(expect: float | None = None) -> None:
 
 
 def _say_compiling() -> None:
-    """The line before the first compilation (:func:`announce_compiles`), once, in the main process only."""
+    """Say the line before the first compilation (:func:`announce_compiles`), once, in the main process only."""
     global _said_start
     if not _announce or _said_start:
         return

@@ -299,7 +299,7 @@ def _visible_points_markers(m0, m1, px, py, free, mx, my, wedge, max_range, plan
 @compiled.njit(cache=True, nogil=True)
 def _visible_pairs_markers(u0, u1, used, starts, order, px, py, free, mx, my, wedge, max_range, planes, count,
                            sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob, margin, out):
-    """Markers ``used[u]``, ``u0 <= u < u1``: each one's pieces once, then only its points ``order[starts[u]:starts[u + 1]]``."""
+    """Markers ``used[u]``, ``u0 <= u < u1``: their pieces once each, then their points (``order``, ``starts``)."""
     npc = max(count.size, 1)
     hp = np.zeros((npc, planes.shape[1] + 2, 3))
     nhp = np.zeros(npc, dtype=np.int64)
@@ -496,7 +496,7 @@ _GEOMETRY_KEPT = 4
 
 def _sight_geometry(obstacles, mk: np.ndarray, bounds, radius: float, reach: float, grow: float,
                     at: np.ndarray) -> _SightGeometry:
-    """The pieces (obstacles, then bodies ``at`` (B, 2)), grown and swallowing, and the mount faces of ``mk`` (M, 2).
+    """Return the pieces (obstacles, then bodies ``at`` (B, 2)), grown and swallowing, and ``mk``'s (M, 2) mount faces.
 
     ``radius``, ``reach`` and ``grow`` are the rule's (:class:`~planner.pef.sight.SightRule`).
     Kept per obstacles (when :class:`~scenarios.ConvexPieces`), markers, bounds, those three

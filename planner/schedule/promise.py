@@ -118,8 +118,8 @@ import numpy as np
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from estimators.fault.perturbed import perturbed_diameters
 from jit import compiled
-from planner.routes.smoothing import MAX_ACCEL, acceleration_limited
 from planner.pef.threads import run_ranges
+from planner.routes.smoothing import MAX_ACCEL, acceleration_limited
 from planner.schedule.pathtime import Kinematics, Track, mean_speed
 from planner.schedule.sightcheck import unseen
 from scenarios.schema import Scenario
