@@ -30,11 +30,11 @@ class _Parser(argparse.ArgumentParser):
 
 
 #: About how long each command's first run on a machine compiles its kernels [s] (numba's cache
-#: cold): measured, CPU seconds of a cold run less a warm one on a 2-core machine, rounded up
-#: (docs/benchmarks.md). Said before the compilation starts.
-COMPILE_SECONDS = {"map": 15, "plan": 15, "export": 15, "place": 30, "run": 45, "validate": 60, "mc": 60,
-                   "watch": 45, "worlds": 30, "paper": 60}
-COMPILE_SECONDS_DEFAULT = 60
+#: empty): CPU seconds of a cold run less a warm one on a 2-core machine (numba compiles on one
+#: thread), rounded up (docs/benchmarks.md). Said before the compilation starts.
+COMPILE_SECONDS = {"map": 20, "plan": 15, "export": 15, "place": 45, "run": 30, "validate": 30, "mc": 30,
+                   "watch": 20, "worlds": 30, "paper": 60}
+COMPILE_SECONDS_DEFAULT = 30
 
 
 def print_json(obj: Any) -> None:
