@@ -108,6 +108,7 @@ Bearings
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
@@ -360,8 +361,9 @@ def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
     else:
         _CHORDS_MEMO.move_to_end(key)
     pairs = np.ascontiguousarray(np.stack([s.ravel(), np.ascontiguousarray(look).ravel()], axis=1))
-    names = [row.tobytes() for row in pairs]
-    out = np.array([known.get(n, math.nan) for n in names], dtype=float)
+    # each row's 16 bytes, as row.tobytes() gives them, in one call (a call per row cost more than the lookups)
+    names = pairs.view(np.dtype((np.void, pairs.itemsize * 2))).ravel().tolist()
+    out = np.fromiter(map(known.get, names, itertools.repeat(math.nan)), dtype=float, count=len(names))
     todo = np.flatnonzero(np.isnan(out))
     if todo.size:
         new = np.empty(todo.size)
@@ -371,7 +373,7 @@ def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
                     np.ascontiguousarray(pairs[todo, 0]), np.ascontiguousarray(pairs[todo, 1]), float(reach),
                     back, np.linspace(0.0, 1.0, 33), new), min_chunk=8)
         out[todo] = new
-        known.update(zip((names[i] for i in todo), new.tolist(), strict=True))
+        known.update(zip(map(names.__getitem__, todo.tolist()), new.tolist(), strict=True))
     return out.reshape(s.shape)
 
 
