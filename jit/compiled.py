@@ -59,6 +59,7 @@ _timer = None  # the numba listener of _compile_timer, once jit() ran
 _announce = False
 _expect: float | None = None  # seconds the announcement before compiling states
 _said_start = False
+_worker_says = False  # a worker process that says the first line for its parent (announce_in_worker)
 
 
 class Kernel:
@@ -245,18 +246,51 @@ def announce_compiles(expect: float | None = None) -> None:
             atexit.register(_say_compiled)
 
 
+def announce_state() -> tuple | None:
+    """Return what a worker process needs to say the first line of :func:`announce_compiles` for this one.
+
+    None where this process says nothing, or has said it already (its estimate covered the
+    command). Pass it to :func:`announce_in_worker` in the worker.
+    """
+    with _lock:
+        return (_expect,) if _announce and not _said_start else None
+
+
+def announce_in_worker(state: tuple | None) -> None:
+    """In a worker process: say the line before the first compilation, as its parent would have.
+
+    A pool's workers compile the kernels the parent never called (an episode's); without this a
+    cold first ``validate --workers N`` compiles in silence. Each worker says it once; the line
+    at exit stays the parent's.
+
+    Parameters
+    ----------
+    state : tuple or None
+        :func:`announce_state` of the parent (None: say nothing).
+    """
+    global _announce, _expect, _worker_says
+    if state is None:
+        return
+    with _lock:
+        _announce, _expect, _worker_says = True, state[0], True
+
+
 def _say_compiling() -> None:
-    """Say the line before the first compilation (:func:`announce_compiles`), once, in the main process only."""
+    """Say the line before the first compilation (:func:`announce_compiles`), once, in the main process only.
+
+    Or in a worker that says it for its parent (:func:`announce_in_worker`).
+    """
     global _said_start
     if not _announce or _said_start:
         return
     _said_start = True
     import multiprocessing
 
-    if multiprocessing.parent_process() is not None:
+    if multiprocessing.parent_process() is not None and not _worker_says:
         return
     about = "" if _expect is None else f", about {_expect:.0f} s"
-    print(f"pefsim: compiling the kernels once{about}; numba caches them for later runs", file=sys.stderr,
+    who = "a worker is compiling" if _worker_says else "compiling"
+    print(f"pefsim: {who} the kernels once{about}; numba caches them for later runs", file=sys.stderr,
           flush=True)
 
 

@@ -221,3 +221,54 @@ def test_a_cold_run_says_once_that_it_compiled_and_a_warm_run_says_nothing(tmp_p
         # negative control: a kernel numba does not cache compiles on every run, and promising a
         # cache there would be false
         assert cold == warm == quiet
+
+
+WORKER_KERNELS = textwrap.dedent("""\
+    import sys
+    from jit import compiled
+
+    @compiled.njit(cache=True)
+    def once(x):
+        return 1.0 * x
+
+    @compiled.njit(cache=True)
+    def thrice(x):
+        return 3.0 * x
+
+    def work(state):
+        compiled.announce_in_worker(state)
+        print("worker", thrice(2.0), file=sys.stderr, flush=True)  # a kernel the parent never called
+    """)
+
+WORKER_MAIN = textwrap.dedent("""\
+    import multiprocessing
+    from jit import compiled
+    import worker_kernels as k
+
+    compiled.announce_compiles(9)
+    if {parent_first}:
+        k.once(1.0)  # the parent compiles (and says so) first
+    p = multiprocessing.get_context("spawn").Process(target=k.work, args=(compiled.announce_state(),))
+    p.start()
+    p.join()
+    """)
+
+
+@pytest.mark.parametrize("parent_first", [False, True])
+def test_a_worker_says_it_compiles_unless_its_parent_did(tmp_path, parent_first):
+    """A pool worker on a cold cache says the first line itself (a cold ``validate --workers 2``).
+
+    Negative control: where the parent said it already (it compiled first, its estimate covers
+    the command), the worker compiles its own kernel in silence.
+    """
+    (tmp_path / "worker_kernels.py").write_text(WORKER_KERNELS)
+    run = _python(WORKER_MAIN.format(parent_first=parent_first), tmp_path, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    assert run.returncode == 0, run.stderr
+    lines = run.stderr.splitlines()
+    worker = "pefsim: a worker is compiling the kernels once, about 9 s; numba caches them for later runs"
+    parent = "pefsim: compiling the kernels once, about 9 s; numba caches them for later runs"
+    assert "worker 6.0" in lines, lines
+    if parent_first:
+        assert lines[0] == parent and worker not in lines, lines
+    else:
+        assert lines.index(worker) < lines.index("worker 6.0") and parent not in lines, lines
