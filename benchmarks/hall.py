@@ -1,6 +1,7 @@
 """Big floors: the 120 x 80 m hall (``benchmarks/hall_scenario.py``) through ``pefsim map/plan/place``.
 
-Run: ``python benchmarks/hall.py [--skip-place] [--repeat N]``. The hall is written into a
+Run: ``python benchmarks/hall.py [--skip-place] [--repeat N] [--pitch M] [--face-reflectors N]``
+(the rack rows' spacing and the reflectors on each rack face: another hall). The hall is written into a
 temporary folder (nothing is written elsewhere). Each command runs as a subprocess, measured by
 ``os.wait4``: wall time, CPU (user + sys) and peak RSS; ``map`` and ``plan`` run ``--repeat``
 times (default 3) after a warm-up run, and the medians are printed. Targets:
@@ -284,11 +285,14 @@ def main() -> int:
     ap.add_argument("--skip-post", action="store_true", help="place flat reflectors only, not posts too")
     ap.add_argument("--ref-points", type=int, default=400, help="cells of the numpy reference subsample")
     ap.add_argument("--repeat", type=int, default=3, help="runs of map and plan (medians printed)")
+    ap.add_argument("--pitch", type=float, default=5.0, help="distance between rack rows [m] (default 5)")
+    ap.add_argument("--face-reflectors", type=int, default=5, help="reflectors on each long rack face (default 5)")
     args = ap.parse_args()
     hs = _load_hall_module()
+    shape = {"pitch": args.pitch, "face_markers": args.face_reflectors}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        hall, empty = hs.write_hall(folder), hs.write_hall(folder, markers=False)
+        hall, empty = hs.write_hall(folder, **shape), hs.write_hall(folder, markers=False, **shape)
         r = bench_map(folder, hall, args.ref_points, args.repeat)
         print(f"map 0.05 m ({r['map_cells']} cells, median of {args.repeat}): {r['map_wall_s']:.2f} s wall, "
               f"{r['map_cpu_s']:.2f} s CPU, "
@@ -296,14 +300,16 @@ def main() -> int:
               f"vs numpy reference {r['numpy_ref_cells_per_s']:.3g} cells/s (x{r['map_vs_numpy']:.0f}), "
               f"max rel diff {r['ref_max_rel_diff']:.1e}, inf cells agree {r['ref_inf_agree']}")
         r |= bench_plan(folder, hall, args.repeat)
-        print(f"plan D1 -> D24 (median of {args.repeat}): {r['plan_wall_s']:.2f} s wall, "
+        last = 2 * (hs.n_rows(args.pitch) // 2 + 1)  # the task's goal dock
+        print(f"plan D1 -> D{last} (median of {args.repeat}): {r['plan_wall_s']:.2f} s wall, "
               f"{r['plan_cpu_s']:.2f} s CPU, {r['plan_rss_mb']:.0f} MB "
               f"(target 2 s), exit {r['plan_code']}, chosen {r['plan_chosen']}")
         if not args.skip_place:
             # the default sites on faces are flat reflectors; posts (seen from every side) are
             # the harder cover: more pairs per point, a weaker LP bound
             for tag, kind in (("place", None), ("place_post", "post"))[:1 if args.skip_post else 2]:
-                floor = empty if kind is None else hs.write_hall(folder, markers=False, marker_kind=kind)
+                floor = (empty if kind is None
+                         else hs.write_hall(folder, markers=False, marker_kind=kind, **shape))
                 one = bench_place(folder, floor, tag)
                 r |= one
                 g = {key[len(tag) + 1:]: v for key, v in one.items()}.__getitem__

@@ -19,37 +19,55 @@ CROSS_Y = (6.0, 74.0)  # cross aisles below and above the racks
 DOCK_Y = (2.5, 77.5)
 
 
-def rack_x(i: int) -> float:
-    """Centre x of rack row ``i`` [m]."""
-    return 7.5 + PITCH * i
+def rack_x(i: int, pitch: float = PITCH) -> float:
+    """Centre x of rack row ``i`` [m] (rows ``pitch`` apart)."""
+    return 7.5 + PITCH * i if pitch == PITCH else 5.0 + pitch * i + pitch / 2
 
 
-def aisle_x(i: int) -> float:
-    """Centre x of aisle ``i`` (0..N_ROWS; aisle i is left of rack i) [m]."""
-    return 5.0 + PITCH * i
+def aisle_x(i: int, pitch: float = PITCH) -> float:
+    """Centre x of aisle ``i`` (0..rows; aisle i is left of rack i) [m]."""
+    return 5.0 + pitch * i
 
 
-def hall_toml(markers: bool = True, resolution: float = 0.1, marker_kind: str | None = None) -> str:
+def n_rows(pitch: float = PITCH) -> int:
+    """Rack rows ``pitch`` [m] apart that fit the hall (22 at the default 5 m)."""
+    return int((WIDTH - 15.0) // pitch) + 1
+
+
+def hall_toml(markers: bool = True, resolution: float = 0.1, marker_kind: str | None = None,
+              pitch: float = PITCH, face_markers: int = 5) -> str:
     """Return the hall scenario as TOML text (``markers`` False: the empty floor).
 
     ``marker_kind``: ``placement.marker_kind`` (``flat`` or ``post``), default left to the loader.
+    ``pitch``: distance between rack rows [m] (aisles ``pitch - ROW_W`` wide); ``face_markers``:
+    reflectors on each long rack face, evenly spread. The defaults give the hall of the module
+    docstring; other values a hall of other rack and reflector spacing, its docks and routes
+    laid out the same way.
     """
-    out = ['name = "hall-120x80"',
-           'description = "120 x 80 m hall: 22 rack rows, 286 reflectors, 24 docks, 81 route segments"',
-           "seed = 3", "", "[workspace]", f"size = [{WIDTH}, {HEIGHT}]", ""]
-    for i in range(N_ROWS):
-        out += ["[[obstacles]]", f"center = [{rack_x(i)}, {ROW_Y0 + ROW_LEN / 2}]", f"size = [{ROW_W}, {ROW_LEN}]", ""]
+    rows = n_rows(pitch)
+    step = ROW_LEN / face_markers
+    out = ['name = "hall-120x80"' if (pitch, face_markers) == (PITCH, 5) else
+           f'name = "hall-120x80-p{pitch:g}-f{face_markers}"']
+    docks = [2 * j for j in range(rows // 2)] + [rows]  # under every other aisle, the last at the far wall
+    n_markers = 38 + rows * (2 * face_markers + 1) + len(range(0, rows, 4))
+    n_segs = 2 * rows + len(range(0, rows + 1, 2)) + (rows // 2 % 2) + 2 * len(docks)
+    out += [f'description = "120 x 80 m hall: {rows} rack rows, {n_markers} reflectors, {2 * len(docks)} docks, '
+            f'{n_segs} route segments"',
+            "seed = 3", "", "[workspace]", f"size = [{WIDTH}, {HEIGHT}]", ""]
+    for i in range(rows):
+        out += ["[[obstacles]]", f"center = [{rack_x(i, pitch)}, {ROW_Y0 + ROW_LEN / 2}]",
+                f"size = [{ROW_W}, {ROW_LEN}]", ""]
     if markers:
         pts = []
         pts += [(x, 0.0) for x in range(5, 120, 10)] + [(x, HEIGHT) for x in range(5, 120, 10)]
         pts += [(0.0, y) for y in range(10, 80, 10)] + [(WIDTH, y) for y in range(10, 80, 10)]
-        for i in range(N_ROWS):
+        for i in range(rows):
             for side in (-1, 1):
-                fx = rack_x(i) + side * ROW_W / 2
-                pts += [(fx, ROW_Y0 + 5.6 + 11.2 * j) for j in range(5)]
-            pts.append((rack_x(i), ROW_Y0))  # the end towards the lower cross aisle
+                fx = rack_x(i, pitch) + side * ROW_W / 2
+                pts += [(fx, ROW_Y0 + step / 2 + step * j) for j in range(face_markers)]
+            pts.append((rack_x(i, pitch), ROW_Y0))  # the end towards the lower cross aisle
             if i % 4 == 0:
-                pts.append((rack_x(i), ROW_Y0 + ROW_LEN))
+                pts.append((rack_x(i, pitch), ROW_Y0 + ROW_LEN))
         for n, (x, y) in enumerate(pts):
             out += ["[[markers]]", f'id = "R{n + 1}"', f"position = [{float(x)}, {float(y)}]", ""]
     if marker_kind is not None:
@@ -58,32 +76,39 @@ def hall_toml(markers: bool = True, resolution: float = 0.1, marker_kind: str | 
             "[planning]", "eps_max = 0.03", f"resolution = {resolution}", ""]
     nodes, segs = {}, []
     for end, cy in zip("bt", CROSS_Y, strict=True):
-        for i in range(N_ROWS + 1):
-            nodes[f"{end}{i}"] = (aisle_x(i), cy)
+        for i in range(rows + 1):
+            nodes[f"{end}{i}"] = (aisle_x(i, pitch), cy)
             if i:
                 segs.append((f"{end}{i - 1}", f"{end}{i}"))
-    for i in [*range(0, N_ROWS + 1, 2), 11]:  # every other aisle, and the middle one
+    middle = [rows // 2] if rows // 2 % 2 else []
+    for i in [*range(0, rows + 1, 2), *middle]:  # every other aisle, and the middle one
         segs.append((f"b{i}", f"t{i}"))
-    docks = []
-    for j in range(12):
-        i = 2 * j if j < 11 else N_ROWS  # under every other aisle, the last at the far wall
+    docks_out = []
+    for i in docks:
         for end, dy, yaw in (("b", DOCK_Y[0], -90.0), ("t", DOCK_Y[1], 90.0)):
-            name = f"D{len(docks) + 1}"
-            docks.append((name, aisle_x(i), dy, yaw))
-            nodes[name] = (aisle_x(i), dy)
+            name = f"D{len(docks_out) + 1}"
+            docks_out.append((name, aisle_x(i, pitch), dy, yaw))
+            nodes[name] = (aisle_x(i, pitch), dy)
             segs.append((name, f"{end}{i}"))
-    for name, x, y, yaw in docks:
+    for name, x, y, yaw in docks_out:
         out += ["[[docks]]", f'name = "{name}"', f"pose = [{x}, {y}, {yaw}]", ""]
     node_txt = ", ".join(f'{k} = [{x}, {y}]' for k, (x, y) in nodes.items())
     seg_txt = ", ".join(f'["{a}", "{b}"]' for a, b in segs)
     out += ["[routes]", f"nodes = {{ {node_txt} }}", f"segments = [{seg_txt}]", ""]
-    out += ["[[tasks]]", 'from = "D1"', 'to = "D24"', ""]
+    out += ["[[tasks]]", 'from = "D1"', f'to = "D{len(docks_out)}"', ""]
     return "\n".join(out)
 
 
-def write_hall(folder: str | Path, markers: bool = True, marker_kind: str | None = None) -> Path:
-    """Write the hall into ``folder`` as ``hall.toml`` (or ``empty-hall[-KIND].toml``); return the path."""
+def write_hall(folder: str | Path, markers: bool = True, marker_kind: str | None = None,
+               pitch: float = PITCH, face_markers: int = 5) -> Path:
+    """Write the hall into ``folder`` as ``hall.toml`` (or ``empty-hall[-KIND].toml``); return the path.
+
+    Other ``pitch`` or ``face_markers`` (:func:`hall_toml`) add ``-pPITCH-fN`` to the name.
+    """
     name = "hall" if markers else "empty-hall" + (f"-{marker_kind}" if marker_kind else "")
+    if (pitch, face_markers) != (PITCH, 5):
+        name += f"-p{pitch:g}-f{face_markers}"
     path = Path(folder) / f"{name}.toml"
-    path.write_text(hall_toml(markers, marker_kind=marker_kind), encoding="utf-8")
+    path.write_text(hall_toml(markers, marker_kind=marker_kind, pitch=pitch, face_markers=face_markers),
+                    encoding="utf-8")
     return path

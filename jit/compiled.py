@@ -23,12 +23,20 @@ It costs one hash of a few source files per module. Where the cache directory ca
 numba does not cache either, and nothing is stored.
 
 The first run on a machine compiles every kernel it calls (tens of seconds for a whole episode);
-:func:`announce_compiles` makes a program say so once, on stderr, when it ends.
+:func:`announce_compiles` makes a program say so on stderr as the first compilation starts (how
+long it may take), and once more when it ends (how long it took).
+
+Where the compiled code goes: numba's cache, ``__pycache__`` beside each kernel's source file
+(numba's own fallback, a per-user folder, where that is not writable; ``NUMBA_CACHE_DIR`` where
+set), one entry per kernel and argument types. Every command reads the same entries: a kernel
+that ``place`` compiled is loaded, not compiled, by ``validate`` (each command compiles only the
+kernels no command before it called).
 """
 
 from __future__ import annotations
 
 import atexit
+import collections
 import functools
 import hashlib
 import sys
@@ -49,6 +57,9 @@ _jitted = False
 _cached: set[int] = set()
 _timer = None  # the numba listener of _compile_timer, once jit() ran
 _announce = False
+_expect: float | None = None  # seconds the announcement before compiling states
+_said_start = False
+_worker_says = False  # a worker process that says the first line for its parent (announce_in_worker)
 
 
 class Kernel:
@@ -195,6 +206,7 @@ def _compile_timer():
             if self._depth == 0:
                 if id(event.data["dispatcher"]) not in _cached:
                     return
+                _say_compiling()
                 self._t0 = time.perf_counter()
             self._depth += 1
 
@@ -213,16 +225,73 @@ def compile_seconds() -> float:
     return 0.0 if _timer is None else _timer.seconds
 
 
-def announce_compiles() -> None:
-    """Say once on stderr, when the program ends, that it compiled the kernels and how long it took.
+def announce_compiles(expect: float | None = None) -> None:
+    """Make the program say on stderr that it compiles the kernels: as it starts, and how long it took at exit.
 
-    Nothing is said where every kernel came from numba's cache, nor by a worker process.
+    The first line comes as numba starts the first compilation of a cached kernel (a cold cache),
+    before the seconds of silence; the second when the program ends. Nothing is said where every
+    kernel came from numba's cache, nor by a worker process.
+
+    Parameters
+    ----------
+    expect : float, optional
+        About how many seconds the compilation takes (the first line states it when given).
     """
-    global _announce
+    global _announce, _expect
     with _lock:
+        if expect is not None:
+            _expect = float(expect)
         if not _announce:
             _announce = True
             atexit.register(_say_compiled)
+
+
+def announce_state() -> tuple | None:
+    """Return what a worker process needs to say the first line of :func:`announce_compiles` for this one.
+
+    None where this process says nothing, or has said it already (its estimate covered the
+    command). Pass it to :func:`announce_in_worker` in the worker.
+    """
+    with _lock:
+        return (_expect,) if _announce and not _said_start else None
+
+
+def announce_in_worker(state: tuple | None) -> None:
+    """In a worker process: say the line before the first compilation, as its parent would have.
+
+    A pool's workers compile the kernels the parent never called (an episode's); without this a
+    cold first ``validate --workers N`` compiles in silence. Each worker says it once; the line
+    at exit stays the parent's.
+
+    Parameters
+    ----------
+    state : tuple or None
+        :func:`announce_state` of the parent (None: say nothing).
+    """
+    global _announce, _expect, _worker_says
+    if state is None:
+        return
+    with _lock:
+        _announce, _expect, _worker_says = True, state[0], True
+
+
+def _say_compiling() -> None:
+    """Say the line before the first compilation (:func:`announce_compiles`), once, in the main process only.
+
+    Or in a worker that says it for its parent (:func:`announce_in_worker`).
+    """
+    global _said_start
+    if not _announce or _said_start:
+        return
+    _said_start = True
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None and not _worker_says:
+        return
+    about = "" if _expect is None else f", about {_expect:.0f} s"
+    who = "a worker is compiling" if _worker_says else "compiling"
+    print(f"pefsim: {who} the kernels once{about}; numba caches them for later runs", file=sys.stderr,
+          flush=True)
 
 
 def _say_compiled() -> None:
@@ -296,7 +365,15 @@ def _imported_from(module_name: str) -> dict[str, str]:
     import ast
     import importlib.util
 
-    for node in ast.walk(ast.parse(Path(path).read_bytes())):
+    # the module's own statements (and those under if / try / with), not function bodies: an
+    # import inside a function binds a local name, never a global a kernel could read
+    todo = collections.deque(ast.parse(Path(path).read_bytes()).body)  # in ast.walk's order
+    while todo:
+        node = todo.popleft()
+        if isinstance(node, (ast.If, ast.Try, ast.With)):
+            todo += [*node.body, *getattr(node, "orelse", []), *getattr(node, "finalbody", []),
+                     *(h for handler in getattr(node, "handlers", []) for h in handler.body)]
+            continue
         if isinstance(node, ast.ImportFrom):
             package = module.__package__ if node.level else None
             source = importlib.util.resolve_name("." * node.level + (node.module or ""), package)

@@ -112,26 +112,30 @@ def perturbed_diameters(sensor: SensorSpec, robot: RobotSpec, markers, poses, de
         worst = np.where(ok, worst, 0.5 * math.pi)  # no bound there (inf below); keeps sin finite
         sin_w, cos_w = np.sin(worst), np.cos(worst)
 
-        def diameter(ball):
-            h = rho + ball[:, None] ** 2 / (4.0 * (r_lo - ball[:, None]))
-            good = np.all(r_lo - ball[:, None] > 0.0, axis=1)
-            return np.where(good, _parallelogram_diagonal(h[:, 0], h[:, 1], sin_w, cos_w), np.inf)
+        def diameter(ball, rows):
+            h = rho[rows] + ball[:, None] ** 2 / (4.0 * (r_lo[rows] - ball[:, None]))
+            good = np.all(r_lo[rows] - ball[:, None] > 0.0, axis=1)
+            return np.where(good, _parallelogram_diagonal(h[:, 0], h[:, 1], sin_w[rows], cos_w[rows]), np.inf)
     else:
-        def diameter(ball):
-            h = rho + ball[:, None] ** 2 / (4.0 * (r_lo - ball[:, None])) + beta * ball[:, None]
-            good = np.all(r_lo - ball[:, None] > 0.0, axis=1) & ok
-            d = np.full(n_fix, np.inf)
-            d[good] = strip_diameters(u[good], h[good])
+        def diameter(ball, rows):
+            h = rho[rows] + ball[:, None] ** 2 / (4.0 * (r_lo[rows] - ball[:, None])) + beta[rows] * ball[:, None]
+            good = np.all(r_lo[rows] - ball[:, None] > 0.0, axis=1) & ok[rows]
+            d = np.full(len(ball), np.inf)
+            d[good] = strip_diameters(u[rows][good], h[good])
             return d
 
-    ball = np.where(ok, diameter(np.zeros(n_fix)), np.inf)
+    ball = np.where(ok, diameter(np.zeros(n_fix), np.arange(n_fix)), np.inf)
     ball = np.where(np.isfinite(ball), 1.05 * ball, np.inf)
+    # each fix's iteration is its own: only the fixes still open are evaluated again
+    todo = np.flatnonzero(np.isfinite(ball))
     for _ in range(BALL_STEPS):                                             # step 5
-        todo = np.isfinite(ball) & ~np.isfinite(out)
-        if not todo.any():
+        if not todo.size:
             break
-        d = diameter(np.where(todo, ball, 0.0))
-        closed = todo & (d < ball)
-        out[closed] = d[closed]
-        ball = np.where(todo & ~closed & np.isfinite(d), 1.05 * np.maximum(d, ball), np.where(closed, ball, np.inf))
+        d = diameter(ball[todo], todo)
+        closed = d < ball[todo]
+        out[todo[closed]] = d[closed]
+        grow = ~closed & np.isfinite(d)
+        ball[todo[grow]] = 1.05 * np.maximum(d[grow], ball[todo[grow]])
+        ball[todo[~closed & ~grow]] = np.inf
+        todo = todo[grow]
     return out

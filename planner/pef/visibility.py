@@ -296,6 +296,47 @@ def _visible_points_markers(m0, m1, px, py, free, mx, my, wedge, max_range, plan
             vis[m, n] = ok
 
 
+@compiled.njit(cache=True, nogil=True)
+def _visible_pairs_markers(u0, u1, used, starts, order, px, py, free, mx, my, wedge, max_range, planes, count,
+                           sight, shrunk, sight_bbox, blocks, swallow, bodies, n_ob, margin, out):
+    """Markers ``used[u]``, ``u0 <= u < u1``: their pieces once each, then their points (``order``, ``starts``)."""
+    npc = max(count.size, 1)
+    hp = np.zeros((npc, planes.shape[1] + 2, 3))
+    nhp = np.zeros(npc, dtype=np.int64)
+    clip = np.zeros((npc, 2), dtype=np.int64)
+    r2max = max_range * max_range
+    for u in range(u0, u1):
+        m = used[u]
+        ns, nc, _ = marker_pieces(m, mx, my, planes, count, sight, shrunk, sight_bbox, blocks, swallow, bodies,
+                                  n_ob, margin, max_range, np.bool_(True), hp, nhp, clip)
+        bx, by = mx[m], my[m]
+        # the test of _visible_points_markers, written out again (a call per point costs more)
+        for i in range(starts[u], starts[u + 1]):
+            n = order[i]
+            ok = free[n]
+            ax, ay = px[n], py[n]
+            if ok:
+                dx, dy = ax - bx, ay - by
+                ok = dx * dx + dy * dy <= r2max and wedges_ok(dx, dy, wedge, m)
+            if ok:
+                lox, hix = min(ax, bx), max(ax, bx)
+                loy, hiy = min(ay, by), max(ay, by)
+                for j in range(nc):
+                    p, g = clip[j, 0], clip[j, 1]
+                    if (sight_bbox[g, p, 0] >= hix or sight_bbox[g, p, 2] <= lox or sight_bbox[g, p, 1] >= hiy
+                            or sight_bbox[g, p, 3] <= loy):
+                        continue
+                    if segment_enters(ax, ay, bx, by, planes, sight[g], count, p):
+                        ok = False
+                        break
+            if ok:
+                for s in range(ns):
+                    if in_shadow(ax, ay, hp[s], nhp[s]):
+                        ok = False
+                        break
+            out[n] = ok
+
+
 @dataclass(frozen=True)
 class SightArrays:
     """The pieces every marker's line of sight is tested on, and each marker's wedges (:func:`prepare_sight`).
@@ -409,35 +450,83 @@ _SIGHT_KEPT = 32
 def _prepare_sight(obstacles, mk: np.ndarray, bounds, fn: np.ndarray, max_incidence: float, rule: SightRule | None,
                    bodies: np.ndarray | None) -> tuple[PieceArrays, SightArrays]:
     """:func:`prepare_sight` computed (``fn`` the markers' normals, (M, 2))."""
-    pa = prepare(obstacles)
     m_n = mk.shape[0]
     wedge = np.zeros((m_n, 1 if rule is None else _MAX_WEDGES, 4))
     wedge[:, 0, :2] = fn
     wedge[:, 0, 2] = math.cos(max_incidence)
     if rule is None:
+        pa = prepare(obstacles)
         twice = lambda a: np.ascontiguousarray(np.stack([a, a]))  # noqa: E731
         return pa, SightArrays(pa.planes, pa.count, twice(pa.sight), twice(pa.shrunk), twice(pa.sight_bbox),
                                twice(pa.blocks), np.full(pa.sight.shape, -np.inf), np.zeros((0, 2)),
                                int(pa.count.size), 0.0, wedge)
     flat = np.any(fn != 0.0, axis=1)
     wedge[flat, 0, 3] = rule.wedge_offset(math.cos(max_incidence))   # the incidence limit within the margin too
+    at = mk if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
+    geo = _sight_geometry(obstacles, mk, bounds, rule.radius, rule.reach, rule.grow, at)
+    for m, faces in enumerate(geo.faces):
+        for w, face in enumerate(faces, start=1):
+            wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
+    return geo.pa, SightArrays(geo.planes, geo.count, geo.sight, geo.shrunk, geo.sight_bbox, geo.blocks, geo.swallow,
+                               geo.bodies, geo.n_ob, float(rule.margin), wedge)
+
+
+@dataclass(frozen=True, eq=False)
+class _SightGeometry:
+    """The part of :class:`SightArrays` that does not depend on the rule's margin, and each marker's mount faces."""
+
+    pa: PieceArrays
+    planes: np.ndarray
+    count: np.ndarray
+    sight: np.ndarray
+    shrunk: np.ndarray
+    sight_bbox: np.ndarray
+    blocks: np.ndarray
+    swallow: np.ndarray
+    bodies: np.ndarray
+    n_ob: int
+    faces: list
+
+
+#: Margin-free sight geometry per set of obstacles (:func:`_sight_geometry`): the schedule's sight
+#: check asks for a rule per 5 mm of margin, and only the wedges' offsets and the margin differ.
+_GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GEOMETRY_KEPT = 4
+
+
+def _sight_geometry(obstacles, mk: np.ndarray, bounds, radius: float, reach: float, grow: float,
+                    at: np.ndarray) -> _SightGeometry:
+    """Return the pieces (obstacles, then bodies ``at`` (B, 2)), grown and swallowing, and ``mk``'s (M, 2) mount faces.
+
+    ``radius``, ``reach`` and ``grow`` are the rule's (:class:`~planner.pef.sight.SightRule`).
+    Kept per obstacles (when :class:`~scenarios.ConvexPieces`), markers, bounds, those three
+    and bodies: the arrays are shared by every rule that differs only in its margin (none of
+    the callers writes into them).
+    """
+    key = (mk.tobytes(), at.tobytes(), tuple(float(b) for b in bounds), float(radius), float(reach), float(grow))
+    memo = _GEOMETRY.setdefault(obstacles, {}) if isinstance(obstacles, ConvexPieces) else {}
+    got = memo.get(key)
+    if got is not None:
+        return got
+    pa = prepare(obstacles)
     pieces = _pieces(obstacles)
     n_ob = len(pieces.count)
     # the obstacles' pieces, then every marker's body (it blocks the others' lines of sight)
-    at = mk if bodies is None else np.asarray(bodies, float).reshape(-1, 2)
-    both = _with_bodies(pieces, at, rule.radius)
+    both = _with_bodies(pieces, at, radius)
     base = piece_arrays(both, BOX_SHRINK)
-    grown = piece_arrays(both, BOX_SHRINK, rule.reach)
-    swallow = piece_arrays(both, BOX_SHRINK, rule.grow).sight
+    grown = piece_arrays(both, BOX_SHRINK, reach)
+    swallow = piece_arrays(both, BOX_SHRINK, grow).sight
     mount = _mount_table(np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), base.planes, swallow,
                          base.count, n_ob)
-    for m in range(m_n):
-        for w, face in enumerate(_mount_faces(pa, pieces, mk[m], mount[m], rule.radius, bounds), start=1):
-            wedge[m, w] = (face[0], face[1], rule.slope, rule.offset)
+    faces = [_mount_faces(pa, pieces, mk[m], mount[m], radius, bounds) for m in range(mk.shape[0])]
     pair = lambda a, b: np.ascontiguousarray(np.stack([a, b]))  # noqa: E731
-    return pa, SightArrays(base.planes, base.count, pair(base.sight, grown.sight), pair(base.shrunk, grown.shrunk),
-                           pair(base.sight_bbox, grown.sight_bbox), pair(base.blocks, grown.blocks), swallow,
-                           np.ascontiguousarray(at), n_ob, float(rule.margin), wedge)
+    got = _SightGeometry(pa, base.planes, base.count, pair(base.sight, grown.sight), pair(base.shrunk, grown.shrunk),
+                         pair(base.sight_bbox, grown.sight_bbox), pair(base.blocks, grown.blocks), swallow,
+                         np.ascontiguousarray(at), n_ob, faces)
+    memo[key] = got
+    while len(memo) > _GEOMETRY_KEPT:
+        memo.pop(next(iter(memo)))
+    return got
 
 
 @compiled.njit(cache=True)
@@ -577,6 +666,50 @@ def visible_points(points: np.ndarray, markers: np.ndarray, obstacles, max_range
                (px, py, free, np.ascontiguousarray(mk[:, 0]), np.ascontiguousarray(mk[:, 1]), sa.wedge,
                 _range(max_range, rule), *sa.kernel_args(), vis), min_chunk=8)
     return vis, free
+
+
+def visible_pairs(points: np.ndarray, which: np.ndarray, markers: np.ndarray, obstacles, max_range: float,
+                  bounds: tuple[float, float, float, float], normals: np.ndarray | None = None,
+                  max_incidence: float = math.pi / 2, rule: SightRule | None = None,
+                  bodies: np.ndarray | None = None) -> np.ndarray:
+    """Whether each point sees one marker: ``visible_points(points, ...)[which[n], n]`` for each n.
+
+    The same test, made only for the pairs asked (each marker's pieces prepared once, for the
+    markers named in ``which``): a fix's lines of sight, not every marker from every pose.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 2)
+        Query points [m].
+    which : ndarray of int, shape (N,)
+        The marker each point looks at (an index into ``markers``).
+    markers, obstacles, max_range, bounds, normals, max_incidence, rule, bodies
+        As in :func:`visible_points` (all the markers: the arrays are those it prepares).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N,)
+    """
+    p = np.ascontiguousarray(np.asarray(points, float).reshape(-1, 2))
+    which = np.asarray(which, dtype=np.int64).reshape(-1)
+    mk = np.asarray(markers, float).reshape(-1, 2)
+    pa, sa = prepare_sight(obstacles, mk, bounds, normals, max_incidence, rule, bodies)
+    x0, y0, x1, y1 = (float(v) for v in bounds)
+    out = np.zeros(p.shape[0], dtype=np.bool_)
+    if p.shape[0] == 0:
+        return out
+    free = np.empty(p.shape[0], dtype=np.bool_)
+    px, py = np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1])
+    run_ranges(_free_points_range, p.shape[0], (px, py, x0, y0, x1, y1, pa.planes, pa.count, pa.bbox, free),
+               min_chunk=2048)
+    order = np.argsort(which, kind="stable")
+    used, first = np.unique(which[order], return_index=True)
+    starts = np.append(first, order.size).astype(np.int64)
+    run_ranges(_visible_pairs_markers, used.size,
+               (used.astype(np.int64), starts, order.astype(np.int64), px, py, free, np.ascontiguousarray(mk[:, 0]),
+                np.ascontiguousarray(mk[:, 1]), sa.wedge, _range(max_range, rule), *sa.kernel_args(), out),
+               min_chunk=8)
+    return out
 
 
 def _normals(normals: np.ndarray | None, m: int) -> np.ndarray:

@@ -108,8 +108,10 @@ Bearings
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 from collections import OrderedDict
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -117,6 +119,7 @@ import numpy as np
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from estimators.fault.perturbed import perturbed_diameters
 from jit import compiled
+from planner.pef.threads import run_ranges
 from planner.routes.smoothing import MAX_ACCEL, acceleration_limited
 from planner.schedule.pathtime import Kinematics, Track, mean_speed
 from planner.schedule.sightcheck import unseen
@@ -358,31 +361,39 @@ def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
     else:
         _CHORDS_MEMO.move_to_end(key)
     pairs = np.ascontiguousarray(np.stack([s.ravel(), np.ascontiguousarray(look).ravel()], axis=1))
-    names = [row.tobytes() for row in pairs]
-    out = np.array([known.get(n, math.nan) for n in names], dtype=float)
+    # each row's 16 bytes, as row.tobytes() gives them, in one call (a call per row cost more than the lookups)
+    names = pairs.view(np.dtype((np.void, pairs.itemsize * 2))).ravel().tolist()
+    out = np.fromiter(map(known.get, names, itertools.repeat(math.nan)), dtype=float, count=len(names))
     todo = np.flatnonzero(np.isnan(out))
     if todo.size:
         new = np.empty(todo.size)
-        _chords_kernel(np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]), s_v,
-                       np.ascontiguousarray(pairs[todo, 0]), np.ascontiguousarray(pairs[todo, 1]), float(reach),
-                       back, np.linspace(0.0, 1.0, 33), new)
+        # chunks of points on the kernel threads; each point's bound is its own
+        run_ranges(_chords_kernel, -(-todo.size // _CHORDS_CHUNK),
+                   (np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]), s_v,
+                    np.ascontiguousarray(pairs[todo, 0]), np.ascontiguousarray(pairs[todo, 1]), float(reach),
+                    back, np.linspace(0.0, 1.0, 33), new), min_chunk=8)
         out[todo] = new
-        known.update(zip((names[i] for i in todo), new.tolist(), strict=True))
+        known.update(zip(map(names.__getitem__, todo.tolist()), new.tolist(), strict=True))
     return out.reshape(s.shape)
 
 
-@compiled.njit(cache=True)
-def _chords_kernel(px, py, s_v, s, look, reach, back, frac, out):
+_CHORDS_CHUNK = 64
+"""Points :func:`_chords_kernel` interpolates the path for at a time."""
+
+
+@compiled.njit(cache=True, nogil=True)
+def _chords_kernel(c0, c1, px, py, s_v, s, look, reach, back, frac, out):
     # Thousands of fixes x 25 settle points x 33 chords: as numpy temporaries this was most of a
     # plan's time. Same operations in the same order as the vectorised form it replaced; the
     # path is interpolated for a chunk of fixes at a time (np.interp computes its slopes once a
     # call, over the whole path: a call per fix costs that many times over on a long path).
+    # Chunks c0 <= c < c1 (of _CHORDS_CHUNK points), so that a thread's share is whole chunks.
     nb, nf = back.size, frac.size
-    chunk = 64
+    chunk = _CHORDS_CHUNK
     q = np.empty(chunk * nb)
     a = np.empty(chunk * nb * nf)
     b = np.empty(chunk * nb * nf)
-    for i0 in range(0, s.size, chunk):
+    for i0 in range(c0 * chunk, min(c1 * chunk, s.size), chunk):
         n = min(chunk, s.size - i0)
         for i in range(n):
             for j in range(nb):
@@ -475,8 +486,46 @@ def _parallelogram(scenario: Scenario, markers: np.ndarray, subsets, poses: np.n
     return tau, flip
 
 
+class Levels(Sequence):
+    """The speed levels of :func:`levels`: the cruising one at once, the slower ones when first read.
+
+    A schedule's search tries the cruising level alone first and reads the slower ones only
+    where it fails, or where a chosen fix's exact promise breaks (a level of thousands of
+    candidate fixes costs as much as the cruising one); :meth:`map` edits the levels computed
+    and those still to come alike.
+    """
+
+    def __init__(self, first: Level, rest: list[Callable[[], Level]] | None = None):
+        self._made: list[Level | None] = [first, *([None] * len(rest or []))]
+        self._make = [None, *(rest or [])]
+        self._edits: list[list[Callable[[Level], Level]]] = [[] for _ in self._made]
+
+    def __len__(self) -> int:
+        return len(self._made)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        i = range(len(self))[i]
+        got = self._made[i]
+        if got is None:
+            got = self._make[i]()
+            for edit in self._edits[i]:
+                got = edit(got)
+            self._made[i] = got
+        return got
+
+    def map(self, edit: Callable[[Level], Level]) -> Levels:
+        """Return the levels with ``edit`` applied to each (now to those computed, later to the others)."""
+        out = Levels.__new__(Levels)
+        out._made = [None if x is None else edit(x) for x in self._made]
+        out._make = self._make
+        out._edits = [e if x is not None else [*e, edit] for x, e in zip(self._made, self._edits, strict=True)]
+        return out
+
+
 def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray, k: int,
-           estimate) -> list[Level]:
+           estimate) -> Levels:
     """Promises of every candidate fix at each speed level (module docstring).
 
     Parameters
@@ -497,40 +546,52 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
 
     Returns
     -------
-    list of Level
-        Cruising speed first; for k != 2 only that level, scored by ``static_tau``.
+    Levels
+        Cruising speed first (computed); the slower levels are computed when first read. For
+        k != 2 only the cruising level, scored by ``static_tau``.
     """
     n = len(tr.s)
     visible = np.isfinite(static_tau)
     if k != 2:
-        return [Level(static_tau, np.zeros(static_tau.shape, bool), np.full(n, np.nan))]
+        return Levels(Level(static_tau, np.zeros(static_tau.shape, bool), np.full(n, np.nan)))
     markers = scenario.marker_positions()
-    out = []
     mt = scenario.sensor.measurement_time
     s_path = tr.kin.s_v
+    # each sample's bound is its own: only those of samples where some subset is visible are used
+    need = visible.any(axis=0)
     still = np.zeros(n, dtype=bool)
     still[0] = True  # the standstill fix before departure
     s_m = tr.kin.s_at(tr.t_start[:, None] + mt * np.arange(1, k + 1))
     s_m[0] = 0.0
     est = np.broadcast_to(np.asarray(estimate, dtype=float), (n,))
-    delta, travel = pose_bound(scenario, path, s_path, tr.kin.v, s_m, est, still)
+    delta, travel = np.full((n, k), np.nan), np.full((n, k), np.nan)
+    delta[need], travel[need] = pose_bound(scenario, path, s_path, tr.kin.v, s_m[need], est[need], still[need])
     tau, flip = _parallelogram(scenario, markers, subsets, tr.xy_m, delta, travel, visible)
-    out.append(Level(tau, flip, np.full(n, np.nan)))
+    first = Level(tau, flip, np.full(n, np.nan))
     v_plan = mean_speed(tr.kin, tr.t_start, k * mt)
     v_plan[0] = 0.0
+
+    def slowed(v, slower):
+        def make() -> Level:
+            s_m = tr.s[:, None] + v[:, None] * mt * np.arange(1, k + 1)[None, :]
+            at = np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1)
+            # the speed profile a slowed fix will get: capped at v over its stretch (slowed_speeds)
+            use = need & slower
+            delta, travel = np.full((n, k), np.nan), np.full((n, k), np.nan)
+            delta[use], travel[use] = _slowed_bound(scenario, path, s_path, s_m[use], v[use], est[use])
+            tau, flip = _parallelogram(scenario, markers, subsets, at, delta, travel, visible & slower[None, :])
+            return Level(tau, flip, np.where(slower, v, np.nan))
+        return make
+
+    rest = []
     for f in (*SPEED_LEVELS[1:], None):
         v = np.full(n, scenario.planning.min_fix_speed) if f is None else f * v_plan
         v = np.maximum(v, scenario.planning.min_fix_speed)
         slower = v < v_plan * (1.0 - 1e-9)
         if not slower.any():
             continue
-        s_m = tr.s[:, None] + v[:, None] * mt * np.arange(1, k + 1)[None, :]
-        at = np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1)
-        # the speed profile a slowed fix will get: capped at v over its stretch (slowed_speeds)
-        delta, travel = _slowed_bound(scenario, path, s_path, s_m, v, est)
-        tau, flip = _parallelogram(scenario, markers, subsets, at, delta, travel, visible & slower[None, :])
-        out.append(Level(tau, flip, np.where(slower, v, np.nan)))
-    return out
+        rest.append(slowed(v, slower))
+    return Levels(first, rest)
 
 
 def _slowed_bound(scenario, path, s_path, s_m, v, estimate):

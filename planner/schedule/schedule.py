@@ -425,13 +425,12 @@ def _subset_risk(block: BlockRisk, subsets: list[tuple[int, ...]], tr) -> np.nda
     return 1.0 - np.prod(1.0 - pm[np.asarray(subsets, dtype=np.int64)], axis=1)  # (C, n)
 
 
-def _avoid(levels: list, risky: np.ndarray, limit: float) -> list:
+def _avoid(levels: promise.Levels, risky: np.ndarray, limit: float) -> promise.Levels:
     """Levels with risky subsets out (tau inf) at the samples where a subset that is not risky is usable."""
-    out = []
-    for lv in levels:
+    def edit(lv):
         safe = (~risky & (lv.tau < limit)).any(axis=0)
-        out.append(replace(lv, tau=np.where(risky & safe[None, :], np.inf, lv.tau)))
-    return out
+        return replace(lv, tau=np.where(risky & safe[None, :], np.inf, lv.tau))
+    return levels.map(edit)
 
 
 def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned,
@@ -457,7 +456,7 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     sub_idx = np.asarray(subsets, dtype=np.int64)
     tau_s = np.where(seen[:, sub_idx].all(axis=2).T, tau_s, np.inf)
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
-          else [promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))])
+          else promise.Levels(promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))))
     limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
     risky = None
     if block is not None:
@@ -475,8 +474,8 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
             # bound may be lost from the samples within that bound of it too
             j, c = exc.sample, exc.subset
             out = np.hypot(*(tr.xy - tr.xy[j]).T) <= exc.reach
-            lv = [replace(x, tau=np.where(out[None, :] & (np.arange(len(subsets)) == c)[:, None], np.inf, x.tau))
-                  for x in lv]
+            drop = out[None, :] & (np.arange(len(subsets)) == c)[:, None]
+            lv = lv.map(lambda x, drop=drop: replace(x, tau=np.where(drop, np.inf, x.tau)))
             last = exc
     else:
         j = last.sample
@@ -556,13 +555,12 @@ class _Unseen(Exception):
 def _chosen(scenario, path, v, tr, lv, pl, subsets, tau_s, limit, k, policy, switch_tolerance):
     """Search the fixes and settle their promises and fallbacks (raises :class:`_Unseen`)."""
     eps = scenario.planning.eps_max
-    taus = np.stack([x.tau for x in lv])
     try:
-        chosen, level = search(pl, taus[:1], limit, k, policy, switch_tolerance)  # no slow-down
+        chosen, level = search(pl, np.stack([lv[0].tau]), limit, k, policy, switch_tolerance)  # no slow-down
     except PlanningError:
         if len(lv) == 1:
             raise
-        chosen, level = search(pl, taus, limit, k, policy, switch_tolerance)
+        chosen, level = search(pl, np.stack([x.tau for x in lv]), limit, k, policy, switch_tolerance)
     starts = np.array([j for j, _, _ in chosen])
     fix_level = level[starts].copy()
     # a fallback's area is in force until the next fix completes, as the fix's own

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from planner.pef.sight import SightRule
-from planner.pef.visibility import visible_points
+from planner.pef.visibility import visible_pairs, visible_points
 from scenarios.schema import Scenario
 
 MARGIN_STEP = 0.005
@@ -69,12 +69,11 @@ def unseen(scenario: Scenario, subsets, poses: np.ndarray, delta: np.ndarray) ->
     for step in np.unique(steps[steps >= 0]).tolist():
         rows, cols = np.nonzero(steps == step)
         rule = SightRule(margin=max(step, 0) * MARGIN_STEP)
-        # every marker, not the ones used: the sight arrays are then the same for every call at
-        # this margin, prepared once (planner.pef.visibility.prepare_sight keeps them)
-        vis, _ = visible_points(p[rows, cols], markers, pieces, sensor.max_range, scenario.workspace.bounds,
-                                normals, sensor.max_incidence, rule)
-        hidden = ~vis[sub[rows, cols], np.arange(len(rows))]
-        out[rows[hidden]] = True
+        # every marker's sight arrays (the same for every call at this margin, prepared once:
+        # planner.pef.visibility.prepare_sight keeps them), each point tested on its own marker only
+        seen = visible_pairs(p[rows, cols], sub[rows, cols], markers, pieces, sensor.max_range,
+                             scenario.workspace.bounds, normals, sensor.max_incidence, rule)
+        out[rows[~seen]] = True
     return out
 
 

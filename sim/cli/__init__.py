@@ -29,6 +29,14 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"pefsim: error: {message}\n")
 
 
+#: About how long each command's first run on a machine compiles its kernels [s] (numba's cache
+#: empty): CPU seconds of a cold run less a warm one on a 2-core machine (numba compiles on one
+#: thread), rounded up (docs/benchmarks.md). Said before the compilation starts.
+COMPILE_SECONDS = {"map": 20, "plan": 15, "export": 15, "place": 45, "run": 30, "validate": 30, "mc": 30,
+                   "watch": 20, "worlds": 30, "paper": 60}
+COMPILE_SECONDS_DEFAULT = 30
+
+
 def print_json(obj: Any) -> None:
     """Print ``obj`` as JSON on stdout (the machine-readable form of every summary)."""
     json.dump(obj, sys.stdout, indent=2, allow_nan=False, default=_jsonable)
@@ -94,8 +102,8 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_OK
     if not isinstance(warnings.showwarning, functools.partial):  # once per process
         warnings.showwarning = functools.partial(_show_warning, _default=warnings.showwarning)
-    if argv is None:  # the program, not a caller in Python: a cold numba cache is said, once, at exit
-        compiled.announce_compiles()
+    if argv is None:  # the program, not a caller in Python: a cold numba cache is said, before and after
+        compiled.announce_compiles(COMPILE_SECONDS.get(args.command, COMPILE_SECONDS_DEFAULT))
     try:
         code = args.func(args)
         code = EXIT_OK if code is None else int(code)

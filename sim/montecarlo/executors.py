@@ -23,6 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 from enum import Enum
 from typing import Any, Protocol
 
+from jit import compiled
 from scenarios.errors import PefsimError
 
 
@@ -95,8 +96,10 @@ def iter_serial(factory: WorkerFactory, payload: Any, specs: Iterable[Any]) -> I
 _context: WorkerContext | None = None  # the one context of a pool worker process
 
 
-def _pool_init(factory: WorkerFactory, payload: Any) -> None:
+def _pool_init(factory: WorkerFactory, payload: Any, announce: tuple | None = None) -> None:
     global _context
+    # a cold cache: the worker says it compiles (jit.compiled.announce_in_worker), unless the parent did
+    compiled.announce_in_worker(announce)
     # The parent decides what an interrupt means (stop, keep finished runs); a worker that
     # died of Ctrl-C mid-run would only look like a crash.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -135,7 +138,7 @@ def _new_pool(factory: WorkerFactory, payload: Any, workers: int) -> ProcessPool
         # Takes effect when the server starts (the first pool of this process).
         context.set_forkserver_preload(["sim.montecarlo.engine", *getattr(payload, "preload", ())])
     return ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                               initializer=_pool_init, initargs=(factory, payload))
+                               initializer=_pool_init, initargs=(factory, payload, compiled.announce_state()))
 
 
 def iter_local_pool(factory: WorkerFactory, payload: Any, specs: Iterable[Any],

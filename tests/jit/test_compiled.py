@@ -190,9 +190,12 @@ ANNOUNCING = textwrap.dedent("""\
     def twice(x):
         return 2.0 * x
 
-    compiled.announce_compiles()
+    compiled.announce_compiles(7)
     compiled.announce_compiles()  # a second call adds nothing
-    json.dump({{"twice": twice(21.0)}}, sys.stdout)
+    print("before the first call", file=sys.stderr, flush=True)
+    first = twice(21.0)
+    print("after the first call", file=sys.stderr, flush=True)
+    json.dump({{"twice": first, "again": twice(4.0)}}, sys.stdout)
     """)
 
 
@@ -203,13 +206,69 @@ def test_a_cold_run_says_once_that_it_compiled_and_a_warm_run_says_nothing(tmp_p
     runs = [_python("import announcing", tmp_path, NUMBA_CACHE_DIR=str(numba_cache)) for _ in range(2)]
     for run in runs:
         assert run.returncode == 0, run.stderr
-        assert json.loads(run.stdout) == {"twice": 42.0}  # stdout stays the program's own (--json)
+        assert json.loads(run.stdout) == {"twice": 42.0, "again": 8.0}  # stdout stays the program's own (--json)
     cold, warm = (r.stderr.splitlines() for r in runs)
+    quiet = ["before the first call", "after the first call"]
     if cache:
-        assert len(cold) == 1 and re.fullmatch(
-            r"pefsim: compiled the kernels once \(\d+ s\); later runs use numba's cache", cold[0]), cold
-        assert warm == []  # loaded from numba's cache: nothing to say
+        # said as the compilation starts (before the silence), with the estimate; then what it took
+        assert cold[:3] == ["before the first call",
+                            "pefsim: compiling the kernels once, about 7 s; numba caches them for later runs",
+                            "after the first call"], cold
+        assert len(cold) == 4 and re.fullmatch(
+            r"pefsim: compiled the kernels once \(\d+ s\); later runs use numba's cache", cold[3]), cold
+        assert warm == quiet  # loaded from numba's cache: nothing to say
     else:
         # negative control: a kernel numba does not cache compiles on every run, and promising a
         # cache there would be false
-        assert cold == warm == []
+        assert cold == warm == quiet
+
+
+WORKER_KERNELS = textwrap.dedent("""\
+    import sys
+    from jit import compiled
+
+    @compiled.njit(cache=True)
+    def once(x):
+        return 1.0 * x
+
+    @compiled.njit(cache=True)
+    def thrice(x):
+        return 3.0 * x
+
+    def work(state):
+        compiled.announce_in_worker(state)
+        print("worker", thrice(2.0), file=sys.stderr, flush=True)  # a kernel the parent never called
+    """)
+
+WORKER_MAIN = textwrap.dedent("""\
+    import multiprocessing
+    from jit import compiled
+    import worker_kernels as k
+
+    compiled.announce_compiles(9)
+    if {parent_first}:
+        k.once(1.0)  # the parent compiles (and says so) first
+    p = multiprocessing.get_context("spawn").Process(target=k.work, args=(compiled.announce_state(),))
+    p.start()
+    p.join()
+    """)
+
+
+@pytest.mark.parametrize("parent_first", [False, True])
+def test_a_worker_says_it_compiles_unless_its_parent_did(tmp_path, parent_first):
+    """A pool worker on a cold cache says the first line itself (a cold ``validate --workers 2``).
+
+    Negative control: where the parent said it already (it compiled first, its estimate covers
+    the command), the worker compiles its own kernel in silence.
+    """
+    (tmp_path / "worker_kernels.py").write_text(WORKER_KERNELS)
+    run = _python(WORKER_MAIN.format(parent_first=parent_first), tmp_path, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    assert run.returncode == 0, run.stderr
+    lines = run.stderr.splitlines()
+    worker = "pefsim: a worker is compiling the kernels once, about 9 s; numba caches them for later runs"
+    parent = "pefsim: compiling the kernels once, about 9 s; numba caches them for later runs"
+    assert "worker 6.0" in lines, lines
+    if parent_first:
+        assert lines[0] == parent and worker not in lines, lines
+    else:
+        assert lines.index(worker) < lines.index("worker 6.0") and parent not in lines, lines

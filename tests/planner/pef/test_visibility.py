@@ -163,3 +163,29 @@ def test_grid_path_agrees_with_points_path_on_the_warehouse():
     iy_aisle, iy_below = np.searchsorted(y, 7.0), np.searchsorted(y, 3.0)
     ix = np.searchsorted(x, 15.0)
     assert vg[r1, iy_aisle, ix] and not vg[r1, iy_below, ix]
+
+
+def test_pairs_path_agrees_with_points_path_pair_by_pair():
+    """Each point looking at one marker (the schedule's sight check) sees it exactly when the points path says so.
+
+    With the line-of-sight rule's margins (flat reflectors on the racks, their bodies blocking),
+    on the warehouse. Negative control: paired with the next marker instead, the answers differ
+    (the pairing is what is tested, not a constant answer).
+    """
+    from planner.pef.sight import SightRule
+    from planner.pef.visibility import visible_pairs
+
+    sc = scenarios.load("warehouse")
+    rng = np.random.default_rng(7)
+    x0, y0, x1, y1 = sc.workspace.bounds
+    pts = np.column_stack([rng.uniform(x0, x1, 3000), rng.uniform(y0, y1, 3000)])
+    m = len(sc.markers)
+    which = rng.integers(0, m, len(pts))
+    args = (sc.marker_positions(), sc.obstacle_pieces(), sc.sensor.max_range, sc.workspace.bounds,
+            sc.marker_normals(), sc.sensor.max_incidence, SightRule(margin=0.02))
+    vis, _ = visible_points(pts, *args)
+    got = visible_pairs(pts, which, *args)
+    assert np.array_equal(got, vis[which, np.arange(len(pts))])
+    assert 0.1 < got.mean() < 0.9  # both answers occur
+    other = visible_pairs(pts, (which + 1) % m, *args)
+    assert not np.array_equal(other, got)
