@@ -4,7 +4,7 @@ Run: ``python benchmarks/fleet.py [--scenario warehouse-fleet] [--repeat 1]``. T
 driven once per repeat (:func:`sim.episode.fleet.run_fleet_episode`: every robot in one world,
 under zone control, robot bodies hiding reflectors); the baseline drives each robot's tasks as
 single-robot episodes (:func:`sim.episode.drive.run_episode`, one per task, in the same
-process and the same run) and adds their CPU times. Planning is outside both clocks. The issue's
+process and the same run) and adds their CPU times. Planning is outside both clocks. The
 target is a ratio of at most 3.5. Each figure is the best of ``--repeat`` (robust to other load).
 The last line is one JSON object.
 """

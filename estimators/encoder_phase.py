@@ -15,7 +15,7 @@ physics steps. Its uncertainty assumes the wheel's tracking error per step over 
 it was over the history before it (``WINDOW`` physics steps, :func:`sigma_per_step`): there the
 counted minus the commanded turn is ``D`` ticks, which holds the count's own residual difference
 and the readings' slip besides the tracking, so ``sigma = m sqrt(D^2 + 1/4 + slip part) / span``.
-Measured over the read windows of random-23-016 and random-23-030 (issue 23): the commanded
+Measured over the read windows of random-23-016 and random-23-030: the commanded
 rate predicts the travel to 0.0002-0.0015 ticks (median), well inside such a sigma. The fix
 snapshot uses it over a fix's shifts, a few physics steps (:func:`estimators.fault.carried.count_cov`),
 the filter for the part of the residual it does not carry as harmonics, over a read

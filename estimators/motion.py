@@ -104,8 +104,8 @@ It must stay negligible against every error the model declares: at most 1 % of t
 variance of a 1 mm read at the smallest non-zero slip the random worlds draw (``0.0001``,
 ``scenarios.worlds.SLIP_RANGE`` to four decimals: ``1e-14 m^2``). At 1e-12 (1 µm) it was 100
 times that: on random-23-029 (slip 0.01 %, ~9 mm reads) the floor outweighed the declared slip
-and the filter's heading random-walked where the truth's did not. Pose NEES over 8 episodes
-(issue 23): 2.78 with the old floor, 2.97 with this one; with 2.7 million encoder ticks, 2.31
+and the filter's heading random-walked where the truth's did not. Pose NEES over 8 episodes:
+2.78 with the old floor, 2.97 with this one; with 2.7 million encoder ticks, 2.31
 (heading 0.58 of its variance) and 3.06 (heading 0.92)."""
 
 _SERIES_LIMIT = 1e-2

@@ -18,7 +18,7 @@ for a wheel turned ``c`` ticks from where its encoder's phase was ``phi0``:
 For a phase uniform over a tick (a run starts wherever the wheels stopped) every ``a_m`` and
 ``b_m`` has mean 0 and variance ``6 / (pi m)^2`` of the residual's ``tick^2 / 12``, all of them
 uncorrelated. The drive holds each wheel to the integral of its command (``sim.physics.robot``,
-a position loop; measured within 0.04 ticks on random worlds, issue 23), so ``c`` is the
+a position loop; measured within 0.04 ticks on random worlds), so ``c`` is the
 commanded turn (:mod:`estimators.encoder_phase`) and the phasors ``(a_m, b_m)`` are constants:
 the state carries the first ``HARMONICS`` of each wheel and nothing forgets them while the
 turn is predicted. A wheel turning at a steady rate makes residuals whose correlation does not
@@ -38,7 +38,7 @@ Not modelled: the drive's steady lag grows with the speed (``shortfall / DRIVE_G
 0.016 ticks at 0.5 m/s on the built-in robots), and a change of ``d`` ticks turns harmonic ``m``
 by ``2 pi m d`` (0.8 rad for the 8th at 0.016 ticks), which the phasors' constant frame does not
 allow for. ``tests/sim/physics/test_world.py`` bounds the cruise's lag by ``1 / (16 pi)`` ticks
-(1 rad for the 8th); the 40 random worlds of issue 23 pass every check with it.
+(1 rad for the 8th); the 40 random worlds of ``pefsim worlds --count 40 --seed 23`` pass every check with it.
 
 The wheel's rotation over the read is ``u_w = d_w - q_w(c_old) + q_w(c_new)``, linear in the
 block. With the relative wheel-radius error ``e`` (optional state,

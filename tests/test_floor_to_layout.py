@@ -1,4 +1,4 @@
-"""Issue 13's "must show": a real occupancy map and its route graph, no reflectors, to a layout.
+"""End to end: a real occupancy map and its route graph, no reflectors, to a layout.
 
 A user with a ROS map (PGM + map_server YAML) and a Nav2 route graph runs the CLI as they
 would: ``place`` puts reflectors, ``plan`` finds an admissible route whose every fix keeps its

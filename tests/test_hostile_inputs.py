@@ -6,7 +6,7 @@ every warning recorded, and holds the input contract: exit 0, or exit 2 with exa
 cases that used to exhaust memory or hang run in a child process under an address-space cap
 (``resource.setrlimit``) and a time limit.
 
-- one test per defect of issue 27 (a DXF block that inserts itself, a NaN arc, a 50000 x 50000
+- one test per defect found with such files (a DXF block that inserts itself, a NaN arc, a 50000 x 50000
   PNG, a YAML alias bomb, a FIFO as the map image, ...), each naming what the message must say;
 - hypothesis strategies for drawings (ezdxf documents with random entities, non-finite and
   huge values, nested and self-referencing blocks), maps (random headers, sizes, YAML) and route
@@ -519,7 +519,7 @@ def test_random_route_graphs_keep_the_contract(tmp_path, text):
     event(line.split(": ")[-2][:40] if line else "exit 0")  # --hypothesis-show-statistics
 
 
-# =========================================================================== second round (issue 46)
+# =========================================================================== second round: by class
 #
 # By class of defect: each test draws its inputs (hypothesis, few examples) and holds the same
 # contract; the sizes are drawn just over each budget, so a budget that moved or a check that

@@ -108,7 +108,7 @@ def turn_bound(robot: RobotSpec, travelled, turned, reads=None, wheel_paths=None
       |increment|``): a hard bound, ``sqrt(3) odometry_noise`` times the two wheels' summed
       ``|increment|`` over the reads (``wheel_paths``, or ``|d_l| + |d_r|`` of the arc). The
       ``K_SIGMA`` form below missed a 4.1-sigma normal slip of the simulation on random-23-037
-      (one truth outside its fault area in 12,600 fixes, issue 23), which is why a bounded world's
+      (one truth outside its fault area in 12,600 fixes), which is why a bounded world's
       floor now slips within a bound too.
     - otherwise ``K_SIGMA`` times the std of the sum over ``reads`` equal increments, like
       :func:`shift_bound`'s.
@@ -168,7 +168,7 @@ def shift_var(robot: RobotSpec, travelled, heading_var: float, reads=None, along
     is ``odometry_noise^2 d^2 / (2 n)`` for ``n`` equal increments and more for unequal ones (a
     fix's measurement reads fall between the control ticks; on the random world random-7-008
     the equal-increment form understated the first range's shift error, 150 against 141 um rms
-    along the shift, one cause of its snapshot coverage 0.9427, issue 23). Across it: the heading
+    along the shift, one cause of its snapshot coverage 0.9427). Across it: the heading
     uncertainty turning the shift. The wheel-radius error is left out: to first order the
     wheels' mean travel does not see it. Each part is projected on the range's direction.
 
@@ -231,7 +231,7 @@ def shift_cov(robot: RobotSpec, travelled, heading_var: float, reads=None, along
     along the shifts; and all are turned into the world frame with the same heading, whose
     error ``e`` moves range ``i`` by ``e a_i`` with ``a_i = s_i x u_i`` (the shift's component
     across the range, signed). Left out, the shared parts made the snapshot covariance of the
-    random world random-7-008 too small at speed (issue 23: +0.02 on the mean of ``d^T C^-1 d``
+    random world random-7-008 too small at speed (+0.02 on the mean of ``d^T C^-1 d``
     over its fixes, +0.04 at 0.8 m/s and more). The off-diagonal terms use the same
     projections as the diagonal: each shift's own ``along_cos`` (nearly the same direction
     for all within a fix).
@@ -312,7 +312,7 @@ def turn_cov(robot: RobotSpec, travelled, turned, reads=None, slip_weight=None, 
     Left out, a carried bearing's weight was that of its sensor noise alone: on the random
     world random-23-016 (536 ticks on 0.097 m wheels, bearings 0.16 deg gaussian) the
     quantisation's turn std, 1.1 mrad, exceeds the bearing's 0.93 mrad, and the snapshot's
-    coverage was 0.8966 against 0.95 over 86,400 fixes (issue 23).
+    coverage was 0.8966 against 0.95 over 86,400 fixes.
 
     Parameters
     ----------

@@ -38,7 +38,7 @@ parked on another's path blocks it forever, whatever the rule). Then:
    just before a final dock on a short spur. The simulation used to free only the cells it had
    passed by a slack behind its estimate, so a robot waiting there, or parked at its dock, kept
    cells of another robot's path: two such robots waited for each other, or for the parked one,
-   for ever. Issue 47: 100 of 100 runs. ``tests/planner/fleet/test_deadlock_search.py`` drives
+   for ever, in 100 of 100 runs on a floor of spur docks. ``tests/planner/fleet/test_deadlock_search.py`` drives
    random fleets with the simulation's real stopping points and releases.)
 2. A robot that is not waiting holds every cell up to its next stop, so it reaches that stop
    without needing anything else, in finite time (it drives).

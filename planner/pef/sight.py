@@ -54,7 +54,7 @@ the map's visibility is a superset of what the schedule keeps, never a guess of 
 fix (at standstill, ``Δ_0`` may be smaller) is judged by the map, which is only stricter there.
 
 The margin does not depend on ``eps_max``: a looser requirement sees the same markers from the
-same points (issue 45: with ``eps_max`` plus a measured tracking allowance, 0.12 m, a looser
+same points (when the margin was ``eps_max`` plus a measured tracking allowance, 0.12 m, a looser
 requirement hid markers, removed admissible routes and made ``place`` add reflectors).
 """
 

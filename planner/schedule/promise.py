@@ -13,7 +13,7 @@ it for the fixes it chose (for every k).
 
 Not covered here: a fix that lost a marker mid-fix is promised by ``sim.episode.fixes`` the
 construction of the markers it did measure at the planned poses, without this bound (only with
-``sensor.block_probability``; issue 23 item 3 is reworking those fixes).
+``sensor.block_probability``).
 
 Slowing down for a fix
     The shift of an earlier range grows with speed, so a fix that breaks its promise at
@@ -25,7 +25,7 @@ Slowing down for a fix
     cruising speed is taken slower. A fix that breaks its promise even at the minimum speed is
     not usable.
 
-Derived promise (issue 23)
+Derived promise
     The robot does not measure at the planned poses: it drives on its *estimate* with a
     pure-pursuit follower and starts a fix when the estimate passes the planned start. The
     promise is therefore a bound on the realised fault area over every fix whose true

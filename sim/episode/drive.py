@@ -314,7 +314,7 @@ def _drive(scenario, task_index, ss, world, prepared, time_limit, q_scale) -> Ep
         # quantisation residual by an independent one, where the encoder's is unchanged: the
         # estimate lost what the fix's updates taught it about the residuals, and the filter
         # turned inconsistent (random-23-016, with a fix's reads all on control ticks: NEES
-        # 2.884, NIS 1.009, issue 23).
+        # 2.884, NIS 1.009).
         read_at = world.steps
         while world.steps < end:
             due = fixes.next_due

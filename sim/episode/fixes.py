@@ -236,7 +236,7 @@ class FixRecorder:
         #   heading from before the fix's first update: the one after has been corrected with
         #   these same ranges, so its error is correlated with their noise, which the covariance
         #   cannot describe (on random-7-008 that made d^T C^-1 d 0.05 too large on average, 0.08
-        #   at 0.8 m/s and more; issue 23). Its error is common to every shift: shift_cov.
+        #   at 0.8 m/s and more). Its error is common to every shift: shift_cov.
         # - The fault area (a set: truth inside when every error is within its bound) turns them
         #   with the heading after the updates, the tighter one: a bound needs no independence,
         #   and it is the heading std the plan's promise assumes (planning.heading_std_deg);

@@ -146,7 +146,7 @@ class WheelOdometry:
         Draw the slip uniform in ``+-sqrt(3) slip_std |d|`` per read (same variance) instead of
         normal: the floor of a bounded-noise world (``noise = "uniform"``), where every random
         error the simulation draws has a bound and the realised fault area must hold the truth
-        at every fix (a normal slip 4 sigma out broke it on random-23-037, issue 23).
+        at every fix (a normal slip 4 sigma out broke it on random-23-037).
     phase : (2,) array_like
         Where each encoder's tick edges sit on its wheel (left, right) [ticks, in ``[0, 1)``]
         (:func:`encoder_ticks`). An episode draws them per run: a robot's wheels stop wherever

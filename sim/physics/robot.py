@@ -30,7 +30,7 @@ _CASTER_MASS_FRACTION = 0.01   # casters are light plastic balls; a share of the
 #: The drive's position loop [1/s]: each wheel's rate setpoint is its command plus this gain
 #: times the angle the wheel is behind the command's integral. Bullet's velocity motor alone
 #: leaves a wheel ~1e-4 of its rate short under load, for good (a proportional loop); a motor
-#: controller's integral action does not, and the encoders' phase follows the command (issue 23:
+#: controller's integral action does not, and the encoders' phase follows the command (and
 #: the filter predicts it, ``estimators.motion_quantised``). Set at each command, every control
 #: tick (1/60 s), the loop takes off half the lag a tick: fast, and stable for ticks shorter than
 #: 1/15 s (gain x tick < 2). A lag clamped at FOLLOWING_LIMIT is a turn the wheel never makes up:
@@ -178,7 +178,7 @@ class DiffDriveRobot:
         slides over the floor, 10-30 µm/s and 5-15 µrad/s depending on its heading (120 s at
         rest on the warehouse floor, the wheels turning < 1 µrad), which no encoder sees; the
         filter, told by the encoders that the robot stands, grew overconfident over minutes at a
-        dock (issue 47: NEES 65 after 200 s). Bullet's friction anchors stop most of it, but only
+        dock (NEES 65 after 200 s). Bullet's friction anchors stop most of it, but only
         for contacts made after they are set, and they would change every drive. Parked, a fixed
         constraint holds the chassis' pose, the wheels are held at their angles and no longer touch the
         floor (whose drift would turn them under the held chassis, 0.13 mrad): the robot stands as a

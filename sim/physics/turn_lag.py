@@ -8,7 +8,7 @@ read spanning ``m`` physics steps of equal turn the chord lags the arc's mid-hea
 encoders between control ticks, splitting a period into reads of 1-3 steps, whose lag is
 ``1 / 2``-``1 / 6`` of their turn from the integrator alone. With the declared constant for
 those reads the filter's NEES over the 3 s after a 0.7 rad/s corner was 17.6-19.7 on
-random-23-029 (slip 0.01 %, fine encoders, issue 23), 3.7-3.9 with the per-read lag.
+random-23-029 (slip 0.01 %, fine encoders), 3.7-3.9 with the per-read lag.
 """
 
 from __future__ import annotations

@@ -139,7 +139,7 @@ def test_propagate_moments_is_the_ekf_predict():
 def test_the_variance_floor_is_negligible_against_the_smallest_declared_slip():
     # The floor is a numerical guard: at most 1 % of the slip variance of a 1 mm read at the
     # smallest non-zero slip a random world declares (SLIP_RANGE to four decimals, 0.0001).
-    # The old floor, 1e-12, outweighed it 100 times (random-23-029's heading, issue 23).
+    # The old floor, 1e-12, outweighed it 100 times (random-23-029's heading).
     from scenarios.worlds import SLIP_RANGE
 
     smallest_slip = max(SLIP_RANGE[0], 1e-4)

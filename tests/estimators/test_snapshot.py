@@ -236,9 +236,9 @@ def test_fix_covariance_holds_with_shared_extra_errors(markers, truth, use_beari
 # covariance (``bearing_extra_var``). Precise bearings against the ranges (random-23-016's sensor:
 # 0.16 deg, rho0 5 mm), extra std ``factor`` times the bearing's on every bearing but the last,
 # correlation 0.5 between them. Same NEES interval (false alarm 1e-3 per geometry). Negative
-# control: the same errors undeclared (the snapshot before issue 23's fix); its mean NEES,
-# measured with these seeds, is 2.90 and 2.79 against the interval [1.78, 2.24] (the declared
-# claim: 1.99 and 2.08).
+# control: the same errors undeclared (the snapshot before it counted a carried bearing's extra
+# error); its mean NEES, measured with these seeds, is 2.90 and 2.79 against the interval
+# [1.78, 2.24] (the declared claim: 1.99 and 2.08).
 CARRIED_SENSOR = SensorSpec(relative_error=2e-4, absolute_error=0.005)
 CARRIED_XI = math.radians(0.16)
 CARRIED = [

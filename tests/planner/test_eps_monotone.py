@@ -1,4 +1,4 @@
-"""A looser requirement never plans worse (issue 45 item 5, DESIGN §9 "Margins from the plan").
+"""A looser requirement never plans worse (DESIGN §9 "Margins from the plan").
 
 For ε_max growing over :data:`EPS`, on the same floor and markers:
 

@@ -1,4 +1,4 @@
-"""The declared robot.radius must contain the simulated body (issue 45 item 1)."""
+"""The declared robot.radius must contain the simulated body."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 13's "must show": on drawings and maps not in the repository, the PEF sees what the floor does.
+"""On drawings and maps not in the repository, the PEF sees what the floor does.
 
 Random DXF drawings and random ROS occupancy maps (fixed seeds) are written into tmp_path,
 loaded through ``[floorplan]``, and the planner's visibility on the PEF grid

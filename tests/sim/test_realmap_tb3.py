@@ -73,7 +73,7 @@ def test_a_sweep_reaches_every_goal_without_contact(placed, tmp_path):
 
 
 def test_radius_0_3_plans_with_clearance_or_names_the_place(placed):
-    """The issue's robot radius (0.3 m, the body within it): each task plans or names the place.
+    """A robot radius of 0.3 m (the body within it): each task plans or names the place.
 
     Each task plans with the body clear, or is refused naming the obstacle it would pass too
     close to.

@@ -17,7 +17,7 @@ from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION, exact_fault_area
 from estimators.fault.pieces import pair_circle
 from estimators.measurements import ranges, world_bearing, wrap_angle
 
-XI = math.radians(0.15)          # bearing bound, the L-hall of issue 23
+XI = math.radians(0.15)          # bearing bound of an L-shaped hall whose tightness check once failed
 HEADING_STD = math.radians(0.2)  # a filter heading's std, for the negative control
 TRIALS = 300
 

@@ -9,7 +9,7 @@ residuals, uniform over a tick: ``4 tick^2 / (12 b^2)``), random slip per odomet
 one fix share the end reading's residuals (``2 tick^2 / (12 b^2)``) and the slip of the reads
 the shorter shift spans. Left out, the random world ``random-23-016`` (536 ticks on 0.097 m
 wheels, wheel base 0.59 m: a 1.1 mrad turn std from quantisation alone, above its bearings'
-0.93 mrad) had snapshot coverage 0.8966; with it, 0.946 (issue 23).
+0.93 mrad) had snapshot coverage 0.8966; with it, 0.946.
 
 Here the odometry (:class:`sim.physics.odometry.WheelOdometry`) reads the wheels of that robot
 (the warehouse robot with ``random-23-016``'s encoders and geometry, ``odometry_noise`` 0.01,

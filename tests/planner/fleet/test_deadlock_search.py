@@ -16,8 +16,8 @@ control is pure logic, walls do not matter to it), random speeds and start times
 docks zone control refuses (a dock within reach of another robot's path) are drawn again.
 
 Negative control: with :meth:`ZoneControl.stand` a no-op (a robot keeps the cells just behind
-its stop, which need not be safe: what the simulation did before issue 47) the same search finds
-robots that wait for each other for ever.
+its stop, which need not be safe: what the simulation did before a stopped robot released them)
+the same search finds robots that wait for each other for ever.
 """
 
 from __future__ import annotations

@@ -19,9 +19,9 @@ from planner.placement import placement
 from planner.placement.sites import candidate_sites, cover_points
 
 KEEP_EPS = 0.02
-"""The issue's tightened eps_max for the warehouse with its 12 reflectors kept [m]."""
+"""A tightened eps_max for the warehouse with its 12 reflectors kept [m]."""
 GAP = 1.3
-"""Largest ratio of added markers to the reported lower bound the issue accepts."""
+"""Largest ratio of added markers to the reported lower bound this test accepts."""
 
 
 def tau_at_cover_points(sc):

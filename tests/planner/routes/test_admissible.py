@@ -1,4 +1,4 @@
-"""One admissibility, continuous along the path (issue 45 item 3; :mod:`planner.routes.admissible`).
+"""One admissibility, continuous along the path (:mod:`planner.routes.admissible`).
 
 Property (hypothesis, random small worlds of ``pefsim worlds``): where the evaluator finds τ finite
 at a sample of a route segment (the samples ``export`` and ``place`` judge, ``planning.resolution``

@@ -1,4 +1,4 @@
-"""The body's clearance on the planned path: radius + tracking + certified estimate (issue 45 item 1)."""
+"""The body's clearance on the planned path: radius + tracking + certified estimate."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A fix's lines of sight are held to its own pose bound (issue 23, item 3).
+"""A fix's lines of sight are held to its own pose bound.
 
 The PEF judges visibility with one margin for the whole floor; a fix's promise covers true
 positions up to its own pose bound, which can be larger. :func:`planner.schedule.sightcheck.unseen`

@@ -1,4 +1,4 @@
-"""The command line's output paths and its smaller defects (issues 24, 25 and 27).
+"""The command line's output paths and its smaller defects.
 
 An output file's format comes from its extension or is refused in one line (exit 2) before any
 work; exactly the path given is written and printed; ``pefsim`` alone prints the help and

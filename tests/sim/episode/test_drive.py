@@ -226,7 +226,7 @@ def test_a_measurement_on_a_control_tick_reads_the_odometry_once(monkeypatch):
     """No physics step is read twice: a measurement falling due on a control tick uses the tick's read.
 
     A second read at the same step reports zero travel, and the filter's predict would renew each
-    wheel's quantisation residual where the encoder's is unchanged (issue 23, random-23-016:
+    wheel's quantisation residual where the encoder's is unchanged (random-23-016:
     a fix's measurements 0.015 s apart fell on control ticks). With ``measurement_time`` one
     control period every measurement of a fix falls on a tick. The control tick reads in
     compiled code, a measurement's own read through ``WheelOdometry.update``: both are recorded

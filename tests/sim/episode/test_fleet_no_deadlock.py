@@ -1,4 +1,4 @@
-"""Issue 47's kind of floor in physics: every robot arrives; without ``ZoneControl.stand`` two deadlock.
+"""Docks on spurs, in physics: every robot arrives; without ``ZoneControl.stand`` two deadlock.
 
 ``tests/data/fleet/north_aisle_fleet.toml``: three rack rows, every dock on a short spur off the
 trunk loop; r1 and r2 cross the north aisle in opposite directions, r3 drives from a west dock

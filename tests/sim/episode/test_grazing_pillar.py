@@ -4,7 +4,7 @@ The pillar hall of ``tests/planner/schedule/pillar_hall.py`` with the robot's ra
 body's reach (0.351 m, the wheels reach 0.3502 m) and a pillar inside the corner's arc 5 mm
 beyond the radius: the route graph and the smoother accept it (they keep the radius), the body's
 clearance check does not (the follower cuts the arc and the estimate may be off). Switched off,
-the robot drives it and its body touches the pillar (the issue's failure: stuck at the pillar, the
+the robot drives it and its body touches the pillar (the failure the check prevents: stuck at the pillar, the
 goal never reached), and ``validate`` of a sweep of it fails, naming the contact before any
 statistic.
 """

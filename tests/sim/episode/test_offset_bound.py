@@ -1,4 +1,4 @@
-"""The robot drives within the offset bound the clearance check assumes (issue 45 item 1).
+"""The robot drives within the offset bound the clearance check assumes.
 
 The plan keeps ``radius + tracking(s) + estimate(s)`` clear around each path point
 (:mod:`planner.schedule.clearance`); that holds for the body when the true axle midpoint stays

@@ -52,7 +52,8 @@ def _corner_fixes(runs: int):
     """Drive ``runs`` episodes of the corner world's task C -> D (two 90 deg corners).
 
     Returns each episode's fixes with the exact area at the planned poses of the scheduled fix
-    each realises (the promise before issue 23).
+    each realises (the promise as it was before it was derived: at the planned poses, with a fixed
+    tolerance).
     """
     sc = scenarios.load(CORNER_WORLD)
     prep = prepare(sc, 1)

@@ -1,4 +1,4 @@
-"""The filter at rest: a robot held minutes at its goal stays consistent (issue 47).
+"""The filter at rest: a robot held minutes at its goal stays consistent.
 
 A lone robot drives a diagonal task on an empty floor (``tests/data/rest_floor.toml``) and is
 held ``HOLD`` s at its goal (``montecarlo.hold``), parked, fixing at the laser's rate; it stands

@@ -7,7 +7,7 @@ The odometry draws its random slip per read, with std ``odometry_noise |d_w|`` f
 wheel travel ``d_w``; in an episode a fix's measurement reads fall between the control ticks
 (``sim.episode.drive``), so the increments over a shift are unequal, and ``d^2 / (2 n)`` for
 ``n`` equal ones understates ``sum (d_l^2 + d_r^2) / 4``. That was the overconfidence of the
-random world ``random-7-008`` (coverage 0.9427 of 46,397 fixes at 200 runs, issue 23).
+random world ``random-7-008`` (coverage 0.9427 of 46,397 fixes at 200 runs).
 
 Here the odometry (:class:`sim.physics.odometry.WheelOdometry`) reads wheels rolling straight at
 1 m/s with the episode's pattern (``tests/sim/episode/fix_reads.py``): control reads every

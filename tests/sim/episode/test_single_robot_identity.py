@@ -1,100 +1,36 @@
-"""A scenario without [[robots]] gives the tables it gave before fleets existed, bit for bit.
+"""A scenario without [[robots]] gives the tables it gave before fleets existed.
 
-The fleet work was checked against digests computed with the code of commit 3bb1324 (main before
-it), by the same function, on a 3 s episode of task 0 with run 0's seed: equal. The same wave then
-changed single-robot episodes on purpose twice (each scheduled fix near the goal is taken there;
-the promise is derived from the plan's certified estimate error, which moves the schedules), so the
-digests below are those of the merge of the three; a change that moves any number of a
-single-robot episode again (the laser's ray ends, the posts, the streams) must say why here.
+What is pinned: the runs row, the step columns and the fix columns of a 3 s episode of task 0
+with run 0's seed (:func:`tables`), for paper-two-markers and warehouse, against the reference
+``single_robot_tables.npz`` next to this file. Integers, flags and strings are compared exactly,
+floats to ``RTOL`` of themselves: a change of summation order passes (the scalar update's loops
+moved P by at most 2e-21 m^2), any change of the model does not. Runs-table columns added after
+the reference (:data:`ADDED_RUN_COLUMNS`) only watch the episode and may appear; no other may.
 
-Issue 23 (coverage of random-7-008): the snapshot's carried-shift variance counts the slip of the
-odometry reads a shift actually spans (``WheelOdometry.slip_weight``) instead of n equal
-increments. Only the fixes' snapshot position, error and covariance moved (steps and every other
-fix column hashed equal before and after, on both scenarios).
+The reference is the tables, not their SHA-256: on a machine whose numpy dispatches its float64
+transcendental functions to AVX-512 (numpy's ``X86_V4`` features) ``certified`` and
+``predicted_tau`` came out 1 ulp off (at most 4.4e-16 relative) from tables written on an
+``X86_V3`` machine. The planner computes those columns and nothing in the episode feeds back
+into them, so the ulps do not grow.
 
-Issue 23 again: the snapshot turns a fix's shifts into the world frame with the filter's heading
-from before the fix's first update (the heading after them is correlated with the fix's own range
-noise), and its covariance counts the errors the carried ranges share
-(``estimators.fault.carried.shift_cov``); the fault area keeps the heading after the updates.
-Only the fixes' snapshot position, error and covariance moved; steps and every other fix column
-(fault diameter, containment, promise) hashed equal before and after, on both scenarios and on
-warehouse-reflectors. (Per-column hashes against commit f3437d7; the digests first pinned with this
-change came from a tree that also turned the fault area with the pre-fix heading, whose
-``fault_diameter`` differs.) The sight check of the schedule (``planner.schedule.sightcheck``) moved
-no column of either episode.
+A change that moves any number of a single-robot episode (the laser's ray ends, the posts, the
+random streams, the filter, the schedule) must do so on purpose, say why in its commit and in
+CHANGELOG.md, and write the tables again, from the repository root and with numpy's AVX-512
+dispatch off, as every earlier version was written::
 
-Issue 23 (containment of random-23-037): a bounded-noise world's floor slips within a bound
-(uniform draws of the declared std, ``WheelOdometry(bounded=True)``): both scenarios are uniform,
-so the odometry readings, and with them every column, moved.
+    export NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL"
+    python -m tests.sim.episode.test_single_robot_identity tests/sim/episode/single_robot_tables.npz
 
-Issue 23 (random-23-029's corner): the filter's turn slip per read follows the physics steps
-the read spans (``sim.physics.turn_lag``): a fix's reads between control ticks moved the
-estimate, and with it every column.
-
-Issue 23 (random-23-029's heading): the process noise's numerical floor went from 1e-12 to
-1e-16 m^2 per wheel and read (``estimators.motion.VARIANCE_FLOOR``): the filter's covariance, and
-with it every column that depends on the estimate, moved.
-
-The scalar update's products are loops instead of numba's BLAS-backed ``@`` (9 s of compilation
-on a cold cache, 1.4 s now), and it writes one triangle of P into both: the sums run in another
-order, so covariances moved in their last bits (paper-two-markers, seed 5: at most 2e-21 m^2 in
-P and 7e-15 in the NEES; the estimate equal), and with them the hashes.
-
-Issue 23 (random-23-016's N-run tests and coverage): the encoder residuals are the phasors of
-their first 8 harmonics, turned at each read by the wheels' commanded turn
-(``estimators.encoder_phase``), and the snapshot weighs a fix's shifts and carried bearings
-with the count errors of their fractional turns (``estimators.fault.carried.count_cov``): the
-estimate, its covariance and the snapshot moved, and with them every column. (The scalar
-update's Joseph form is expanded to O(n^2) for the larger state, equal in exact arithmetic.)
-
-Issue 23 (the runs of a sweep made the same quantisation errors): each run draws its encoders'
-phase on the wheels from its start stream (``sim.episode.drive.encoder_phases``, after the
-start pose, whose draw is unchanged), and the filter starts with the residuals unknown: the
-counts, the estimate and everything after them moved.
-
-Issue 23 (five random worlds overconfident): the filter no longer turns the residuals by the
-commanded turn; each read's new residual is independent of the last, and the state holds one
-residual per wheel instead of 17 (``estimators.motion_quantised``). The covariance moved; over
-20 s of both scenarios the estimate is bit for bit that of the 17-entry blocks with their
-phasors renewed at every read, the covariance within 1e-19 of it.
-
-Issue 23 (random-23-008's N-run NEES, -030's cross-track): each residual keeps, across a read,
-the sawtooth's correlation over the read's predicted fractional turn (an AR(1),
-``estimators.motion_quantised.read_correlation``): the estimate and its covariance moved.
-
-Issue 23 (random-23-000's NEES, -030's cross-track): each wheel's last 8 residuals are states, a
-new one predicted from them with the sawtooth's covariances over the predicted turns, averaged
-over a tracking error that grows with the lag (``estimators.motion_quantised``): the estimate and
-its covariance moved. (The gate's rule for two markers in a row does not act in these 3 s.)
-Since then the reference is the tables themselves (``single_robot_tables.npz``, written by this
-module run as a script), not their SHA-256: on a machine whose numpy dispatches its float64
-transcendental functions to AVX-512 (numpy's ``X86_V4`` features; the digests were pinned on an
-``X86_V3`` machine) ``certified`` and ``predicted_tau`` came out 1 ulp off (at most 4.4e-16
-relative; with ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL"`` the same machine gave the pinned
-digests). The planner computes those columns and nothing in the episode feeds back into them, so
-the ulps do not grow. Integers, flags and strings are compared exactly; floats to ``RTOL``: the
-summation-order changes above (2e-21 m^2 in P) pass it, any change of the model does not.
-
-Issue 23 (random-23-016's and -033's NIS, pessimistic): the drive holds each wheel to its
-command's integral (``sim.physics.robot.DRIVE_GAIN``), and the filter carries each wheel's
-residual as the phasors of its first 8 harmonics, constant in the commanded frame, and a
-remainder (``estimators.motion_quantised``): the motion, the counts, the estimate and every
-column after them moved. The tables were written again (with ``NPY_DISABLE_CPU_FEATURES="X86_V4
-AVX512_ICL"``, as before). Then a read of span 0 (the first read of an episode, reads at the
-goal) keeps the residual blocks instead of drawing a fresh residual difference: the estimate's
-covariance from the first read on moved, and with it every column; written again the same way.
-
-Issue 45 (the declared radius contains the simulated body, ``scenarios.body``): paper-two-markers'
-wheels reach 0.20005 m, so its radius went from 0.2 to 0.201 m, and the chassis, fitted inside
-the radius, from 0.2260 to 0.2296 m long: its inertia moved the true pose by at most 0.4 um and
-the heading by 1.8 urad in these 3 s, and with them every column; warehouse's tables stayed equal
-bit for bit. Written again the same way.
-
-The line-of-sight margin from the plan's certified pose bound, and schedules searched on a fixed
-ladder of certified errors (``planner.schedule``): where no rung plans at speed the one that slows
-the drive least is taken, which for paper-two-markers is its eps_max rung, the schedule it had
-before the ladder: its steps and fixes are equal to those before the ladder; the runs rows carry
-the outcome columns. Written again the same way.
+History (details in CHANGELOG.md). The fleet work was checked against digests computed by the
+same function with commit 3bb1324 (main before fleets): equal. Since then the tables were written
+again for changes of single-robot episodes: scheduled fixes near the goal taken there and a
+promise derived from the plan's certified estimate error; the filter's consistency on random
+worlds (the snapshot's carried shifts and bearings, bounded slip in uniform-noise worlds, the turn
+slip per physics step, a process-noise floor of 1e-16 instead of 1e-12 m^2, the encoders'
+quantisation as harmonic phasors with a per-run encoder phase, the drive's position loop); the
+declared radius containing the body (paper-two-markers' radius 0.2 -> 0.201 m; warehouse equal);
+the line-of-sight margin from the plan's certified pose bound, with schedules on a ladder of
+certified errors (paper-two-markers keeps its schedule; the runs rows carry the outcome columns).
 """
 
 from __future__ import annotations
@@ -114,7 +50,7 @@ REFERENCE = Path(__file__).with_name("single_robot_tables.npz")
 NAMES = ("paper-two-markers", "warehouse")
 #: float64 results of a few ulps' difference (numpy's SIMD dispatch) pass, a model's change does not
 RTOL = 1e-12
-#: Runs-table columns written after the reference: what a run did (``sim.episode.outcome``, issue 45).
+#: Runs-table columns written after the reference: what a run did (``sim.episode.outcome``).
 #: They only watch the episode; the reference's own columns are compared, and no other column may appear.
 ADDED_RUN_COLUMNS = frozenset({"collisions", "contact_t", "contact_x", "contact_y", "contact_s", "contact_with",
                                "stuck", "stall_time", "stuck_bound", "stall_t", "stall_x", "stall_y", "stall_s",

@@ -341,7 +341,7 @@ def _stand(world: PhysicsWorld, seconds: float) -> tuple[np.ndarray, np.ndarray]
 @pytest.mark.parametrize("parked", [True, False])
 def test_a_parked_robot_stands_still(parked):
     # Bullet's friction has no static phase: on its held wheels the robot slid 0.7 mm and turned
-    # 0.8 mrad in a minute at this heading (issue 47), which no encoder sees. Parked, it stands to
+    # 0.8 mrad in a minute at this heading, which no encoder sees. Parked, it stands to
     # 1 um and 1 urad, its wheels within 1 urad (a tick is 3 mrad). Negative control: not parked,
     # it slides.
     with PhysicsWorld(flat()) as world:

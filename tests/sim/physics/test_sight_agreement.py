@@ -1,4 +1,4 @@
-"""The plan's lines of sight are the laser's: one geometry (issue 23, item 3).
+"""The plan's lines of sight are the laser's: one geometry.
 
 Along the planned path of every built-in, marker by marker: wherever the planner counts a marker
 usable (:func:`planner.pef.visibility.scenario_visible_points`, the rule of
@@ -121,7 +121,7 @@ def test_the_laser_sees_every_line_of_sight_the_plan_counts_on_in_random_worlds(
 @pytest.mark.e2e
 def test_negative_control_the_margin_free_rule_counts_on_what_the_laser_does_not_see(planned):
     sc, poses = planned("hall")
-    # the rule before issue 23: segment against the shrunk pieces, no margin, no mount wedge
+    # the planner's former rule: segment against the shrunk pieces, no margin, no mount wedge
     vis, _ = visible_points(poses[:, :2], sc.marker_positions(), sc.obstacle_pieces(), sc.sensor.max_range,
                             sc.workspace.bounds, sc.marker_normals(), sc.sensor.max_incidence)
     bad = _misses(sc, poses, vis, 0.0)

@@ -2,7 +2,8 @@
 
 ``warehouse-reflectors`` is the warehouse with flat reflectors placed for redundancy 1 and
 ``sensor.block_probability = 0.2``. A small sweep must pass every applicable check of
-``pefsim validate`` (the 200-run result is in the report of issue 14); negative control: with
+``pefsim validate`` (a 200-run sweep passed every check when the built-in was added: plan check
+200/200, no containment miss in 53,926 fixes); negative control: with
 every line of sight blocked (q = 1) the robot can only dead-reckon and the plan check fails.
 The plan check's false-alarm probability is its share of the family alpha = 0.01.
 """
