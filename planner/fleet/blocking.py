@@ -23,7 +23,7 @@ stop). Tied lags are correlated: robot i measuring at planned time T and robot j
 at time t differ by i's drift between t and T and j's restart and drift, not by two independent
 lags (:func:`lag_difference`; the built-in fleet's robot r1, waiting five times for r3, hid a
 reflector of r3's fixes in every run where independent lags, each wait adding a second, gave
-0.2-1.7 %: issue 23). Robot i measures at planned time T (its fix is triggered by arc length,
+0.2-1.7 %). Robot i measures at planned time T (its fix is triggered by arc length,
 so it is where the plan says, at time T + delta_i); robot j is then where its plan has it at
 time ``T + delta_i - delta_j``. The probability that robot j blocks the ray is the mass of
 ``T + delta_i - delta_j`` over the planned times at which j's centre is in the blocking region

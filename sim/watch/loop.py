@@ -114,6 +114,10 @@ def watch_files(scenario: str | Path, show: Callable[[int, View], None], *,
                 view = builder.build(sc) if show_plans is None else builder.build_map(sc)
                 show(updates, view)
             except PefsimError as exc:
+                time.sleep(SETTLE)
+                if more := files.changed():  # read while still being written (truncated, then filled): again
+                    changed = list(dict.fromkeys([*changed, *more]))
+                    continue
                 read = {p: files.digest(p) for p in files.stamps}
                 if on_error is not None:
                     on_error(exc)
