@@ -420,10 +420,10 @@ def block_probability(other: Track, origin: np.ndarray, h_origin: float, target:
         # the body covers the ray with the probability its centre, spread by POS_SD across the
         # edge of the blocking region, is inside: Phi((r - d) / POS_SD)
         cover.append(ndtr((other.radius - dist[qi, ki]) / POS_SD))
-    if not pairs:
+    key, cov = (np.concatenate(pairs), np.concatenate(cover)) if pairs else (np.zeros(0, np.int64), np.zeros(0))
+    if not len(key):   # windows near some rays, but no sample within reach of one
         return out
     # a sample near several rays of one group counts once, with its largest cover (one position)
-    key, cov = np.concatenate(pairs), np.concatenate(cover)
     order = np.lexsort((-cov, key))
     key, cov = key[order], cov[order]
     head = np.concatenate([[True], key[1:] != key[:-1]])

@@ -456,6 +456,8 @@ class _Robot:
                    "robot_blocked": self.robot_blocked,
                    "predicted_wait": longest_run(self.rp.timeline.waiting, self.rp.timeline.t)
                    if self.rp.timeline is not None else math.nan,
+                   "predicted_wait_time": float(self.rp.timeline.wait_time)
+                   if self.rp.timeline is not None else math.nan,
                    **outcome}
         res = EpisodeResult(scenario_name=scenario.name, task_index=int(scenario.robots[self.i].tasks[0]),
                             seed=_seed_repr(self.ss), eps_max=sc.planning.eps_max, steps=steps, fixes=fix_log,

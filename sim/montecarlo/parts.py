@@ -59,7 +59,8 @@ class DamagedPartError(OutputError):
 LATER_COLUMNS = frozenset({"lost_guarantee", "excused", "unplanned", "collisions", "contact_t", "contact_x",
                            "contact_y", "contact_s", "contact_with", "stuck", "stall_time", "stuck_bound", "stall_t",
                            "stall_x", "stall_y", "stall_s", "deadlocked", "longest_wait", "wait_bound", "wait_t",
-                           "wait_x", "wait_y", "waited_for", "predicted_wait"})
+                           "wait_x", "wait_y", "waited_for", "predicted_wait",
+                           "predicted_wait_time"})
 """Columns added after sweeps were first written: a part without one reads back with it null
 (the runs' ``lost_guarantee``: not tested; the steps' ``excused``: nothing excused; the fixes'
 ``unplanned``: not recorded; what a run did, :mod:`sim.episode.outcome`: not watched)."""

@@ -92,11 +92,13 @@ FLEET_RUN_SCHEMA = pa.schema([*RUN_SCHEMA, pa.field("robot", pa.string()),
                               pa.field("wait_time", pa.float64()),   # [s] waiting for zones
                               pa.field("robot_blocked", pa.int64()),  # scheduled lines of sight robots hid
                               # its longest unbroken wait for a zone [s], the bound it was held to [s],
-                              # where and when it began, whom it waited for; the plan's longest wait [s]
+                              # where and when it began, whom it waited for; the plan's longest wait and
+                              # all its planned waits together [s]
                               pa.field("longest_wait", pa.float64()), pa.field("wait_bound", pa.float64()),
                               pa.field("wait_t", pa.float64()), pa.field("wait_x", pa.float64()),
                               pa.field("wait_y", pa.float64()), pa.field("waited_for", pa.string()),
-                              pa.field("predicted_wait", pa.float64())])
+                              pa.field("predicted_wait", pa.float64()),
+                              pa.field("predicted_wait_time", pa.float64())])
 """A fleet sweep's runs table: :data:`RUN_SCHEMA` plus the robot, one row per robot per run (its
 ``duration`` is the fleet's episode, ``arrival`` the robot's own end; NaN if it never arrived)."""
 FLEET_STEP_SCHEMA = pa.schema([*STEP_SCHEMA, pa.field("robot", pa.string())])

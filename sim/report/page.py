@@ -163,7 +163,7 @@ def _stats_rows(runs: pa.Table) -> list[list[str]]:
 
 
 def _robot_rows(runs: pa.Table) -> list[list[str]]:
-    """Per robot of a fleet sweep: its rows' counts, waits, hidden lines of sight, collisions and worst error."""
+    """Per robot of a fleet sweep: counts, planned and simulated waits, hidden sight lines, collisions, worst error."""
     names = runs.column("robot").to_pylist()
     ok = succeeded(runs)
 
@@ -172,11 +172,15 @@ def _robot_rows(runs: pa.Table) -> list[list[str]]:
 
     reached = np.asarray(runs.column("reached").fill_null(False).to_numpy(zero_copy_only=False), bool)
     wait, hidden, hits, err = num("wait_time"), num("robot_blocked"), num("collisions"), num("max_error")
+    # the plan's waits, one value per robot (sweeps written before it was recorded have none)
+    planned = num("predicted_wait_time") if "predicted_wait_time" in runs.column_names else np.full(len(names), np.nan)
     rows = []
     for name in sorted({n for n in names if n is not None}):
         sel = np.array([n == name for n in names])
+        plan = planned[sel][np.isfinite(planned[sel])]
         rows.append([name, int(sel.sum()), int(ok[sel].sum()), int(reached[sel].sum()),
-                     f"{np.nanmean(wait[sel]):.2f}", f"{np.nanmax(wait[sel]):.2f}", f"{np.nanmean(hidden[sel]):.2f}",
+                     f"{plan[0]:.2f}" if len(plan) else "-", f"{np.nanmean(wait[sel]):.2f}",
+                     f"{np.nanmax(wait[sel]):.2f}", f"{np.nanmean(hidden[sel]):.2f}",
                      int(np.nansum(hits[sel])), f"{np.nanmax(err[sel]) * 1e3:.3f}"])
     return rows
 
@@ -227,8 +231,9 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
                      f"src='data:image/png;base64,{data}'><figcaption>{html.escape(f.caption)}</figcaption></figure>")
     if scenario.is_fleet and "robot" in runs.column_names:
         parts.append("<h2>Per robot</h2>")
-        parts.append(_table(["robot", "runs", "succeeded", "reached", "wait mean [s]", "wait max [s]",
-                             "hidden lines of sight per run", "collisions", "max error [mm]"], _robot_rows(runs)))
+        parts.append(_table(["robot", "runs", "succeeded", "reached", "wait planned [s]", "wait mean [s]",
+                             "wait max [s]", "hidden lines of sight per run", "collisions", "max error [mm]"],
+                            _robot_rows(runs)))
     parts.append("<h2>Runs summary</h2>")
     parts.append(_table(["per run", "mean", "min", "median", "95 %", "max"], _stats_rows(runs)))
     rows = runs.select(["run", "task", "status", "max_error", "violations", "reached"]).to_pylist()

@@ -242,7 +242,7 @@ def _np(table: pa.Table, name: str, dtype: Any, fill: Any) -> np.ndarray:
 OUTCOME_COLUMNS = ["run", "task", "robot", "status", "collisions", "contact_t", "contact_x", "contact_y",
                    "contact_s", "contact_with", "stuck", "stall_time", "stuck_bound", "stall_t", "stall_x", "stall_y",
                    "stall_s", "deadlocked", "longest_wait", "wait_bound", "wait_t", "wait_x", "wait_y", "waited_for",
-                   "predicted_wait", "wait_time"]
+                   "predicted_wait", "predicted_wait_time", "wait_time"]
 """The columns of a runs table that say what each run did (:mod:`sim.validation.outcome` reads them)."""
 
 

@@ -88,17 +88,37 @@ def causes(data: SweepData) -> list[str]:
     return lines
 
 
+def _seconds(v) -> str:
+    return f"{v:.1f} s" if v is not None and math.isfinite(v) else "none"
+
+
+def _spread(v: np.ndarray) -> str:
+    """``median m (95 % q, max M)`` of per-run waits [s], NaN (a run without the column) left out."""
+    v = v[np.isfinite(v)]
+    if not len(v):
+        return "not recorded"
+    return f"median {np.median(v):.1f} s (95 % {np.quantile(v, 0.95):.1f} s, max {v.max():.1f} s)"
+
+
 def waits(data: SweepData) -> list[str]:
-    """Return one line per fleet robot: its longest predicted wait against the simulated ones [s]."""
+    """Return one line per fleet robot: the plan's waits for zones against the simulated ones [s].
+
+    Both its waits together (the plan's ``Timeline.wait_time`` against the run's ``wait_time``) and
+    its longest unbroken one (the plan's against the run's ``longest_wait``, what the deadlock bound
+    of :mod:`sim.episode.outcome` grows from), each simulated one as median, 95 % quantile and
+    maximum over the runs. Sweeps written before the plan's total was recorded print ``none`` for it.
+    """
     rows = [r for r in _rows(data) if r.get("robot") and r.get("longest_wait") is not None]
     out = []
     for name in dict.fromkeys(r["robot"] for r in rows):
         mine = [r for r in rows if r["robot"] == name]
-        got = np.array([r["longest_wait"] for r in mine], float)
-        pred = mine[0].get("predicted_wait")
-        pred_text = f"{pred:.1f} s" if pred is not None and math.isfinite(pred) else "none"
-        out.append(f"{name}: longest wait predicted {pred_text}, simulated median {np.median(got):.1f} s, "
-                   f"max {got.max():.1f} s over {len(got)} runs")
+
+        def col(key: str, mine=mine) -> np.ndarray:
+            return np.array([math.nan if r.get(key) is None else r[key] for r in mine], float)
+
+        out.append(f"{name}: in all predicted {_seconds(mine[0].get('predicted_wait_time'))}, simulated "
+                   f"{_spread(col('wait_time'))}; longest predicted {_seconds(mine[0].get('predicted_wait'))}, "
+                   f"simulated {_spread(col('longest_wait'))}; {len(mine)} runs")
     return out
 
 

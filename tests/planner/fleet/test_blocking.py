@@ -62,6 +62,16 @@ def test_a_body_standing_on_the_ray_hides_it_and_beside_it_does_not():
     assert block_probability(off, *args)[0] == 0.0
 
 
+def test_a_body_inside_the_ray_s_box_but_far_from_the_ray_hides_nothing():
+    # the diagonal ray's bounding box holds the body, 5.7 m off the ray: a window with no sample
+    # in reach (this used to raise an IndexError on an empty set of pairs)
+    t = np.arange(0.0, 10.0, 0.1)
+    corner = _track(np.tile([9.0, 1.0], (len(t), 1)), t)
+    p = block_probability(corner, np.array([[0.0, 0.0]]), 0.5, np.array([[10.0, 10.0]]), np.array([0.3]),
+                          np.array([4.0]), np.zeros(1), np.full(1, 0.04))
+    assert p.shape == (1,) and p[0] == 0.0
+
+
 def test_a_crossing_hides_the_ray_for_the_timing_spread_s_share_of_its_passage():
     # a body crossing the ray at right angles at v = 1 m/s, on it from t = 4.6 s to 5.4 s (radius 0.4)
     v, r, sd = 1.0, 0.4, 0.3

@@ -28,6 +28,10 @@ def test_both_arrive_without_touching_and_one_waits(crossing):
         assert s["status"] == "ok" and not s["stuck"] and not s["deadlocked"]   # its waits are legitimate
         assert s["violations"] == 0 and 0.0 < s["arrival"] <= s["duration"] == res.duration
     assert max(r.wait_time for r in res.robots) > 0.5, "the crossing makes one of them wait"
+    # the plan's waits ride along for validate's comparison: all of them at least the longest one
+    for r, rp in zip(res.robots, prepared.plan.robots, strict=True):
+        s = r.result.summary
+        assert s["predicted_wait_time"] == rp.timeline.wait_time >= s["predicted_wait"] - 1e-9
     # the closest the two got, over the control steps they shared
     a, b = (r.result.steps.true_pose[:, :2] for r in res.robots)
     n = min(len(a), len(b))

@@ -88,3 +88,38 @@ def test_an_incomplete_sweep_says_how_many_runs_are_missing(tmp_path, capsys):
     assert [line for line in out if "missing" in line] == [
         f"incomplete sweep: 3 runs missing (pefsim mc SCENARIO --out {tmp_path / 'mc'} --resume completes it); "
         "judged on the finished ones"]
+
+
+def _fleet_rows(rows: list[dict]):
+    """A sweep stand-in with only the runs' outcome table (all :func:`sim.validation.outcome.waits` reads)."""
+    import types
+
+    import pyarrow as pa
+
+    return types.SimpleNamespace(runs=types.SimpleNamespace(outcome=pa.Table.from_pylist(rows)))
+
+
+def test_waits_put_the_plan_s_waits_beside_the_simulated_ones():
+    from sim.validation.outcome import waits
+
+    r2 = [{"run": 3 * i + 1, "robot": "r2", "wait_time": w, "longest_wait": w - 1.0, "predicted_wait": 30.1,
+           "predicted_wait_time": 31.0} for i, w in enumerate([20.0, 30.0, 40.0, 28.0, 33.0])]
+    r1 = [{"run": 3 * i, "robot": "r1", "wait_time": 0.0, "longest_wait": 0.0, "predicted_wait": 0.0,
+           "predicted_wait_time": 0.0} for i in range(5)]
+    lines = waits(_fleet_rows(r1 + r2))
+    q95 = np.quantile([20.0, 30.0, 40.0, 28.0, 33.0], 0.95)
+    assert lines == [
+        "r1: in all predicted 0.0 s, simulated median 0.0 s (95 % 0.0 s, max 0.0 s); longest predicted 0.0 s, "
+        "simulated median 0.0 s (95 % 0.0 s, max 0.0 s); 5 runs",
+        f"r2: in all predicted 31.0 s, simulated median 30.0 s (95 % {q95:.1f} s, max 40.0 s); longest predicted "
+        f"30.1 s, simulated median 29.0 s (95 % {q95 - 1:.1f} s, max 39.0 s); 5 runs"]
+
+
+def test_waits_of_a_sweep_written_before_the_plan_s_total_say_none_and_lone_robots_have_none():
+    from sim.validation.outcome import waits
+
+    old = [{"run": 0, "robot": "r1", "wait_time": 2.0, "longest_wait": 2.0, "predicted_wait": 1.5}]
+    assert waits(_fleet_rows(old)) == [
+        "r1: in all predicted none, simulated median 2.0 s (95 % 2.0 s, max 2.0 s); longest predicted 1.5 s, "
+        "simulated median 2.0 s (95 % 2.0 s, max 2.0 s); 1 runs"]
+    assert waits(_fleet_rows([{"run": 0, "robot": None, "status": "ok"}])) == []
