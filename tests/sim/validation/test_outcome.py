@@ -91,7 +91,7 @@ def test_an_incomplete_sweep_says_how_many_runs_are_missing(tmp_path, capsys):
 
 
 def _fleet_rows(rows: list[dict]):
-    """A sweep stand-in with only the runs' outcome table (all :func:`sim.validation.outcome.waits` reads)."""
+    """Return a sweep stand-in with only the runs' outcome table (all :func:`sim.validation.outcome.waits` reads)."""
     import types
 
     import pyarrow as pa
