@@ -33,7 +33,7 @@ them (steps and fixes concatenated, the certified bound along its whole path).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -43,7 +43,7 @@ from sim.episode.drive import check_markers, seed_sequence
 from sim.episode.driver import Mission, RobotDriver, advance, check_control_period
 from sim.episode.follower import SPEED, YAW_RATE
 from sim.episode.outcome import longest_run, wait_bound, wait_cycles
-from sim.episode.types import EpisodeResult
+from sim.episode.types import FleetResult, RobotResult
 
 STOP_MARGIN = 0.05
 """A robot aims to stop this far before the end of its reservation [m] (the follower's overshoot)."""
@@ -81,54 +81,6 @@ def prepare_fleet(scenario: Scenario, pef=None, traffic: bool = True) -> FleetPr
         if any(p.schedule is None for p in rp.plans):
             raise PlanningError(f"{scenario.source}: robot {rp.name!r}: a plan has no measurement schedule")
     return FleetPrepared(plan, pef)
-
-
-@dataclass
-class RobotResult:
-    """One robot of a fleet episode: its episode over all its tasks, and what the fleet did to it.
-
-    Attributes
-    ----------
-    name : str
-    result : EpisodeResult
-        Its steps and fixes over all its tasks (``result.fixes.notes``: per fix, a FixNote whose ``hidden`` maps
-        marker index -> index of the robot that hid it at the fix start).
-    wait_time : float
-        Time it stood at the end of its reservation waiting for zones [s].
-    reserved : ndarray, shape (R, 3)
-        Its reservation at each control tick it drove: time [s], and the stretch of its whole
-        path it held, from and to (arc lengths [m]).
-    path : ndarray, shape (N, 2)
-        Its whole path (all its tasks chained) [m], the arc lengths of ``reserved`` are along it.
-    """
-
-    name: str
-    result: EpisodeResult
-    wait_time: float
-    reserved: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-
-
-@dataclass
-class FleetResult:
-    """A fleet episode.
-
-    Attributes
-    ----------
-    robots : list of RobotResult
-        ``robots[i]`` for ``scenario.robots[i]``.
-    collisions : int
-        Times two robots' footprint bodies (cylinders of their radius) began to overlap.
-    duration : float
-        Simulated time until the last robot arrived (or the time limit) [s].
-    names : list of str
-        The robots' names, in order.
-    """
-
-    robots: list[RobotResult]
-    collisions: int
-    duration: float
-    names: list[str] = field(default_factory=list)
 
 
 class ZoneGate:

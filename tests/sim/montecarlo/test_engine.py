@@ -22,7 +22,6 @@ import pyarrow.parquet as pq
 import pytest
 
 import scenarios
-import sim
 from scenarios.errors import OutputError, PlanningError, ScenarioError, SimulationError
 from scenarios.schema import PefModel
 from sim.montecarlo import engine as montecarlo
@@ -246,18 +245,25 @@ def test_killed_sweep_resumes_without_losing_or_duplicating_runs(tmp_path):
     _assert_same(fresh, out)
 
 
+def _fake_recording(monkeypatch, write_run_rrd) -> None:
+    """Make ``sim.recording.run.write_run_rrd`` (what a sweep records a run with) ``write_run_rrd``."""
+    import sim.recording
+
+    fake = SimpleNamespace(write_run_rrd=write_run_rrd)
+    # ``from sim.recording import run`` reads the package attribute once sim.recording.run was imported
+    monkeypatch.setitem(sys.modules, "sim.recording.run", fake)
+    monkeypatch.setattr(sim.recording, "run", fake, raising=False)
+
+
 def test_recordings_every_mth_run(tmp_path, two_tasks, monkeypatch):
     written = []
 
-    def write_episode_rrd(path, scenario, result, pef_map=None):
+    def write_run_rrd(path, scenario, result, pef_map=None):
         written.append(pef_map)
         Path(path).write_bytes(b"RRF2 fake " + result.scenario_name.encode())
         return Path(path)
 
-    fake = SimpleNamespace(write_episode_rrd=write_episode_rrd)
-    # ``from sim import recording`` reads the package attribute once sim.recording was imported
-    monkeypatch.setitem(sys.modules, "sim.recording", fake)
-    monkeypatch.setattr(sim, "recording", fake, raising=False)
+    _fake_recording(monkeypatch, write_run_rrd)
     monkeypatch.setattr(montecarlo, "recording_pef_map", lambda scenario: "the map")
     out = tmp_path / "rrd"
     sweep(two_tasks, out, runs=7, workers=1, api=fe.API, rrd_every=3, progress=False)
@@ -271,9 +277,7 @@ def test_a_failing_recording_keeps_the_run_and_warns(tmp_path, two_tasks, monkey
     def broken(path, scenario, result, pef_map=None):
         raise ValueError("no plan")
 
-    fake = SimpleNamespace(write_episode_rrd=broken)
-    monkeypatch.setitem(sys.modules, "sim.recording", fake)
-    monkeypatch.setattr(sim, "recording", fake, raising=False)
+    _fake_recording(monkeypatch, broken)
     monkeypatch.setattr(montecarlo, "recording_pef_map", lambda scenario: None)
     warnings = []
     out = tmp_path / "rrd-broken"
