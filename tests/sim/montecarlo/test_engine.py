@@ -22,7 +22,6 @@ import pyarrow.parquet as pq
 import pytest
 
 import scenarios
-import sim
 from scenarios.errors import OutputError, PlanningError, ScenarioError, SimulationError
 from scenarios.schema import PefModel
 from sim.montecarlo import engine as montecarlo
@@ -284,13 +283,9 @@ def test_recordings_every_mth_run(tmp_path, two_tasks, monkeypatch):
         Path(path).write_bytes(b"RRF2 fake " + result.scenario_name.encode())
         return Path(path)
 
-    fake = SimpleNamespace(write_episode_rrd=write_episode_rrd)
-    # ``from sim import recording`` reads the package attribute once sim.recording was imported
-    monkeypatch.setitem(sys.modules, "sim.recording", fake)
-    monkeypatch.setattr(sim, "recording", fake, raising=False)
     monkeypatch.setattr(montecarlo, "recording_pef_map", lambda scenario: "the map")
     out = tmp_path / "rrd"
-    sweep(two_tasks, out, runs=7, workers=1, api=fe.API, rrd_every=3, progress=False)
+    sweep(two_tasks, out, runs=7, workers=1, api=fe.API, rrd_every=3, progress=False, recorder=write_episode_rrd)
     assert sorted(p.name for p in (out / "recordings").iterdir()) == [
         "run-000000.rrd", "run-000003.rrd", "run-000006.rrd"]
     assert (out / "recordings" / "run-000003.rrd").read_bytes() == b"RRF2 fake paper-docks"
@@ -301,21 +296,18 @@ def test_a_failing_recording_keeps_the_run_and_warns(tmp_path, two_tasks, monkey
     def broken(path, scenario, result, pef_map=None):
         raise ValueError("no plan")
 
-    fake = SimpleNamespace(write_episode_rrd=broken)
-    monkeypatch.setitem(sys.modules, "sim.recording", fake)
-    monkeypatch.setattr(sim, "recording", fake, raising=False)
     monkeypatch.setattr(montecarlo, "recording_pef_map", lambda scenario: None)
     warnings = []
     out = tmp_path / "rrd-broken"
     sweep(two_tasks, out, runs=2, workers=1, api=fe.API, rrd_every=1, progress=False,
-          on_warning=warnings.append)
+          on_warning=warnings.append, recorder=broken)
     assert results.read_runs(out).column("status").to_pylist() == ["ok", "ok"]
     assert len(warnings) == 2 and "recording failed: ValueError: no plan" in warnings[0]
 
 
 def test_report_is_self_contained(serial_sweep, two_tasks):
     from estimators.consistency import clopper_pearson
-    from sim.report.page import write_report
+    from validation.report.page import write_report
 
     out, _ = serial_sweep
     x = (np.arange(40) + 0.5) * 0.5
