@@ -153,7 +153,7 @@ def robot_tables(run: int, seed: str, robot: Any, sch: Schemas, mode: StepsMode,
                  cpu_time: float | None) -> tuple[dict[str, Any], dict[str, np.ndarray] | None, dict[str, np.ndarray]]:
     """Return one robot's runs row, step columns (None: not kept) and fix columns of run ``run``.
 
-    ``robot`` is a :class:`~sim.episode.fleet.RobotResult`; a named one (a fleet's) also gets the
+    ``robot`` is a :class:`~sim.episode.types.RobotResult`; a named one (a fleet's) also gets the
     robot columns of ``sch`` (:func:`fleet_fix_columns`), ``names`` being the fleet's robots in order.
     """
     res = robot.result
