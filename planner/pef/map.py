@@ -129,8 +129,19 @@ class PEF:
             A marker counts only when it is seen from every position within this distance of
             the point too [m] (:func:`planner.pef.visibility.scenario_visible_points`).
         """
-        vis, _ = scenario_visible_points(self.scenario, _points(points), self.sight, widen)
-        return vis.T
+        return self._visibility(_points(points), widen).T
+
+    def _visibility(self, pts: np.ndarray, widen: float) -> np.ndarray:
+        """``scenario_visible_points(...)[0]`` (M, N), a copy; the last points asked are remembered.
+
+        A schedule asks :meth:`visible` and then :meth:`at` of the same samples.
+        """
+        key = (pts.tobytes(), pts.shape, float(widen), self.sight, id(self.scenario))
+        last = getattr(self, "_vis_last", None)
+        if last is None or last[0] != key:
+            vis, _ = scenario_visible_points(self.scenario, pts, self.sight, widen)
+            last = self._vis_last = (key, vis)
+        return last[1].copy()
 
     # --- evaluation ---------------------------------------------------------------------------
 
@@ -153,7 +164,7 @@ class PEF:
             fallback subsets.
         """
         pts = _points(points)
-        vis, _ = scenario_visible_points(self.scenario, pts, self.sight, widen)
+        vis = self._visibility(pts, widen)
         px, py = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
         return self._redundant(lambda v: self._evaluate(px, py, v), vis)
 
