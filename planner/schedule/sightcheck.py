@@ -110,11 +110,15 @@ def seen_within(scenario: Scenario, points: np.ndarray, delta: np.ndarray) -> np
     # a point's row depends on the point, its margin and the scenario's sight alone: rows are
     # remembered, and only points not asked before at their margin are tested (a schedule's
     # slow-down attempts ask again for every sample before the stretch they slowed)
-    memo = _SEEN.setdefault(pieces, {}).setdefault(
-        (markers.tobytes(), normals.tobytes(), tuple(float(b) for b in scenario.workspace.bounds),
-         float(sensor.max_range), float(sensor.max_incidence)), {})
-    if len(memo) > _SEEN_KEPT:
-        memo.clear()
+    layouts = _SEEN.setdefault(pieces, {})
+    key = (markers.tobytes(), normals.tobytes(), tuple(float(b) for b in scenario.workspace.bounds),
+           float(sensor.max_range), float(sensor.max_incidence))
+    memo = layouts.pop(key, None)
+    if memo is None or len(memo) > _SEEN_KEPT:
+        memo = {}
+    layouts[key] = memo  # the most recent last; placement's earlier layouts go first
+    while len(layouts) > _SEEN_LAYOUTS:
+        layouts.pop(next(iter(layouts)))
     p = np.ascontiguousarray(p)
     names = p.view(np.dtype((np.void, p.itemsize * 2))).ravel().tolist()
     for step in np.unique(steps[steps >= 0]).tolist():
@@ -133,5 +137,7 @@ def seen_within(scenario: Scenario, points: np.ndarray, delta: np.ndarray) -> np
 
 #: Rows of :func:`seen_within` kept per set of obstacles and sight inputs, by point and margin step.
 _SEEN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-#: Rows kept for one scenario's sight before they are forgotten at once (a row is M bytes).
+#: Rows kept for one layout's sight before they are forgotten at once (a row is M bytes).
 _SEEN_KEPT = 200_000
+#: Layouts (markers, sensor) kept per set of obstacles: placement plans one layout after another.
+_SEEN_LAYOUTS = 2
