@@ -47,6 +47,7 @@ import dataclasses
 import math
 import tomllib
 import warnings
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -244,8 +245,15 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     # the sites' visibility only: a PEF over them would list every pair of sites (4e6 for 3000
     # sites, past its limit), where a point's good pairs are among the few sites it sees
     points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points,
-                                                       widen=widen)[0].T)
+    # the same sites and points whatever the target: place_plannable's tighter covers reuse it
+    key = (points.tobytes(), np.ascontiguousarray(sites, dtype=float).tobytes(), kept, float(widen))
+    got = [e for e in _COVER_VIS if e[0]() is scenario and e[1] == key]
+    if got:
+        vis = got[0][2]
+    else:
+        vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points,
+                                                           widen=widen)[0].T)
+        _COVER_VIS[:] = [*_COVER_VIS[-(_COVER_VIS_KEPT - 1):], (weakref.ref(scenario), key, vis)]
     model = _model(scenario)
     kernel_model = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                     PefModel.GDOP: pef_kernels.GDOP}[model]
@@ -295,6 +303,12 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
                    row_ptr=np.searchsorted(er, np.arange(len(first_point) + 1)), ep=ep, ea=pj[ep], eb=pl[ep],
                    pj=pj, pl=pl, vis=np.ascontiguousarray(vis[first_point]), n_sites=n_sites)
     return cover, coverable
+
+
+#: The last visibility tables of :func:`build_cover`: (its scenario, weakly; its sites, points,
+#: kept markers and widening; the table, which is only read). A cover and its refinement's.
+_COVER_VIS: list = []
+_COVER_VIS_KEPT = 3
 
 
 def _search_seed(seed: int) -> int:
