@@ -65,10 +65,10 @@ def run(args: argparse.Namespace) -> int:
 
     result = pefsim.place(sc, method=args.method, out=args.output, png=args.png, plannable=not args.cover_only,
                           time_limit=args.time_limit, progress=progress)
-    wrote_toml = args.output is not None and len(result.layout()) >= sc.sensor.markers_per_fix
+    wrote_toml = result.written is not None
     n_bad = len(result.uncovered)
     if args.json:
-        print_json(result.summary())
+        print_json(result.to_dict())
         _refuse(sc, result, args.output is not None and not wrote_toml)
         return 0
     state = "optimal" if result.optimal else f"not proven optimal, lower bound {result.lower_bound}"

@@ -23,7 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import pefsim
     from cli import print_json
-    from sim.jsonable import json_number
+    from scenarios.jsonable import json_number
 
     scenario = pefsim.load(args.scenario)
     if scenario.is_fleet:
@@ -48,7 +48,7 @@ def _run_fleet(args: argparse.Namespace, scenario) -> int:
     import pefsim
     from cli import print_json
     from scenarios import ScenarioError
-    from sim.jsonable import json_number
+    from scenarios.jsonable import json_number
 
     if args.tum:
         raise ScenarioError(f"--tum: not yet for a fleet scenario ({scenario.source} has [[robots]])")

@@ -135,6 +135,8 @@ class PlacementResult:
     target: float = float("nan")
     unplanned: tuple = ()
     finest_spacing: float | None = None
+    written: Path | None = None
+    """The scenario TOML with these markers :func:`pefsim.place` wrote (None: not asked, or no fix possible)."""
 
     @property
     def new_ids(self) -> tuple[str, ...]:
@@ -145,8 +147,12 @@ class PlacementResult:
         """Every marker of the placed layout: the kept ones unchanged, then the added ones."""
         return self.kept + tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(self))
 
-    def summary(self) -> dict:
-        """Return the placement as a JSON-ready dict (positions in metres, facings in degrees).
+    def fixable(self, markers_per_fix: int) -> bool:
+        """Whether the layout has the ``markers_per_fix`` markers a fix needs (else there is nothing to write)."""
+        return len(self.layout()) >= markers_per_fix
+
+    def to_dict(self) -> dict:
+        """Return the placement as a JSON-ready dict (what ``pefsim place --json`` prints; metres, degrees).
 
         ``markers`` is the whole layout, each marker with ``new`` (added by this placement);
         ``count`` and ``lower_bound`` are of the added ones.
@@ -543,9 +549,8 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     """
     import scenarios as scn
 
-    layout = result.layout()
-    if len(layout) < scenario.sensor.markers_per_fix:
-        raise PlanningError(f"placement chose {len(layout)} markers, fewer than markers_per_fix = "
+    if not result.fixable(scenario.sensor.markers_per_fix):
+        raise PlanningError(f"placement chose {len(result.layout())} markers, fewer than markers_per_fix = "
                             f"{scenario.sensor.markers_per_fix}: nothing to write")
     data = None
     if scenario.text:

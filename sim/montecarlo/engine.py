@@ -27,6 +27,7 @@ import numpy as np
 
 from scenarios.errors import PefsimError, ScenarioError
 from scenarios.limits import MAX_RUNS
+from scenarios.output_names import check_output_names
 from scenarios.schema import Scenario
 from sim.montecarlo import directory, executors, lock, results
 from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
@@ -43,7 +44,6 @@ from sim.montecarlo.rows import (
 )
 from sim.montecarlo.steps import StepsMode, steps_mode
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
-from sim.output_names import check_output_names
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
            "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
@@ -275,9 +275,9 @@ def _one_line(exc: BaseException) -> str:
 def check_runs(runs: int) -> None:
     """Raise a one-line PefsimError unless 0 < ``runs`` <= MAX_RUNS (the file's own cap, montecarlo.runs)."""
     if runs <= 0:
-        raise ScenarioError(f"--runs: expected a positive number of runs, got {runs}")
+        raise ScenarioError(f"runs: expected a positive number of runs, got {runs}")
     if runs > MAX_RUNS:  # a row per run in every table
-        raise ScenarioError(f"--runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
+        raise ScenarioError(f"runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
 
 
 def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
@@ -286,15 +286,15 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
     if not scenario.tasks:
         raise ScenarioError(f"{scenario.source}: tasks: expected at least one [[tasks]] entry to drive")
     if task is not None and scenario.is_fleet:
-        raise ScenarioError(f"--task: {scenario.source} is a fleet ([[robots]]): every run drives all its robots' "
-                            f"tasks, got --task {task}")
+        raise ScenarioError(f"task: {scenario.source} is a fleet ([[robots]]): every run drives all its robots' "
+                            f"tasks, got task {task}")
     if task is not None and not 0 <= task < len(scenario.tasks):
-        raise ScenarioError(f"--task: expected 0 .. {len(scenario.tasks) - 1} "
+        raise ScenarioError(f"task: expected 0 .. {len(scenario.tasks) - 1} "
                             f"({len(scenario.tasks)} tasks in {scenario.source}), got {task}")
     if workers <= 0:
-        raise ScenarioError(f"--workers: expected a positive number, got {workers}")
+        raise ScenarioError(f"workers: expected a positive number, got {workers}")
     if rrd_every < 0:
-        raise ScenarioError(f"--rrd-every: expected 0 (none) or a positive period, got {rrd_every}")
+        raise ScenarioError(f"rrd_every: expected 0 (none) or a positive period, got {rrd_every}")
 
 
 def default_out(scenario: Scenario) -> Path:
@@ -359,12 +359,14 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     SweepSummary
     """
     kind = _executor_kind(executor)
+    if address and kind is not ExecutorKind.RAY:
+        raise ScenarioError(f"address: needs executor ray, got executor {kind.value}")
     if kind is ExecutorKind.RAY:
         executors.import_ray()
     if runs is not None:
         check_runs(runs)  # before the directory is made
-    check_output_names({"--out": out} if out is not None else {"--out (default mc-<scenario name>)":
-                                                                 default_out(scenario)})
+    check_output_names({"out": out} if out is not None else {"out (default mc-<scenario name>)":
+                                                               default_out(scenario)})
     out = Path(out) if out is not None else default_out(scenario)
     wanted = None if steps is None else steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
@@ -447,4 +449,4 @@ def _executor_kind(executor: ExecutorKind | str) -> ExecutorKind:
         return ExecutorKind(executor)
     except ValueError:
         choices = ", ".join(k.value for k in ExecutorKind)
-        raise ScenarioError(f"--executor: expected one of {choices}, got {executor!r}") from None
+        raise ScenarioError(f"executor: expected one of {choices}, got {executor!r}") from None

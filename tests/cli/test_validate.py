@@ -109,9 +109,9 @@ def test_from_rejects_another_scenario_and_sweep_flags(capsys, small_validated_s
 
 def test_bad_input_exits_2(capsys, tmp_path):
     _bad(capsys, [], "scenario: expected a scenario name or file")
-    _bad(capsys, ["paper-docks", "--alpha", "1.5"], "--alpha: expected a probability in (0, 1)")
-    _bad(capsys, ["paper-docks", "--q-scale", "-1"], "--q-scale: expected a positive number")
-    _bad(capsys, ["paper-docks", "--runs", "0"], "--runs: expected a positive number")
+    _bad(capsys, ["paper-docks", "--alpha", "1.5"], "alpha: expected a family false-alarm probability in (0, 1)")
+    _bad(capsys, ["paper-docks", "--q-scale", "-1"], "q_scale: expected a positive number")
+    _bad(capsys, ["paper-docks", "--runs", "0"], "runs: expected a positive number")
     _bad(capsys, ["--from", str(tmp_path)], "not a pefsim mc directory")
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "x").write_text("x")
