@@ -72,6 +72,7 @@ __all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "Pape
            "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet",
            "sweep", "validate", "validate_scenario", "watch", "worlds"]
 
+
 def load(scenario: str | Path) -> Scenario:
     """Load a scenario: a built-in name (``pefsim list``) or a TOML file.
 

@@ -147,6 +147,29 @@ class PlacementResult:
         """Every marker of the placed layout: the kept ones unchanged, then the added ones."""
         return self.kept + tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(self))
 
+    def shortfall(self, scenario: Scenario, *, unwritten: bool = False) -> str | None:
+        """Say in one line what the placement left undone (uncovered points, unplanned tasks), else None.
+
+        ``unwritten``: a scenario TOML was asked for (``out``) but not written (fewer than k markers).
+        """
+        n_bad, n_pts = len(self.uncovered), len(self.points)
+        if n_bad:
+            first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.uncovered[:3])
+            note = "; out not written: no markers" if unwritten else ""
+            if scenario.placement.candidates:
+                hint = ""
+            else:
+                finest = scenario.placement.spacing if self.finest_spacing is None else self.finest_spacing
+                hint = (f"; candidate sites were sampled down to {finest:g} m apart"
+                        + (": posts (placement.marker_kind) may cover them"
+                           if scenario.placement.marker_kind.value == "flat" else ""))
+            return (f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
+                    f"(first: {first}){hint}{note}")
+        if self.unplanned:
+            return (f"{len(self.unplanned)} of {len(scenario.tasks)} tasks have no admissible route on the "
+                    f"placed markers, even with the cover target at {self.target:g} m: {self.unplanned[0]}")
+        return None
+
     def fixable(self, markers_per_fix: int) -> bool:
         """Whether the layout has the ``markers_per_fix`` markers a fix needs (else there is nothing to write)."""
         return len(self.layout()) >= markers_per_fix
