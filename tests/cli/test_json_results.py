@@ -54,6 +54,12 @@ def test_worlds_print_each_worlds_record(capsys, monkeypatch, tmp_path):
     assert json.loads(capsys.readouterr().out) == printed([w.to_dict() for w in drawn])
 
 
+def test_list_prints_each_scenarios_overview(capsys):
+    assert cli.main(["list", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc == printed([pefsim.load(n).overview() for n in pefsim.builtin_names()]) and len(doc) > 5
+
+
 def test_a_document_the_command_changed_is_seen(capsys, monkeypatch):
     """Negative control: one value the command computed itself differs from the library's dict."""
     doc, result = run_json(capsys, monkeypatch, "pef_map", ["map", "paper-two-markers", "--resolution", "0.5"])
