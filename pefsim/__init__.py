@@ -9,7 +9,7 @@ file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s
     p = pefsim.plan(sc)                                  # Plan of task 0
     placed = pefsim.place(sc)                            # Placement
     pefsim.export(sc, lif="routes.lif")                  # files for the tools downstream
-    r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
+    r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult (a fleet's: FleetResult)
     sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # SweepSummary of the finished sweep
     rep = pefsim.validate(sw)                            # ValidationReport
     rep = pefsim.validate_scenario(sc, runs=4)           # the same, sweeping into a temporary folder
@@ -39,13 +39,14 @@ if TYPE_CHECKING:
     from planner.pef.result import PefMap
     from planner.placement.placement import PlacementResult as Placement
     from planner.plan import Plan
-    from sim.episode.types import EpisodeResult
+    from sim.episode.types import EpisodeResult, FleetResult
     from sim.montecarlo.summary import SweepSummary
     from validation.paper.page import PaperPage
     from validation.suite import ValidationReport
 
 _TYPES = {"PefMap": ("planner.pef.result", "PefMap"), "Placement": ("planner.placement.placement", "PlacementResult"),
           "Plan": ("planner.plan", "Plan"), "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
+          "FleetResult": ("sim.episode.types", "FleetResult"),
           "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"),
           "PaperPage": ("validation.paper.page", "PaperPage"),
           "ValidationReport": ("validation.suite", "ValidationReport"),
@@ -67,10 +68,10 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "PaperPage", "PefMap", "PefsimError",
-           "Placement", "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export",
-           "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet",
-           "sweep", "validate", "validate_scenario", "watch", "worlds"]
+__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "FleetResult", "PaperPage", "PefMap",
+           "PefsimError", "Placement", "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names",
+           "export", "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "sweep",
+           "validate", "validate_scenario", "watch", "worlds"]
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -363,93 +364,62 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
     return write_exports(_scenario(scenario), asked)
 
 
-def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, task: int = 0,
-                rrd: str | Path | None = None, tum: str | Path | None = None) -> EpisodeResult:
-    """Drive one episode in PyBullet: plan, follow on the EKF estimate, measure, estimate.
+def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, task: int | None = None,
+                rrd: str | Path | None = None, tum: str | Path | None = None) -> EpisodeResult | FleetResult:
+    """Drive one run in PyBullet: plan, follow on the EKF estimate, measure, estimate.
 
-    Outputs are checked before the episode is driven (a recording's folder; the TUM folder is
-    created) and written at exactly the paths given.
+    A scenario without ``[[robots]]`` runs its lone robot through one task; one with
+    ``[[robots]]`` runs every robot through its tasks, together, under zone control. Outputs
+    are checked before the run is driven (a recording's folder; the TUM folder is created) and
+    written at exactly the paths given.
 
     Parameters
     ----------
     scenario : Scenario, str or path
     seed : int, optional
-        Root of the episode's random streams (same seed, same numbers); default the scenario's.
-    task : int
-        Index into ``scenario.tasks``.
+        Root of the run's random streams (same seed, same numbers); default the scenario's.
+    task : int, optional
+        Index into ``scenario.tasks`` of the lone robot's task (default 0); a fleet's robots
+        drive their own (refused for a fleet).
     rrd : str or path, optional
-        Write a rerun recording of the episode here.
+        Write a rerun recording of the run here.
     tum : str or path, optional
-        Write ``groundtruth.txt`` and ``estimate.txt`` (TUM format) into this directory.
+        Write ``groundtruth.txt`` and ``estimate.txt`` (TUM format) into this directory (a
+        fleet's: into a folder per robot, named for it).
 
     Returns
     -------
-    EpisodeResult
-        ``steps`` (per control step: poses, covariance, error, NEES), ``fixes`` (per fix: the
-        realised fault area against its promise), ``plan`` and ``summary`` (with what the run did:
-        ``status`` ok / collided / stuck, ``collisions``, the first contact, the longest stall,
-        :mod:`sim.episode.outcome`).
+    EpisodeResult or FleetResult
+        A lone robot's episode: ``steps`` (per control step: poses, covariance, error, NEES),
+        ``fixes`` (per fix: the realised fault area against its promise), ``plan`` and ``summary``
+        (with what the run did: ``status`` ok / collided / stuck, ``collisions``, the first
+        contact, the longest stall, :mod:`sim.episode.outcome`). A fleet's: per robot (``robots``)
+        its episode over all its tasks (summary keys as a lone robot's plus ``robot``,
+        ``arrival``, ``wait_time`` [s], ``robot_blocked`` and ``deadlocked``), how often the
+        robots' footprints overlapped (``collisions``) and the duration. Both give ``robots``,
+        ``to_dict()`` and ``lines(scenario)``.
     """
     from scenarios import SimulationError
-    from sim.episode.drive import check_task, prepare
-    from sim.episode.drive import run_episode as _run
+    from sim.episode import run
 
     sc = _scenario(scenario)
-    check_task(sc, task)
+    task = run.check_episode_task(sc, task)
     seed = sc.seed if seed is None else seed
     if seed < 0:
         raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
     _check_outputs(rrd=rrd, folder=tum, named={"rrd": rrd, "tum": tum})
-    prepared = prepare(sc, task)
-    result = _run(sc, task, seed=seed, prepared=prepared)
+    prepared = run.prepare(sc, task)
+    result = run.run(sc, task, seed=seed, prepared=prepared)
     if tum is not None:
         from interop.export.tum import write_tum
 
-        write_tum(tum, result.steps.t, result.steps.true_pose, result.steps.est_pose)
+        for r in result.robots:
+            steps = r.result.steps
+            write_tum(Path(tum) if r.name is None else Path(tum) / r.name, steps.t, steps.true_pose, steps.est_pose)
     if rrd is not None:
-        from interop.recording import write_episode_rrd
+        from interop.recording.run import write_run_rrd
 
-        write_episode_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
-    return result
-
-
-def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: str | Path | None = None):
-    """Drive a fleet scenario's robots (``[[robots]]``) together once, under zone control.
-
-    Parameters
-    ----------
-    scenario : Scenario, str or path
-        A scenario with ``[[robots]]``.
-    seed : int, optional
-        Root of the episode's random streams; default the scenario's.
-    rrd : str or path, optional
-        Write a rerun recording of the fleet here (:mod:`interop.recording.fleet`).
-
-    Returns
-    -------
-    sim.episode.fleet.FleetResult
-        Per robot its :class:`EpisodeResult` over all its tasks (summary keys as
-        :func:`run_episode`'s, what the run did among them (``status``, ``collisions``: contact
-        episodes of its body, ``stuck``, ``deadlocked``, ...: :mod:`sim.episode.outcome`), plus ``robot``,
-        ``wait_time`` [s] and ``robot_blocked``), and how often the robots' footprints overlapped
-        (``collisions``) and the duration.
-    """
-    from scenarios import SimulationError
-    from sim.episode.fleet import prepare_fleet, run_fleet_episode
-
-    sc = _scenario(scenario)
-    if not sc.is_fleet:
-        raise SimulationError(f"{sc.source}: robots: not a fleet scenario (no [[robots]]): use run_episode")
-    seed = sc.seed if seed is None else seed
-    if seed < 0:
-        raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
-    _check_outputs(rrd=rrd)
-    prepared = prepare_fleet(sc)
-    result = run_fleet_episode(sc, seed=seed, prepared=prepared)
-    if rrd is not None:
-        from interop.recording.fleet import write_fleet_rrd
-
-        write_fleet_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
+        write_run_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
     return result
 
 
@@ -504,14 +474,12 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
     from scenarios import ScenarioError
     from sim.episode.drive import check_markers
     from sim.montecarlo.engine import sweep as _sweep
-    from sim.montecarlo.negative_control import check_q_scale, mark, read_mark, scaled_api
+    from sim.montecarlo.negative_control import check_alone, check_q_scale, mark, read_mark, scaled_api
 
     sc = _scenario(scenario)
     check_markers(sc)  # before the output directory is made
     q_scale = check_q_scale(q_scale)
-    alone = bool(alone)
-    if alone and not sc.is_fleet:
-        raise ScenarioError(f"{sc.source}: alone: {sc.name} is not a fleet scenario (no [[robots]])")
+    alone = check_alone(sc, alone)
     control = q_scale != 1.0 or alone
     if resume and out is not None and Path(out).is_dir() and read_mark(out) != (q_scale, alone):
         raise ScenarioError(f"{out}: resume: its runs were made with (q_scale, alone) = {read_mark(out)}, "
@@ -531,7 +499,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
         from interop.recording.run import write_run_rrd as recorder
     summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
                      resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
-                     api=scaled_api(q_scale, sc.is_fleet, alone) if control else None, then=then,
+                     api=scaled_api(q_scale, alone) if control else None, then=then,
                      recorder=recorder)
     return dataclasses.replace(summary, report=str(written[0]) if written else None)
 

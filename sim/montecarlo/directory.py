@@ -24,7 +24,7 @@ from scenarios.schema import Scenario
 from sim.episode.types import ran as finished
 from sim.montecarlo import lock, parts, results
 from sim.montecarlo.results import SweepLayout
-from sim.montecarlo.rows import schemas
+from sim.montecarlo.rows import FLEET, schemas, table_schemas
 from sim.montecarlo.steps import StepsMode
 
 SWEEP_FORMAT = 2
@@ -103,7 +103,7 @@ def init_sweep_dir(layout: SweepLayout, scenario: Scenario, task: int | None, ru
     results.write_atomic(layout.scenario_toml, scenario.text.encode("utf-8"))
     settings = {"format": SWEEP_FORMAT, "scenario": scenario.name, "task": task, "runs": runs,
                 "steps": steps.value}
-    if scenario.is_fleet:  # its tables have a row per robot (sim.montecarlo.rows.FLEET)
+    if table_schemas(scenario) is FLEET:  # its tables have a row per robot
         settings["fleet"] = True
     write_settings(layout, settings)
 
