@@ -18,8 +18,8 @@ import pyarrow as pa
 
 from scenarios import loads
 from scenarios.errors import OutputError, ScenarioWarning
+from scenarios.jsonable import json_number
 from scenarios.schema import Scenario
-from sim.jsonable import json_number
 from sim.montecarlo import lock, results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
 from sim.montecarlo.negative_control import read_mark

@@ -23,8 +23,8 @@ from validation import outcome
 from validation.checks import CHECKS, Check
 from validation.data import CheckResult, CheckStatus, SweepData, from_tables, load_sweep
 
-__all__ = ["CHECKS", "CheckResult", "CheckStatus", "SweepData", "ValidationReport", "from_tables", "load_sweep",
-           "validate", "validation_rng"]
+__all__ = ["CHECKS", "CheckResult", "CheckStatus", "SweepData", "ValidationReport", "check_alpha", "from_tables",
+           "load_sweep", "validate", "validation_rng"]
 
 DEFAULT_ALPHA = 0.01
 """Family false-alarm probability of ``pefsim validate``."""
@@ -62,6 +62,11 @@ class ValidationReport:
         A fleet's robots: the plan's longest predicted wait against the simulated ones.
     missing : int
         Runs the sweep was asked for that have not finished (an interrupted sweep).
+    sweep : str or None
+        The sweep directory judged, None when it was a temporary one, deleted since
+        (``pefsim.validate_scenario`` without ``out``).
+    wall_time : float or None
+        Seconds the sweep (if one was run) and the validation took; None: not measured.
     """
 
     scenario: str
@@ -77,6 +82,8 @@ class ValidationReport:
     causes: list[str] = field(default_factory=list)
     waits: list[str] = field(default_factory=list)
     missing: int = 0
+    sweep: str | None = None
+    wall_time: float | None = None
 
     @property
     def failed(self) -> list[str]:
@@ -101,12 +108,19 @@ class ValidationReport:
                 "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "alone": self.alone,
                 "causes": list(self.causes), "waits": list(self.waits), "missing_runs": self.missing,
                 "passed": self.passed,
-                "failed": self.failed, "checks": [c.to_dict() for c in self.checks]}
+                "failed": self.failed, "checks": [c.to_dict() for c in self.checks], "sweep": self.sweep,
+                "wall_time": self.wall_time}
 
 
 def validation_rng(data: SweepData) -> np.random.Generator:
     """Return the null-model generator of a sweep: seeded from its scenario, apart from the runs' streams."""
     return np.random.default_rng(np.random.SeedSequence(data.scenario.seed, spawn_key=(NULL_STREAM,)))
+
+
+def check_alpha(alpha: float) -> None:
+    """Raise a one-line SimulationError unless ``alpha`` is a probability in (0, 1)."""
+    if isinstance(alpha, bool) or not (isinstance(alpha, float | int) and 0.0 < alpha < 1.0):
+        raise SimulationError(f"alpha: expected a family false-alarm probability in (0, 1), got {alpha!r}")
 
 
 def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Generator | None = None,
@@ -130,8 +144,7 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
     -------
     ValidationReport
     """
-    if not (isinstance(alpha, float | int) and 0.0 < alpha < 1.0):
-        raise SimulationError(f"alpha: expected a family false-alarm probability in (0, 1), got {alpha!r}")
+    check_alpha(alpha)
     rng = rng if rng is not None else validation_rng(data)
     why_not = {c.name: c.why_not(data) for c in checks}
     m = sum(1 for c in checks if c.statistical and why_not[c.name] is None)

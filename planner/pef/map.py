@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -197,7 +198,7 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
-        return self.cells(x, y, cell_size=(size[0] / x.size, size[1] / y.size))
+        return replace(self.cells(x, y, cell_size=(size[0] / x.size, size[1] / y.size)), resolution=res)
 
     def cells(self, x: np.ndarray, y: np.ndarray, cell_size: tuple[float, float] | None = None) -> PefMap:
         """Evaluate the PEF on the grid of cell centres ``x`` x ``y`` (a window of :meth:`grid`'s).
@@ -231,7 +232,8 @@ class PEF:
                 float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
                 sc.marker_normals(), self.sensor.max_incidence, self.rule)
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                          cell_size=cell_size, redundancy=self.redundancy, tau_plain=tau_plain)
+                          cell_size=cell_size, redundancy=self.redundancy, tau_plain=tau_plain,
+                          eps_max=sc.planning.eps_max)
         vis, free = scenario_visible_grid(self.scenario, x, y, self.sight)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
@@ -244,7 +246,8 @@ class PEF:
         shape = (y.size, x.size)
         return PefMap(x=x, y=y, tau=r.tau.reshape(shape), best=r.best.reshape(*shape, self.k), free=free,
                       model=self.model, cell_size=cell_size,
-                      redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape))
+                      redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape),
+                      eps_max=self.scenario.planning.eps_max)
 
     def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:
         """Evaluate the model's error of given marker subsets at points.

@@ -136,6 +136,8 @@ class PlacementResult:
     target: float = float("nan")
     unplanned: tuple = ()
     finest_spacing: float | None = None
+    written: Path | None = None
+    """The scenario TOML with these markers :func:`pefsim.place` wrote (None: not asked, or no fix possible)."""
 
     @property
     def new_ids(self) -> tuple[str, ...]:
@@ -146,8 +148,35 @@ class PlacementResult:
         """Every marker of the placed layout: the kept ones unchanged, then the added ones."""
         return self.kept + tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(self))
 
-    def summary(self) -> dict:
-        """Return the placement as a JSON-ready dict (positions in metres, facings in degrees).
+    def shortfall(self, scenario: Scenario, *, unwritten: bool = False) -> str | None:
+        """Say in one line what the placement left undone (uncovered points, unplanned tasks), else None.
+
+        ``unwritten``: a scenario TOML was asked for (``out``) but not written (fewer than k markers).
+        """
+        n_bad, n_pts = len(self.uncovered), len(self.points)
+        if n_bad:
+            first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.uncovered[:3])
+            note = "; out not written: no markers" if unwritten else ""
+            if scenario.placement.candidates:
+                hint = ""
+            else:
+                finest = scenario.placement.spacing if self.finest_spacing is None else self.finest_spacing
+                hint = (f"; candidate sites were sampled down to {finest:g} m apart"
+                        + (": posts (placement.marker_kind) may cover them"
+                           if scenario.placement.marker_kind.value == "flat" else ""))
+            return (f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
+                    f"(first: {first}){hint}{note}")
+        if self.unplanned:
+            return (f"{len(self.unplanned)} of {len(scenario.tasks)} tasks have no admissible route on the "
+                    f"placed markers, even with the cover target at {self.target:g} m: {self.unplanned[0]}")
+        return None
+
+    def fixable(self, markers_per_fix: int) -> bool:
+        """Whether the layout has the ``markers_per_fix`` markers a fix needs (else there is nothing to write)."""
+        return len(self.layout()) >= markers_per_fix
+
+    def to_dict(self) -> dict:
+        """Return the placement as a JSON-ready dict (what ``pefsim place --json`` prints; metres, degrees).
 
         ``markers`` is the whole layout, each marker with ``new`` (added by this placement);
         ``count`` and ``lower_bound`` are of the added ones.
@@ -557,9 +586,8 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     """
     import scenarios as scn
 
-    layout = result.layout()
-    if len(layout) < scenario.sensor.markers_per_fix:
-        raise PlanningError(f"placement chose {len(layout)} markers, fewer than markers_per_fix = "
+    if not result.fixable(scenario.sensor.markers_per_fix):
+        raise PlanningError(f"placement chose {len(result.layout())} markers, fewer than markers_per_fix = "
                             f"{scenario.sensor.markers_per_fix}: nothing to write")
     data = None
     if scenario.text:

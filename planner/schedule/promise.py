@@ -856,10 +856,10 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
     from scenarios.errors import PlanningError
 
     if scenario.sensor.markers_per_fix != 2:
-        raise PlanningError(f"--speed: the motion-aware map needs markers_per_fix = 2, got "
+        raise PlanningError(f"speed: the motion-aware map needs markers_per_fix = 2, got "
                             f"{scenario.sensor.markers_per_fix}")
     if not (speed >= 0.0 and math.isfinite(speed)):
-        raise PlanningError(f"--speed: expected a speed >= 0 m/s, got {speed}")
+        raise PlanningError(f"speed: expected a speed >= 0 m/s, got {speed}")
     static = pef.grid(resolution)
     xx, yy = np.meshgrid(static.x, static.y)
     xy = np.column_stack([xx.ravel(), yy.ravel()])
@@ -894,4 +894,4 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
             best[win] = (first, second)
     shape = static.tau.shape
     tau = np.where(static.free.ravel(), tau, np.inf).reshape(shape)
-    return replace(static, tau=tau, best=best.reshape(*shape, 2))
+    return replace(static, tau=tau, best=best.reshape(*shape, 2), speed=float(speed))

@@ -35,10 +35,10 @@ def check_task(scenario: Scenario, task: int | None) -> None:
     if task is None:
         return
     if scenario.robots:
-        raise ScenarioError(f"--task: {scenario.source} is a fleet ([[robots]]): every run drives all its robots' "
-                            f"tasks, got --task {task}")
+        raise ScenarioError(f"task: {scenario.source} is a fleet ([[robots]]): every run drives all its robots' "
+                            f"tasks, got task {task}")
     if not 0 <= task < len(scenario.tasks):
-        raise ScenarioError(f"--task: expected 0 .. {len(scenario.tasks) - 1} "
+        raise ScenarioError(f"task: expected 0 .. {len(scenario.tasks) - 1} "
                             f"({len(scenario.tasks)} tasks in {scenario.source}), got {task}")
 
 

@@ -183,7 +183,7 @@ class EpisodeResult:
 
     def to_dict(self) -> dict[str, Any]:
         """Return the summary with JSON numbers (NaN and infinities as null), as ``pefsim run --json`` prints it."""
-        from sim.jsonable import json_number
+        from scenarios.jsonable import json_number
 
         return {k: json_number(v) for k, v in self.summary.items()}
 
@@ -244,7 +244,7 @@ class FleetResult:
 
     def to_dict(self) -> dict[str, Any]:
         """Return the run as ``pefsim run --json`` prints it: overlaps, duration and each robot's summary."""
-        from sim.jsonable import json_number
+        from scenarios.jsonable import json_number
 
         return {"collisions": self.collisions, "duration": self.duration,
                 "robots": [{k: json_number(v) for k, v in r.result.summary.items()} for r in self.robots]}

@@ -27,6 +27,7 @@ import numpy as np
 
 from scenarios.errors import PefsimError, ScenarioError
 from scenarios.limits import MAX_RUNS
+from scenarios.output_names import check_output_names
 from scenarios.schema import Scenario
 from sim.montecarlo import directory, executors, lock, results
 from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
@@ -36,7 +37,6 @@ from sim.montecarlo.results import RunRecord, SweepLayout
 from sim.montecarlo.rows import SINGLE, Schemas, concat_columns, robot_tables, run_row, table_schemas
 from sim.montecarlo.steps import StepsMode, steps_mode
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
-from sim.output_names import check_output_names
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
            "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
@@ -233,9 +233,9 @@ def _one_line(exc: BaseException) -> str:
 def check_runs(runs: int) -> None:
     """Raise a one-line PefsimError unless 0 < ``runs`` <= MAX_RUNS (the file's own cap, montecarlo.runs)."""
     if runs <= 0:
-        raise ScenarioError(f"--runs: expected a positive number of runs, got {runs}")
+        raise ScenarioError(f"runs: expected a positive number of runs, got {runs}")
     if runs > MAX_RUNS:  # a row per run in every table
-        raise ScenarioError(f"--runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
+        raise ScenarioError(f"runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
 
 
 def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
@@ -247,9 +247,9 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
 
     check_task(scenario, task)
     if workers <= 0:
-        raise ScenarioError(f"--workers: expected a positive number, got {workers}")
+        raise ScenarioError(f"workers: expected a positive number, got {workers}")
     if rrd_every < 0:
-        raise ScenarioError(f"--rrd-every: expected 0 (none) or a positive period, got {rrd_every}")
+        raise ScenarioError(f"rrd_every: expected 0 (none) or a positive period, got {rrd_every}")
 
 
 def default_out(scenario: Scenario) -> Path:
@@ -314,12 +314,14 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     SweepSummary
     """
     kind = _executor_kind(executor)
+    if address and kind is not ExecutorKind.RAY:
+        raise ScenarioError(f"address: needs executor ray, got executor {kind.value}")
     if kind is ExecutorKind.RAY:
         executors.import_ray()
     if runs is not None:
         check_runs(runs)  # before the directory is made
-    check_output_names({"--out": out} if out is not None else {"--out (default mc-<scenario name>)":
-                                                                 default_out(scenario)})
+    check_output_names({"out": out} if out is not None else {"out (default mc-<scenario name>)":
+                                                               default_out(scenario)})
     out = Path(out) if out is not None else default_out(scenario)
     wanted = None if steps is None else steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
@@ -403,4 +405,4 @@ def _executor_kind(executor: ExecutorKind | str) -> ExecutorKind:
         return ExecutorKind(executor)
     except ValueError:
         choices = ", ".join(k.value for k in ExecutorKind)
-        raise ScenarioError(f"--executor: expected one of {choices}, got {executor!r}") from None
+        raise ScenarioError(f"executor: expected one of {choices}, got {executor!r}") from None

@@ -251,5 +251,5 @@ def _read(layout: SweepLayout, found: list[Path], schema: pa.Schema, columns: li
         return parts.read_parts(found, schema, columns)
     except parts.DamagedPartError as exc:
         # Skipping the run instead would change every count and N-run statistic without a trace.
-        raise OutputError(f"{exc}; pefsim mc SCENARIO --out {layout.root} --resume moves it aside and redoes "
+        raise OutputError(f"{exc}; resuming the sweep in {layout.root} moves it aside and redoes "
                           "its run") from None
