@@ -53,7 +53,7 @@ def _variant(tmp_path, name: str, extra: str, replace: tuple[str, str] = ("", ""
     return str(path)
 
 
-UNIFORM_BUILTIN = {"containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
+UNIFORM_BUILTIN = {"runs": PASS, "containment": PASS, "promise": PASS, "bound": PASS, "tightness": PASS, "coverage": NA,
                    "nees": PASS, "nis": PASS, "nees_nrun": PASS, "nis_nrun": PASS, "plan": PASS,
                    "blocking": NA}  # a lone robot: no robot blocks its lines of sight
 
@@ -158,7 +158,7 @@ def test_gaussian_coverage_and_its_negative_control(capsys, tmp_path):
     status = _status(report)
     # with 12 runs the thinned per-step NEES may keep fewer than 10 steps (then not applicable)
     assert status.pop("nees_nrun") in (PASS, NA)
-    assert status == {"containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
+    assert status == {"runs": PASS, "containment": NA, "promise": NA, "bound": NA, "tightness": NA, "coverage": PASS,
                       "nees": PASS, "nis": PASS, "nis_nrun": PASS, "plan": PASS, "blocking": NA}
     noisy = _variant(tmp_path, "paper-two-markers", "[sensor.actual]\nrelative_error = 2.0e-4\n"
                      "absolute_error = 0.0003\n", gauss)
