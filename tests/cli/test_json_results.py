@@ -66,3 +66,11 @@ def test_a_document_the_command_changed_is_seen(capsys, monkeypatch):
     expected = printed(result.to_dict())
     doc["fraction_navigable"] += 1e-9
     assert doc != expected
+
+
+def test_a_fleets_plan_prints_its_dict(capsys, monkeypatch):
+    """A fleet scenario's plan (no task, no docks) is the fleet's summary; the printed JSON is its dict."""
+    doc, result = run_json(capsys, monkeypatch, "plan", ["plan", "warehouse-fleet", "--alone"])
+    assert isinstance(result, pefsim.FleetPlanSummary) and not result.traffic
+    assert doc == printed(result.to_dict())
+    assert [r["name"] for r in doc["robots"]] == [r.name for r in pefsim.load("warehouse-fleet").robots]
