@@ -36,8 +36,8 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
     from interop.export.files import Exported
-    from planner.pef.result import PefMap
     from planner.fleet.summary import FleetPlanSummary
+    from planner.pef.result import PefMap
     from planner.placement.placement import PlacementResult as Placement
     from planner.plan import Plan
     from sim.episode.types import EpisodeResult, FleetResult
@@ -70,10 +70,10 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "FleetPlanSummary", "FleetResult", "PaperPage", "PefMap",
-           "PefsimError", "Placement", "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names",
-           "export", "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "sweep",
-           "validate", "validate_scenario", "watch", "worlds"]
+__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "FleetPlanSummary", "FleetResult",
+           "PaperPage", "PefMap", "PefsimError", "Placement", "Plan", "Scenario", "SweepSummary", "ValidationReport",
+           "builtin_names", "export", "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet",
+           "run_episode", "sweep", "validate", "validate_scenario", "watch", "worlds"]
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -190,10 +190,11 @@ def plan(scenario: Scenario | str | Path, task: int | None = None, *, start: str
         Free-space search (True) or the route network (False); default the network if any.
     out : str or path, optional
         Write the figure of the plan over the PEF map here (``.png``, ``.pdf`` or ``.svg``;
-        checked before planning; refused for a fleet's plan, which draws none).
+        checked before planning).
     rrd : str or path, optional
-        Write a rerun recording of the map, the candidate routes and the schedule here (refused
-        for a fleet's plan).
+        Write a rerun recording of the map, the candidate routes and the schedule here.
+        ``free``, ``out`` and ``rrd`` are refused for a fleet's plan (it neither searches free
+        space nor draws).
     traffic : bool
         A fleet's plan: the traffic-aware measurement schedules; False: each robot's as if it
         drove alone (a lone robot plans alone anyway).
@@ -214,10 +215,10 @@ def plan(scenario: Scenario | str | Path, task: int | None = None, *, start: str
     if (start is None) != (goal is None):
         raise PlanningError("plan: give both start and goal, or neither (then a task is planned)")
     if sc.robots and start is None and task is None:
-        for name, value in (("out", out), ("rrd", rrd)):
+        for name, value, what in (("out", out, "its plan draws no figure"), ("rrd", rrd, "its plan writes no "
+                                  "recording"), ("free", free, "each robot is planned with the default search")):
             if value is not None:
-                raise PlanningError(f"{name}: {sc.source} is a fleet ([[robots]]): its plan writes no figure "
-                                    f"or recording, got {value}")
+                raise PlanningError(f"{name}: {sc.source} is a fleet ([[robots]]): {what}, got {value}")
         from planner.fleet.summary import FleetPlanSummary
 
         fleet, robots = plan_fleet(sc, traffic=traffic)

@@ -40,13 +40,13 @@ def test_outputs_only_where_told(two_markers, tmp_path):
     assert r.written == [tmp_path / "tum" / "groundtruth.txt", tmp_path / "tum" / "estimate.txt"]
 
 
-def test_a_fleets_plan_refuses_a_figure_it_would_not_draw(tmp_path):
-    """A fleet's plan draws no figure or recording: asked for one, it says so and writes nothing."""
+def test_a_fleets_plan_refuses_what_it_would_not_do(tmp_path):
+    """A fleet's plan draws no figure or recording and searches no free space: asked, it says so, writes nothing."""
     from scenarios import loads
     from tests.sim.fleets import CROSS
 
     cross = loads(CROSS, source="cross.toml")
-    for kwargs in (dict(out=tmp_path / "f.png"), dict(rrd=tmp_path / "f.rrd")):
+    for kwargs in (dict(out=tmp_path / "f.png"), dict(rrd=tmp_path / "f.rrd"), dict(free=True)):
         name = next(iter(kwargs))
         with pytest.raises(pefsim.PefsimError, match=rf"^{name}: cross\.toml is a fleet"):
             pefsim.plan(cross, **kwargs)
