@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import math
 
-from scenarios.jsonable import json_number
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help="candidate routes, criteria table, choice, schedule")
@@ -23,45 +21,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="a fleet: schedule each robot as if it drove alone (no traffic prediction)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run)
-
-
-def _fleet(args: argparse.Namespace, sc) -> int:
-    import pefsim
-    from cli import print_json
-    from planner.fleet.summary import fleet_density
-
-    fleet, summary = pefsim.plan_fleet(sc, traffic=not args.alone)
-    if args.json:
-        near, far = fleet_density(summary)
-        print_json({"scenario": sc.name, "traffic": fleet.traffic,
-                    "robots": [{k: json_number(v) for k, v in r.to_dict().items()} for r in summary],
-                    "fleet": {"fixes_per_m_near": json_number(near), "fixes_per_m_far": json_number(far)}})
-        return 0
-    mode = "each scheduled as if it drove alone" if args.alone else "traffic-aware schedules"
-    print(f"{sc.name}: a fleet of {len(summary)} robots, eps_max {sc.planning.eps_max * 1000:g} mm, {mode}")
-    head = (f"{'robot':<8} {'tasks':<22} {'fixes':>5} {'E blocked LOS':>13} {'E blocked fixes':>15} "
-            f"{'unprotected':>11} {'wait[s]':>7} {'time[s]':>7} {'alone[s]':>8} {'traffic[s]':>10} "
-            f"{'fix/m near':>10} {'fix/m else':>10}")
-    print(head)
-    print("-" * len(head))
-    for r in summary:
-        tasks = ", ".join(r.tasks)
-        tasks = tasks if len(tasks) <= 22 else tasks[:19] + "..."
-        print(f"{r.name:<8} {tasks:<22} {r.fixes:5d} {r.expected_blocked_los:13.2f} {r.expected_blocked_fixes:15.2f} "
-              f"{r.expected_unprotected:11.2f} {r.wait_time:7.1f} {r.time:7.1f} {r.alone_time:8.1f} "
-              f"{r.traffic_cost:+10.1f} {r.fixes_per_m_near:10.2f} {r.fixes_per_m_far:10.2f}")
-    near, far = fleet_density(summary)
-    los, fixes = sum(r.expected_blocked_los for r in summary), sum(r.expected_blocked_fixes for r in summary)
-    print(f"{'fleet':<8} {'':<22} {sum(r.fixes for r in summary):5d} {los:13.2f} {fixes:15.2f} "
-          f"{sum(r.expected_unprotected for r in summary):11.2f} {'':>7} {'':>7} {'':>8} {'':>10} "
-          f"{near:10.2f} {far:10.2f}")
-    if fleet.note is not None and fleet.note.unprotected:
-        left = ", ".join(f"{name} task {q}" for name, q in fleet.note.unprotected)
-        print(f"not protected (no schedule survives a hidden marker there even slowed): {left}")
-    print("E: expected over the timing spread of the robots; unprotected: blocked fixes without a fallback "
-          "for every marker; traffic: time - alone (waits and slow-downs); near: within 1 m of a fix that, planned "
-          "alone, others would likely hide; fleet: the robots' fixes near and elsewhere over their lengths there")
-    return 0
 
 
 def _table(plan) -> str:
@@ -88,10 +47,14 @@ def run(args: argparse.Namespace) -> int:
     from cli import print_json
 
     sc = pefsim.load(args.scenario)
-    if sc.is_fleet and args.start is None and args.goal is None:
-        return _fleet(args, sc)
     plan = pefsim.plan(sc, start=args.start, goal=args.goal, free=True if args.free else None, out=args.output,
-                       rrd=args.rrd)
+                       rrd=args.rrd, traffic=not args.alone)
+    if isinstance(plan, pefsim.FleetPlanSummary):  # a fleet's plan: a row per robot, no routes to compare
+        if args.json:
+            print_json(plan.to_dict())
+        else:
+            print(plan)
+        return 0
     if args.json:
         print_json(plan.to_dict(sc))
         return 0

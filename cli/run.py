@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,13 +31,6 @@ def run(args: argparse.Namespace) -> int:
         print_json(result.to_dict())
         return 0
     print("\n".join(result.lines(scenario)))
-    if args.tum:
-        from interop.export.tum import TUM_FILES
-
-        for r in result.robots:
-            folder = Path(args.tum) if r.name is None else Path(args.tum) / r.name
-            for name in TUM_FILES:
-                print(f"wrote {folder / name}")
-    if args.rrd:
-        print(f"wrote {args.rrd}")
+    for path in result.written:
+        print(f"wrote {path}")
     return 0

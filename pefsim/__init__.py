@@ -6,7 +6,7 @@ file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s
     import pefsim
     sc = pefsim.load("paper-docks")                      # Scenario
     m = pefsim.pef_map(sc)                               # PefMap (x, y, tau, best)
-    p = pefsim.plan(sc)                                  # Plan of task 0
+    p = pefsim.plan(sc)                                  # Plan of task 0 (a fleet's: FleetPlanSummary)
     placed = pefsim.place(sc)                            # Placement
     pefsim.export(sc, lif="routes.lif")                  # files for the tools downstream
     r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult (a fleet's: FleetResult)
@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Iterator
 
     from interop.export.files import Exported
+    from planner.fleet.summary import FleetPlanSummary
     from planner.pef.result import PefMap
     from planner.placement.placement import PlacementResult as Placement
     from planner.plan import Plan
@@ -45,7 +46,8 @@ if TYPE_CHECKING:
     from validation.suite import ValidationReport
 
 _TYPES = {"PefMap": ("planner.pef.result", "PefMap"), "Placement": ("planner.placement.placement", "PlacementResult"),
-          "Plan": ("planner.plan", "Plan"), "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
+          "Plan": ("planner.plan", "Plan"), "FleetPlanSummary": ("planner.fleet.summary", "FleetPlanSummary"),
+          "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
           "FleetResult": ("sim.episode.types", "FleetResult"),
           "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"),
           "PaperPage": ("validation.paper.page", "PaperPage"),
@@ -68,10 +70,10 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "FleetResult", "PaperPage", "PefMap",
-           "PefsimError", "Placement", "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names",
-           "export", "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "sweep",
-           "validate", "validate_scenario", "watch", "worlds"]
+__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "FleetPlanSummary", "FleetResult",
+           "PaperPage", "PefMap", "PefsimError", "Placement", "Plan", "Scenario", "SweepSummary", "ValidationReport",
+           "builtin_names", "export", "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet",
+           "run_episode", "sweep", "validate", "validate_scenario", "watch", "worlds"]
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -169,15 +171,19 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     return result
 
 
-def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = None, goal: str | None = None,
-         free: bool | None = None, out: str | Path | None = None, rrd: str | Path | None = None) -> Plan:
-    """Plan a route: candidates, criteria, the choice and its measurement schedule.
+def plan(scenario: Scenario | str | Path, task: int | None = None, *, start: str | None = None,
+         goal: str | None = None, free: bool | None = None, out: str | Path | None = None,
+         rrd: str | Path | None = None, traffic: bool = True) -> Plan | FleetPlanSummary:
+    """Plan a route: candidates, criteria, the choice and its measurement schedule; or a whole fleet.
+
+    A fleet scenario (``[[robots]]``) given neither a task nor ``start`` and ``goal`` plans every
+    robot's tasks together (:func:`plan_fleet`) and returns the fleet's summary.
 
     Parameters
     ----------
     scenario : Scenario, str or path
-    task : int
-        Index into ``scenario.tasks`` (ignored when ``start`` and ``goal`` are given).
+    task : int, optional
+        Index into ``scenario.tasks`` (default 0; ignored when ``start`` and ``goal`` are given).
     start, goal : str, optional
         Dock names, instead of a task.
     free : bool, optional
@@ -187,22 +193,37 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         checked before planning).
     rrd : str or path, optional
         Write a rerun recording of the map, the candidate routes and the schedule here.
+        ``free``, ``out`` and ``rrd`` are refused for a fleet's plan (it neither searches free
+        space nor draws).
+    traffic : bool
+        A fleet's plan: the traffic-aware measurement schedules; False: each robot's as if it
+        drove alone (a lone robot plans alone anyway).
 
     Returns
     -------
-    Plan
-        ``candidates`` (each with its criteria), ``chosen``, ``reason``, the drivable ``path``
-        (N, 2) [m] with ``speed`` (N,) [m/s] and the ``schedule`` (each fix with its promise
-        ``predicted_tau`` [m]).
+    Plan or FleetPlanSummary
+        A route's ``candidates`` (each with its criteria), ``chosen``, ``reason``, the drivable
+        ``path`` (N, 2) [m] with ``speed`` (N,) [m/s] and the ``schedule`` (each fix with its
+        promise ``predicted_tau`` [m]); a fleet's plan with one summary per robot (``robots``),
+        ``to_dict()`` and ``lines()``.
     """
     from planner.pef.map import PEF
     from planner.plan import plan_route, plan_task
+    from scenarios import PlanningError
 
     sc = _scenario(scenario)
     if (start is None) != (goal is None):
-        from scenarios import PlanningError
-
         raise PlanningError("plan: give both start and goal, or neither (then a task is planned)")
+    if sc.robots and start is None and task is None:
+        for name, value, what in (("out", out, "its plan draws no figure"), ("rrd", rrd, "its plan writes no "
+                                  "recording"), ("free", free, "each robot is planned with the default search")):
+            if value is not None:
+                raise PlanningError(f"{name}: {sc.source} is a fleet ([[robots]]): {what}, got {value}")
+        from planner.fleet.summary import FleetPlanSummary
+
+        fleet, robots = plan_fleet(sc, traffic=traffic)
+        return FleetPlanSummary(scenario=sc.name, eps_max=sc.planning.eps_max, fleet=fleet, robots=robots)
+    task = 0 if task is None else task
     _check_outputs(figure=out, rrd=rrd, named={"out": out, "rrd": rrd})
     pef = PEF(sc)
     if start is not None:
@@ -397,7 +418,8 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
         its episode over all its tasks (summary keys as a lone robot's plus ``robot``,
         ``arrival``, ``wait_time`` [s], ``robot_blocked`` and ``deadlocked``), how often the
         robots' footprints overlapped (``collisions``) and the duration. Both give ``robots``,
-        ``to_dict()`` and ``lines(scenario)``.
+        ``to_dict()``, ``lines(scenario)`` and ``written`` (the paths of the files written:
+        the TUM trajectories, then the recording).
     """
     from scenarios import SimulationError
     from sim.episode import run
@@ -415,11 +437,13 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
 
         for r in result.robots:
             steps = r.result.steps
-            write_tum(Path(tum) if r.name is None else Path(tum) / r.name, steps.t, steps.true_pose, steps.est_pose)
+            result.written.extend(write_tum(Path(tum) if r.name is None else Path(tum) / r.name, steps.t,
+                                            steps.true_pose, steps.est_pose))
     if rrd is not None:
         from interop.recording.run import write_run_rrd
 
         write_run_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
+        result.written.append(Path(rrd))
     return result
 
 

@@ -269,9 +269,9 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
 
 def plan_task(scenario: Scenario, task_index: int, free: bool | None = None, pef=None) -> Plan:
     """Plan the scenario's task number ``task_index`` (0-based); see :func:`plan_route`."""
-    if not 0 <= task_index < len(scenario.tasks):
-        raise PlanningError(f"task {task_index}: scenario {scenario.name!r} has {len(scenario.tasks)} tasks")
-    t = scenario.tasks[task_index]
+    from scenarios.tasks import check_task
+
+    t = scenario.tasks[check_task(scenario, task_index)]
     return plan_route(scenario, t.start, t.goal, free=free, pef=pef)
 
 

@@ -35,8 +35,22 @@ def test_map_plan_place_and_run_write_nothing(two_markers, tmp_path, monkeypatch
 def test_outputs_only_where_told(two_markers, tmp_path):
     pefsim.place(two_markers, out=tmp_path / "placed.toml")
     assert pefsim.load(tmp_path / "placed.toml").markers
-    pefsim.run_episode(two_markers, seed=2, tum=tmp_path / "tum")
+    r = pefsim.run_episode(two_markers, seed=2, tum=tmp_path / "tum")
     assert sorted(p.name for p in (tmp_path / "tum").iterdir()) == ["estimate.txt", "groundtruth.txt"]
+    assert r.written == [tmp_path / "tum" / "groundtruth.txt", tmp_path / "tum" / "estimate.txt"]
+
+
+def test_a_fleets_plan_refuses_what_it_would_not_do(tmp_path):
+    """A fleet's plan draws no figure or recording and searches no free space: asked, it says so, writes nothing."""
+    from scenarios import loads
+    from tests.sim.fleets import CROSS
+
+    cross = loads(CROSS, source="cross.toml")
+    for kwargs in (dict(out=tmp_path / "f.png"), dict(rrd=tmp_path / "f.rrd"), dict(free=True)):
+        name = next(iter(kwargs))
+        with pytest.raises(pefsim.PefsimError, match=rf"^{name}: cross\.toml is a fleet"):
+            pefsim.plan(cross, **kwargs)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_bad_input_is_a_pefsim_error(two_markers):

@@ -1,7 +1,8 @@
 """What a fleet's plan says per robot: tasks, expected blocking, waits, what traffic costs, fix density.
 
 :func:`summarize` turns a :class:`planner.fleet.plan.FleetPlan` into one :class:`RobotSummary`
-per robot (``pefsim plan`` on a fleet prints them).
+per robot; :class:`FleetPlanSummary` holds them with the plan and prints them (``pefsim plan`` on a
+fleet).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.jsonable import json_number
 from scenarios.schema import Scenario
 
 NEAR = 1.0
@@ -130,3 +132,71 @@ def fleet_density(summaries: list[RobotSummary]) -> tuple[float, float]:
     near = sum(s.fixes_per_m_near * s.near_length for s in summaries if s.near_length > 0)
     far = sum(s.fixes_per_m_far * s.far_length for s in summaries if s.far_length > 0)
     return (near / near_len if near_len > 0 else float("nan"), far / far_len if far_len > 0 else float("nan"))
+
+
+@dataclass(frozen=True)
+class FleetPlanSummary:
+    """A planned fleet as ``pefsim.plan`` returns it: the plan, one :class:`RobotSummary` per robot, the totals.
+
+    Attributes
+    ----------
+    scenario : str
+        The scenario's name.
+    eps_max : float
+        Its error budget [m].
+    fleet : planner.fleet.plan.FleetPlan
+        Per robot its plans, timeline and predicted blocking.
+    robots : list of RobotSummary
+        Per robot what its plan says, in ``scenario.robots`` order.
+    """
+
+    scenario: str
+    eps_max: float
+    fleet: Any
+    robots: list[RobotSummary]
+
+    @property
+    def traffic(self) -> bool:
+        """Whether the schedules are traffic-aware (False: each planned as if its robot drove alone)."""
+        return self.fleet.traffic
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the summary as a JSON-ready dict (inf and NaN as None): per robot and the fleet's fix densities."""
+        near, far = fleet_density(self.robots)
+        return {"scenario": self.scenario, "traffic": self.traffic,
+                "robots": [{k: json_number(v) for k, v in r.to_dict().items()} for r in self.robots],
+                "fleet": {"fixes_per_m_near": json_number(near), "fixes_per_m_far": json_number(far)}}
+
+    def lines(self) -> list[str]:
+        """Return the printout: a head line, a row per robot and one for the fleet, what is unprotected, a legend."""
+        rows = self.robots
+        mode = "traffic-aware schedules" if self.traffic else "each scheduled as if it drove alone"
+        out = [f"{self.scenario}: a fleet of {len(rows)} robots, eps_max {self.eps_max * 1000:g} mm, {mode}"]
+        head = (f"{'robot':<8} {'tasks':<22} {'fixes':>5} {'E blocked LOS':>13} {'E blocked fixes':>15} "
+                f"{'unprotected':>11} {'wait[s]':>7} {'time[s]':>7} {'alone[s]':>8} {'traffic[s]':>10} "
+                f"{'fix/m near':>10} {'fix/m else':>10}")
+        out += [head, "-" * len(head)]
+        for r in rows:
+            tasks = ", ".join(r.tasks)
+            tasks = tasks if len(tasks) <= 22 else tasks[:19] + "..."
+            out.append(f"{r.name:<8} {tasks:<22} {r.fixes:5d} {r.expected_blocked_los:13.2f} "
+                       f"{r.expected_blocked_fixes:15.2f} {r.expected_unprotected:11.2f} {r.wait_time:7.1f} "
+                       f"{r.time:7.1f} {r.alone_time:8.1f} {r.traffic_cost:+10.1f} {r.fixes_per_m_near:10.2f} "
+                       f"{r.fixes_per_m_far:10.2f}")
+        near, far = fleet_density(rows)
+        los, fixes = sum(r.expected_blocked_los for r in rows), sum(r.expected_blocked_fixes for r in rows)
+        out.append(f"{'fleet':<8} {'':<22} {sum(r.fixes for r in rows):5d} {los:13.2f} {fixes:15.2f} "
+                   f"{sum(r.expected_unprotected for r in rows):11.2f} {'':>7} {'':>7} {'':>8} {'':>10} "
+                   f"{near:10.2f} {far:10.2f}")
+        note = self.fleet.note
+        if note is not None and note.unprotected:
+            left = ", ".join(f"{name} task {q}" for name, q in note.unprotected)
+            out.append(f"not protected (no schedule survives a hidden marker there even slowed): {left}")
+        out.append("E: expected over the timing spread of the robots; unprotected: blocked fixes without a fallback "
+                   "for every marker; traffic: time - alone (waits and slow-downs); near: within 1 m of a fix that, "
+                   "planned alone, others would likely hide; fleet: the robots' fixes near and elsewhere over their "
+                   "lengths there")
+        return out
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines())

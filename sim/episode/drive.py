@@ -25,6 +25,7 @@ import numpy as np
 from planner.pef.map import PEF
 from planner.plan import Plan
 from scenarios import PlanningError, Scenario, SimulationError
+from scenarios.tasks import check_task
 from sim.episode.driver import Mission, RobotDriver, advance, check_control_period
 from sim.episode.types import EpisodeResult
 
@@ -39,14 +40,6 @@ class Prepared:
     task_index: int
     plan: Plan
     pef: PEF
-
-
-def check_task(scenario: Scenario, task_index: int) -> None:
-    """Raise :class:`SimulationError` unless ``task_index`` names a task of ``scenario``."""
-    n = len(scenario.tasks)
-    if not (isinstance(task_index, (int, np.integer)) and 0 <= task_index < n):
-        raise SimulationError(f"{scenario.source}: task {task_index}: expected a task index in 0..{n - 1} "
-                              f"({n} tasks)" if n else f"{scenario.source}: tasks: the scenario has no task")
 
 
 def check_markers(scenario: Scenario) -> None:

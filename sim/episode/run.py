@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from scenarios import Scenario, ScenarioError
+from scenarios import Scenario, ScenarioError, tasks
 from sim.episode import drive, fleet
 from sim.episode.types import EpisodeResult, FleetResult
 
@@ -37,9 +37,7 @@ def check_task(scenario: Scenario, task: int | None) -> None:
     if scenario.robots:
         raise ScenarioError(f"task: {scenario.source} is a fleet ([[robots]]): every run drives all its robots' "
                             f"tasks, got task {task}")
-    if not 0 <= task < len(scenario.tasks):
-        raise ScenarioError(f"task: expected 0 .. {len(scenario.tasks) - 1} "
-                            f"({len(scenario.tasks)} tasks in {scenario.source}), got {task}")
+    tasks.check_task(scenario, task)
 
 
 def check_episode_task(scenario: Scenario, task: int | None) -> int:
@@ -47,14 +45,8 @@ def check_episode_task(scenario: Scenario, task: int | None) -> int:
 
     Raises a one-line error for a task a lone robot does not have, or any task given for a fleet.
     """
-    if scenario.robots:
-        if task is not None:
-            raise ScenarioError(f"task: {scenario.source} is a fleet ([[robots]]): every run drives all its "
-                                f"robots' tasks, got task {task}")
-        return 0
-    task = 0 if task is None else task
-    drive.check_task(scenario, task)
-    return task
+    check_task(scenario, task)
+    return 0 if task is None else int(task)
 
 
 def prepare(scenario: Scenario, task_index: int = 0, *, traffic: bool = True, pef=None) -> Any:

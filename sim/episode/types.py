@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -168,6 +169,9 @@ class EpisodeResult:
     fixes: FixLog
     plan: Plan
     summary: dict[str, Any] = field(default_factory=dict)
+    written: list[Path] = field(default_factory=list)
+    """The files written of this run (TUM trajectories, then the recording), in that order;
+    ``pefsim.run_episode`` fills it, the run itself writes none."""
 
     # A lone robot's run is a fleet of one: what reads a run's results reads both the same way.
 
@@ -235,12 +239,15 @@ class FleetResult:
         Simulated time until the last robot arrived (or the time limit) [s].
     names : list of str
         The robots' names, in order.
+    written : list of Path
+        The files written of this run, as :attr:`EpisodeResult.written`.
     """
 
     robots: list[RobotResult]
     collisions: int
     duration: float
     names: list[str] = field(default_factory=list)
+    written: list[Path] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """Return the run as ``pefsim run --json`` prints it: overlaps, duration and each robot's summary."""

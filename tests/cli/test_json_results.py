@@ -13,6 +13,7 @@ import json
 import cli
 import pefsim
 from tests.cli.json_capture import printed, run_json
+from tests.sim.fleets import CROSS
 
 
 def test_map_prints_the_maps_dict(capsys, monkeypatch):
@@ -66,3 +67,13 @@ def test_a_document_the_command_changed_is_seen(capsys, monkeypatch):
     expected = printed(result.to_dict())
     doc["fraction_navigable"] += 1e-9
     assert doc != expected
+
+
+def test_a_fleets_plan_prints_its_dict(capsys, monkeypatch, tmp_path):
+    """A fleet scenario's plan (no task, no docks) is the fleet's summary; the printed JSON is its dict."""
+    path = tmp_path / "cross.toml"
+    path.write_text(CROSS)
+    doc, result = run_json(capsys, monkeypatch, "plan", ["plan", str(path), "--alone"])
+    assert isinstance(result, pefsim.FleetPlanSummary) and not result.traffic
+    assert doc == printed(result.to_dict())
+    assert [r["name"] for r in doc["robots"]] == [r.name for r in pefsim.load(path).robots] and len(doc["robots"]) == 2

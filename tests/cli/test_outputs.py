@@ -77,11 +77,15 @@ def test_run_tum_folder_refused_before_the_episode(capsys, tmp_path, no_work):
     _refused(capsys, ["run", "paper-two-markers", "--tum", str(blocker / "tum")], "cannot write TUM trajectories")
 
 
-def test_run_prints_a_wrote_line_per_file(capsys, tmp_path):
+def test_run_prints_a_wrote_line_per_file(capsys, tmp_path, monkeypatch):
+    """The files the command names are those the library's result says it wrote, in that order."""
+    returned, real = [], pefsim.run_episode
+    monkeypatch.setattr(pefsim, "run_episode", lambda *a, **k: returned.append(real(*a, **k)) or returned[-1])
     rrd, tum = tmp_path / "run.rrd", tmp_path / "tum"
     assert cli.main(["run", "paper-two-markers", "--seed", "1", "--rrd", str(rrd), "--tum", str(tum)]) == 0
     wrote = [line for line in capsys.readouterr().out.splitlines() if line.startswith("wrote ")]
     assert wrote == [f"wrote {tum / 'groundtruth.txt'}", f"wrote {tum / 'estimate.txt'}", f"wrote {rrd}"]
+    assert wrote == [f"wrote {p}" for p in returned[0].written]
     assert rrd.stat().st_size > 0 and (tum / "estimate.txt").stat().st_size > 0
 
 

@@ -14,7 +14,7 @@ import scenarios
 from planner import plan
 from planner.pef.map import PEF
 from planner.routes import candidates, criteria
-from scenarios.errors import PlanningError
+from scenarios.errors import PlanningError, ScenarioError
 from scenarios.route_network import RouteNetwork
 from scenarios.schema import Dock, Obstacle, Weights
 
@@ -182,7 +182,7 @@ def test_infeasible_requests(small):
     fake = FakePEF(bumpy_tau)
     with pytest.raises(PlanningError, match="unknown dock 'Z'"):
         plan.plan_route(small, "A", "Z", pef=fake)
-    with pytest.raises(PlanningError, match="task 5"):
+    with pytest.raises(ScenarioError, match=r"^task: expected 0 \.\. \d+ \(\d+ tasks in .*\), got 5$"):
         plan.plan_task(small, 5, pef=fake)
     tight = dataclasses.replace(small, planning=dataclasses.replace(small.planning, eps_max=0.004))
     with pytest.raises(PlanningError, match=r"no admissible route from 'A' to 'B'.*best R\d+: tau .* at \("):

@@ -137,7 +137,7 @@ def _cli(*args, cwd=None):
 
 
 @pytest.mark.parametrize("case,text,args,pattern", [
-    ("unknown task", None, ["--task", "5"], r"task 5: expected a task index in 0\.\.0"),
+    ("unknown task", None, ["--task", "5"], r"task: expected 0 \.\. 0 \(1 tasks in .*\), got 5"),
     ("no markers at start", HIDDEN, [], r"hidden\.toml: tasks\[0\] \(A -> B\): 0 marker\(s\) visible from dock A"),
     ("dock unreachable", HIDDEN.replace("max_range = 6.0", "max_range = 20.0").replace(
         'center = [5.0, 2.0]\nsize = [0.4, 3.9]', 'center = [5.0, 9.0]\nsize = [0.4, 0.4]\n[[obstacles]]\n'

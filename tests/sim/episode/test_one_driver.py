@@ -33,9 +33,8 @@ DRIVER = "sim/episode/driver.py"
 STEP_NAMES = frozenset({"start_fix", "read_odometry", "read_span", "hold_at_goal", "hold_fix", "_hold_fix"})
 #: Calls that only one robot's drive makes: its control tick, fix recorder and certified bound.
 STEP_CALLS = frozenset({"ControlTick", "FixRecorder", "certified_bound", "single_failure_excused"})
-#: The modules that may ask whether a scenario is a fleet: its definition, and ``pefsim plan``, whose
-#: route plan and fleet plan print themselves differently until the route plan owns its printout.
-FLEET_ASKERS = frozenset({"scenarios/schema.py", "sim/cli/plan.py", "cli/plan.py"})
+#: The modules that may ask whether a scenario is a fleet: its definition.
+FLEET_ASKERS = frozenset({"scenarios/schema.py"})
 
 
 def _step_sites(source: str) -> set[str]:
