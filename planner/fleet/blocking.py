@@ -44,6 +44,7 @@ robots').
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -90,6 +91,13 @@ class TimingModel:
         Variance gained per second of planned driving [s^2/s].
     release_var : float
         Variance of that delay [s^2].
+    var_quad : float
+        Variance gained per squared second of planned driving [s^2/s^2]: a lag proportional to
+        the time driven, one factor per run (a declared speed spread, :mod:`planner.fleet.timing`).
+    docks : tuple of float
+        Planned time driven [s] at which the robot reaches each dock where it dwells.
+    dwell_mean, dwell_var : float
+        Mean [s] and variance [s^2] of each dwell, independent.
     """
 
     lag0: float
@@ -98,14 +106,36 @@ class TimingModel:
     base_var: float
     var_rate: float
     release_var: float
+    var_quad: float = 0.0
+    docks: tuple[float, ...] = ()
+    dwell_mean: float = 0.0
+    dwell_var: float = 0.0
+
+    def dwells(self, drive: np.ndarray) -> np.ndarray:
+        """Count of docks passed after ``drive`` seconds driven (a robot at a dock has not dwelt yet)."""
+        return np.searchsorted(np.asarray(self.docks, float), np.asarray(drive, float), side="left")
 
     def mean(self, drive: np.ndarray) -> np.ndarray:
         """Mean of a robot's own lag [s] after ``drive`` seconds driven (planned), before any wait."""
-        return self.lag0 + self.lag_rate * np.asarray(drive, float)
+        d = np.asarray(drive, float)
+        return self.lag0 + self.lag_rate * d + self.dwell_mean * self.dwells(d)
 
     def var(self, drive: np.ndarray) -> np.ndarray:
         """Variance of a robot's own lag [s^2] after ``drive`` seconds driven (planned), before any wait."""
-        return self.base_var + self.var_rate * np.asarray(drive, float)
+        d = np.asarray(drive, float)
+        return self.base_var + self.var_rate * d + self.var_quad * d * d + self.dwell_var * self.dwells(d)
+
+    def cov(self, d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
+        """Covariance [s^2] of a robot's own lags after ``d1`` and ``d2`` seconds driven (planned).
+
+        The drift and the dwells up to the earlier are shared; the speed factor's part is one
+        factor times each drive (fully correlated).
+        """
+        d1, d2 = np.asarray(d1, float), np.asarray(d2, float)
+        lo = np.minimum(d1, d2)
+        return self.base_var + self.var_rate * lo + self.var_quad * d1 * d2 + self.dwell_var * self.dwells(lo)
+
+
 
 
 #: Measured with ``python benchmarks/timing_spread.py --seeds 4`` (warehouse-fleet's three tasks,
@@ -131,6 +161,14 @@ TIMING = TimingModel(lag0=_MEASURED["lag0"], lag_rate=_MEASURED["lag_rate"], rel
                      base_var=_MEASURED["base_var"] + _MEASURED["line_error_var"] + _FLOOR_VAR,
                      var_rate=_MEASURED["var_rate"], release_var=_RELEASE["var"])
 """The timing model of the simulated robots (the comments above give each number's source)."""
+
+
+def model_of(timing: TimingModel | Sequence[TimingModel] | None, tracks: Sequence[Track], r: int) -> TimingModel:
+    """Robot r's timing model: ``timing`` itself, its r-th entry, or (None) its track's own."""
+    if timing is None:
+        own = tracks[r].timing
+        return own if own is not None else TIMING
+    return timing if isinstance(timing, TimingModel) else timing[r]
 
 
 @dataclass(frozen=True)
@@ -160,6 +198,8 @@ class Track:
         Planned time of the root's lag [s] (the sample's own time for -1).
     x_mean, x_var : ndarray, shape (T,)
         Mean [s] and variance [s^2] of X.
+    timing : TimingModel, optional
+        The robot's own lag model (None: :data:`TIMING`).
     """
 
     t: np.ndarray
@@ -172,9 +212,11 @@ class Track:
     root_t: np.ndarray
     x_mean: np.ndarray
     x_var: np.ndarray
+    timing: TimingModel | None = None
 
     @classmethod
-    def of(cls, timeline: Timeline, start_time: float, radius: float, height: float, dt: float = FINE_DT) -> Track:
+    def of(cls, timeline: Timeline, start_time: float, radius: float, height: float, dt: float = FINE_DT,
+           timing: TimingModel | None = None) -> Track:
         """Refine ``timeline`` to steps of ``dt`` [s] and count its driving time; every lag its own."""
         t0 = np.asarray(timeline.t, float)
         t = np.arange(t0[0], t0[-1] + 0.5 * dt, dt)
@@ -185,7 +227,8 @@ class Track:
         driving = ~waiting & (t0 > start_time) & (t0 <= timeline.end_time + 1e-9)
         drive = np.interp(t, t0, np.cumsum(np.where(driving, step, 0.0)))
         zero = np.zeros(len(t))
-        return cls(t, xy, s, drive, float(radius), float(height), np.full(len(t), -1), t.copy(), zero, zero.copy())
+        return cls(t, xy, s, drive, float(radius), float(height), np.full(len(t), -1), t.copy(), zero, zero.copy(),
+                   timing)
 
     def at_s(self, s: np.ndarray) -> np.ndarray:
         """Planned time [s] at which the robot first reaches arc length(s) ``s`` [m]."""
@@ -222,7 +265,8 @@ def _waits(timeline: Timeline, t: np.ndarray) -> list[tuple[int, int, int]]:
     return out
 
 
-def tie(tracks: list[Track], timelines: list[Timeline], timing: TimingModel = TIMING) -> list[Track]:
+def tie(tracks: list[Track], timelines: list[Timeline],
+        timing: TimingModel | Sequence[TimingModel] | None = None) -> list[Track]:
     """Tie each robot's lag after a zone wait to the robot it waited for (module docstring).
 
     Waits are taken in the order they end; each release sets the waiting robot's lag from then
@@ -235,7 +279,9 @@ def tie(tracks: list[Track], timelines: list[Timeline], timing: TimingModel = TI
         The fleet's tracks (:meth:`Track.of`), in robot order.
     timelines : list of Timeline
         Their timelines (with :attr:`~planner.fleet.zones.Timeline.holder`).
-    timing : TimingModel
+    timing : TimingModel or sequence of TimingModel, optional
+        One model for every robot, or each robot's own; default each track's own
+        (:attr:`Track.timing`).
 
     Returns
     -------
@@ -249,32 +295,37 @@ def tie(tracks: list[Track], timelines: list[Timeline], timing: TimingModel = TI
                     for a, b, h in _waits(tl, tracks[j].t) if 0 <= h < len(tracks) and h != j)
 
     def mean_at(j, k):
-        r = root[j][k]
-        own = timing.mean(np.interp(root_t[j][k], tracks[r if r >= 0 else j].t, tracks[r if r >= 0 else j].drive))
+        r = root[j][k] if root[j][k] >= 0 else j
+        own = model_of(timing, tracks, r).mean(np.interp(root_t[j][k], tracks[r].t, tracks[r].drive))
         return float(own) + xm[j][k]
 
     for t_rel, j, a, b, h in events:
-        tj = tracks[j]
+        tj, mj = tracks[j], model_of(timing, tracks, j)
         before = max(a - 1, 0)
         waited = float(tj.t[b] - tj.t[a])
         kh = int(tracks[h].sample(t_rel))
-        tied_mean = mean_at(h, kh) + timing.release_lag
+        tied_mean = mean_at(h, kh) + mj.release_lag
         if mean_at(j, before) - waited >= tied_mean:
             # arrived after the holder had gone: it did not stop, and the plan's wait is lag made up
             xm[j][b:] -= waited
             continue
         r = root[h][kh]
         new_root, new_t = (h, t_rel) if r < 0 else (int(r), float(root_t[h][kh]))
-        base_m, base_v = xm[h][kh] + timing.release_lag, xv[h][kh] + timing.release_var
+        base_m, base_v = xm[h][kh] + mj.release_lag, xv[h][kh] + mj.release_var
         since = tj.drive[b:] - tj.drive[b]
         root[j][b:], root_t[j][b:] = new_root, new_t
-        xm[j][b:] = base_m + timing.lag_rate * since
-        xv[j][b:] = base_v + timing.var_rate * since
+        # its own drift since the release: the speed factor's and the dwells' parts as they grow
+        # from there (taken independent of the holder's lag)
+        at_b = tj.drive[b]
+        passed = mj.dwells(tj.drive[b:]) - mj.dwells(at_b)
+        xm[j][b:] = base_m + mj.lag_rate * since + mj.dwell_mean * passed
+        xv[j][b:] = base_v + mj.var_rate * since + mj.var_quad * since * since \
+            + mj.dwell_var * passed
     return [replace(tr, root=root[j], root_t=root_t[j], x_mean=xm[j], x_var=xv[j]) for j, tr in enumerate(tracks)]
 
 
 def lag_difference(tracks: list[Track], i: int, j: int, t: np.ndarray,
-                   timing: TimingModel = TIMING) -> tuple[np.ndarray, np.ndarray]:
+                   timing: TimingModel | Sequence[TimingModel] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Mean [s] and variance [s^2] of ``delta_i - delta_j`` at planned time(s) ``t``.
 
     Each lag is its root's own lag plus an independent part (:class:`Track`); two lags with one
@@ -288,13 +339,18 @@ def lag_difference(tracks: list[Track], i: int, j: int, t: np.ndarray,
         k = tr.sample(t)
         root = np.where(tr.root[k] >= 0, tr.root[k], r)
         when = tr.root_t[k]
-        drive = np.empty(len(t))
+        drive, mean, var = np.empty(len(t)), np.empty(len(t)), np.empty(len(t))
         for q in np.unique(root):
             sel = root == q
             drive[sel] = np.interp(when[sel], tracks[q].t, tracks[q].drive)
-        parts.append((root, drive, timing.mean(drive) + tr.x_mean[k], timing.var(drive) + tr.x_var[k]))
+            mean[sel] = model_of(timing, tracks, q).mean(drive[sel])
+            var[sel] = model_of(timing, tracks, q).var(drive[sel])
+        parts.append((root, drive, mean + tr.x_mean[k], var + tr.x_var[k]))
     (ri, di, mi, vi), (rj, dj, mj, vj) = parts
-    shared = np.where(ri == rj, timing.var(np.minimum(di, dj)), 0.0)
+    shared = np.zeros(len(t))
+    for q in np.unique(ri[ri == rj]):
+        sel = (ri == q) & (rj == q)
+        shared[sel] = model_of(timing, tracks, q).cov(di[sel], dj[sel])
     return mi - mj, np.maximum(vi + vj - 2.0 * shared, 0.0)
 
 

@@ -164,7 +164,8 @@ class ZoneControl:
     """
 
     def __init__(self, paths: Sequence[np.ndarray], radii: Sequence[float], names: Sequence[str] | None = None,
-                 *, margin: float = DEFAULT_MARGIN, cell: float = DEFAULT_CELL) -> None:
+                 *, margin: float = DEFAULT_MARGIN, cell: float = DEFAULT_CELL, record: bool = False,
+                 after: Sequence[np.ndarray] | None = None) -> None:
         self.paths = [np.asarray(p, float).reshape(-1, 2) for p in paths]
         n = len(self.paths)
         if len(radii) != n or any(len(p) == 0 for p in self.paths):
@@ -191,7 +192,16 @@ class ZoneControl:
                 if j != i:
                     rows[j] = np.maximum.reduceat(self._last[j][ids], indptr[:-1])
             self._need.append(rows)
-        self._check_docks()
+        #: Why the stop rule alone cannot keep this fleet from deadlock (None: every robot's start
+        #: and final dock lie clear of the others' paths, module docstring).
+        self.dock_conflict = self._dock_conflict()
+        #: The plan's order of passage (:meth:`precedence`): ``after[i][j, k]`` is the sample robot
+        #: j must have passed before robot i may reserve its sample k (-1: none). Given, requests
+        #: follow it sample by sample instead of stop by stop.
+        self.after = None if after is None else [np.asarray(a, dtype=np.int64) for a in after]
+        self._record = record
+        #: A recording run's holdings, per cell: (robot, last sample of the holding) in the order freed.
+        self._history: dict[int, list[tuple[int, int]]] = {}
         self.owner = np.full(g, -1, dtype=np.int32)
         self._count = [np.zeros(g, dtype=np.int32) for _ in range(n)]
         self.lo = [0] * n
@@ -203,16 +213,15 @@ class ZoneControl:
 
     # -- the rule ---------------------------------------------------------------------------
 
-    def _check_docks(self) -> None:
+    def _dock_conflict(self) -> str | None:
         for i, need in enumerate(self._need):
             for k, what in ((0, "start"), (len(self.paths[i]) - 1, "final dock")):
                 j = int(np.argmax(need[:, k]))
                 if need[j, k] >= 0:
                     x, y = self.paths[i][k]
-                    raise PlanningError(
-                        f"zone control: {self.names[i]}'s {what} ({x:.2f}, {y:.2f}) lies within "
-                        f"{self.reach[i] + self.reach[j]:.2f} m of {self.names[j]}'s path: a robot standing there "
-                        f"would block the other for ever (give it a dock off the others' paths)")
+                    return (f"{self.names[i]}'s {what} ({x:.2f}, {y:.2f}) lies within "
+                            f"{self.reach[i] + self.reach[j]:.2f} m of {self.names[j]}'s path")
+        return None
 
     def _cells(self, i: int, a: int, b: int) -> np.ndarray:
         """Cells of robot i's samples a .. b-1."""
@@ -230,14 +239,18 @@ class ZoneControl:
         need = self._need[i][:, k]
         return np.all(need < (lo[:, None] if np.ndim(k) else lo), axis=0)
 
-    def next_stop(self, i: int) -> int:
-        """Robot i's next stop after its reservation end: a safe sample, or its last one."""
+    def next_stop(self, i: int) -> int | None:
+        """Robot i's next stop after its reservation end: the first safe sample (None: none is safe yet).
+
+        Its final dock is a stop only when safe, as any other sample: a dock another robot has
+        still to pass is reserved once that robot has passed it.
+        """
         e, last = self.end[i], len(self.paths[i]) - 1
         if e >= last:
             return last
-        ks = np.arange(e + 1, last)
-        ok = np.flatnonzero(self.safe(i, ks)) if len(ks) else ks
-        return int(ks[ok[0]]) if len(ok) else last
+        ks = np.arange(e + 1, last + 1)
+        ok = np.flatnonzero(self.safe(i, ks))
+        return int(ks[ok[0]]) if len(ok) else None
 
     def request(self, i: int, s: float) -> bool:
         """Extend robot i's reservation to arc length ``s`` [m] (on its path); tell whether it reaches it.
@@ -247,8 +260,15 @@ class ZoneControl:
         """
         n = len(self.paths[i])
         target = min(int(np.searchsorted(self.s[i], s, side="left")), n - 1)
+        if self.after is not None:
+            return self._request_in_order(i, target)
         while self.end[i] < target:
             k = self.next_stop(i)
+            if k is None:
+                # every sample ahead is on a path another robot has still to drive: wait for it
+                need, lo = self._need[i][:, self.end[i] + 1:], np.asarray(self.lo)[:, None]
+                self.refused_by[i] = int(np.argmax(np.any(need >= lo, axis=1)))
+                return False
             cells = self._cells(i, self.end[i] + 1, k + 1)
             held = self.owner[cells]
             others = held[(held >= 0) & (held != i)]
@@ -256,6 +276,25 @@ class ZoneControl:
                 self.refused_by[i] = int(others[0])
                 return False
             self._take(i, self.end[i] + 1, k + 1)
+            self.end[i] = k
+        return True
+
+    def _request_in_order(self, i: int, target: int) -> bool:
+        """Reserve robot i's samples up to ``target`` one by one, in the plan's order of passage."""
+        lo = np.asarray(self.lo)
+        after = self.after[i]
+        while self.end[i] < target:
+            k = self.end[i] + 1
+            late = np.flatnonzero(after[:, k] >= lo)
+            if len(late):
+                self.refused_by[i] = int(late[0])
+                return False
+            held = self.owner[self._cells(i, k, k + 1)]
+            others = held[(held >= 0) & (held != i)]
+            if len(others):
+                self.refused_by[i] = int(others[0])
+                return False
+            self._take(i, k, k + 1)
             self.end[i] = k
         return True
 
@@ -279,7 +318,56 @@ class ZoneControl:
         np.subtract.at(self._count[i], cells, 1)
         free = cells[self._count[i][cells] == 0]
         self.owner[free] = -1
+        if self._record and len(free):
+            # the holding of each freed cell ends at the last released sample covering it
+            indptr = self._feet[i][0]
+            sample = np.repeat(np.arange(self.lo[i], k), np.diff(indptr[self.lo[i]:k + 1]))
+            last = {}
+            for c, q in zip(cells.tolist(), sample.tolist(), strict=True):
+                last[c] = q
+            for c in np.unique(free).tolist():
+                self._history.setdefault(c, []).append((i, last[c]))
         self.lo[i] = k
+
+    def precedence(self) -> list[np.ndarray]:
+        """Return the order of passage of a recording run (``record=True``), driven to its end.
+
+        For each robot i an int array (n, N_i): entry [j, k] is the last sample of robot j's
+        path that robot j must have passed (freed) before robot i may reserve its sample k:
+        over the cells of sample k, the largest last sample of j's holdings of the cell that
+        came before i's holding of it in this run (-1: none). Cells still held (the final
+        docks) count as held for ever.
+        """
+        n = len(self.paths)
+        hist = {c: list(h) for c, h in self._history.items()}
+        for c in np.flatnonzero(self.owner >= 0).tolist():
+            hist.setdefault(c, []).append((int(self.owner[c]), np.iinfo(np.int64).max))
+        out = []
+        for i in range(n):
+            indptr, ids = self._feet[i]
+            sample = np.repeat(np.arange(len(self.paths[i])), np.diff(indptr))
+            after = np.full((n, len(self.paths[i])), -1, dtype=np.int64)
+            order = np.argsort(ids, kind="stable")
+            cells, starts = np.unique(ids[order], return_index=True)
+            for c, ks in zip(cells.tolist(), np.split(sample[order], starts[1:]), strict=True):
+                h = hist.get(c, [])
+                if not any(r != i for r, _ in h):
+                    continue
+                prefix = np.full((len(h) + 1, n), -1, dtype=np.int64)   # largest b per robot before each holding
+                for m, (r, b) in enumerate(h):
+                    prefix[m + 1] = prefix[m]
+                    if r != i:
+                        prefix[m + 1, r] = max(prefix[m, r], b)
+                mine = [(m, b) for m, (r, b) in enumerate(h) if r == i]
+                if not mine:
+                    raise PlanningError(f"zone control: {self.names[i]} never held a cell of its path: "
+                                        "the recording run did not reach its end")
+                pos = np.array([m for m, _ in mine])
+                ends = np.array([b for _, b in mine])
+                which = np.minimum(np.searchsorted(ends, ks, side="left"), len(mine) - 1)
+                after[:, ks] = np.maximum(after[:, ks], prefix[pos[which]].T)
+            out.append(after)
+        return out
 
     # -- reading ------------------------------------------------------------------------------
 

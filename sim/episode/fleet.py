@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from planner.fleet import timing as fleet_timing
 from planner.fleet.plan import FleetPlan, FleetRobotPlan, plan_fleet, zones_of
 from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
 from scenarios import PlanningError, Scenario, SimulationError
@@ -160,7 +161,10 @@ class _Robot:
 
         fr = scenario.robots[i]
         self.i, self.name, self.rp, self.world, self.zones = i, fr.name, rp, world, zones
-        self.start_time = fr.start_time
+        # this run's declared timing spread: release delay, dwells, speed factor (planner.fleet.timing)
+        self.timing = fleet_timing.draw(fr, fleet_timing.stream(ss, i))
+        self.start_time = fr.start_time + self.timing.release_delay
+        self.dwell_until: float | None = None   # when its dwell at the dock it stands at ends
         # planner and filter see this robot's declared spec, the physics its actual one
         self.sc = replace(scenario, robot=fr.robot, robot_actual=fr.robot_actual)
         own = ss if i == 0 else np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, 4, i))
@@ -220,7 +224,8 @@ class _Robot:
         robot = self.sc.robot
         self.plan = plan
         self.offset = float(self.rp.offsets[self.task])
-        self.follower = PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
+        speed = plan.speed if self.timing.speed_factor == 1.0 else plan.speed * self.timing.speed_factor
+        self.follower = PurePursuit(path=plan.path, speed=speed, max_speed=robot.max_speed,
                                     max_yaw_rate=robot.max_yaw_rate)
         self.tick = ControlTick(self.odo, self.loc, self.follower, self.log, self.dt_ctrl)
         if self.watch is not None:
@@ -341,6 +346,12 @@ class _Robot:
                 self.start_fix(self.fix_s[self.next_fix], t)
             return
         if self.task + 1 < len(self.rp.plans):
+            # it dwells at the dock this run's draw long, then drives its next task
+            if self.dwell_until is None:
+                self.dwell_until = t + self.timing.dwell[self.task]
+            if t < self.dwell_until - 1e-9:
+                return
+            self.dwell_until = None
             self._next_task()
             return
         if self.hold_until is None:
@@ -515,7 +526,7 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
     predicted_end = max(float(rp.timeline.end_time) for rp in plans)
     t_max = time_limit if time_limit is not None else 3.0 * predicted_end + 30.0 + scenario.montecarlo.hold
     n_max = int(t_max / dt_ctrl) + 2
-    zones = zones_of(plans)
+    zones = zones_of(plans, prepared.plan.order)
     robots = [_Robot(i, scenario, rp, world, prepared.pef, ss, zones, n_max, q_scale) for i, rp in enumerate(plans)]
     names = [r.name for r in robots]
     for r, rp in zip(robots, plans, strict=True):
