@@ -132,8 +132,9 @@ def _reroute(scenario: Scenario, fleet: list[FleetRobotPlan], owns: list[Scenari
     """Replan each robot but the first with the segments of the robots before it as busy (in place).
 
     The route network's ``traffic`` criterion (:mod:`planner.routes.criteria`) gets density
-    :data:`REROUTE_TRAFFIC` on every segment an earlier robot's chosen routes use, so that a
-    robot takes another way where one is about as good (a second aisle for robots swapping docks).
+    :data:`REROUTE_TRAFFIC` on every segment an earlier robot's chosen routes use, and comes first
+    in the choice (lexicographic, the scenario's own choice breaking ties): a robot takes the way
+    the others use least where there is one (a second aisle for robots swapping docks).
     """
     busy: set[frozenset[str]] = set()
     for k, r in enumerate(fleet):
@@ -144,7 +145,10 @@ def _reroute(scenario: Scenario, fleet: list[FleetRobotPlan], owns: list[Scenari
                 if frozenset((a, b)) in busy:
                     traffic[f"{a}-{b}"] = max(net.traffic_of(a, b), REROUTE_TRAFFIC)
                     traffic.pop(f"{b}-{a}", None)
-            own = replace(owns[k], routes=replace(net, traffic=traffic))
+            # busy segments first, then the scenario's own choice (its order, or its weights as the tie-break)
+            rest = tuple(c for c in owns[k].planning.order if c != "traffic")
+            planning = replace(owns[k].planning, order=("traffic", *rest))
+            own = replace(owns[k], routes=replace(net, traffic=traffic), planning=planning)
             try:
                 plans = [plan_task(own, i, pef=pefs[r.robot]) for i in r.declared.tasks]
             except PlanningError:

@@ -195,6 +195,7 @@ class ZoneControl:
         #: Why the stop rule alone cannot keep this fleet from deadlock (None: every robot's start
         #: and final dock lie clear of the others' paths, module docstring).
         self.dock_conflict = self._dock_conflict()
+        self._check_apart()
         #: The plan's order of passage (:meth:`precedence`): ``after[i][j, k]`` is the sample robot
         #: j must have passed before robot i may reserve its sample k (-1: none). Given, requests
         #: follow it sample by sample instead of stop by stop.
@@ -212,6 +213,19 @@ class ZoneControl:
             self._take(i, 0, 1)
 
     # -- the rule ---------------------------------------------------------------------------
+
+    def _check_apart(self) -> None:
+        """Refuse two robots whose starts, or whose final docks, share a cell: they would stand on each other."""
+        for k, what in ((0, "starts"), (-1, "final docks")):
+            seen: dict[int, int] = {}
+            for i, (indptr, ids) in enumerate(self._feet):
+                kk = k % (len(indptr) - 1)
+                for c in ids[indptr[kk]:indptr[kk + 1]].tolist():
+                    j = seen.setdefault(c, i)
+                    if j != i:
+                        raise PlanningError(f"zone control: {self.names[j]}'s and {self.names[i]}'s {what} lie within "
+                                            f"{self.reach[i] + self.reach[j]:.2f} m of each other: one robot would "
+                                            f"stand on the other")
 
     def _dock_conflict(self) -> str | None:
         for i, need in enumerate(self._need):
