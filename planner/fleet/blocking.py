@@ -65,6 +65,15 @@ WINDOW_SD = 8.0
 POS_SD = float(np.sqrt(2.0 * (0.05 ** 2 + 0.1 ** 2 / 12.0 + 0.02 ** 2)))
 #: Position spreads beyond the radius a sample is still looked at (Phi(-5) ~ 3e-7).
 POS_REACH = 5.0
+#: How far short of the timeline's place a simulated robot waiting for a zone stands [m]: it
+#: stops STOP_MARGIN = 5 cm short of its reservation's end (sim.episode.fleet), where the
+#: timeline stops it. A declared timing spread's tracks place their waits there (:meth:`Track.stand_back`).
+STAND_BACK = 0.05
+#: Spread of a waiting robot's place across the edge of a blocking region [m], once placed
+#: STAND_BACK short: the path follower's tracking (~2 cm) of it and of the measuring robot, whose
+#: fix starts at a control tick (1/60 s at up to 1 m/s: uniform over 1.7 cm):
+#: sqrt(2 x 0.02^2 + 0.017^2 / 12) = 0.029 m.
+STAND_SD = float(np.sqrt(2.0 * 0.02 ** 2 + (1.0 / 60.0) ** 2 / 12.0))
 #: A ray within this fraction of the marker's height of level is treated as level.
 _LEVEL = 1e-12
 #: Blocking probability per unit of ``routes.traffic`` density of a line of sight below the
@@ -98,6 +107,12 @@ class TimingModel:
         Planned time driven [s] at which the robot reaches each dock where it dwells.
     dwell_mean, dwell_var : float
         Mean [s] and variance [s^2] of each dwell, independent.
+    tie_wait : bool
+        Tie the robot's lag to the holder's from the start of a zone wait, not from its end
+        (:func:`tie`): a robot that waits stands where the plan has it until the holder has
+        passed, whenever it arrived, so that against the holder (and against whoever the holder
+        is tied to) it is where the plan has it, not where its own lag would put it. The
+        declared timing spread's models set it (:func:`planner.fleet.timing.declared_model`).
     """
 
     lag0: float
@@ -110,6 +125,7 @@ class TimingModel:
     docks: tuple[float, ...] = ()
     dwell_mean: float = 0.0
     dwell_var: float = 0.0
+    tie_wait: bool = False
 
     def dwells(self, drive: np.ndarray) -> np.ndarray:
         """Count of docks passed after ``drive`` seconds driven (a robot at a dock has not dwelt yet)."""
@@ -124,6 +140,13 @@ class TimingModel:
         """Variance of a robot's own lag [s^2] after ``drive`` seconds driven (planned), before any wait."""
         d = np.asarray(drive, float)
         return self.base_var + self.var_rate * d + self.var_quad * d * d + self.dwell_var * self.dwells(d)
+
+    def drift(self, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean [s] and variance [s^2] of the lag a robot gains from ``d1`` to ``d2`` seconds driven (planned)."""
+        d1, d2 = np.asarray(d1, float), np.asarray(d2, float)
+        gap, docks = d2 - d1, self.dwells(d2) - self.dwells(d1)
+        return (self.lag_rate * gap + self.dwell_mean * docks,
+                self.var_rate * np.abs(gap) + self.var_quad * gap * gap + self.dwell_var * np.abs(docks))
 
     def cov(self, d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
         """Covariance [s^2] of a robot's own lags after ``d1`` and ``d2`` seconds driven (planned).
@@ -200,6 +223,14 @@ class Track:
         Mean [s] and variance [s^2] of X.
     timing : TimingModel, optional
         The robot's own lag model (None: :data:`TIMING`).
+    pos_sd : ndarray, shape (T,), optional
+        Spread of the robot's place about ``xy`` across a blocking region's edge [m] (None:
+        :data:`POS_SD` everywhere).
+    parent, parent_t, p_mean, p_var : ndarray, shape (T,), optional
+        With :attr:`TimingModel.tie_wait`: the robot the sample's last zone wait waited for
+        (-1: none), the planned release [s], and the mean [s] and variance [s^2] of the sample's
+        lag less that robot's lag at the release (the restart and the drift since), for
+        :func:`lag_difference` of the two robots.
     """
 
     t: np.ndarray
@@ -213,6 +244,11 @@ class Track:
     x_mean: np.ndarray
     x_var: np.ndarray
     timing: TimingModel | None = None
+    pos_sd: np.ndarray | None = None
+    parent: np.ndarray | None = None
+    parent_t: np.ndarray | None = None
+    p_mean: np.ndarray | None = None
+    p_var: np.ndarray | None = None
 
     @classmethod
     def of(cls, timeline: Timeline, start_time: float, radius: float, height: float, dt: float = FINE_DT,
@@ -229,6 +265,22 @@ class Track:
         zero = np.zeros(len(t))
         return cls(t, xy, s, drive, float(radius), float(height), np.full(len(t), -1), t.copy(), zero, zero.copy(),
                    timing)
+
+    def stand_back(self, timeline: Timeline, path: np.ndarray, path_s: np.ndarray) -> Track:
+        """Place the robot's zone waits where a simulated robot stands: STAND_BACK short, spread STAND_SD.
+
+        ``path`` (N, 2) and ``path_s`` (N,) are the robot's whole path and its arc lengths [m].
+        """
+        t0 = np.asarray(timeline.t, float)
+        # a refined sample lies in the timeline's step ending at the first sample at or after it
+        step = np.clip(np.searchsorted(t0, self.t, side="left"), 0, len(t0) - 1)
+        # waiting for a zone, or parked on its final dock (the follower stops within its goal
+        # tolerance, 5 cm, short of it: as far as STAND_BACK)
+        wait = (np.asarray(timeline.waiting, bool)[step] & (self.t > t0[0])) | (self.t > timeline.end_time)
+        s_back = np.maximum(self.s - STAND_BACK, 0.0)
+        back = np.column_stack([np.interp(s_back, path_s, path[:, 0]), np.interp(s_back, path_s, path[:, 1])])
+        xy = np.where(wait[:, None], back, self.xy)
+        return replace(self, xy=xy, pos_sd=np.where(wait, STAND_SD, POS_SD))
 
     def at_s(self, s: np.ndarray) -> np.ndarray:
         """Planned time [s] at which the robot first reaches arc length(s) ``s`` [m]."""
@@ -289,6 +341,8 @@ def tie(tracks: list[Track], timelines: list[Timeline],
     """
     root = [tr.root.copy() for tr in tracks]
     root_t = [tr.root_t.copy() for tr in tracks]
+    parent = [np.full(len(tr.t), -1) for tr in tracks]
+    parent_t, p_mean, p_var = ([np.zeros(len(tr.t)) for tr in tracks] for _ in range(3))
     xm = [tr.x_mean.copy() for tr in tracks]
     xv = [tr.x_var.copy() for tr in tracks]
     events = sorted((tracks[j].t[b], j, a, b, h) for j, tl in enumerate(timelines)
@@ -312,16 +366,26 @@ def tie(tracks: list[Track], timelines: list[Timeline],
         r = root[h][kh]
         new_root, new_t = (h, t_rel) if r < 0 else (int(r), float(root_t[h][kh]))
         base_m, base_v = xm[h][kh] + mj.release_lag, xv[h][kh] + mj.release_var
-        since = tj.drive[b:] - tj.drive[b]
-        root[j][b:], root_t[j][b:] = new_root, new_t
+        # tied from the release on; with a timing spread from the wait's start (TimingModel.tie_wait)
+        c = a if mj.tie_wait else b
+        since = tj.drive[c:] - tj.drive[b]
+        root[j][c:], root_t[j][c:] = new_root, new_t
         # its own drift since the release: the speed factor's and the dwells' parts as they grow
         # from there (taken independent of the holder's lag)
         at_b = tj.drive[b]
-        passed = mj.dwells(tj.drive[b:]) - mj.dwells(at_b)
-        xm[j][b:] = base_m + mj.lag_rate * since + mj.dwell_mean * passed
-        xv[j][b:] = base_v + mj.var_rate * since + mj.var_quad * since * since \
+        passed = mj.dwells(tj.drive[c:]) - mj.dwells(at_b)
+        xm[j][c:] = base_m + mj.lag_rate * since + mj.dwell_mean * passed
+        xv[j][c:] = base_v + mj.var_rate * since + mj.var_quad * since * since \
             + mj.dwell_var * passed
-    return [replace(tr, root=root[j], root_t=root_t[j], x_mean=xm[j], x_var=xv[j]) for j, tr in enumerate(tracks)]
+        if mj.tie_wait:
+            parent[j][c:], parent_t[j][c:] = h, t_rel
+            p_mean[j][c:] = xm[j][c:] - xm[h][kh]
+            p_var[j][c:] = xv[j][c:] - xv[h][kh]
+    out = [replace(tr, root=root[j], root_t=root_t[j], x_mean=xm[j], x_var=xv[j]) for j, tr in enumerate(tracks)]
+    if any(model_of(timing, tracks, j).tie_wait for j in range(len(tracks))):
+        out = [replace(tr, parent=parent[j], parent_t=parent_t[j], p_mean=p_mean[j], p_var=p_var[j])
+               for j, tr in enumerate(out)]
+    return out
 
 
 def lag_difference(tracks: list[Track], i: int, j: int, t: np.ndarray,
@@ -351,7 +415,24 @@ def lag_difference(tracks: list[Track], i: int, j: int, t: np.ndarray,
     for q in np.unique(ri[ri == rj]):
         sel = (ri == q) & (rj == q)
         shared[sel] = model_of(timing, tracks, q).cov(di[sel], dj[sel])
-    return mi - mj, np.maximum(vi + vj - 2.0 * shared, 0.0)
+    mean, var = mi - mj, np.maximum(vi + vj - 2.0 * shared, 0.0)
+    # a robot that waited for the other: its lag is the other's at the release plus its restart and
+    # drift since, and the other's lag at t is that at the release plus its own drift in between
+    for a, b, sign in ((j, i, -1.0), (i, j, 1.0)):
+        ta, tb = tracks[a], tracks[b]
+        if ta.parent is None:
+            continue
+        k = ta.sample(t)
+        sel = ta.parent[k] == b
+        if not sel.any():
+            continue
+        ks = k[sel]
+        tb_drive = lambda x, tb=tb: np.interp(x, tb.t, tb.drive)   # noqa: E731
+        g_m, g_v = model_of(timing, tracks, b).drift(tb_drive(ta.parent_t[ks]), tb_drive(t[sel]))
+        # delta_a - delta_b = p + delta_b(release) - delta_b(t) = p - drift of b from the release to t
+        mean[sel] = sign * (ta.p_mean[ks] - g_m)
+        var[sel] = ta.p_var[ks] + g_v
+    return mean, var
 
 
 def low_segment(origin: np.ndarray, h_origin: float | np.ndarray, target: np.ndarray, h_target: np.ndarray,
@@ -464,7 +545,7 @@ def block_probability(other: Track, origin: np.ndarray, h_origin: float, target:
             continue
         # rays whose low part (widened by the radius and the position spread) misses the box of
         # the window's samples: none
-        reach = other.radius + POS_REACH * POS_SD
+        reach = other.radius + POS_REACH * POS_SD   # (POS_SD is the largest spread of a sample)
         box_lo, box_hi = other.xy[k0:k1].min(axis=0) - reach, other.xy[k0:k1].max(axis=0) + reach
         near = np.all((np.minimum(a[q], b[q]) <= box_hi) & (np.maximum(a[q], b[q]) >= box_lo), axis=1)
         q = q[near]
@@ -475,7 +556,8 @@ def block_probability(other: Track, origin: np.ndarray, h_origin: float, target:
         pairs.append(gid[q[qi]] * len(t) + ki + k0)
         # the body covers the ray with the probability its centre, spread by POS_SD across the
         # edge of the blocking region, is inside: Phi((r - d) / POS_SD)
-        cover.append(ndtr((other.radius - dist[qi, ki]) / POS_SD))
+        spread = POS_SD if other.pos_sd is None else other.pos_sd[ki + k0]
+        cover.append(ndtr((other.radius - dist[qi, ki]) / spread))
     key, cov = (np.concatenate(pairs), np.concatenate(cover)) if pairs else (np.zeros(0, np.int64), np.zeros(0))
     if not len(key):   # windows near some rays, but no sample within reach of one
         return out

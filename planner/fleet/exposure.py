@@ -98,6 +98,9 @@ def tracks_of(robots: Sequence, timing: TimingModel | None = None) -> list[Track
             # the docks it dwells at: where each of its tasks but the first begins
             docks = np.interp(tr.at_s(np.asarray(r.offsets[1:], float)), tr.t, tr.drive)
             tr = replace(tr, timing=declared_model(declared, docks))
+            if tr.timing.tie_wait:
+                # with a spread, the waits decide who hides what: placed where the robots stand
+                tr = tr.stand_back(r.timeline, r.path, r.s)
         tracks.append(tr)
     return tie(tracks, [r.timeline for r in robots], timing)
 

@@ -97,4 +97,4 @@ def declared_model(fr: FleetRobot, docks: np.ndarray | tuple = (), base: TimingM
     return replace(base, lag0=base.lag0 + j / 2.0, base_var=base.base_var + j * j / 12.0,
                    lag_rate=base.lag_rate + m, var_quad=base.var_quad + v,
                    docks=tuple(float(d) for d in np.asarray(docks, float).reshape(-1)),
-                   dwell_mean=w / 2.0, dwell_var=w * w / 12.0)
+                   dwell_mean=w / 2.0, dwell_var=w * w / 12.0, tie_wait=j > 0 or w > 0 or fr.speed_spread > 0)

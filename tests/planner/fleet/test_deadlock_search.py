@@ -31,6 +31,7 @@ import numpy as np
 import pytest
 
 from planner.fleet.zones import DEFAULT_MARGIN, ZoneControl
+from scenarios.errors import PlanningError
 from scenarios.worlds import draw_world
 from sim.episode.fleet import BRAKE, LOOKAHEAD, RELEASE_SLACK, STOP_MARGIN
 from sim.episode.follower import PurePursuit
@@ -122,7 +123,11 @@ def random_fleet(rng: np.random.Generator, nodes, segments, radius: float,
         if clear and any(np.min(np.hypot(*(paths[j] - paths[i][k]).T)) < reach
                          for i in range(n) for k in (0, -1) for j in range(n) if j != i):
             continue
-        zc = ZoneControl(paths, [radius] * n)
+        try:
+            zc = ZoneControl(paths, [radius] * n)
+        except PlanningError as exc:
+            assert "of each other" in str(exc), exc   # two robots' docks overlap: drawn again
+            continue
         if not clear or zc.dock_conflict is None:
             return zc, speeds, starts
     return None

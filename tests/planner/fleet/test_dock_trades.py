@@ -104,7 +104,10 @@ def test_random_fleets_with_docks_anywhere_keep_their_order(count, seed):
     planned = refused = 0
     while planned < count:
         nodes, segments, radius = floor(rng)
-        zc, speeds, starts = random_fleet(rng, nodes, segments, radius, clear=False)
+        fleet = random_fleet(rng, nodes, segments, radius, clear=False)
+        if fleet is None:
+            continue
+        zc, speeds, starts = fleet
         n = len(zc.paths)
         rec = ZoneControl(zc.paths, [radius] * n, record=True)
         try:
