@@ -578,7 +578,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
 
 
 def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
-             scenario: Scenario | str | Path | None = None) -> ValidationReport:
+             scenario: Scenario | str | Path | None = None, blocking_scale: float = 1.0) -> ValidationReport:
     """Check a sweep's results against the predictions (containment, promise, bound, NEES, NIS, ...).
 
     The checks judge the sweep's tables; running the sweep is :func:`sweep`'s job.
@@ -593,6 +593,9 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
         :data:`sim.validation.suite.DEFAULT_ALPHA` (0.01).
     scenario : Scenario, str or path, optional
         When given, the sweep must have been made from exactly this scenario.
+    blocking_scale : float
+        NEGATIVE CONTROL ONLY: multiply the plan's predicted robot blocking by this before the
+        checks (a fleet's ``blocking`` check must then fail).
 
     Returns
     -------
@@ -606,7 +609,8 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
 
     directory = sweep.out if isinstance(sweep, SweepSummary) else sweep
     expected = None if scenario is None else _scenario(scenario)
-    return _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha)
+    return _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha,
+                     blocking_scale=blocking_scale)
 
 
 def paper(out: str | Path = "paper-report", *, quick: bool = False, runs: int | None = None,

@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--alone", action="store_true",
                    help="NEGATIVE CONTROL ONLY, fleets: plan each robot's measurement schedule as if it drove "
                         "alone (no traffic prediction) to see the plan check fail when the others are ignored")
+    p.add_argument("--blocking-scale", type=float, default=None, metavar="K",
+                   help="NEGATIVE CONTROL ONLY, fleets: multiply the plan's predicted robot blocking by K "
+                        "(also with --from) to see the blocking check fail on a prediction K times off")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=run)
 
@@ -54,6 +57,8 @@ def _check_args(args: argparse.Namespace) -> None:
         raise ScenarioError(f"--alpha: expected a probability in (0, 1), got {args.alpha}")
     if args.q_scale is not None and not (args.q_scale > 0 and math.isfinite(args.q_scale)):
         raise ScenarioError(f"--q-scale: expected a positive number, got {args.q_scale}")
+    if args.blocking_scale is not None and not (args.blocking_scale > 0 and math.isfinite(args.blocking_scale)):
+        raise ScenarioError(f"--blocking-scale: expected a positive number, got {args.blocking_scale}")
     if args.runs is not None and args.runs <= 0:
         raise ScenarioError(f"--runs: expected a positive number of runs, got {args.runs}")
 
@@ -68,14 +73,16 @@ def run(args: argparse.Namespace) -> int:
     scenario = pefsim.load(args.scenario) if args.scenario is not None else None
     start = time.perf_counter()
     if args.from_dir is not None:
-        report = pefsim.validate(args.from_dir, alpha=args.alpha, scenario=scenario)
+        report = pefsim.validate(args.from_dir, alpha=args.alpha, scenario=scenario,
+                                 blocking_scale=args.blocking_scale or 1.0)
         kept = args.from_dir
     else:
         with tempfile.TemporaryDirectory(prefix="pefsim-validate-") as tmp:
             out = args.out if args.out is not None else f"{tmp}/mc"
             swept = pefsim.sweep(scenario, out, runs=args.runs, workers=args.workers, q_scale=args.q_scale or 1.0,
                                  alone=args.alone, progress=None, report=False)
-            report = pefsim.validate(swept, alpha=args.alpha, scenario=scenario)
+            report = pefsim.validate(swept, alpha=args.alpha, scenario=scenario,
+                                     blocking_scale=args.blocking_scale or 1.0)
         kept = args.out
     wall = time.perf_counter() - start
     if args.json:
@@ -99,6 +106,9 @@ def format_report(report, kept: str | None, wall: float) -> str:
     lines.extend(report.causes)
     if report.q_scale != 1.0:
         lines.append(f"NEGATIVE CONTROL: the filter's process noise was multiplied by {report.q_scale:g}")
+    if report.blocking_scale != 1.0:
+        lines.append(f"NEGATIVE CONTROL: the plan's predicted robot blocking was multiplied by "
+                     f"{report.blocking_scale:g}")
     if report.alone:
         lines.append("NEGATIVE CONTROL: each robot's measurement schedule was planned as if it drove alone "
                      "(no traffic prediction)")
