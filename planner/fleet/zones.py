@@ -18,16 +18,20 @@ do not touch. A cell is held by at most one robot.
 to where it may drive. It releases the cells of the samples it has passed (a cell stays held
 while a later held sample still covers it). It may drive up to sample ``end_i``; to go further
 it reserves the stretch ``end_i + 1 .. k`` where k is its next *stop*, atomically: all its cells
-or none. A stop is the path's last sample (its final dock) or a *safe* sample: one whose
+or none. A stop is a *safe* sample: one whose
 footprint meets no cell of any other robot's *remaining* path (samples ``lo_j ..`` to the end,
 the cells robot j will still need). On a route network the stops are where a robot's path
 leaves the shared stretches: before a junction or an aisle another robot will use, the "wait at
 a node" of AGV practice, with the node being the last point of the robot's path clear of the
 others.
 
-**The rule cannot deadlock.** Each robot's first and last samples (its start and final docks)
-must meet no cell of any other robot's path (:class:`ZoneControl` refuses otherwise: a robot
-parked on another's path blocks it forever, whatever the rule). Then:
+**Docks.** A robot's final dock is a stop like any other sample: only once it is safe. A robot
+that finishes where another must still pass waits at its last safe stop until that one has
+passed (:meth:`ZoneControl.next_stop` finds no stop; the robot whose remaining path still meets
+its way is ``refused_by``). A start dock is free once its robot has left it.
+
+**The stop rule cannot deadlock when every start and final dock is clear of the other robots'
+paths** (:attr:`ZoneControl.dock_conflict` is None). Then:
 
 1. A robot only ever waits at the end of its reservation, which is a stop: its start, its
    final dock, or a sample that was safe when it was reserved. Other robots' remaining paths only
@@ -48,6 +52,29 @@ parked on another's path blocks it forever, whatever the rule). Then:
    Each grant moves a robot to a later stop, and each path has finitely many: every robot
    reaches its final dock (no livelock either: the robot refused for a cell gets it once its
    holder has passed, unless another robot got it first, which can happen only finitely often).
+
+**Docks on other robots' paths: the plan's order of passage.** Fleets trade docks (a swap, a
+rotation, a robot parked on the only corridor), and then 1 fails: a robot standing on its start
+holds cells another robot needs, and a robot waiting for a dock to clear may wait for one that
+waits for it. Whether that happens depends on who comes first, which a real fleet's timing
+changes. So the planner drives the fleet once through the stop rule (:func:`predict_timeline`;
+it refuses the fleet when no robot can move, as three robots rotating through one hub, each on
+a spur the next must leave first), recording in which order the robots held each cell
+(``record=True``), and the robots keep that order whatever their timing
+(:meth:`ZoneControl.precedence`, ``after=``): robot i may reserve its sample k only when, for
+each cell of k, every robot whose holding of the cell came before i's in the plan has passed
+the holding's last sample; samples are reserved one by one (no stops needed). It cannot
+deadlock: suppose every robot not yet arrived is refused, standing at the end of its
+reservation (it has freed all behind it). Take the refused robot i whose refused sample k the
+plan reserved earliest. The cell that refused it is either still held by a robot j whose holding
+comes first in the plan (a robot holding it in a later holding would have needed i's holding
+done, which it is not), or owed to such a j that has not passed that holding's last sample
+b. In the plan j passed b, so reserved b + 1, before i reserved k; standing short of b, j is
+refused at a sample the plan reserved no later than b + 1: earlier than k, against the choice
+of i. The order is a total order of the plan's events, so every chain of waits ends. Cells stay
+exclusive, so the clearance holds as under the stop rule. ``tests/planner/fleet/test_dock_trades.py``
+drives the hard cases with timings the plan never saw; without stops or the order the same
+fleets deadlock.
 
 The adversarial cases (head-on on one segment, three robots in a cycle, a crossing) are in
 ``tests/planner/fleet/test_zones.py``.
@@ -156,11 +183,16 @@ class ZoneControl:
         Clearance each robot keeps beyond its radius [m].
     cell : float
         Side of a zone cell [m].
+    record : bool
+        Record the order in which the robots hold each cell (:meth:`precedence`).
+    after : sequence of ndarray, optional
+        A recorded run's :meth:`precedence`: requests keep that order of passage, sample by
+        sample (module docstring), instead of reserving stop by stop.
 
     Raises
     ------
     PlanningError
-        A robot's start or final dock lies within the clearance of another robot's path.
+        Two robots' starts, or two robots' final docks, lie within each other's clearance.
     """
 
     def __init__(self, paths: Sequence[np.ndarray], radii: Sequence[float], names: Sequence[str] | None = None,
