@@ -18,6 +18,12 @@ robots share the physics steps and the control ticks. At each control tick a rob
   (``beyond_redundancy``), and the single-failure test (runs column ``lost_guarantee``) judges
   the robot's certified bound wherever a fix lost at most one of them.
 
+Each robot keeps the timing its run drew from its declared spread (:mod:`planner.fleet.timing`,
+from a stream of its own under the episode's seed): it leaves its first dock that much later,
+dwells at each dock between two tasks, and drives at that fraction of its planned speeds. When
+a dock lies on another robot's path the zones keep the plan's order of passage
+(``FleetPlan.order``, :mod:`planner.fleet.zones`).
+
 Robot bodies are cylinders of each robot's radius and height that only rays see
 (:meth:`sim.physics.world.PhysicsWorld.place_bodies`); the bodies are moved to the robots before
 every fix start and measurement. ``FleetResult.collisions`` counts pairs of those bodies that start to
