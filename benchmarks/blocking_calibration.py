@@ -6,7 +6,7 @@ alone, so that it counts on reflectors the others hide and blocks happen; defaul
 traffic-aware schedule), then driven ``--runs`` times (seeds spawned from the scenario's, as a
 sweep's); each fix's prediction (``p_block_robot``) and what happened (a scheduled line of sight
 hidden by a robot) go through the ``blocking`` check of ``pefsim validate``
-(:mod:`sim.validation.blocking`) at alpha = 0.01, and per robot the runs that lost the guarantee
+(:mod:`validation.blocking`) at alpha = 0.01, and per robot the runs that lost the guarantee
 (the plan check's single-failure test). Nothing is written.
 """
 
@@ -33,8 +33,8 @@ def main() -> None:
     from scenarios import load
     from sim.episode.fleet import prepare_fleet, run_fleet_episode
     from sim.physics.world import PhysicsWorld
-    from sim.validation.blocking import blocking
-    from sim.validation.data import FixTable, RunTable, SweepData
+    from validation.blocking import blocking
+    from validation.data import FixTable, RunTable, SweepData
 
     sc = load(args.scenario)
     prep = prepare_fleet(sc, traffic=not args.alone)

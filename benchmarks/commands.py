@@ -1,7 +1,7 @@
 """Cold and warm starts of ``pefsim map``, ``plan`` and ``run``, side by side; the last line is JSON.
 
 Run: ``python benchmarks/commands.py [--scenario warehouse] [--repeat 3]``. Each command runs as a
-subprocess (``python -m sim.cli ... --json``), measured by ``os.wait4``: wall time and CPU (user +
+subprocess (``python -m cli ... --json``), measured by ``os.wait4``: wall time and CPU (user +
 sys) [s].
 
 - **cold**: numba's cache empty (``NUMBA_CACHE_DIR`` a new temporary folder for that command), as
@@ -40,12 +40,12 @@ SAID = re.compile(r"pefsim: compiled the kernels once \((\d+) s\)")
 
 
 def measured(args: list[str], cache: Path) -> dict:
-    """Run ``python -m sim.cli ARGS`` with numba's cache in ``cache``: wall [s], CPU [s], exit, stderr."""
+    """Run ``python -m cli ARGS`` with numba's cache in ``cache``: wall [s], CPU [s], exit, stderr."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
                NUMBA_CACHE_DIR=str(cache))
     with tempfile.TemporaryFile("w+") as fe:
         t0 = time.perf_counter()
-        p = subprocess.Popen([sys.executable, "-m", "sim.cli", *args], cwd=cache.parent, env=env,
+        p = subprocess.Popen([sys.executable, "-m", "cli", *args], cwd=cache.parent, env=env,
                              stdout=subprocess.DEVNULL, stderr=fe)
         _, status, ru = os.wait4(p.pid, 0)
         wall = time.perf_counter() - t0

@@ -90,7 +90,7 @@ def main() -> None:
     pef_map = prepared.pef.grid()
 
     def episode_rrd():
-        from sim.recording import write_episode_rrd
+        from interop.recording import write_episode_rrd
 
         r = run_episode(s, 0, seed=1, prepared=prepared, world=world)
         write_episode_rrd(rrd, s, r, pef_map=pef_map)

@@ -54,11 +54,11 @@ def _load_hall_module():
 
 
 def measured(args: list[str], cwd: Path, **env_extra: str) -> dict:
-    """Run ``python -m sim.cli ARGS``: wall [s], CPU (user + sys, ``os.wait4``) [s], peak RSS [MB], exit, output."""
+    """Run ``python -m cli ARGS``: wall [s], CPU (user + sys, ``os.wait4``) [s], peak RSS [MB], exit, output."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), **env_extra)
     with tempfile.TemporaryFile("w+") as fo, tempfile.TemporaryFile("w+") as fe:
         t0 = time.perf_counter()
-        p = subprocess.Popen([sys.executable, "-m", "sim.cli", *args], cwd=cwd, env=env, stdout=fo, stderr=fe)
+        p = subprocess.Popen([sys.executable, "-m", "cli", *args], cwd=cwd, env=env, stdout=fo, stderr=fe)
         _, status, ru = os.wait4(p.pid, 0)
         wall = time.perf_counter() - t0
         p.returncode = os.waitstatus_to_exitcode(status)

@@ -7,7 +7,7 @@ Measures, in one process:
   ``--steps`` mode, the same runs (seeds) in each; the target for the steps of ``all`` is
   <= 150 kB per warehouse run (``steps_target``);
 - ``read_validation_vs_all``: the time validation takes to read the columns it needs
-  (:data:`sim.validation.data.STEP_COLUMNS` and ``FIX_COLUMNS``) against reading every column
+  (:data:`validation.data.STEP_COLUMNS` and ``FIX_COLUMNS``) against reading every column
   of the same parts, as a ratio of medians over ``--repeats`` alternating reads, so that other
   load on the machine hits both alike; ``read_report_vs_all`` likewise for the report's columns.
 
@@ -33,8 +33,8 @@ import numpy as np  # noqa: E402
 import scenarios  # noqa: E402
 from sim.montecarlo import results  # noqa: E402
 from sim.montecarlo.engine import sweep  # noqa: E402
-from sim.report import page  # noqa: E402
-from sim.validation import data as vdata  # noqa: E402
+from validation import data as vdata  # noqa: E402
+from validation.report import page  # noqa: E402
 
 SCENARIO = "warehouse"
 STEPS_TARGET = 150_000

@@ -44,10 +44,10 @@ def main() -> None:
 
     import numpy as np
 
+    from interop.recording import close
+    from interop.recording.live import log_plans, log_view, open_live
+    from interop.watch.view import ViewBuilder
     from scenarios import load
-    from sim.recording import close
-    from sim.recording.live import log_plans, log_view, open_live
-    from sim.watch.view import ViewBuilder
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "hall.toml"

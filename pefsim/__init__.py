@@ -40,14 +40,15 @@ if TYPE_CHECKING:
     from planner.plan import Plan
     from sim.episode.types import EpisodeResult
     from sim.montecarlo.summary import SweepSummary
-    from sim.paper.page import PaperPage
-    from sim.validation.suite import ValidationReport
+    from validation.paper.page import PaperPage
+    from validation.suite import ValidationReport
 
 _TYPES = {"PefMap": ("planner.pef.result", "PefMap"), "Placement": ("planner.placement.placement", "PlacementResult"),
           "Plan": ("planner.plan", "Plan"), "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
-          "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"), "PaperPage": ("sim.paper.page", "PaperPage"),
-          "ValidationReport": ("sim.validation.suite", "ValidationReport"),
-          "DEFAULT_ALPHA": ("sim.validation.suite", "DEFAULT_ALPHA")}
+          "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"),
+          "PaperPage": ("validation.paper.page", "PaperPage"),
+          "ValidationReport": ("validation.suite", "ValidationReport"),
+          "DEFAULT_ALPHA": ("validation.suite", "DEFAULT_ALPHA")}
 """The types the functions return, imported on first use: a command that needs one part of the
 library (``pefsim list``, ``pefsim map``) does not pay for importing the others (seconds)."""
 
@@ -152,17 +153,17 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     else:
         result = pef.grid(resolution)
     if npz is not None:
-        from sim.export.npz import write_npz
+        from interop.export.npz import write_npz
 
         write_npz(npz, result)
     if out is not None:
         from scenarios.errors import output_errors
-        from sim.report.map_figure import plot_map
+        from validation.report.map_figure import plot_map
 
         with output_errors(out, "write the figure"):
             plot_map(sc, result, sc.planning.eps_max, out, pef.k)
     if rrd is not None:
-        from sim.recording import write_static_rrd
+        from interop.recording import write_static_rrd
 
         write_static_rrd(rrd, sc, pef_map=result)
     return result
@@ -210,11 +211,11 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         result = plan_task(sc, task, free=free, pef=pef)
     grid = pef.grid() if (out is not None or rrd is not None) else None
     if out is not None:
-        from sim.report.plan_figure import plot_plan  # matplotlib: only when a figure is asked for
+        from validation.report.plan_figure import plot_plan  # matplotlib: only when a figure is asked for
 
         plot_plan(sc, result, grid, out)
     if rrd is not None:
-        from sim.recording import write_static_rrd
+        from interop.recording import write_static_rrd
 
         write_static_rrd(rrd, sc, pef_map=grid, plan=result)
     return result
@@ -312,7 +313,7 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     if out is not None and len(result.layout()) >= sc.sensor.markers_per_fix:
         write_scenario_with_markers(sc, result, out)
     if png is not None:
-        from sim.report.placement_figure import plot_placement
+        from validation.report.placement_figure import plot_placement
 
         plot_placement(sc, result, png)
     return result
@@ -329,18 +330,18 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
     routes : str or path, optional
         The route network as a Nav2 route graph (GeoJSON), each edge with ``max_tau``,
         ``mean_tau`` [m], ``min_visible``, ``admissible``, ``why_not``
-        (:mod:`sim.export.routegraph`).
+        (:mod:`interop.export.routegraph`).
     markers : str or path, optional
-        The markers as CSV ``id,x,y,x_mm,y_mm,kind,facing_deg`` (:mod:`sim.export.markers`).
+        The markers as CSV ``id,x,y,x_mm,y_mm,kind,facing_deg`` (:mod:`interop.export.markers`).
     dxf : str or path, optional
         The drawing with the reflectors, the contour τ = ε_max and the routes, each labelled
-        with its worst τ, inadmissible ones on their own layer (:mod:`sim.export.dxf`).
+        with its worst τ, inadmissible ones on their own layer (:mod:`interop.export.dxf`).
     lif : str or path, optional
         The route network as a VDA LIF file keeping every id, each node with its τ as
-        ``nodePosition.allowedDeviationXY`` [m] (:mod:`sim.export.lif`).
+        ``nodePosition.allowedDeviationXY`` [m] (:mod:`interop.export.lif`).
     keepout : str or path, optional
         A Nav2 keepout mask: this map_server YAML and a PGM beside it, occupied outside the
-        navigation region (:mod:`sim.export.keepout`).
+        navigation region (:mod:`interop.export.keepout`).
 
     Returns
     -------
@@ -379,30 +380,30 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
 
         reports = segment_reports(sc, pef)
     if "routes" in asked:
-        from sim.export.routegraph import write_route_graph
+        from interop.export.routegraph import write_route_graph
 
         written["routes"] = (write_route_graph(asked["routes"], sc, reports),)
     if "markers" in asked:
-        from sim.export.markers import write_markers_csv
+        from interop.export.markers import write_markers_csv
 
         written["markers"] = (write_markers_csv(asked["markers"], sc),)
     if "dxf" in asked:
-        from sim.export.dxf import write_dxf
-        from sim.export.region import region_contours, route_lines
+        from interop.export.dxf import write_dxf
+        from interop.export.region import region_contours, route_lines
 
         contours = region_contours(pef.grid(), sc.planning.eps_max, sc.workspace.bounds)
         written["dxf"] = (write_dxf(sc, asked["dxf"], region_contours=contours, route_lines=route_lines(sc),
                                     route_reports=reports),)
     if "lif" in asked:
+        from interop.export.lif import write_lif
         from planner.routes.admissible import tau_along
-        from sim.export.lif import write_lif
 
         names = list(sc.routes.nodes)
         # a node's deviation as its segments' end samples are judged (planner.routes.admissible)
         tau = tau_along(pef, [sc.routes.nodes[n] for n in names], sc.planning.resolution)
         written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
     if "keepout" in asked:
-        from sim.export.keepout import write_keepout
+        from interop.export.keepout import write_keepout
 
         written["keepout"] = write_keepout(asked["keepout"], sc, pef)
     return written
@@ -448,11 +449,11 @@ def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, tas
     prepared = prepare(sc, task)
     result = _run(sc, task, seed=seed, prepared=prepared)
     if tum is not None:
-        from sim.export.tum import write_tum
+        from interop.export.tum import write_tum
 
         write_tum(tum, result.steps.t, result.steps.true_pose, result.steps.est_pose)
     if rrd is not None:
-        from sim.recording import write_episode_rrd
+        from interop.recording import write_episode_rrd
 
         write_episode_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
     return result
@@ -468,7 +469,7 @@ def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: 
     seed : int, optional
         Root of the episode's random streams; default the scenario's.
     rrd : str or path, optional
-        Write a rerun recording of the fleet here (:mod:`sim.recording.fleet`).
+        Write a rerun recording of the fleet here (:mod:`interop.recording.fleet`).
 
     Returns
     -------
@@ -492,7 +493,7 @@ def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: 
     prepared = prepare_fleet(sc)
     result = run_fleet_episode(sc, seed=seed, prepared=prepared)
     if rrd is not None:
-        from sim.recording.fleet import write_fleet_rrd
+        from interop.recording.fleet import write_fleet_rrd
 
         write_fleet_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
     return result
@@ -567,13 +568,17 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
         if control:
             mark(summary.out, q_scale, alone)
         if report:
-            from sim.report.page import write_report
+            from validation.report.page import write_report
 
             written.append(write_report(summary.out, sc))
 
+    recorder = None
+    if rrd_every > 0:  # rerun: only when recordings are asked for
+        from interop.recording.run import write_run_rrd as recorder
     summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
                      resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
-                     api=scaled_api(q_scale, sc.is_fleet, alone) if control else None, then=then)
+                     api=scaled_api(q_scale, sc.is_fleet, alone) if control else None, then=then,
+                     recorder=recorder)
     return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
 
@@ -590,7 +595,7 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
         another process is still writing it.
     alpha : float, optional
         Family false-alarm probability, split Bonferroni over the statistical checks; default
-        :data:`sim.validation.suite.DEFAULT_ALPHA` (0.01).
+        :data:`validation.suite.DEFAULT_ALPHA` (0.01).
     scenario : Scenario, str or path, optional
         When given, the sweep must have been made from exactly this scenario.
     blocking_scale : float
@@ -604,8 +609,8 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
         ``passed``, ``failed``.
     """
     from sim.montecarlo.summary import SweepSummary
-    from sim.validation.suite import DEFAULT_ALPHA, load_sweep
-    from sim.validation.suite import validate as _validate
+    from validation.suite import DEFAULT_ALPHA, load_sweep
+    from validation.suite import validate as _validate
 
     directory = sweep.out if isinstance(sweep, SweepSummary) else sweep
     expected = None if scenario is None else _scenario(scenario)
@@ -639,8 +644,8 @@ def paper(out: str | Path = "paper-report", *, quick: bool = False, runs: int | 
     PaperPage
         ``index`` (the page), ``claims`` (each with its verdict), ``sections``, ``seconds``.
     """
-    from sim.paper.claims import Options
-    from sim.paper.page import reproduce_page
+    from validation.paper.claims import Options
+    from validation.paper.page import reproduce_page
 
     return reproduce_page(out, Options(quick=quick, runs=runs, workers=workers), only=claims, sections=sections)
 
@@ -665,13 +670,13 @@ def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str 
     connect : str, optional
         Stream to a running viewer at this gRPC URL (``""``: rerun's default).
         Neither: a viewer is started (``rerun`` must be on the ``PATH``).
-    on_update : callable (sim.watch.loop.Update), optional
+    on_update : callable (interop.watch.loop.Update), optional
         Called after each update (``.line()`` is ``"updated in 0.23 s, planned in 0.51 s:
         hall.toml: ..."``: the map and the route network are shown first, the plans follow).
     on_error : callable (PefsimError), optional
         Called with the error of a refused version of the files.
     interval : float, optional
-        Polling period [s]; default :data:`sim.watch.loop.POLL_INTERVAL`.
+        Polling period [s]; default :data:`interop.watch.loop.POLL_INTERVAL`.
     max_updates : int, optional
         Return after this many updates (the first view included); default run until ``stop``
         is set or the process is interrupted (Ctrl-C: the recording is finished either way).
@@ -689,10 +694,10 @@ def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str 
         An unknown scenario, both ``save`` and ``connect``, or an output that cannot be written
         (before anything is watched).
     """
+    from interop.recording import close
+    from interop.recording.live import log_plans, log_view, open_live
+    from interop.watch.loop import POLL_INTERVAL, watch_files
     from scenarios.load import resolve
-    from sim.recording import close
-    from sim.recording.live import log_plans, log_view, open_live
-    from sim.watch.loop import POLL_INTERVAL, watch_files
 
     path = resolve(scenario)
     rec = open_live(path.name, save=save, connect=connect)
@@ -724,15 +729,15 @@ def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None =
 
     check_output_names(named if named is not None else {"--output": figure, "--rrd": rrd, "--tum": folder})
     if figure is not None:
-        from sim.report.figure_format import figure_format
+        from validation.report.figure_format import figure_format
 
         figure_format(figure)
     if rrd is not None:
-        from sim.recording import check_writable
+        from interop.recording import check_writable
 
         check_writable(rrd)
     if folder is not None:
-        from sim.export.tum import make_folder
+        from interop.export.tum import make_folder
 
         make_folder(folder)
 

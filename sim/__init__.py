@@ -1,4 +1,4 @@
-"""Does it hold: the PyBullet world (``sim.physics``) and the harness that runs and judges scenarios.
+"""The simulation: the PyBullet world, one episode in it, Monte-Carlo sweeps of episodes.
 
-Only ``sim.physics`` imports pybullet, and only the ``sim.recording`` package imports rerun.
+``sim.physics``, ``sim.episode`` and ``sim.montecarlo``. Only ``sim.physics`` imports pybullet.
 """

@@ -32,14 +32,14 @@ def small_validated_sweep(tmp_path_factory):
 
     Real episodes, few: the wiring from a sweep's tables to the verdicts (``--from`` reads them
     back). The checks' power and their negative controls are tested on synthetic and transformed
-    tables (``tests/sim/validation``); the long real sweeps are in the e2e tier.
+    tables (``tests/validation``); the long real sweeps are in the e2e tier.
 
     Returns
     -------
     (pathlib.Path, int, dict)
         The sweep directory, the exit code and the JSON report.
     """
-    from sim import cli
+    import cli
 
     out = tmp_path_factory.mktemp("small-sweep") / "mc"
     buf = io.StringIO()  # a session-scoped fixture cannot use capsys

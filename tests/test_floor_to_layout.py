@@ -106,10 +106,10 @@ def write_floor(folder: Path) -> Path:
 
 
 def cli(cwd: Path, *argv) -> subprocess.CompletedProcess:
-    """Run ``python -m sim.cli`` as a user would; the step must succeed without noise on stderr."""
+    """Run ``python -m cli`` as a user would; the step must succeed without noise on stderr."""
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-m", "sim.cli", *map(str, argv)], cwd=cwd, env=env,
+    p = subprocess.run([sys.executable, "-m", "cli", *map(str, argv)], cwd=cwd, env=env,
                        capture_output=True, text=True, timeout=300)
     took = time.perf_counter() - t0
     assert p.returncode == 0, f"{argv[0]} exit {p.returncode} after {took:.1f} s:\n{p.stdout}\n{p.stderr}"

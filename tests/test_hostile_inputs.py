@@ -1,6 +1,6 @@
 """Hostile inputs: files from other people's tools, bounded in time and memory, refused in one line.
 
-Each case runs ``pefsim map`` in-process through :func:`sim.cli.main` with stderr captured and
+Each case runs ``pefsim map`` in-process through :func:`cli.main` with stderr captured and
 every warning recorded, and holds the input contract: exit 0, or exit 2 with exactly one line
 ``pefsim: error: ...`` of at most 1000 characters; no traceback, no library warning. A few
 cases that used to exhaust memory or hang run in a child process under an address-space cap
@@ -35,9 +35,9 @@ from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
+from cli import main
 from scenarios.errors import MAX_MESSAGE
 from scenarios.limits import MAX_DXF_ENTITIES, MAX_MAP_PIXELS, MAX_NESTING, MAX_YAML_NODES
-from sim.cli import main
 
 NAN, INF = math.nan, math.inf
 TAIL = '[sensor]\n[planning]\neps_max = 0.05\nresolution = 0.5\n'
@@ -331,7 +331,7 @@ def test_mc_runs_capped_like_the_file(tmp_path):
 CHILD = """
 import resource, sys
 resource.setrlimit(resource.RLIMIT_AS, (8_000_000_000, 8_000_000_000))
-from sim.cli import main
+from cli import main
 sys.exit(main(["map", sys.argv[1]]))
 """
 

@@ -1,10 +1,10 @@
 """The house rules on imports, read statically from the sources with :mod:`ast`.
 
 Every ``import`` counts, also those inside functions or under ``TYPE_CHECKING`` (lazy imports
-are still dependencies): the module graph has no cycle, and no package imports one above it
-(``jit`` < ``scenarios`` < ``estimators`` < ``planner`` < ``sim`` < ``pefsim`` < ``sim.cli``).
-The command line lives in ``sim/cli/`` but is the program on top of the library: a thin layer
-over ``pefsim`` (``docs/design.md`` §2), so it is the one part of ``sim`` above ``pefsim``.
+are still dependencies): the module graph has no cycle, and no package imports one above it in
+the strict order of :data:`LAYERS`, without exception: the simulation (``sim``) below the judging
+of its tables (``validation``), the files for other tools (``interop``), the facade (``pefsim``)
+and, on top, the program (``cli``, a thin layer over ``pefsim``; ``docs/design.md`` §2).
 """
 
 from __future__ import annotations
@@ -16,10 +16,8 @@ from pathlib import Path
 import networkx as nx
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ("jit", "scenarios", "estimators", "planner", "sim", "pefsim", "sim.cli")
-"""Lowest first: a package may import only its own modules and those of packages before it."""
-PACKAGES = ("jit", "scenarios", "estimators", "planner", "sim", "pefsim")
-"""The root packages scanned."""
+LAYERS = ("jit", "scenarios", "estimators", "planner", "sim", "validation", "interop", "pefsim", "cli")
+"""The root packages, lowest first: a package may import only its own modules and those before it."""
 
 
 def _module_name(path: Path) -> str:
@@ -31,7 +29,7 @@ def _module_name(path: Path) -> str:
 
 def _modules() -> dict[str, Path]:
     found = {}
-    for package in PACKAGES:
+    for package in LAYERS:
         for path in sorted((ROOT / package).rglob("*.py")) if (ROOT / package).is_dir() else ():
             found[_module_name(path)] = path
     return found
@@ -79,15 +77,15 @@ def _graph() -> nx.DiGraph:
 
 
 def _layer(module: str) -> int:
-    """Index in :data:`LAYERS` of the innermost layer holding ``module``."""
-    return max(i for i, layer in enumerate(LAYERS) if module == layer or module.startswith(layer + "."))
+    """Index in :data:`LAYERS` of the root package holding ``module``."""
+    return LAYERS.index(module.partition(".")[0])
 
 
 def test_the_scan_sees_lazy_and_relative_imports():
     g = _graph()
     assert g.number_of_nodes() > 100
     assert g.has_edge("pefsim", "planner.placement.placement")  # inside a function
-    assert g.has_edge("sim.cli.map", "pefsim")
+    assert g.has_edge("cli.map", "pefsim")
 
 
 def test_no_import_cycle():
@@ -105,7 +103,17 @@ def test_a_negative_control_of_the_scan():
     g = _graph()
     g.add_edge("scenarios", "pefsim")  # what the rules forbid must be seen
     assert not nx.is_directed_acyclic_graph(g)
-    assert _layer("pefsim") > _layer("scenarios") and _layer("sim.cli.map") > _layer("pefsim") > _layer("sim.report")
+    assert _layer("pefsim") > _layer("scenarios") and _layer("cli.map") > _layer("pefsim") > _layer("validation.report")
+
+
+def test_every_installed_package_is_a_layer():
+    """The packages a fresh install ships (pyproject's list) are exactly the layers scanned."""
+    import tomllib
+
+    find = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]["find"]
+    assert sorted(find["include"]) == sorted(f"{layer}*" for layer in LAYERS)
+    roots = {p.parent.name for p in ROOT.glob("*/__init__.py")} - {"tests"}
+    assert roots == set(LAYERS), roots ^ set(LAYERS)
 
 
 def _test_module_imports(text: str) -> list[str]:

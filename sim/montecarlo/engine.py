@@ -140,6 +140,12 @@ def plan_runs(scenario: Scenario, runs: int, task: int | None = None, rrd_every:
                     record=rrd_every > 0 and i % rrd_every == 0) for i in range(runs)]
 
 
+Recorder = Callable[..., Any]
+"""Writes one run's recording: ``recorder(path, scenario, result, pef_map=...)`` (the sweep's
+caller passes one, e.g. :func:`interop.recording.run.write_run_rrd`: the simulation does not
+know the file formats of other tools). A module-level function: the local pool pickles it."""
+
+
 @dataclass
 class WorkerPayload:
     """What every worker receives once: the scenario, the prepared tasks, the episode API, the steps mode."""
@@ -148,6 +154,7 @@ class WorkerPayload:
     prepared: dict[int, Any]
     api: EpisodeApi
     steps: StepsMode = StepsMode.ALL
+    recorder: Recorder | None = None
 
     @property
     def preload(self) -> tuple[str, ...]:
@@ -223,21 +230,15 @@ class RunContext:
                                                    status=f"crashed: {reason}"))
 
     def _recording(self, result: Any) -> tuple[bytes | None, str | None]:
-        try:
-            from sim import recording
-        except ImportError as exc:
-            return None, f"recordings skipped: {exc}"
+        recorder = self.payload.recorder
+        if recorder is None:
+            return None, "recordings skipped: no recorder given"
         try:
             if self._pef_map is _UNSET:
                 self._pef_map = recording_pef_map(self.payload.scenario)
             with tempfile.TemporaryDirectory(prefix="pefsim-rrd-") as tmp:
                 path = Path(tmp) / "run.rrd"
-                if self.payload.scenario.is_fleet:
-                    from sim.recording.fleet import write_fleet_rrd
-
-                    write_fleet_rrd(path, self.payload.scenario, result, pef_map=self._pef_map)
-                else:
-                    recording.write_episode_rrd(path, self.payload.scenario, result, pef_map=self._pef_map)
+                recorder(path, self.payload.scenario, result, pef_map=self._pef_map)
                 return path.read_bytes(), None
         except Exception as exc:  # a recording is a by-product: keep the run, report the failure
             return None, f"recording failed: {_one_line(exc)}"
@@ -310,7 +311,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
           address: str | None = None, resume: bool = False, rrd_every: int = 0,
           steps: StepsMode | str | None = None, api: EpisodeApi | None = None, progress: bool | None = None,
           on_warning: Callable[[str], None] | None = None,
-          then: Callable[[SweepSummary], Any] | None = None) -> SweepSummary:
+          then: Callable[[SweepSummary], Any] | None = None, recorder: Recorder | None = None) -> SweepSummary:
     """Run (or complete) a Monte-Carlo sweep and return what the directory then holds.
 
     The directory is locked (:mod:`sim.montecarlo.lock`) from the first write to the last, so
@@ -336,7 +337,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     resume : bool
         Complete the runs missing in a non-empty ``out`` made from the same scenario.
     rrd_every : int
-        Write a rerun recording of every ``rrd_every``-th run (0: none).
+        Write a recording of every ``rrd_every``-th run with ``recorder`` (0: none).
     steps : StepsMode or str, optional
         Per-step rows to keep: ``all``, ``fixes`` (the steps at fix times) or ``none``; default
         the earlier sweep's on resume, else ``all``. Recorded in ``sweep.json``.
@@ -350,6 +351,8 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     then : callable, optional
         Called with the summary while the directory is still locked (``pefsim mc`` writes its
         report there).
+    recorder : Recorder, optional
+        Writes the recordings ``rrd_every`` asks for; required when ``rrd_every`` > 0.
 
     Returns
     -------
@@ -371,6 +374,8 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
         on_cluster = kind is ExecutorKind.RAY and address
         workers = executors.ray_cluster_cpus(address) if on_cluster else (os.cpu_count() or 1)
     check_arguments(scenario, runs, task, workers, rrd_every)
+    if rrd_every > 0 and recorder is None:
+        raise ValueError("rrd_every > 0 needs a recorder (e.g. interop.recording.run.write_run_rrd)")
     if not scenario.text:
         raise ScenarioError(f"{scenario.source}: the scenario has no source text to keep beside the results")
     layout = SweepLayout(out)
@@ -387,7 +392,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
         executed, wall = 0, 0.0
         if todo:
             executed, wall = _execute(scenario, layout, settings, todo, runs, task, mode, workers, kind,
-                                      address, api, progress, on_warning, warnings)
+                                      address, api, progress, on_warning, warnings, recorder)
         results.compact_runs(layout)
         sizes = directory.record_sizes(layout)
         summary = summarize(out, scenario.montecarlo.success_target, executed, wall, mode.value, sizes)
@@ -399,7 +404,7 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
 def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], todo: list[RunSpec], runs: int,
              task: int | None, mode: StepsMode, workers: int, kind: ExecutorKind, address: str | None,
              api: EpisodeApi | None, progress: bool | None, on_warning: Callable[[str], None] | None,
-             warnings: list[Callable[[str], None]]) -> tuple[int, float]:
+             warnings: list[Callable[[str], None]], recorder: Recorder | None = None) -> tuple[int, float]:
     """Plan the tasks, run ``todo`` and write each record as it comes; returns (runs executed, wall seconds)."""
     api = api if api is not None else (fleet_api() if scenario.is_fleet else default_api())
     # Planning once here catches bad input (no route) before any worker starts.
@@ -412,7 +417,7 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
     if settings:
         results.clean_unfinished(layout)
     directory.init_sweep_dir(layout, scenario, task, max(runs, int(settings.get("runs", 0))), mode)
-    payload = WorkerPayload(scenario, prepared, api, mode)
+    payload = WorkerPayload(scenario, prepared, api, mode, recorder)
     executed = 0
     start = time.perf_counter()
     with progress_bar(total=runs, initial=runs - len(todo), enabled=progress) as bar:

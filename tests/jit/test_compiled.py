@@ -90,7 +90,7 @@ def _our_modules():
     for pkg in ("estimators", "planner", "sim"):
         base = importlib.import_module(pkg)
         for info in pkgutil.walk_packages(base.__path__, prefix=pkg + "."):
-            if "recording" in info.name or info.name.startswith("sim.cli"):
+            if "recording" in info.name or info.name.startswith("cli"):
                 continue
             yield info.name
 

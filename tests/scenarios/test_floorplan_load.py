@@ -120,7 +120,7 @@ def test_bad_floorplans_give_one_line_naming_file_and_key(folder, floorplan, pat
 def test_cli_prints_one_line_and_exits_2(folder):
     (folder / "fp.toml").write_text(scenario_text('file = "hall.dxf"\nobstacle_layers = ["WALLS"]'))
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    p = subprocess.run([sys.executable, "-m", "sim.cli", "map", "fp.toml"], cwd=folder, env=env,
+    p = subprocess.run([sys.executable, "-m", "cli", "map", "fp.toml"], cwd=folder, env=env,
                        capture_output=True, text=True)
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 import scenarios
+from cli import main
 from scenarios.errors import ScenarioWarning
-from sim.cli import main
 
 GRAPH = Path(__file__).resolve().parents[1] / "data" / "nav2" / "turtlebot4_graph.geojson"
 REPEATED = ("10006", "10007", "10012", "10013", "10020", "10021")
@@ -132,7 +132,7 @@ def test_validating_a_sweep_of_it_says_the_warning_no_more(scenario_file, tmp_pa
     """
     from scenarios.errors import OutputError
     from sim.montecarlo.results import SweepLayout, write_atomic
-    from sim.validation.data import load_sweep
+    from validation.data import load_sweep
 
     with pytest.warns(ScenarioWarning):
         sc = scenarios.load(scenario_file)

@@ -4,7 +4,7 @@ Three worlds of root seed ``SEED`` (a U-turn with bearings and redundancy 1 unde
 L-shaped hall with the exact model and redundancy 1, a comb of dead-end aisles), all with
 uniform (bounded) noise and set-membership PEF models, so that containment and the promise
 are deterministic claims: every fix's true position lies in its realised exact fault area, and
-every realised area is within its promise (the allowance ``sim.validation.promise`` uses).
+every realised area is within its promise (the allowance ``validation.promise`` uses).
 Two short episodes each. The statistical checks live in ``benchmarks/generalization.py``.
 """
 
@@ -117,7 +117,7 @@ def test_promise_check_catches_a_broken_promise(drawn, episodes):
 
 
 def test_cli_bad_count_is_one_line_and_writes_nothing(tmp_path, capsys):
-    from sim.cli import main
+    from cli import main
 
     out = tmp_path / "w"
     assert main(["worlds", "--count", "0", "--out", str(out)]) == 2

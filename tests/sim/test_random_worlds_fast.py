@@ -53,7 +53,7 @@ def test_small_worlds_keep_what_cannot_fail_by_chance(small_worlds):
 @pytest.mark.parametrize(("flag", "value", "key"), [("--max-size", "11", "max_size"), ("--max-size", "nan", "max_size"),
                                                ("--workers", "0", "workers"), ("--workers", "-2", "workers")])
 def test_cli_bad_knob_is_one_line_and_writes_nothing(tmp_path, capsys, flag, value, key):
-    from sim.cli import main
+    from cli import main
 
     out = tmp_path / "w"
     assert main(["worlds", "--count", "2", flag, value, "--out", str(out)]) == 2

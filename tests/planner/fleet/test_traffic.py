@@ -13,11 +13,11 @@ import math
 
 import pytest
 
+import cli
 from planner.fleet.plan import plan_fleet
 from planner.fleet.summary import summarize
 from planner.fleet.traffic import block_limit
 from scenarios import loads
-from sim import cli
 from tests.sim.fleets import CROSS
 
 

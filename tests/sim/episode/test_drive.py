@@ -11,8 +11,8 @@ import pytest
 
 import scenarios
 from estimators import motion_quantised
+from interop.export.tum import read_tum
 from sim.episode.drive import prepare, run_episode
-from sim.export.tum import read_tum
 from tests.sim.episode.digest import digest
 
 #: episodes on the big floors (a hall, the warehouse's second task and its reflector variant): the e2e tier
@@ -84,7 +84,7 @@ def test_same_seed_same_arrays_in_fresh_processes():
 
 
 def test_tum_files_reproduce_the_rmse(tmp_path):
-    from sim.cli import main
+    from cli import main
 
     assert main(["run", "paper-two-markers", "--seed", "2", "--tum", str(tmp_path), "--json"]) == 0
     gt, est = read_tum(tmp_path / "groundtruth.txt"), read_tum(tmp_path / "estimate.txt")
@@ -133,7 +133,7 @@ to = "B"
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "sim.cli", *args], capture_output=True, text=True, cwd=cwd)
+    return subprocess.run([sys.executable, "-m", "cli", *args], capture_output=True, text=True, cwd=cwd)
 
 
 @pytest.mark.parametrize("case,text,args,pattern", [

@@ -69,7 +69,7 @@ def test_fix_notes_name_the_robot_that_hid_a_marker(crossing):
 def test_the_recording_holds_every_robot_and_the_hidden_lines_of_sight(crossing, tmp_path):
     from rerun.chunk import RrdReader
 
-    from sim.recording.fleet import write_fleet_rrd
+    from interop.recording.fleet import write_fleet_rrd
 
     sc, _, res = crossing
     path = write_fleet_rrd(tmp_path / "fleet.rrd", sc, res)
@@ -119,7 +119,7 @@ def test_the_built_in_fleet_drives_without_a_collision():
 def test_pefsim_run_prints_every_robot(tmp_path, capsys):
     import json
 
-    from sim import cli
+    import cli
 
     path = tmp_path / "cross.toml"
     path.write_text(CROSS)
@@ -135,7 +135,7 @@ def test_pefsim_run_prints_every_robot(tmp_path, capsys):
 def test_mc_and_validate_a_fleet(tmp_path, capsys):
     import json
 
-    from sim import cli
+    import cli
     from sim.montecarlo import results
 
     path = tmp_path / "cross.toml"

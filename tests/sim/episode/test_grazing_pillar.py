@@ -15,6 +15,7 @@ import re
 
 import pytest
 
+import cli
 import pefsim
 import scenarios
 from planner.plan import plan_route
@@ -22,7 +23,6 @@ from planner.routes.smoothing import speed_profile
 from planner.schedule import clearance
 from planner.schedule.schedule import make_schedule
 from scenarios.errors import PlanningError
-from sim import cli
 from sim.episode.drive import prepare, run_episode
 from tests.planner.schedule.pillar_hall import PILLAR, WORLD, arc_middle
 from tests.sim.episode.bodyclear import footprint_gap

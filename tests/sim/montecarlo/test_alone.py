@@ -13,10 +13,10 @@ import json
 
 import pytest
 
+import cli
 import pefsim
 import scenarios
 from scenarios import ScenarioError
-from sim import cli
 from sim.episode import fleet
 from sim.montecarlo.engine import fleet_api
 from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON, mark, read_mark
@@ -85,8 +85,8 @@ def test_the_mark_reads_back_and_a_bad_one_is_refused(tmp_path):
 
 
 def test_the_cli_passes_alone_to_the_library_and_prints_it(monkeypatch, capsys):
-    from sim.validation.data import CheckResult, CheckStatus
-    from sim.validation.suite import ValidationReport
+    from validation.data import CheckResult, CheckStatus
+    from validation.suite import ValidationReport
 
     seen = {}
 

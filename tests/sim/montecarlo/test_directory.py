@@ -34,8 +34,8 @@ from sim.montecarlo.rows import (
     run_row,
     step_columns,
 )
-from sim.validation import suite as validation
 from tests.sim.montecarlo import fake_episode as fe
+from validation import suite as validation
 
 REPO = Path(__file__).resolve().parents[3]
 RUNS = 6
@@ -46,7 +46,7 @@ import sys
 from sim.montecarlo import engine
 from tests.sim.montecarlo import fake_episode as fe
 engine.default_api = lambda: fe.SLOW
-from sim.cli import main
+from cli import main
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -318,7 +318,7 @@ def test_the_report_of_a_lean_sweep_says_what_it_draws(tmp_path, scenario):
     from types import SimpleNamespace
 
     from scenarios.schema import PefModel
-    from sim.report.page import write_report
+    from validation.report.page import write_report
 
     fake_map = SimpleNamespace(x=(np.arange(40) + 0.5) * 0.5, y=(np.arange(24) + 0.5) * 0.5,
                                tau=np.full((24, 40), 0.01), cell_size=(0.5, 0.5), model=PefModel.PARALLELOGRAM)

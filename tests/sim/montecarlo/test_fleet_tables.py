@@ -19,8 +19,8 @@ from sim.montecarlo.rows import (
     step_columns,
 )
 from sim.montecarlo.summary import summarize
-from sim.validation.data import fleet_units
 from tests.sim.montecarlo import fake_episode as fe
+from validation.data import fleet_units
 
 
 def _fleet_record(scenario, run: int, names: list[str]) -> RunRecord:

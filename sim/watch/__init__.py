@@ -1,6 +1,0 @@
-"""``pefsim watch``: follow a scenario's files and keep a live rerun view of it up to date.
-
-:mod:`sim.watch.files` notices saved files (polling), :mod:`sim.watch.view` computes what the
-view shows (reusing the PEF map where the edit cannot have changed it) and
-:mod:`sim.watch.loop` ties both to a stream of :mod:`sim.recording.live`.
-"""

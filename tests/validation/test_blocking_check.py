@@ -1,0 +1,156 @@
+"""The ``blocking`` check on synthetic fleet tables: calibrated predictions pass, 2x off either way fail.
+
+Each synthetic run has the fixes of three robots; a robot crossing another's line of sight hides
+it at a stretch of consecutive fixes whose probabilities rise and fall (a crossing), and within a
+run the fixes of one crossing share one timing draw (a fix is blocked when a uniform draw of the
+crossing falls below its probability: each fix's marginal probability is exact, and the fixes of
+a crossing are as dependent as they come). The check's family false-alarm probability is
+alpha = 0.01 (its Bonferroni share in ``pefsim validate``); seeds are fixed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import binom
+
+import scenarios
+from validation.blocking import blocking, blocking_why_not
+from validation.data import FixTable, RunTable, SweepData
+from validation.suite import validate
+
+ALPHA = 0.01
+RUNS = 200
+ROBOTS = 3
+FIXES = 200       # per robot and run
+CROSSINGS = 6     # per robot: stretches where another robot may hide a reflector
+
+
+@pytest.fixture(scope="module")
+def fleet_scenario():
+    return scenarios.load("warehouse-fleet-spread")
+
+
+def _profile(rng: np.random.Generator) -> np.ndarray:
+    """Predicted probability per fix of one robot (FIXES,): zero but at CROSSINGS bumps."""
+    p = np.zeros(FIXES)
+    for c in rng.choice(np.arange(10, FIXES - 10), CROSSINGS, replace=False):
+        width = int(rng.integers(2, 8))
+        peak = rng.uniform(0.05, 1.0)
+        idx = np.arange(c - width, c + width + 1)
+        p[idx] = np.maximum(p[idx], peak * np.exp(-0.5 * ((idx - c) / (0.5 * width)) ** 2))
+    return p
+
+
+def _table(scenario, seed: int, scale: float = 1.0, runs: int = RUNS) -> SweepData:
+    """Make a fleet sweep of ``runs`` runs whose true blocking probabilities are ``scale`` x the predicted."""
+    rng = np.random.default_rng(seed)
+    pred = [_profile(rng) / scale for _ in range(ROBOTS)]
+    unit, p_col, obs = [], [], []
+    for run in range(runs):
+        for r in range(ROBOTS):
+            true = np.clip(pred[r] * scale, 0.0, 1.0)
+            # one uniform per crossing (a connected stretch of p > 0): the crossing's timing
+            stretch = np.cumsum(np.diff(np.concatenate([[0.0], true]) > 0) & (true > 0))
+            draw = rng.uniform(size=stretch.max() + 1)[stretch]
+            unit.append(np.full(FIXES, run * ROBOTS + r))
+            p_col.append(pred[r])
+            obs.append(draw < true)
+    n = runs * ROBOTS * FIXES
+    z = np.zeros(n)
+    fixes = FixTable(run=np.concatenate(unit), fix=np.tile(np.arange(FIXES), runs * ROBOTS),
+                     true_xy=np.zeros((n, 2)), snapshot_xy=np.zeros((n, 2)), snapshot_cov=np.zeros((n, 2, 2)),
+                     snapshot_error=z, predicted_tau=np.ones(n), contained=np.ones(n, bool), fault_diameter=z, nis=z,
+                     n_accepted=np.zeros(n, np.int64), markers=np.zeros((n, 2), np.int64),
+                     p_block_robot=np.concatenate(p_col), robot_blocked=np.concatenate(obs))
+    units = np.arange(runs * ROBOTS)
+    table = RunTable(run=units, ok=np.ones(len(units), bool), succeeded=np.ones(len(units), bool),
+                     mean_nees=np.full(len(units), 3.0))
+    return SweepData(scenario=scenario, runs=table, fixes=fixes)
+
+
+def test_calibrated_predictions_pass(fleet_scenario):
+    res = blocking(_table(fleet_scenario, 1), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "pass", res.detail
+    assert len(res.values["per_bin"]) >= 3 and res.values["observed"] > 500
+    # the power it shows: the same runs against predictions half and twice as large fail
+    assert abs(res.values["z_half"]) > res.values["z_crit"] and abs(res.values["z_double"]) > res.values["z_crit"]
+
+
+def test_predictions_three_times_too_small_fail(fleet_scenario):
+    # negative control: the robots hide reflectors three times as often as predicted
+    res = blocking(_table(fleet_scenario, 2, scale=3.0), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "FAIL", res.detail
+    assert res.values["observed"] > 2.5 * res.values["expected"]
+
+
+@pytest.mark.parametrize("scale", [0.5, 2.0])
+def test_predictions_twice_too_high_or_too_low_fail(fleet_scenario, scale):
+    # negative controls: the robots hide reflectors half (twice) as often as predicted, with a few
+    # hundred blocked fixes over the sweep
+    res = blocking(_table(fleet_scenario, 4, scale=scale), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "FAIL", res.detail
+    assert (res.values["z"] > 0) == (scale > 1.0)
+
+
+def test_a_fleet_that_keeps_time_like_a_clock_fails_a_spread_it_does_not_have(fleet_scenario):
+    # identical runs (no timing drawn anew): fixes predicted 0.3 that never happen. The check that
+    # counted each scheduled fix's rows as one dependent trial passed this; runs are the unit now
+    p = np.r_[np.full(4, 0.3), np.zeros(200)]
+    res = blocking(_deterministic(fleet_scenario, p, np.zeros(len(p), bool)), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "FAIL", res.detail
+    assert res.values["expected"] == pytest.approx(0.3 * 4 * RUNS) and res.values["observed"] == 0
+
+
+def test_false_alarms_stay_within_alpha(fleet_scenario):
+    # 30 calibrated sweeps with dependent fixes: a check of false-alarm probability <= alpha fails
+    # at most k of them, k the binomial(30, alpha) quantile at 1 - 0.001 (a false alarm of this
+    # test of at most 0.001)
+    tables = 30
+    fails = sum(blocking(_table(fleet_scenario, 100 + i), ALPHA, np.random.default_rng(0)).status.value == "FAIL"
+                for i in range(tables))
+    assert fails <= binom.ppf(1 - 0.001, tables, ALPHA)
+
+
+def test_applies_only_to_fleet_tables_and_joins_the_suite(fleet_scenario):
+    data = _table(fleet_scenario, 3, runs=20)  # the whole suite judges it: a small sweep
+    assert blocking_why_not(data) is None
+    bare = SweepData(scenario=data.scenario, runs=data.runs,
+                     fixes=FixTable(**{**data.fixes.__dict__, "p_block_robot": None, "robot_blocked": None}))
+    assert "not a fleet sweep" in blocking_why_not(bare)
+    # a fleet that declares no timing spread repeats one timing in every run: no trials to count
+    clock = SweepData(scenario=scenarios.load("warehouse-fleet"), runs=data.runs, fixes=data.fixes)
+    assert "declares a timing spread" in blocking_why_not(clock)
+    report = validate(data, alpha=ALPHA)
+    assert report.check("blocking").status.value == "pass"
+    assert report.check("blocking").alpha == pytest.approx(ALPHA / report.statistical)
+
+
+def _deterministic(scenario, p_pred: np.ndarray, blocked: np.ndarray) -> SweepData:
+    """Every run the same: fixes predicted ``p_pred``, blocked as ``blocked`` (a run of robots on time)."""
+    n = len(p_pred) * RUNS
+    z = np.zeros(n)
+    unit = np.repeat(np.arange(RUNS) * ROBOTS, len(p_pred))
+    fixes = FixTable(run=unit, fix=np.tile(np.arange(len(p_pred)), RUNS), true_xy=np.zeros((n, 2)),
+                     snapshot_xy=np.zeros((n, 2)), snapshot_cov=np.zeros((n, 2, 2)), snapshot_error=z,
+                     predicted_tau=np.ones(n), contained=np.ones(n, bool), fault_diameter=z, nis=z,
+                     n_accepted=np.zeros(n, np.int64), markers=np.zeros((n, 2), np.int64),
+                     p_block_robot=np.tile(p_pred, RUNS), robot_blocked=np.tile(blocked, RUNS))
+    units = np.arange(RUNS) * ROBOTS
+    runs = RunTable(run=units, ok=np.ones(RUNS, bool), succeeded=np.ones(RUNS, bool), mean_nees=np.full(RUNS, 3.0))
+    return SweepData(scenario=scenario, runs=runs, fixes=fixes)
+
+
+def test_sure_predictions_pass_when_they_come_true_and_fail_when_reversed(fleet_scenario):
+    # a deterministic fleet: 8 fixes hidden for sure, 500 never; predicted 1 - 1e-6 and 1e-6: the
+    # runs' variance is 0, the prediction's own (independent fixes) keeps z small (0.1 expected
+    # blocked among the 100000 clear rows: |z| about 0.3)
+    truth = np.r_[np.ones(8, bool), np.zeros(500, bool)]
+    p = np.where(truth, 1.0 - 1e-6, 1e-6)
+    res = blocking(_deterministic(fleet_scenario, p, truth), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "pass", res.detail
+    assert res.values["variance"] == pytest.approx(res.values["variance_floor"])
+    # negative control: the hidden fixes are the ones predicted clear and the other way round
+    swapped = np.r_[np.zeros(8, bool), np.ones(8, bool), np.zeros(492, bool)]
+    res = blocking(_deterministic(fleet_scenario, p, swapped), ALPHA, np.random.default_rng(0))
+    assert res.status.value == "FAIL", res.detail

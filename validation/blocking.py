@@ -1,0 +1,145 @@
+"""The ``blocking`` check: the plan's predicted robot blocking against what a fleet's episodes saw.
+
+Each fix of a fleet sweep carries the plan's probability that another robot hides at least one
+of the scheduled fix's markers at its start (fixes column ``p_block_robot``,
+:attr:`planner.fleet.exposure.RobotBlocking.p_fix`) and what happened (``blocked_by_robot_count``
+> 0: the simulation found a scheduled line of sight hidden by a robot's body).
+
+**The test.** Fixes of one run are not independent (one robot late hides a reflector at several
+fixes in a row, and every robot of a run shares the episode's timing draws), but runs are: each
+run draws its own timing from its own streams (:mod:`planner.fleet.timing`). So the unit is the
+run. Run r's fixes give its observed count O_r of blocked fixes and its expected count
+E_r = sum of p over them; under the prediction (each fix blocked with its predicted probability,
+whatever the dependence within a run) ``D_r = O_r - E_r`` has mean 0, and the D_r of the R runs
+are independent and identically distributed (one plan, one scenario). The statistic is
+
+    z = sum_r D_r / sqrt(V),  V = max(R s^2, sum of p (1 - p) over every fix),
+
+s^2 the sample variance of the D_r (the variance of a sum over independent runs, however the
+fixes of a run depend on each other). By the central limit theorem over the runs z is standard
+normal when the prediction holds (asymptotically in R). The second term of V is the variance the
+prediction itself states for fixes independent within a run; it only lowers z (fewer
+false alarms) and keeps a sweep of identical runs (a fleet that keeps time like a clock: s^2 = 0)
+from failing on a difference of rounding: a prediction within 1e-6 of 0 or 1 at every fix passes,
+one that states a spread the runs do not have fails.
+
+The runs are independent draws of the timing only when the fleet declares a timing spread: the
+simulated robots keep time to about 0.01 s (:data:`planner.fleet.blocking.TIMING`), so without one
+every run repeats one timing and its blocking, and most of the spread the prediction states is its
+model's error, the same in every run. The check then does not apply (it used to take each
+scheduled fix's rows as one dependent trial, which left it a handful of trials: 339.7 predicted
+against 0 observed passed).
+
+**Power.** A prediction k times the truth shifts the sum by (k - 1) sum E_r / k while V stays
+of the order of R Var(O_r): a prediction 2x too high or too low fails once the runs expect a few
+dozen blocked fixes in all. The check reports the z a prediction scaled by 1/2 and by 2 would
+have had on the same runs (``z_half``, ``z_double``), so that a pass shows what it could have
+caught. A total can hide a prediction that puts its mass on the wrong fixes (the blocked ones
+predicted clear and as many clear ones predicted blocked): the same test is made in each bin of
+the predicted probability (:data:`EDGES`), and the check fails when the total's or a bin's
+``|z|`` exceeds ``Phi^-1(1 - a / (2 m))``, m = 1 + the bins (Bonferroni: false-alarm probability
+at most a).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.stats import norm
+
+from validation.data import CheckResult, CheckStatus, SweepData
+
+EDGES = (0.0, 0.02, 0.1, 0.3, 0.7, 0.9, 0.98, 1.0)
+"""Bin edges of the predicted probability for the report: fine near 0 and 1, where most fixes are."""
+
+
+def blocking_why_not(data: SweepData) -> str | None:
+    """Return why the check does not apply (no predicted or observed robot blocking), or None."""
+    fx = data.fixes
+    if fx.p_block_robot is None or fx.robot_blocked is None:
+        return ("the fixes table has no predicted robot blocking (p_block_robot) and observed blocking "
+                "(blocked_by_robot_count): not a fleet sweep")
+    if not np.isfinite(fx.p_block_robot).any():
+        return "no fix has a predicted robot blocking probability"
+    if not any(r.start_jitter > 0 or r.dwell > 0 or r.speed_spread > 0 for r in data.scenario.robots):
+        return ("no robot declares a timing spread ([[robots]] start_jitter, dwell, speed_spread): every run "
+                "repeats one timing, so the runs are one draw of who hides what, not independent trials of the "
+                "predicted chances (declare the spread the real fleet has)")
+    return None
+
+
+def _bins(p: np.ndarray) -> list[np.ndarray]:
+    """Group the fixes by bin of :data:`EDGES` (non-empty bins only)."""
+    which = np.clip(np.searchsorted(EDGES, p, side="right") - 1, 0, len(EDGES) - 2)
+    groups = [np.flatnonzero(which == b) for b in range(len(EDGES) - 1)]
+    return [g for g in groups if len(g)]
+
+
+def _runs_of(data: SweepData) -> np.ndarray:
+    """Return the run of each fix (a fleet's tables number each robot of each run as a unit, ``run * n + robot``)."""
+    n = max(len(data.scenario.robots), 1)
+    return np.asarray(data.fixes.run, dtype=np.int64) // n
+
+
+def _floor(p: np.ndarray) -> float:
+    """Variance of the count of blocked fixes the prediction ``p`` states for fixes independent of each other."""
+    return float(np.sum(p * (1.0 - p)))
+
+
+def _z(d_run: np.ndarray, floor: float) -> tuple[float, float]:
+    """Return z and its variance V for per-run differences ``d_run`` (module docstring)."""
+    n_runs = len(d_run)
+    v_runs = float(np.sum((d_run - d_run.mean()) ** 2) * n_runs / (n_runs - 1)) if n_runs > 1 else 0.0
+    v = max(v_runs, floor)
+    total = float(d_run.sum())
+    if v <= 0.0:
+        return (0.0 if total == 0.0 else math.copysign(math.inf, total)), v
+    return total / math.sqrt(v), v
+
+
+def blocking(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
+    """Compare the observed count of robot-blocked fixes with the predicted, runs as the unit (module docstring)."""
+    fx = data.fixes
+    ok = np.isfinite(fx.p_block_robot)
+    p = np.clip(fx.p_block_robot[ok], 0.0, 1.0)
+    obs = np.asarray(fx.robot_blocked, bool)[ok].astype(float)
+    runs = np.unique(_runs_of(data)[ok], return_inverse=True)[1].reshape(-1)
+    n_runs = int(runs.max(initial=-1)) + 1
+    o_run = np.bincount(runs, weights=obs, minlength=n_runs)
+    e_run = np.bincount(runs, weights=p, minlength=n_runs)
+    floor = _floor(p)
+    z, v = _z(o_run - e_run, floor)
+    groups = _bins(p)
+    m = 1 + len(groups)
+    z_crit = float(norm.ppf(1.0 - alpha / m / 2.0))
+    rows = []
+    for g in groups:
+        d = np.bincount(runs[g], weights=obs[g] - p[g], minlength=n_runs)
+        z_b = _z(d, _floor(p[g]))[0]
+        rows.append({"p_from": float(p[g].min()), "p_to": float(p[g].max()), "fixes": int(len(g)),
+                     "expected": float(p[g].sum()), "observed": int(obs[g].sum()), "z": z_b,
+                     "failed": not abs(z_b) <= z_crit})
+    failed = not abs(z) <= z_crit
+    bins_off = sum(r["failed"] for r in rows)
+    # what the same runs say of a prediction half and twice as large (the check's power, shown)
+    z_half, z_double = (_z(o_run - k * e_run, _floor(np.clip(k * p, 0.0, 1.0)))[0] for k in (0.5, 2.0))
+    total_e, total_s = float(p.sum()), int(obs.sum())
+    per_bin = "; ".join(f"p {r['p_from']:.3g}..{r['p_to']:.3g}: {r['observed']}/{r['expected']:.1f} "
+                        f"(z {_fmt(r['z'])})" for r in rows)
+    side = "" if not failed else (" (more blocked than predicted)" if z > 0 else " (fewer blocked than predicted)")
+    detail = (f"fixes with a scheduled line of sight hidden by a robot, observed against expected, the {n_runs} runs "
+              f"as independent units: z = (sum O_r - sum E_r) / sqrt(V), V the larger of the runs' variance x R "
+              f"({_fmt(v)}) and the prediction's for independent fixes ({_fmt(floor)}){side}; the same runs against "
+              f"a prediction half as large give z {_fmt(z_half)}, twice as large {_fmt(z_double)}; the same test per "
+              f"bin of the predicted probability, observed/expected: {per_bin}; a = alpha / {m} tests")
+    return CheckResult("blocking", CheckStatus.FAIL if failed or bins_off else CheckStatus.PASS,
+                       f"{total_s} blocked, {total_e:.1f} expected, z {_fmt(z)}, {bins_off}/{len(rows)} bins off",
+                       f"|z| <= {z_crit:.3g}", alpha, detail,
+                       {"z": z, "z_crit": z_crit, "tests": m, "variance": v, "variance_floor": floor,
+                        "observed": total_s, "expected": total_e, "fixes": int(ok.sum()), "runs": n_runs,
+                        "z_half": z_half, "z_double": z_double, "failed_bins": bins_off, "per_bin": rows})
+
+
+def _fmt(x: float) -> str:
+    return f"{x:+.3g}" if math.isfinite(x) else str(x)
