@@ -2,8 +2,8 @@
 
 Each hard case is planned through zone control's stop rule (:func:`predict_timeline`, recording the
 order in which the robots pass each cell), then driven abstractly as the simulation drives it
-(``run_abstract`` of ``test_deadlock_search``: braking distance plus lookahead, release slack, stops
-short of the reservation's end) with timings the plan never saw: speeds 0.3-1.5 m/s and start
+(``zone_runs.run_abstract``: braking distance plus lookahead, release slack, stops short of
+the reservation's end) with timings the plan never saw: speeds 0.3-1.5 m/s and start
 times 0-40 s drawn per trial. Kept in the plan's order of passage (``ZoneControl(after=...)``), every
 robot arrives in every trial and the clearance holds. Negative control: reserving one sample at a
 time with neither stops nor the order (the rule weakened) deadlocks in some of the same trials.
@@ -16,8 +16,16 @@ import pytest
 
 from planner.fleet.zones import DEFAULT_MARGIN, ZoneControl, predict_timeline
 from scenarios.errors import PlanningError
-from tests.planner.fleet.test_deadlock_search import DEVIATION, floor, random_fleet, run_abstract
-from tests.planner.fleet.test_zones import RADIUS, kinematics, min_distance, polyline
+from tests.planner.fleet.zone_runs import (
+    DEVIATION,
+    RADIUS,
+    floor,
+    kinematics,
+    min_distance,
+    polyline,
+    random_fleet,
+    run_abstract,
+)
 
 TRIALS = 30
 # Held footprints are disjoint and each robot is within DEVIATION of a held sample (test_deadlock_search)

@@ -2,51 +2,18 @@
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pytest
 
 from planner.fleet.zones import DEFAULT_MARGIN, ZoneControl, predict_timeline
-from planner.schedule.pathtime import Kinematics
 from scenarios.errors import PlanningError
-
-SPACING = 0.05   # sample spacing of the test paths [m]
-RADIUS = 0.4
-
-
-def polyline(*pts: tuple[float, float]) -> np.ndarray:
-    """Points along the polyline through ``pts``, at most SPACING apart, shape (N, 2)."""
-    out = [np.asarray(pts[0], float)[None]]
-    for a, b in itertools.pairwise(np.asarray(pts, float)):
-        n = max(1, int(np.ceil(np.hypot(*(b - a)) / SPACING)))
-        out.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
-    return np.concatenate(out)
-
-
-def kinematics(path: np.ndarray, speed: float = 1.0) -> Kinematics:
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
-    v = np.full(len(s), speed)
-    v[-1] = 0.0
-    return Kinematics(s, v)
+from tests.planner.fleet.zone_runs import RADIUS, SPACING, kinematics, min_distance, polyline
 
 
 def drive(paths, starts=None, cls=ZoneControl):
     zc = cls(paths, [RADIUS] * len(paths))
     tls = predict_timeline(zc, [kinematics(p) for p in paths], starts or [0.0] * len(paths), dt=0.05)
     return zc, tls
-
-
-def min_distance(tls) -> float:
-    """Closest approach of any two robots over the common time samples [m]."""
-    best = np.inf
-    for a, b in itertools.combinations(tls, 2):
-        n = min(len(a.t), len(b.t))
-        d = np.hypot(*(a.xy[:n] - b.xy[:n]).T)
-        # after one arrives it stands on its final dock
-        tail = np.hypot(*((a.xy[n:] if len(a.t) > n else b.xy[n:]) - (b.xy[-1] if len(a.t) > n else a.xy[-1])).T)
-        best = min(best, d.min(), tail.min() if len(tail) else np.inf)
-    return float(best)
 
 
 # Held samples' footprints (radius + margin) are disjoint; each robot is within half a sample
