@@ -395,6 +395,9 @@ def lag_difference(tracks: list[Track], i: int, j: int, t: np.ndarray,
     Each lag is its root's own lag plus an independent part (:class:`Track`); two lags with one
     root share that root's own lag up to the earlier of their times, whose variance cancels.
     (Parts of X shared through a robot between them are taken as independent: more spread.)
+    With a declared timing spread (:attr:`Track.parent`), a robot that waited for the other is
+    the other's lag at the release plus its restart and drift since, less the other's drift from
+    the release to ``t``: the two lags are not taken as independent there.
     """
     t = np.asarray(t, float).reshape(-1)
     parts = []
@@ -427,8 +430,8 @@ def lag_difference(tracks: list[Track], i: int, j: int, t: np.ndarray,
         if not sel.any():
             continue
         ks = k[sel]
-        tb_drive = lambda x, tb=tb: np.interp(x, tb.t, tb.drive)   # noqa: E731
-        g_m, g_v = model_of(timing, tracks, b).drift(tb_drive(ta.parent_t[ks]), tb_drive(t[sel]))
+        g_m, g_v = model_of(timing, tracks, b).drift(np.interp(ta.parent_t[ks], tb.t, tb.drive),
+                                                     np.interp(t[sel], tb.t, tb.drive))
         # delta_a - delta_b = p + delta_b(release) - delta_b(t) = p - drift of b from the release to t
         mean[sel] = sign * (ta.p_mean[ks] - g_m)
         var[sel] = ta.p_var[ks] + g_v
