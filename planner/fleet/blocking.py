@@ -274,6 +274,8 @@ class Track:
     def stand_back(self, timeline: Timeline, path: np.ndarray, path_s: np.ndarray) -> Track:
         """Place the robot's zone waits where a simulated robot stands: STAND_BACK short, spread STAND_SD.
 
+        On its start dock (before it leaves) and parked on its final one it is spread STAND_SD too.
+
         ``path`` (N, 2) and ``path_s`` (N,) are the robot's whole path and its arc lengths [m].
         """
         t0 = np.asarray(timeline.t, float)
@@ -285,7 +287,10 @@ class Track:
         s_back = np.maximum(self.s - STAND_BACK, 0.0)
         back = np.column_stack([np.interp(s_back, path_s, path[:, 0]), np.interp(s_back, path_s, path[:, 1])])
         xy = np.where(wait[:, None], back, self.xy)
-        return replace(self, xy=xy, pos_sd=np.where(wait, STAND_SD, POS_SD))
+        # on its start dock until it leaves: where the dock is, within the start pose's 1 mm
+        # (sim.episode.drive.START_POS_STD), whenever it leaves
+        still = wait | (self.s <= 0.0)
+        return replace(self, xy=xy, pos_sd=np.where(still, STAND_SD, POS_SD))
 
     def at_s(self, s: np.ndarray) -> np.ndarray:
         """Planned time [s] at which the robot first reaches arc length(s) ``s`` [m]."""

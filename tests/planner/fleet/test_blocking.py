@@ -174,16 +174,18 @@ def test_with_a_timing_spread_a_waiting_robot_stands_where_the_plan_has_it_again
 
 
 def test_a_waiting_robot_is_placed_where_the_simulated_one_stands():
-    # it stops STAND_BACK short of the timeline's place, spread STAND_SD; driving, POS_SD at its place
+    # it stops STAND_BACK short of the timeline's place, spread STAND_SD; driving, POS_SD at its place;
+    # on its start dock it is where the dock is, spread STAND_SD
     t = np.arange(0.0, 6.0 + 1e-9, 0.1)
     waiting = (t > 2.0 + 1e-9) & (t < 3.0 + 1e-9)
     x1 = np.where(t < 2.0, t, np.where(t < 3.0, 2.0, t - 1.0))
     path = np.column_stack([np.arange(0.0, 5.0 + 1e-9, 0.1), np.zeros(51)])
     tl = _timeline(np.column_stack([x1, np.zeros(len(t))]), t, waiting)
     tr = Track.of(tl, 0.0, 0.4, 0.5).stand_back(tl, path, path[:, 0])
-    k = tr.sample(np.array([2.5, 1.0]))
+    k = tr.sample(np.array([2.5, 1.0, 0.0]))
     assert tr.xy[k[0], 0] == pytest.approx(2.0 - STAND_BACK) and tr.pos_sd[k[0]] == STAND_SD
     assert tr.xy[k[1], 0] == pytest.approx(1.0) and tr.pos_sd[k[1]] == POS_SD
+    assert tr.xy[k[2], 0] == 0.0 and tr.pos_sd[k[2]] == STAND_SD      # on its start dock
 
 
 @pytest.fixture(scope="module")
