@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     written = pefsim.export(args.scenario, routes=args.routes, markers=args.markers, dxf=args.dxf, lif=args.lif,
                             keepout=args.keepout)
     if args.json:
-        print_json({k: str(v[0]) if len(v) == 1 else [str(p) for p in v] for k, v in written.items()})
+        print_json(written.to_dict())
         return 0
     for paths in written.values():
         for path in paths:

@@ -15,11 +15,7 @@ def run(args: argparse.Namespace) -> int:
     import pefsim
     from cli import print_json
 
-    rows = []
-    for name in pefsim.builtin_names():
-        s = pefsim.load(name)
-        rows.append({"name": name, "size": list(s.workspace.size), "markers": len(s.markers),
-                     "docks": len(s.docks), "tasks": len(s.tasks), "description": s.description})
+    rows = [pefsim.load(name).overview() for name in pefsim.builtin_names()]
     if args.json:
         print_json(rows)
         return 0

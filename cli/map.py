@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import argparse
 
-from sim.jsonable import json_number
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("map", help="PEF map, navigation region, markers, obstacles")
@@ -31,45 +29,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def map_summary(pef_map, eps_max: float, resolution: float) -> dict:
-    """Build the ``--json`` document of a map.
-
-    Parameters
-    ----------
-    pef_map : planner.pef.result.PefMap
-        The map.
-    eps_max : float
-        Allowed error [m].
-    resolution : float
-        Requested cell size [m].
-
-    Returns
-    -------
-    dict
-        ``model``, ``resolution`` [m], ``eps_max`` [m], ``fraction_navigable`` (of free cells,
-        ``tau < eps_max``), ``tau_min``/``tau_median``/``tau_max`` [m] over finite free cells
-        (null when there are none), ``cells`` (nx * ny), ``shape`` [ny, nx], ``free_cells``.
-    """
-    import numpy as np
-
-    free = pef_map.free
-    tau_free = pef_map.tau[free]
-    finite = tau_free[np.isfinite(tau_free)]
-    n_free = int(free.sum())
-    return {
-        "model": pef_map.model.value,
-        "resolution": float(resolution),
-        "eps_max": float(eps_max),
-        "fraction_navigable": float(np.count_nonzero(tau_free < eps_max) / n_free) if n_free else 0.0,
-        "tau_min": json_number(finite.min()) if finite.size else None,
-        "tau_median": json_number(float(np.median(finite))) if finite.size else None,
-        "tau_max": json_number(finite.max()) if finite.size else None,
-        "cells": int(pef_map.tau.size),
-        "shape": [int(pef_map.y.size), int(pef_map.x.size)],
-        "free_cells": n_free,
-    }
-
-
 def run(args: argparse.Namespace) -> int:
     import pefsim
     from cli import print_json
@@ -78,9 +37,7 @@ def run(args: argparse.Namespace) -> int:
     pef_map = pefsim.pef_map(sc, model=args.model, resolution=args.resolution, speed=args.speed,
                              out=args.output, npz=args.npz, rrd=args.rrd)
     eps_max = sc.planning.eps_max
-    resolution = args.resolution if args.resolution is not None else sc.planning.resolution
-    summary = map_summary(pef_map, eps_max, resolution)
-    summary["speed"] = args.speed
+    summary = pef_map.to_dict()
     if args.json:
         print_json(summary)
         return 0

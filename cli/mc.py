@@ -36,10 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import pefsim
     from cli import print_json
-    from scenarios.errors import ScenarioError
 
-    if args.address and args.executor != "ray":
-        raise ScenarioError(f"--address: needs --executor ray, got --executor {args.executor}")
     scenario = pefsim.load(args.scenario)
     summary = pefsim.sweep(scenario, args.out, runs=args.runs, task=args.task, workers=args.workers,
                            executor=args.executor, address=args.address, resume=args.resume,

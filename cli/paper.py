@@ -58,9 +58,7 @@ def run(args: argparse.Namespace) -> int:
     page = pefsim.paper(args.out, quick=args.quick, runs=args.runs, workers=args.workers, claims=args.claims,
                         sections=not args.no_sections)
     if args.json:
-        print_json({"out": str(args.out), "index": str(page.index), "quick": args.quick,
-                    "seconds": round(page.seconds, 1), "claims": [c.to_dict() for c in page.claims],
-                    "sections": [x.to_dict() for x in page.sections]})
+        print_json(page.to_dict())
         return 0
     for c in page.claims:
         print(f"{c.id}. {c.title}: {c.verdict}")

@@ -65,10 +65,10 @@ def run(args: argparse.Namespace) -> int:
 
     result = pefsim.place(sc, method=args.method, out=args.output, png=args.png, plannable=not args.cover_only,
                           time_limit=args.time_limit, progress=progress)
-    wrote_toml = args.output is not None and len(result.layout()) >= sc.sensor.markers_per_fix
+    wrote_toml = result.written is not None
     n_bad = len(result.uncovered)
     if args.json:
-        print_json(result.summary())
+        print_json(result.to_dict())
         _refuse(sc, result, args.output is not None and not wrote_toml)
         return 0
     state = "optimal" if result.optimal else f"not proven optimal, lower bound {result.lower_bound}"
@@ -105,20 +105,6 @@ def _refuse(sc, result, unwritten: bool) -> None:
     """
     from scenarios.errors import PlanningError
 
-    n_bad, n_pts = len(result.uncovered), len(result.points)
-    if n_bad:
-        first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in result.uncovered[:3])
-        note = "; -o not written: no markers" if unwritten else ""
-        if sc.placement.candidates:
-            hint = ""
-        else:
-            finest = sc.placement.spacing if result.finest_spacing is None else result.finest_spacing
-            hint = (f"; candidate sites were sampled down to {finest:g} m apart"
-                    + (": posts (placement.marker_kind) may cover them" if sc.placement.marker_kind.value == "flat"
-                       else ""))
-        raise PlanningError(f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
-                            f"(first: {first}){hint}{note}")
-    if result.unplanned:
-        raise PlanningError(f"{len(result.unplanned)} of {len(sc.tasks)} tasks have no admissible route on the "
-                            f"placed markers, even with the cover target at {result.target:g} m: "
-                            f"{result.unplanned[0]}")
+    shortfall = result.shortfall(sc, unwritten=unwritten)
+    if shortfall is not None:
+        raise PlanningError(shortfall)

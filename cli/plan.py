@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from sim.jsonable import json_number
+from scenarios.jsonable import json_number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -64,36 +64,6 @@ def _fleet(args: argparse.Namespace, sc) -> int:
     return 0
 
 
-def plan_json(scenario, plan) -> dict:
-    """Build the ``--json`` document of a plan."""
-    cands = []
-    for c in plan.candidates:
-        cands.append({
-            "id": c.id, "nodes": list(c.nodes) if c.nodes is not None else None,
-            "length": json_number(c.length), "time": json_number(c.time), "max_tau": json_number(c.max_tau),
-            "mean_tau": json_number(c.mean_tau), "traffic": json_number(c.traffic),
-            "min_clearance": json_number(c.min_clearance),
-            "turning": json_number(c.turning), "slowdown": json_number(c.slowdown), "admissible": c.admissible,
-            "pareto": c.pareto,
-            "score": json_number(c.score), "why_not": c.why_not or None})
-    ids = scenario.marker_ids()
-    fixes = []
-    if plan.schedule is not None:
-        for f in plan.schedule.fixes:
-            fixes.append({"x": f.position[0], "y": f.position[1], "s": f.s,
-                          "markers": [ids[i] for i in f.markers], "tau": json_number(f.tau),
-                          "predicted_tau": json_number(f.predicted_tau), "speed": f.speed, "slowed": f.slowed,
-                          "switch": f.switch})
-    return {
-        "scenario": scenario.name, "start": plan.start, "goal": plan.goal, "eps_max": plan.eps_max,
-        "candidates": cands,
-        "chosen": plan.candidates[plan.chosen].id if plan.chosen is not None else None,
-        "chosen_index": plan.chosen, "reason": plan.reason,
-        "path": [[float(x), float(y)] for x, y in plan.path],
-        "schedule": fixes,
-    }
-
-
 def _table(plan) -> str:
     head = (f"{'id':<4} {'route':<28} {'len[m]':>7} {'time[s]':>7} {'max τ[mm]':>9} {'mean τ[mm]':>10} "
             f"{'slow[s]':>7} {'traffic':>7} {'clear[m]':>8} {'turn[rad]':>9} {'score':>6}  note")
@@ -116,25 +86,17 @@ def _table(plan) -> str:
 def run(args: argparse.Namespace) -> int:
     import pefsim
     from cli import print_json
-    from scenarios.errors import PlanningError
 
     sc = pefsim.load(args.scenario)
-    start, goal = args.start, args.goal
-    if sc.is_fleet and start is None and goal is None:
+    if sc.is_fleet and args.start is None and args.goal is None:
         return _fleet(args, sc)
-    if (start is None) != (goal is None):
-        raise PlanningError("give both --from and --to, or neither (then the first task is planned)")
-    if start is None:
-        if not sc.tasks:
-            raise PlanningError(f"scenario {sc.name!r} has no tasks: give --from and --to")
-        start, goal = sc.tasks[0].start, sc.tasks[0].goal
-    plan = pefsim.plan(sc, start=start, goal=goal, free=True if args.free else None, out=args.output,
+    plan = pefsim.plan(sc, start=args.start, goal=args.goal, free=True if args.free else None, out=args.output,
                        rrd=args.rrd)
     if args.json:
-        print_json(plan_json(sc, plan))
+        print_json(plan.to_dict(sc))
         return 0
     kind = "free space" if plan.candidates and plan.candidates[0].nodes is None else "route network"
-    print(f"{sc.name}: {start} -> {goal}, eps_max {plan.eps_max * 1000:g} mm, {kind}, "
+    print(f"{sc.name}: {plan.start} -> {plan.goal}, eps_max {plan.eps_max * 1000:g} mm, {kind}, "
           f"{len(plan.candidates)} candidates")
     print(_table(plan))
     print(f"chosen: {plan.reason}")

@@ -8,8 +8,6 @@ when a check fails, 0 when all pass or do not apply.
 from __future__ import annotations
 
 import argparse
-import math
-import time
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,6 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _check_args(args: argparse.Namespace) -> None:
+    """Refuse flags that do not go together (each value is checked by the library, once)."""
     from scenarios.errors import ScenarioError
 
     if args.from_dir is not None:
@@ -53,52 +52,35 @@ def _check_args(args: argparse.Namespace) -> None:
             raise ScenarioError(f"{stray[0]}: not with --from (the sweep in {args.from_dir} is already run)")
     elif args.scenario is None:
         raise ScenarioError("scenario: expected a scenario name or file (or --from DIR)")
-    if args.alpha is not None and not 0.0 < args.alpha < 1.0:
-        raise ScenarioError(f"--alpha: expected a probability in (0, 1), got {args.alpha}")
-    if args.q_scale is not None and not (args.q_scale > 0 and math.isfinite(args.q_scale)):
-        raise ScenarioError(f"--q-scale: expected a positive number, got {args.q_scale}")
-    if args.blocking_scale is not None and not (args.blocking_scale > 0 and math.isfinite(args.blocking_scale)):
-        raise ScenarioError(f"--blocking-scale: expected a positive number, got {args.blocking_scale}")
-    if args.runs is not None and args.runs <= 0:
-        raise ScenarioError(f"--runs: expected a positive number of runs, got {args.runs}")
 
 
 def run(args: argparse.Namespace) -> int:
-    import tempfile
-
     import pefsim
     from cli import EXIT_CHECK_FAILED, EXIT_OK, print_json
 
     _check_args(args)
-    scenario = pefsim.load(args.scenario) if args.scenario is not None else None
-    start = time.perf_counter()
     if args.from_dir is not None:
+        scenario = pefsim.load(args.scenario) if args.scenario is not None else None
         report = pefsim.validate(args.from_dir, alpha=args.alpha, scenario=scenario,
-                                 blocking_scale=args.blocking_scale or 1.0)
-        kept = args.from_dir
+                                 blocking_scale=1.0 if args.blocking_scale is None else args.blocking_scale)
     else:
-        with tempfile.TemporaryDirectory(prefix="pefsim-validate-") as tmp:
-            out = args.out if args.out is not None else f"{tmp}/mc"
-            swept = pefsim.sweep(scenario, out, runs=args.runs, workers=args.workers, q_scale=args.q_scale or 1.0,
-                                 alone=args.alone, progress=None, report=False)
-            report = pefsim.validate(swept, alpha=args.alpha, scenario=scenario,
-                                     blocking_scale=args.blocking_scale or 1.0)
-        kept = args.out
-    wall = time.perf_counter() - start
+        report = pefsim.validate_scenario(args.scenario, runs=args.runs, out=args.out, workers=args.workers,
+                                          alpha=args.alpha, q_scale=1.0 if args.q_scale is None else args.q_scale,
+                                          alone=args.alone, progress=None,
+                                          blocking_scale=1.0 if args.blocking_scale is None else args.blocking_scale)
     if args.json:
-        out = report.to_dict()
-        out.update(sweep=kept, wall_time=wall)
-        print_json(out)
+        print_json(report.to_dict())
     else:
-        print(format_report(report, kept, wall))
+        print(format_report(report))
     return EXIT_CHECK_FAILED if report.failed else EXIT_OK
 
 
-def format_report(report, kept: str | None, wall: float) -> str:
+def format_report(report) -> str:
     """Format the lines ``pefsim validate`` prints for a :class:`~validation.suite.ValidationReport`."""
+    kept = report.sweep
     where = f"sweep {kept}" if kept else "temporary sweep, deleted"
     lines = [f"pefsim validate: {report.scenario}, {report.runs} runs, {report.fixes} fixes ({where}, "
-             f"{wall:.1f} s)"]
+             f"{report.wall_time or 0.0:.1f} s)"]
     if report.missing:
         lines.append(f"incomplete sweep: {report.missing} runs missing (pefsim mc SCENARIO --out {kept} --resume "
                      f"completes it); judged on the finished ones")

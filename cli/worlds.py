@@ -36,8 +36,7 @@ def run(args: argparse.Namespace) -> int:
     drawn = pefsim.iter_worlds(args.count, seed=args.seed, out=args.out, max_size=args.max_size,
                                bounded=args.bounded, workers=args.workers)
     if args.json:  # the small records only: the worlds themselves are not kept
-        print_json([{"name": w.name, "path": str(w.path), "attempts": w.attempts, "summary": list(w.summary)}
-                    for w in drawn])
+        print_json([w.to_dict() for w in drawn])
         return 0
     for w in drawn:  # a line as each world is written
         print(f"wrote {w.path} (draw {w.attempts}): {w.summary[0]}", flush=True)

@@ -9,9 +9,10 @@ file unless told where (``out=``, ``png=``, ``rrd=``, ``tum=``, :func:`export`'s
     p = pefsim.plan(sc)                                  # Plan of task 0
     placed = pefsim.place(sc)                            # Placement
     pefsim.export(sc, lif="routes.lif")                  # files for the tools downstream
-    r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult
+    r = pefsim.run_episode(sc, seed=3)                   # EpisodeResult (a fleet's: FleetResult)
     sw = pefsim.sweep(sc, out="sw", runs=4, workers=1)   # SweepSummary of the finished sweep
     rep = pefsim.validate(sw)                            # ValidationReport
+    rep = pefsim.validate_scenario(sc, runs=4)           # the same, sweeping into a temporary folder
     page = pefsim.paper("paper-report", quick=True)      # PaperPage: the paper's claims, one page
     pefsim.watch("hall.toml", save="hall.rrd")           # live view, updated on every save (Ctrl-C ends)
     ws = pefsim.worlds(3, seed=1, out="worlds")          # random honest worlds (PlannedWorld)
@@ -25,7 +26,6 @@ one-line message naming the file, key and value.
 from __future__ import annotations
 
 import importlib
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -35,20 +35,24 @@ if TYPE_CHECKING:
     import threading
     from collections.abc import Callable, Iterator
 
+    from interop.export.files import Exported
     from planner.pef.result import PefMap
     from planner.placement.placement import PlacementResult as Placement
     from planner.plan import Plan
-    from sim.episode.types import EpisodeResult
+    from sim.episode.types import EpisodeResult, FleetResult
     from sim.montecarlo.summary import SweepSummary
     from validation.paper.page import PaperPage
     from validation.suite import ValidationReport
 
 _TYPES = {"PefMap": ("planner.pef.result", "PefMap"), "Placement": ("planner.placement.placement", "PlacementResult"),
           "Plan": ("planner.plan", "Plan"), "EpisodeResult": ("sim.episode.types", "EpisodeResult"),
+          "FleetResult": ("sim.episode.types", "FleetResult"),
           "SweepSummary": ("sim.montecarlo.summary", "SweepSummary"),
           "PaperPage": ("validation.paper.page", "PaperPage"),
           "ValidationReport": ("validation.suite", "ValidationReport"),
-          "DEFAULT_ALPHA": ("validation.suite", "DEFAULT_ALPHA")}
+          "DEFAULT_ALPHA": ("validation.suite", "DEFAULT_ALPHA"),
+          "EXPORT_FORMATS": ("interop.export.files", "EXPORT_FORMATS"),
+          "Exported": ("interop.export.files", "Exported")}
 """The types the functions return, imported on first use: a command that needs one part of the
 library (``pefsim list``, ``pefsim map``) does not pay for importing the others (seconds)."""
 
@@ -64,14 +68,10 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "PaperPage", "PefMap", "PefsimError", "Placement",
-           "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names", "export", "iter_worlds", "load",
-           "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "run_fleet", "sweep", "validate", "watch",
-           "worlds"]
-
-EXPORT_FORMATS = {"routes": (".geojson", ".json"), "markers": (".csv",), "dxf": (".dxf",), "lif": (".json", ".lif"),
-                  "keepout": (".yaml", ".yml")}
-"""File extensions :func:`export` accepts for each output (its format comes from them)."""
+__all__ = ["DEFAULT_ALPHA", "EXPORT_FORMATS", "EpisodeResult", "Exported", "FleetResult", "PaperPage", "PefMap",
+           "PefsimError", "Placement", "Plan", "Scenario", "SweepSummary", "ValidationReport", "builtin_names",
+           "export", "iter_worlds", "load", "paper", "pef_map", "place", "plan", "plan_fleet", "run_episode", "sweep",
+           "validate", "validate_scenario", "watch", "worlds"]
 
 
 def load(scenario: str | Path) -> Scenario:
@@ -144,7 +144,7 @@ def pef_map(scenario: Scenario | str | Path, *, model: str | None = None, resolu
     from planner.pef.map import PEF
 
     sc = _scenario(scenario)
-    _check_outputs(figure=out, rrd=rrd, named={"--output": out, "--npz": npz, "--rrd": rrd})
+    _check_outputs(figure=out, rrd=rrd, named={"out": out, "npz": npz, "rrd": rrd})
     pef = PEF(sc, model=model)
     if speed is not None:
         from planner.schedule.promise import moving_map
@@ -203,7 +203,7 @@ def plan(scenario: Scenario | str | Path, task: int = 0, *, start: str | None = 
         from scenarios import PlanningError
 
         raise PlanningError("plan: give both start and goal, or neither (then a task is planned)")
-    _check_outputs(figure=out, rrd=rrd, named={"--output": out, "--rrd": rrd})
+    _check_outputs(figure=out, rrd=rrd, named={"out": out, "rrd": rrd})
     pef = PEF(sc)
     if start is not None:
         result = plan_route(sc, start, goal, free=free, pef=pef)
@@ -282,13 +282,16 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
     Placement
         ``markers`` [(id, (x, y))] [m] added, ``kept`` markers, ``count``, ``lower_bound``,
         ``optimal``, ``uncovered``, ``target`` [m] (the cover target used), ``unplanned`` (tasks
-        without an admissible route on the layout), ``finest_spacing``; ``summary()`` as JSON.
+        without an admissible route on the layout), ``finest_spacing``, ``written`` (the TOML
+        written with ``out``, None when the layout has fewer than k markers); ``to_dict()`` as JSON.
 
     Raises
     ------
     PlanningError
         A bad method or time limit.
     """
+    import dataclasses
+
     from planner.placement.cover import MILP_TIME_LIMIT
     from planner.placement.placement import place as _place
     from planner.placement.placement import write_scenario_with_markers
@@ -296,11 +299,11 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
 
     limit = MILP_TIME_LIMIT if time_limit is None else time_limit
     if not limit > 0:
-        raise PlanningError(f"time_limit (--time-limit): expected a positive number of seconds, got {limit}")
-    for path, suffix, what in ((out, ".toml", "out (-o)"), (png, ".png", "png (--png)")):
+        raise PlanningError(f"time_limit: expected a positive number of seconds, got {limit}")
+    for path, suffix, what in ((out, ".toml", "out"), (png, ".png", "png")):
         if path is not None and Path(path).suffix.lower() != suffix:
             raise OutputError(f"{path}: {what}: expected a {suffix} file, got {Path(path).suffix or 'no extension'!r}")
-    _check_outputs(named={"--output": out, "--png": png})
+    _check_outputs(named={"out": out, "png": png})
     sc = _scenario(scenario)
     if plannable:
         from planner.placement.plannable import place_plannable
@@ -310,8 +313,8 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
         if progress is not None:
             progress(f"cover: target {sc.planning.eps_max * 1e3:.4g} mm")
         result = _place(sc, method=method, time_limit=limit)
-    if out is not None and len(result.layout()) >= sc.sensor.markers_per_fix:
-        write_scenario_with_markers(sc, result, out)
+    if out is not None and result.fixable(sc.sensor.markers_per_fix):
+        result = dataclasses.replace(result, written=write_scenario_with_markers(sc, result, out))
     if png is not None:
         from validation.report.placement_figure import plot_placement
 
@@ -321,7 +324,7 @@ def place(scenario: Scenario | str | Path, *, method: str = "auto", out: str | P
 
 def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None, markers: str | Path | None = None,
            dxf: str | Path | None = None, lif: str | Path | None = None,
-           keepout: str | Path | None = None) -> dict[str, tuple[Path, ...]]:
+           keepout: str | Path | None = None) -> Exported:
     """Write the scenario's results for the tools downstream; only the files asked for.
 
     Parameters
@@ -345,8 +348,9 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
 
     Returns
     -------
-    dict of str to tuple of Path
-        What was written, by output name (``keepout``: the YAML and the PGM).
+    Exported
+        A dict of what was written, by output name (``keepout``: the YAML and the PGM);
+        ``to_dict()`` as JSON.
 
     Raises
     ------
@@ -354,148 +358,68 @@ def export(scenario: Scenario | str | Path, *, routes: str | Path | None = None,
         Nothing asked for, an extension that does not name the output's format, or a route
         export of a scenario without a route network: before anything is computed or written.
     """
-    from scenarios import OutputError
+    from interop.export.files import check_exports, write_exports
 
-    asked = {"routes": routes, "markers": markers, "dxf": dxf, "lif": lif, "keepout": keepout}
-    asked = {k: Path(v) for k, v in asked.items() if v is not None}
-    if not asked:
-        raise OutputError("export: give at least one of --routes, --markers, --dxf, --lif, --keepout")
-    for name, path in asked.items():
-        if path.suffix.lower() not in EXPORT_FORMATS[name]:
-            raise OutputError(f"{path}: --{name}: expected a {' or '.join(EXPORT_FORMATS[name])} file, got "
-                              f"{path.suffix or 'no extension'!r}")
-    keepout_pgm = {"--keepout (its image)": asked["keepout"].with_suffix(".pgm")} if "keepout" in asked else {}
-    _check_outputs(named={**{f"--{k}": v for k, v in asked.items()}, **keepout_pgm})
-    sc = _scenario(scenario)
-    for name in ("routes", "lif"):
-        if name in asked and sc.routes is None:
-            raise OutputError(f"--{name}: scenario {sc.name!r} has no route network ([routes]) to export")
-    from planner.pef.map import PEF
-
-    pef = PEF(sc)
-    written: dict[str, tuple[Path, ...]] = {}
-    reports = None
-    if sc.routes is not None and ("routes" in asked or "dxf" in asked):
-        from planner.routes.edges import segment_reports
-
-        reports = segment_reports(sc, pef)
-    if "routes" in asked:
-        from interop.export.routegraph import write_route_graph
-
-        written["routes"] = (write_route_graph(asked["routes"], sc, reports),)
-    if "markers" in asked:
-        from interop.export.markers import write_markers_csv
-
-        written["markers"] = (write_markers_csv(asked["markers"], sc),)
-    if "dxf" in asked:
-        from interop.export.dxf import write_dxf
-        from interop.export.region import region_contours, route_lines
-
-        contours = region_contours(pef.grid(), sc.planning.eps_max, sc.workspace.bounds)
-        written["dxf"] = (write_dxf(sc, asked["dxf"], region_contours=contours, route_lines=route_lines(sc),
-                                    route_reports=reports),)
-    if "lif" in asked:
-        from interop.export.lif import write_lif
-        from planner.routes.admissible import tau_along
-
-        names = list(sc.routes.nodes)
-        # a node's deviation as its segments' end samples are judged (planner.routes.admissible)
-        tau = tau_along(pef, [sc.routes.nodes[n] for n in names], sc.planning.resolution)
-        written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
-    if "keepout" in asked:
-        from interop.export.keepout import write_keepout
-
-        written["keepout"] = write_keepout(asked["keepout"], sc, pef)
-    return written
+    asked = check_exports(routes=routes, markers=markers, dxf=dxf, lif=lif, keepout=keepout)
+    return write_exports(_scenario(scenario), asked)
 
 
-def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, task: int = 0,
-                rrd: str | Path | None = None, tum: str | Path | None = None) -> EpisodeResult:
-    """Drive one episode in PyBullet: plan, follow on the EKF estimate, measure, estimate.
+def run_episode(scenario: Scenario | str | Path, seed: int | None = None, *, task: int | None = None,
+                rrd: str | Path | None = None, tum: str | Path | None = None) -> EpisodeResult | FleetResult:
+    """Drive one run in PyBullet: plan, follow on the EKF estimate, measure, estimate.
 
-    Outputs are checked before the episode is driven (a recording's folder; the TUM folder is
-    created) and written at exactly the paths given.
+    A scenario without ``[[robots]]`` runs its lone robot through one task; one with
+    ``[[robots]]`` runs every robot through its tasks, together, under zone control. Outputs
+    are checked before the run is driven (a recording's folder; the TUM folder is created) and
+    written at exactly the paths given.
 
     Parameters
     ----------
     scenario : Scenario, str or path
     seed : int, optional
-        Root of the episode's random streams (same seed, same numbers); default the scenario's.
-    task : int
-        Index into ``scenario.tasks``.
+        Root of the run's random streams (same seed, same numbers); default the scenario's.
+    task : int, optional
+        Index into ``scenario.tasks`` of the lone robot's task (default 0); a fleet's robots
+        drive their own (refused for a fleet).
     rrd : str or path, optional
-        Write a rerun recording of the episode here.
+        Write a rerun recording of the run here.
     tum : str or path, optional
-        Write ``groundtruth.txt`` and ``estimate.txt`` (TUM format) into this directory.
+        Write ``groundtruth.txt`` and ``estimate.txt`` (TUM format) into this directory (a
+        fleet's: into a folder per robot, named for it).
 
     Returns
     -------
-    EpisodeResult
-        ``steps`` (per control step: poses, covariance, error, NEES), ``fixes`` (per fix: the
-        realised fault area against its promise), ``plan`` and ``summary`` (with what the run did:
-        ``status`` ok / collided / stuck, ``collisions``, the first contact, the longest stall,
-        :mod:`sim.episode.outcome`).
+    EpisodeResult or FleetResult
+        A lone robot's episode: ``steps`` (per control step: poses, covariance, error, NEES),
+        ``fixes`` (per fix: the realised fault area against its promise), ``plan`` and ``summary``
+        (with what the run did: ``status`` ok / collided / stuck, ``collisions``, the first
+        contact, the longest stall, :mod:`sim.episode.outcome`). A fleet's: per robot (``robots``)
+        its episode over all its tasks (summary keys as a lone robot's plus ``robot``,
+        ``arrival``, ``wait_time`` [s], ``robot_blocked`` and ``deadlocked``), how often the
+        robots' footprints overlapped (``collisions``) and the duration. Both give ``robots``,
+        ``to_dict()`` and ``lines(scenario)``.
     """
     from scenarios import SimulationError
-    from sim.episode.drive import check_task, prepare
-    from sim.episode.drive import run_episode as _run
+    from sim.episode import run
 
     sc = _scenario(scenario)
-    check_task(sc, task)
+    task = run.check_episode_task(sc, task)
     seed = sc.seed if seed is None else seed
     if seed < 0:
         raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
-    _check_outputs(rrd=rrd, folder=tum, named={"--rrd": rrd, "--tum": tum})
-    prepared = prepare(sc, task)
-    result = _run(sc, task, seed=seed, prepared=prepared)
+    _check_outputs(rrd=rrd, folder=tum, named={"rrd": rrd, "tum": tum})
+    prepared = run.prepare(sc, task)
+    result = run.run(sc, task, seed=seed, prepared=prepared)
     if tum is not None:
         from interop.export.tum import write_tum
 
-        write_tum(tum, result.steps.t, result.steps.true_pose, result.steps.est_pose)
+        for r in result.robots:
+            steps = r.result.steps
+            write_tum(Path(tum) if r.name is None else Path(tum) / r.name, steps.t, steps.true_pose, steps.est_pose)
     if rrd is not None:
-        from interop.recording import write_episode_rrd
+        from interop.recording.run import write_run_rrd
 
-        write_episode_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
-    return result
-
-
-def run_fleet(scenario: Scenario | str | Path, seed: int | None = None, *, rrd: str | Path | None = None):
-    """Drive a fleet scenario's robots (``[[robots]]``) together once, under zone control.
-
-    Parameters
-    ----------
-    scenario : Scenario, str or path
-        A scenario with ``[[robots]]``.
-    seed : int, optional
-        Root of the episode's random streams; default the scenario's.
-    rrd : str or path, optional
-        Write a rerun recording of the fleet here (:mod:`interop.recording.fleet`).
-
-    Returns
-    -------
-    sim.episode.fleet.FleetResult
-        Per robot its :class:`EpisodeResult` over all its tasks (summary keys as
-        :func:`run_episode`'s, what the run did among them (``status``, ``collisions``: contact
-        episodes of its body, ``stuck``, ``deadlocked``, ...: :mod:`sim.episode.outcome`), plus ``robot``,
-        ``wait_time`` [s] and ``robot_blocked``), and how often the robots' footprints overlapped
-        (``collisions``) and the duration.
-    """
-    from scenarios import SimulationError
-    from sim.episode.fleet import prepare_fleet, run_fleet_episode
-
-    sc = _scenario(scenario)
-    if not sc.is_fleet:
-        raise SimulationError(f"{sc.source}: robots: not a fleet scenario (no [[robots]]): use run_episode")
-    seed = sc.seed if seed is None else seed
-    if seed < 0:
-        raise SimulationError(f"seed: expected a non-negative integer, got {seed}")
-    _check_outputs(rrd=rrd)
-    prepared = prepare_fleet(sc)
-    result = run_fleet_episode(sc, seed=seed, prepared=prepared)
-    if rrd is not None:
-        from interop.recording.fleet import write_fleet_rrd
-
-        write_fleet_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
+        write_run_rrd(rrd, sc, result, pef_map=prepared.pef.grid())
     return result
 
 
@@ -550,14 +474,12 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
     from scenarios import ScenarioError
     from sim.episode.drive import check_markers
     from sim.montecarlo.engine import sweep as _sweep
-    from sim.montecarlo.negative_control import check_q_scale, mark, read_mark, scaled_api
+    from sim.montecarlo.negative_control import check_alone, check_q_scale, mark, read_mark, scaled_api
 
     sc = _scenario(scenario)
     check_markers(sc)  # before the output directory is made
     q_scale = check_q_scale(q_scale)
-    alone = bool(alone)
-    if alone and not sc.is_fleet:
-        raise ScenarioError(f"{sc.source}: alone: {sc.name} is not a fleet scenario (no [[robots]])")
+    alone = check_alone(sc, alone)
     control = q_scale != 1.0 or alone
     if resume and out is not None and Path(out).is_dir() and read_mark(out) != (q_scale, alone):
         raise ScenarioError(f"{out}: resume: its runs were made with (q_scale, alone) = {read_mark(out)}, "
@@ -577,7 +499,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
         from interop.recording.run import write_run_rrd as recorder
     summary = _sweep(sc, out, runs=runs, task=task, workers=workers, executor=executor, address=address,
                      resume=resume, rrd_every=rrd_every, steps=steps, progress=progress,
-                     api=scaled_api(q_scale, sc.is_fleet, alone) if control else None, then=then,
+                     api=scaled_api(q_scale, alone) if control else None, then=then,
                      recorder=recorder)
     return dataclasses.replace(summary, report=str(written[0]) if written else None)
 
@@ -608,14 +530,62 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
         ``checks`` (each with its statistic, acceptance region and false-alarm probability),
         ``passed``, ``failed``.
     """
+    import dataclasses
+    import time
+
     from sim.montecarlo.summary import SweepSummary
     from validation.suite import DEFAULT_ALPHA, load_sweep
     from validation.suite import validate as _validate
 
+    start = time.perf_counter()
     directory = sweep.out if isinstance(sweep, SweepSummary) else sweep
     expected = None if scenario is None else _scenario(scenario)
-    return _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha,
-                     blocking_scale=blocking_scale)
+    report = _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha,
+                       blocking_scale=blocking_scale)
+    return dataclasses.replace(report, sweep=str(directory), wall_time=time.perf_counter() - start)
+
+
+def validate_scenario(scenario: Scenario | str | Path, *, runs: int | None = None, out: str | Path | None = None,
+                      workers: int | None = None, alpha: float | None = None, q_scale: float = 1.0,
+                      alone: bool = False, progress: bool | None = False,
+                      blocking_scale: float = 1.0) -> ValidationReport:
+    """Sweep a scenario (:func:`sweep`, without its report) and judge the sweep (:func:`validate`).
+
+    Every argument is checked before the sweep starts.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or path
+    runs, workers, q_scale, alone, progress
+        As :func:`sweep`'s.
+    out : str or path, optional
+        Keep the sweep in this directory; default a temporary directory, deleted afterwards
+        (the report's ``sweep`` is then None).
+    alpha, blocking_scale : float, optional
+        As :func:`validate`'s.
+
+    Returns
+    -------
+    ValidationReport
+        With ``sweep`` the directory kept (or None) and ``wall_time`` the seconds of the sweep
+        and the checks.
+    """
+    import dataclasses
+    import tempfile
+    import time
+
+    from validation.suite import check_alpha
+
+    if alpha is not None:
+        check_alpha(alpha)  # before the sweep, which takes minutes
+    sc = _scenario(scenario)
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="pefsim-validate-") as tmp:
+        swept = sweep(sc, out if out is not None else Path(tmp) / "mc", runs=runs, workers=workers,
+                      q_scale=q_scale, alone=alone, progress=progress, report=False)
+        report = validate(swept, alpha=alpha, scenario=sc, blocking_scale=blocking_scale)
+    kept = None if out is None else str(out)
+    return dataclasses.replace(report, sweep=kept, wall_time=time.perf_counter() - start)
 
 
 def paper(out: str | Path = "paper-report", *, quick: bool = False, runs: int | None = None,
@@ -694,40 +664,22 @@ def watch(scenario: str | Path, *, save: str | Path | None = None, connect: str 
         An unknown scenario, both ``save`` and ``connect``, or an output that cannot be written
         (before anything is watched).
     """
-    from interop.recording import close
-    from interop.recording.live import log_plans, log_view, open_live
-    from interop.watch.loop import POLL_INTERVAL, watch_files
-    from scenarios.load import resolve
+    from interop.watch.live import watch_live
 
-    path = resolve(scenario)
-    rec = open_live(path.name, save=save, connect=connect)
-
-    contours: dict = {}  # the region's contour by tiles: an edit re-traces the tiles it changed
-
-    def show(step, view) -> None:  # the map first: the plans follow (seconds on the hall)
-        log_view(rec, step, view.scenario, view.pef_map, view.reports, None, {}, view.summary(), contours=contours)
-
-    def show_plans(step, view) -> None:
-        log_plans(rec, step, view.scenario, view.plans, view.unplanned, view.summary())
-
-    try:
-        return watch_files(path, show, show_plans=show_plans, on_update=on_update, on_error=on_error,
-                           interval=POLL_INTERVAL if interval is None else interval,
-                           max_updates=max_updates, stop=stop)
-    finally:
-        close(rec)
+    return watch_live(scenario, save=save, connect=connect, on_update=on_update, on_error=on_error,
+                      interval=interval, max_updates=max_updates, stop=stop)
 
 
 def _check_outputs(*, figure: str | Path | None = None, rrd: str | Path | None = None,
                    folder: str | Path | None = None, named: dict[str, str | Path | None] | None = None) -> None:
     """Refuse, before any work, an output that cannot be written: one line naming the path.
 
-    ``named`` maps each output's option to its path: names too long for the file system and
-    two outputs at one path are refused (:func:`sim.output_names.check_output_names`).
+    ``named`` maps each output's parameter to its path: names too long for the file system and
+    two outputs at one path are refused (:func:`scenarios.output_names.check_output_names`).
     """
-    from sim.output_names import check_output_names
+    from scenarios.output_names import check_output_names
 
-    check_output_names(named if named is not None else {"--output": figure, "--rrd": rrd, "--tum": folder})
+    check_output_names(named if named is not None else {"out": figure, "rrd": rrd, "tum": folder})
     if figure is not None:
         from validation.report.figure_format import figure_format
 
@@ -790,68 +742,11 @@ def iter_worlds(count: int, *, seed: int = 0, out: str | Path | None = None, fir
     drawn; memory does not grow with ``count``, and an interrupted run keeps the worlds written.
     Parameters and the worlds yielded: :func:`worlds`.
     """
-    from planner.worlds import Drawing
-    from scenarios import ScenarioError
-    from scenarios.errors import output_errors
-    from scenarios.limits import MAX_WORLDS
-    from scenarios.worlds import SMALLEST_MAX_SIZE
-    from sim.output_names import check_output_names
-
-    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-        raise ScenarioError(f"count: expected a whole number of worlds >= 1, got {count!r}")
-    if count > MAX_WORLDS:
-        raise ScenarioError(f"count: expected at most {MAX_WORLDS} worlds (each is drawn and planned, seconds "
-                            f"a world), got {count}")
-    for key, value in (("seed", seed), ("first", first)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise ScenarioError(f"{key}: expected a whole number >= 0, got {value!r}")
-    if max_size is not None and (isinstance(max_size, bool) or not isinstance(max_size, (int, float))
-                                 or not max_size >= SMALLEST_MAX_SIZE or not math.isfinite(max_size)):
-        raise ScenarioError(f"max_size: expected a floor side of at least {SMALLEST_MAX_SIZE:g} m, got {max_size!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ScenarioError(f"workers: expected a whole number >= 1, got {workers!r}")
-    knobs = {"max_size": None if max_size is None else float(max_size), "bounded": bool(bounded)}
-    indices = range(first, first + count)
-    drawn = _draw_worlds(Drawing(seed, **knobs), indices, workers)
-    if out is None:
-        return drawn
-    check_output_names({"--out": out})
-    folder = Path(out)
-    with output_errors(folder, "create the output directory"):  # before the drawing, which takes seconds a world
-        folder.mkdir(parents=True, exist_ok=True)
-    return _write_worlds(drawn, folder)
-
-
-def _write_worlds(drawn: Iterator, folder: Path) -> Iterator:
-    """Write each world of ``drawn`` into ``folder`` as it comes, and yield it with its ``path``."""
-    from dataclasses import replace
-
-    from scenarios.errors import output_errors
-
-    for w in drawn:
-        path = folder / f"{w.name}.toml"
-        with output_errors(path, "write the world"):
-            path.write_text(w.text, encoding="utf-8")
-        yield replace(w, path=path)
-
-
-def _draw_worlds(drawing, indices: range, workers: int) -> Iterator:
-    """Yield the worlds of ``indices`` in order, drawn here (1 worker) or on a local process pool.
-
-    The pool's records arrive as they finish; those ahead of the next index wait (about one per
-    worker), so memory does not grow with the count.
-    """
-    from planner.worlds import plannable_world
+    from planner.worlds import iter_worlds as _iter_worlds
     from sim.montecarlo.executors import ExecutorKind, execute
 
-    if workers == 1 or len(indices) == 1:
-        for i in indices:
-            yield plannable_world(drawing.seed, i, max_size=drawing.max_size, bounded=drawing.bounded)
-        return
-    ahead: dict[int, tuple] = {}
-    following = indices.start
-    for record in execute(ExecutorKind.LOCAL, drawing, None, list(indices), min(workers, len(indices))):
-        ahead[record[0]] = record
-        while following in ahead:
-            yield drawing.world(ahead.pop(following))
-            following += 1
+    def pool(factory, indices: list[int], n: int) -> Iterator:  # worker processes on this machine
+        return execute(ExecutorKind.LOCAL, factory, None, indices, n)
+
+    return _iter_worlds(count, seed=seed, out=out, first=first, max_size=max_size, bounded=bounded, workers=workers,
+                        pool=pool)

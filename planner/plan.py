@@ -23,6 +23,7 @@ from planner.routes.ranking import Ranking, rank
 from planner.schedule import clearance
 from planner.schedule.schedule import Schedule
 from scenarios.errors import PlanningError
+from scenarios.jsonable import json_number
 from scenarios.schema import Scenario
 
 # The chosen path is re-checked at this fraction of the PEF resolution.
@@ -64,6 +65,43 @@ class Plan:
     s: np.ndarray
     speed: np.ndarray
     schedule: Schedule | None
+
+    def to_dict(self, scenario: Scenario) -> dict:
+        """Return the plan as a JSON-ready dict (what ``pefsim plan --json`` prints).
+
+        Parameters
+        ----------
+        scenario : Scenario
+            The scenario planned on: its name, and its marker ids for the schedule's fixes.
+
+        Returns
+        -------
+        dict
+            ``scenario``, ``start``, ``goal``, ``eps_max`` [m], ``candidates`` (each with its
+            criteria; inf as null), ``chosen`` (id) and ``chosen_index``, ``reason``, ``path``
+            [[x, y]] [m] and ``schedule`` (each fix with its markers' ids and promise [m]).
+        """
+        cands = [{
+            "id": c.id, "nodes": list(c.nodes) if c.nodes is not None else None,
+            "length": json_number(c.length), "time": json_number(c.time), "max_tau": json_number(c.max_tau),
+            "mean_tau": json_number(c.mean_tau), "traffic": json_number(c.traffic),
+            "min_clearance": json_number(c.min_clearance),
+            "turning": json_number(c.turning), "slowdown": json_number(c.slowdown), "admissible": c.admissible,
+            "pareto": c.pareto,
+            "score": json_number(c.score), "why_not": c.why_not or None} for c in self.candidates]
+        ids = scenario.marker_ids()
+        fixes = [] if self.schedule is None else [
+            {"x": f.position[0], "y": f.position[1], "s": f.s, "markers": [ids[i] for i in f.markers],
+             "tau": json_number(f.tau), "predicted_tau": json_number(f.predicted_tau), "speed": f.speed,
+             "slowed": f.slowed, "switch": f.switch} for f in self.schedule.fixes]
+        return {
+            "scenario": scenario.name, "start": self.start, "goal": self.goal, "eps_max": self.eps_max,
+            "candidates": cands,
+            "chosen": self.candidates[self.chosen].id if self.chosen is not None else None,
+            "chosen_index": self.chosen, "reason": self.reason,
+            "path": [[float(x), float(y)] for x, y in self.path],
+            "schedule": fixes,
+        }
 
 
 # ------------------------------------------------------------------------------- choosing

@@ -21,7 +21,8 @@ the same whatever the number of workers.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +30,10 @@ import tomli_w
 
 import scenarios
 from planner.plan import plan_route, plan_task
-from scenarios.errors import PlanningError, ScenarioError
-from scenarios.worlds import draw_world
+from scenarios.errors import PlanningError, ScenarioError, output_errors
+from scenarios.limits import MAX_WORLDS
+from scenarios.output_names import check_output_names
+from scenarios.worlds import SMALLEST_MAX_SIZE, draw_world
 
 LOOSE_EPS = 0.1
 """eps_max [m] of the first plan, which only asks for the chosen route's largest tau.
@@ -72,6 +75,11 @@ class PlannedWorld:
     attempts: int
     summary: tuple[str, ...]
     path: Path | None = None
+
+    def to_dict(self) -> dict:
+        """Return the world's record as a JSON-ready dict (what ``pefsim worlds --json`` prints; not the text)."""
+        return {"name": self.name, "path": None if self.path is None else str(self.path), "attempts": self.attempts,
+                "summary": list(self.summary)}
 
 
 def world_rng(seed: int, index: int) -> np.random.Generator:
@@ -197,3 +205,77 @@ class Drawing:
         _, name, text, attempts, summary = record
         return PlannedWorld(name=name, text=text, scenario=scenarios.loads(text, source=f"{name}.toml"),
                             attempts=attempts, summary=tuple(summary))
+
+
+Pool = Callable[[Drawing, list[int], int], Iterator[tuple]]
+"""Runs ``Drawing.execute`` of each index on ``n`` worker processes and yields the records as they
+finish: ``pool(drawing, indices, n)`` (the caller's executor, e.g. the sweeps' local pool)."""
+
+
+def iter_worlds(count: int, *, seed: int = 0, out: str | Path | None = None, first: int = 0,
+                max_size: float | None = None, bounded: bool = False, workers: int = 1,
+                pool: Pool | None = None) -> Iterator[PlannedWorld]:
+    """Yield worlds ``first .. first + count - 1`` of ``seed`` in order, each written into ``out`` as it is drawn.
+
+    The arguments are checked and ``out`` is made when this is called, before any world is
+    drawn; memory does not grow with ``count``, and an interrupted run keeps the worlds written.
+    The parameters are :func:`pefsim.worlds`'s; ``pool`` draws on worker processes when
+    ``workers`` > 1 (without one, every world is drawn in this process).
+
+    Raises
+    ------
+    ScenarioError
+        A count, seed, first index, floor size or worker count out of range.
+    OutputError
+        ``out`` cannot be made.
+    """
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ScenarioError(f"count: expected a whole number of worlds >= 1, got {count!r}")
+    if count > MAX_WORLDS:
+        raise ScenarioError(f"count: expected at most {MAX_WORLDS} worlds (each is drawn and planned, seconds "
+                            f"a world), got {count}")
+    for key, value in (("seed", seed), ("first", first)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ScenarioError(f"{key}: expected a whole number >= 0, got {value!r}")
+    if max_size is not None and (isinstance(max_size, bool) or not isinstance(max_size, (int, float))
+                                 or not max_size >= SMALLEST_MAX_SIZE or not math.isfinite(max_size)):
+        raise ScenarioError(f"max_size: expected a floor side of at least {SMALLEST_MAX_SIZE:g} m, got {max_size!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ScenarioError(f"workers: expected a whole number >= 1, got {workers!r}")
+    knobs = {"max_size": None if max_size is None else float(max_size), "bounded": bool(bounded)}
+    drawn = _draw_worlds(Drawing(seed, **knobs), range(first, first + count), workers, pool)
+    if out is None:
+        return drawn
+    check_output_names({"out": out})
+    folder = Path(out)
+    with output_errors(folder, "create the output directory"):  # before the drawing, which takes seconds a world
+        folder.mkdir(parents=True, exist_ok=True)
+    return _write_worlds(drawn, folder)
+
+
+def _write_worlds(drawn: Iterator[PlannedWorld], folder: Path) -> Iterator[PlannedWorld]:
+    """Write each world of ``drawn`` into ``folder`` as it comes, and yield it with its ``path``."""
+    for w in drawn:
+        path = folder / f"{w.name}.toml"
+        with output_errors(path, "write the world"):
+            path.write_text(w.text, encoding="utf-8")
+        yield replace(w, path=path)
+
+
+def _draw_worlds(drawing: Drawing, indices: range, workers: int, pool: Pool | None) -> Iterator[PlannedWorld]:
+    """Yield the worlds of ``indices`` in order, drawn here (1 worker) or by ``pool``.
+
+    The pool's records arrive as they finish; those ahead of the next index wait (about one per
+    worker), so memory does not grow with the count.
+    """
+    if workers == 1 or len(indices) == 1 or pool is None:
+        for i in indices:
+            yield plannable_world(drawing.seed, i, max_size=drawing.max_size, bounded=drawing.bounded)
+        return
+    ahead: dict[int, tuple] = {}
+    following = indices.start
+    for record in pool(drawing, list(indices), min(workers, len(indices))):
+        ahead[record[0]] = record
+        while following in ahead:
+            yield drawing.world(ahead.pop(following))
+            following += 1

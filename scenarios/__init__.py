@@ -1,6 +1,8 @@
 """What a world is: the scenario schema, TOML loading and validation, the built-in library.
 
 The bottom package of pefsim: it imports nothing from ``estimators``, ``planner`` or ``sim``.
+It also holds what every layer checks input and output against: the error types (``errors``),
+the budgets (``limits``), output names (``output_names``) and JSON numbers (``jsonable``).
 """
 
 from scenarios.errors import (

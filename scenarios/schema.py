@@ -424,6 +424,14 @@ class Scenario:
         """Tell whether the scenario has ``[[robots]]`` (a fleet in one world)."""
         return bool(self.robots)
 
+    def overview(self) -> dict:
+        """Return the scenario in brief as a JSON-ready dict (each row of ``pefsim list --json``).
+
+        ``name``, ``size`` [w, h] [m], the counts of ``markers``, ``docks`` and ``tasks``, ``description``.
+        """
+        return {"name": self.name, "size": list(self.workspace.size), "markers": len(self.markers),
+                "docks": len(self.docks), "tasks": len(self.tasks), "description": self.description}
+
     def marker_heights(self) -> np.ndarray:
         """Reflector centre heights [m], shape (M,), NaN where a marker has none (above every robot)."""
         return np.array([math.nan if m.height is None else m.height for m in self.markers], dtype=float)

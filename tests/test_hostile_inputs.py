@@ -919,7 +919,7 @@ def test_two_outputs_at_one_path_are_refused_before_the_work(tmp_path_factory, n
     a, b, suffix = pair
     argv = ["export", str(folder / "s.toml"), a, str(folder / f"same{suffix}"), b, str(folder / f"{spelling}{suffix}")]
     line = holds(*run(argv))
-    assert "name the same file" in line and a in line and b in line, line
+    assert "name the same file" in line and a.lstrip("-") in line and b.lstrip("-") in line, line
     assert sorted(p.name for p in folder.iterdir()) == ["s.toml", "sub"]
 
 

@@ -106,6 +106,34 @@ def test_a_negative_control_of_the_scan():
     assert _layer("pefsim") > _layer("scenarios") and _layer("cli.map") > _layer("pefsim") > _layer("validation.report")
 
 
+CLI_REACHES = ("pefsim", "scenarios", "scenarios.errors", "jit.compiled")
+"""What the program's modules may import besides each other: the facade, the error types
+(``scenarios`` and ``scenarios.errors``) and the first-compilation notice; the work is the library's."""
+NOT_YET_THIN = {"cli.plan": {"planner.fleet.summary", "scenarios.jsonable"},
+                "cli.run": {"interop.export.tum"}}
+"""Imports past the facade still made: the fleet path of ``plan`` (its table and JSON are built
+in the command) and the TUM file names ``run`` prints; nothing may be added here."""
+
+
+def _past_the_facade(g: nx.DiGraph) -> dict[str, set[str]]:
+    """Modules of ``cli`` -> what they import beyond :data:`CLI_REACHES` and ``cli`` itself."""
+    program = [a for a in g if _layer(a) == LAYERS.index("cli")]
+    past = {a: {b for b in g.successors(a) if b not in CLI_REACHES and _layer(b) != LAYERS.index("cli")}
+            for a in program}
+    return {a: bs for a, bs in past.items() if bs}
+
+
+def test_the_program_calls_only_the_facade():
+    extra = {a: bs - NOT_YET_THIN.get(a, set()) for a, bs in _past_the_facade(_graph()).items()}
+    assert not any(extra.values()), extra
+
+
+def test_a_negative_control_of_the_facade_rule():
+    g = _graph()
+    g.add_edge("cli.map", "planner.pef.map")  # what the rule forbids must be seen
+    assert "planner.pef.map" in _past_the_facade(g)["cli.map"]
+
+
 def test_every_installed_package_is_a_layer():
     """The packages a fresh install ships (pyproject's list) are exactly the layers scanned."""
     import tomllib

@@ -267,7 +267,7 @@ def plan(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult
     crashed = int(np.sum(~runs.ok))
     sc = data.scenario
     single = ""
-    if sc.sensor_actual.block_probability > 0 or sc.is_fleet:
+    if sc.sensor_actual.block_probability > 0 or len(sc.robots) > 1:   # lines of sight lost at random or to robots
         single = (" and kept the certified bound under it through every fix that lost at most "
                   "one line of sight")
         if runs.untested:

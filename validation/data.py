@@ -18,8 +18,8 @@ import pyarrow as pa
 
 from scenarios import loads
 from scenarios.errors import OutputError, ScenarioWarning
+from scenarios.jsonable import json_number
 from scenarios.schema import Scenario
-from sim.jsonable import json_number
 from sim.montecarlo import lock, results
 from sim.montecarlo.directory import read_settings, stored_steps_mode
 from sim.montecarlo.negative_control import read_mark
@@ -374,9 +374,11 @@ def load_sweep(directory: str | Path, scenario: Scenario | None = None) -> Sweep
     missing = max(int(settings.get("runs", 0)) - len(results.finished_runs(layout)), 0)
     # Only a sweep of every step feeds the N-run NEES test (the only reader of steps here), so
     # the others' step rows are not read at all.
-    fleet = ["robot"] if stored.is_fleet else []
-    steps = results.read_steps(layout.root, columns=STEP_COLUMNS + fleet) if mode is StepsMode.ALL else None
-    blocking = FLEET_BLOCKING_COLUMNS if stored.is_fleet else []
-    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + fleet + blocking),
+    # the robot columns the tables have (a fleet's; a lone robot's have none)
+    sch = results.sweep_schemas(layout.root)
+    robot = [c for c in ("robot",) if c in sch.steps.names]
+    blocking = [c for c in FLEET_BLOCKING_COLUMNS if c in sch.fixes.names]
+    steps = results.read_steps(layout.root, columns=STEP_COLUMNS + robot) if mode is StepsMode.ALL else None
+    data = from_tables(stored, runs, results.read_fixes(layout.root, columns=FIX_COLUMNS + robot + blocking),
                        source=str(directory), q_scale=q_scale, steps=steps)
     return replace(data, steps_mode=mode.value, alone=alone, missing=missing)

@@ -35,8 +35,8 @@ import numpy as np
 
 from estimators.fault.exact import DEFAULT_TOLERANCE_FRACTION
 from planner.schedule.promise import POLYGON_TOLERANCE, START_LAG
+from scenarios.jsonable import json_number
 from scenarios.schema import NoiseModel, PefModel
-from sim.jsonable import json_number
 from validation.data import CheckResult, CheckStatus, SweepData
 
 SET_MEMBERSHIP_MODELS = (PefModel.EXACT, PefModel.PARALLELOGRAM, PefModel.STRIPS)

@@ -23,8 +23,8 @@ from validation import outcome
 from validation.checks import CHECKS, Check
 from validation.data import CheckResult, CheckStatus, SweepData, from_tables, load_sweep
 
-__all__ = ["CHECKS", "CheckResult", "CheckStatus", "SweepData", "ValidationReport", "from_tables", "load_sweep",
-           "validate", "validation_rng"]
+__all__ = ["CHECKS", "CheckResult", "CheckStatus", "SweepData", "ValidationReport", "check_alpha", "from_tables",
+           "load_sweep", "validate", "validation_rng"]
 
 DEFAULT_ALPHA = 0.01
 """Family false-alarm probability of ``pefsim validate``."""
@@ -65,6 +65,11 @@ class ValidationReport:
     blocking_scale : float
         Factor the plan's predicted robot blocking was multiplied by before the checks (1 unless a
         negative control of the ``blocking`` check).
+    sweep : str or None
+        The sweep directory judged, None when it was a temporary one, deleted since
+        (``pefsim.validate_scenario`` without ``out``).
+    wall_time : float or None
+        Seconds the sweep (if one was run) and the validation took; None: not measured.
     """
 
     scenario: str
@@ -81,6 +86,8 @@ class ValidationReport:
     waits: list[str] = field(default_factory=list)
     missing: int = 0
     blocking_scale: float = 1.0
+    sweep: str | None = None
+    wall_time: float | None = None
 
     @property
     def failed(self) -> list[str]:
@@ -106,12 +113,19 @@ class ValidationReport:
                 "causes": list(self.causes), "waits": list(self.waits), "missing_runs": self.missing,
                 "blocking_scale": self.blocking_scale,
                 "passed": self.passed,
-                "failed": self.failed, "checks": [c.to_dict() for c in self.checks]}
+                "failed": self.failed, "checks": [c.to_dict() for c in self.checks], "sweep": self.sweep,
+                "wall_time": self.wall_time}
 
 
 def validation_rng(data: SweepData) -> np.random.Generator:
     """Return the null-model generator of a sweep: seeded from its scenario, apart from the runs' streams."""
     return np.random.default_rng(np.random.SeedSequence(data.scenario.seed, spawn_key=(NULL_STREAM,)))
+
+
+def check_alpha(alpha: float) -> None:
+    """Raise a one-line SimulationError unless ``alpha`` is a probability in (0, 1)."""
+    if isinstance(alpha, bool) or not (isinstance(alpha, float | int) and 0.0 < alpha < 1.0):
+        raise SimulationError(f"alpha: expected a family false-alarm probability in (0, 1), got {alpha!r}")
 
 
 def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Generator | None = None,
@@ -143,6 +157,7 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
         raise SimulationError(f"alpha: expected a family false-alarm probability in (0, 1), got {alpha!r}")
     if not (isinstance(blocking_scale, float | int) and 0.0 < blocking_scale < 1e6):
         raise SimulationError(f"blocking_scale: expected a positive factor, got {blocking_scale!r}")
+    check_alpha(alpha)
     rng = rng if rng is not None else validation_rng(data)
     if blocking_scale != 1.0 and data.fixes.p_block_robot is not None:
         fixes = replace(data.fixes, p_block_robot=np.minimum(data.fixes.p_block_robot * blocking_scale, 1.0))

@@ -25,9 +25,9 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import output_errors
+from scenarios.jsonable import json_number
 from scenarios.route_network import RouteNetwork
 from scenarios.schema import Scenario
-from sim.jsonable import json_number
 
 #: Properties the export computes; they replace any read from the graph file.
 COMPUTED = ("max_tau", "mean_tau", "min_visible", "admissible", "why_not")

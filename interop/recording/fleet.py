@@ -88,7 +88,7 @@ def hidden_rays(result: Any, scenario: Scenario, names: list[str]) -> tuple[np.n
 
 
 def log_fleet(rec: rr.RecordingStream, fleet: Any, scenario: Scenario) -> None:
-    """Log every robot of a :class:`~sim.episode.fleet.FleetResult` and the lines of sight robots hid."""
+    """Log every robot of a :class:`~sim.episode.types.FleetResult` and the lines of sight robots hid."""
     names = [r.name for r in fleet.robots]
     every = []
     for r in fleet.robots:

@@ -73,9 +73,9 @@ def open_live(name: str, *, save: str | os.PathLike[str] | None = None, connect:
         written, or a viewer that cannot be reached or started.
     """
     if save is not None and connect is not None:
-        raise OutputError("watch: give --save or --connect, not both")
+        raise OutputError("watch: give save or connect, not both")
     if save is not None and Path(save).suffix.lower() != ".rrd":
-        raise OutputError(f"{save}: --save: expected a .rrd file, got {Path(save).suffix or 'no extension'!r}")
+        raise OutputError(f"{save}: save: expected a .rrd file, got {Path(save).suffix or 'no extension'!r}")
     path = check_writable(save) if save is not None else None
     rec = rr.RecordingStream(E.APPLICATION_ID, recording_id=str(uuid.uuid4()))
     bp = live_blueprint()

@@ -1,4 +1,4 @@
-"""The recording of one Monte-Carlo run, a lone robot's or a fleet's: what a sweep's ``rrd_every`` writes."""
+"""The recording of one run, a lone robot's or a fleet's: what a sweep's ``rrd_every`` writes."""
 
 from __future__ import annotations
 
@@ -14,6 +14,9 @@ from scenarios.schema import Scenario
 def write_run_rrd(path: str | os.PathLike[str], scenario: Scenario, result: Any, pef_map: Any = None) -> Path:
     """Write the recording of one run of ``scenario`` to ``path``.
 
+    Named robots (a fleet's) are recorded side by side (:func:`interop.recording.fleet.write_fleet_rrd`);
+    a lone robot's episode as :func:`interop.recording.write_episode_rrd` records it.
+
     Parameters
     ----------
     path : str or path-like
@@ -21,7 +24,7 @@ def write_run_rrd(path: str | os.PathLike[str], scenario: Scenario, result: Any,
     scenario : Scenario
         The scenario the run drove.
     result : EpisodeResult or FleetResult
-        The run's result: a fleet scenario's (``[[robots]]``) is a fleet result.
+        The run's result (:func:`sim.episode.run.run`): both give their ``robots`` and ``names``.
     pef_map : PefGrid, optional
         The PEF map to draw under the run.
 
@@ -30,6 +33,6 @@ def write_run_rrd(path: str | os.PathLike[str], scenario: Scenario, result: Any,
     Path
         ``path``.
     """
-    if scenario.is_fleet:
+    if result.names:
         return write_fleet_rrd(path, scenario, result, pef_map=pef_map)
-    return write_episode_rrd(path, scenario, result, pef_map=pef_map)
+    return write_episode_rrd(path, scenario, result.robots[0].result, pef_map=pef_map)

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -129,8 +130,19 @@ class PEF:
             A marker counts only when it is seen from every position within this distance of
             the point too [m] (:func:`planner.pef.visibility.scenario_visible_points`).
         """
-        vis, _ = scenario_visible_points(self.scenario, _points(points), self.sight, widen)
-        return vis.T
+        return self._visibility(_points(points), widen).T
+
+    def _visibility(self, pts: np.ndarray, widen: float) -> np.ndarray:
+        """``scenario_visible_points(...)[0]`` (M, N), a copy; the last points asked are remembered.
+
+        A schedule asks :meth:`visible` and then :meth:`at` of the same samples.
+        """
+        key = (pts.tobytes(), pts.shape, float(widen), self.sight, id(self.scenario))
+        last = getattr(self, "_vis_last", None)
+        if last is None or last[0] != key:
+            vis, _ = scenario_visible_points(self.scenario, pts, self.sight, widen)
+            last = self._vis_last = (key, vis)
+        return last[1].copy()
 
     # --- evaluation ---------------------------------------------------------------------------
 
@@ -153,7 +165,20 @@ class PEF:
             fallback subsets.
         """
         pts = _points(points)
-        vis, _ = scenario_visible_points(self.scenario, pts, self.sight, widen)
+        # each point's value is its own: a point asked twice (candidate routes share their
+        # stretches: a third of the hall's samples) is evaluated once
+        _, first, again = np.unique(pts.view(np.dtype((np.void, pts.itemsize * 2))).ravel(),
+                                    return_index=True, return_inverse=True)
+        if first.size < len(pts):
+            order = np.sort(first)
+            rank = np.empty(len(pts), dtype=np.int64)
+            rank[order] = np.arange(order.size)
+            at = rank[first[again.ravel()]]
+            r = self.at(pts[order], widen)
+            return PefResult(tau=r.tau[at], best=r.best[at],
+                             tau_plain=None if r.tau_plain is None else r.tau_plain[at],
+                             fallback=None if r.fallback is None else r.fallback[at])
+        vis = self._visibility(pts, widen)
         px, py = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
         return self._redundant(lambda v: self._evaluate(px, py, v), vis)
 
@@ -173,7 +198,7 @@ class PEF:
         res = float(resolution) if resolution is not None else self.scenario.planning.resolution
         x, y = grid_centres(self.scenario.workspace.size, res, self.scenario.workspace.origin)
         size = self.scenario.workspace.size
-        return self.cells(x, y, cell_size=(size[0] / x.size, size[1] / y.size))
+        return replace(self.cells(x, y, cell_size=(size[0] / x.size, size[1] / y.size)), resolution=res)
 
     def cells(self, x: np.ndarray, y: np.ndarray, cell_size: tuple[float, float] | None = None) -> PefMap:
         """Evaluate the PEF on the grid of cell centres ``x`` x ``y`` (a window of :meth:`grid`'s).
@@ -207,7 +232,8 @@ class PEF:
                 float(self.sensor.relative_error), float(self.sensor.absolute_error), self.redundancy,
                 sc.marker_normals(), self.sensor.max_incidence, self.rule)
             return PefMap(x=x, y=y, tau=tau, best=best, free=free, model=self.model,
-                          cell_size=cell_size, redundancy=self.redundancy, tau_plain=tau_plain)
+                          cell_size=cell_size, redundancy=self.redundancy, tau_plain=tau_plain,
+                          eps_max=sc.planning.eps_max)
         vis, free = scenario_visible_grid(self.scenario, x, y, self.sight)
         if self.model is PefModel.EXACT:
             px, py = np.tile(x, y.size), np.repeat(y, x.size)
@@ -220,7 +246,8 @@ class PEF:
         shape = (y.size, x.size)
         return PefMap(x=x, y=y, tau=r.tau.reshape(shape), best=r.best.reshape(*shape, self.k), free=free,
                       model=self.model, cell_size=cell_size,
-                      redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape))
+                      redundancy=self.redundancy, tau_plain=r.tau_plain.reshape(shape),
+                      eps_max=self.scenario.planning.eps_max)
 
     def tau_subset(self, points: np.ndarray, subset: np.ndarray) -> np.ndarray:
         """Evaluate the model's error of given marker subsets at points.
@@ -249,6 +276,12 @@ class PEF:
                                     f"in [0, {len(self.markers)}), got {row}")
         # only the subsets' markers matter: their visibility alone, and the kernel on each
         # subset's k markers (the winner's tau is recomputed from them alone)
+        # a schedule's rungs at the same speeds ask for the same samples and subsets again
+        key = (pts.tobytes(), pts.shape, sub.tobytes(), sub.shape, self.rule, self.model, id(self.scenario))
+        last = getattr(self, "_subset_last", None)
+        if last is not None and last[0] == key:
+            out = last[1].copy()
+            return out if many else out[0]
         sc = self.scenario
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
@@ -264,6 +297,7 @@ class PEF:
             else:
                 out[i] = self._kernel(px, py, vis, local.reshape(1, -1), _KERNEL_MODEL[self.model],
                                       self.markers[row])[0]
+        self._subset_last = (key, out.copy())
         return out if many else out[0]
 
     # --- internals ----------------------------------------------------------------------------

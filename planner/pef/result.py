@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.errors import PlanningError
+from scenarios.jsonable import json_number
 from scenarios.schema import PefModel
 
 #: Largest grid :meth:`planner.pef.map.PEF.grid` builds (cells), to turn a typo in the resolution into an error.
@@ -61,6 +62,12 @@ class PefMap:
         r: ``tau`` is tau_r, the worst over r visible markers blocked (:mod:`planner.pef.map`).
     tau_plain : ndarray, shape (ny, nx)
         The best-subset tau with every visible marker [m] (``tau`` itself when r = 0).
+    eps_max : float
+        The allowed error the map is read against [m] (the scenario's ``planning.eps_max``).
+    resolution : float
+        The cell size asked for [m] (NaN: a window of centres, :meth:`planner.pef.map.PEF.cells`).
+    speed : float or None
+        The driving speed of a motion-aware map [m/s]; None: the static PEF.
     """
 
     x: np.ndarray
@@ -72,10 +79,41 @@ class PefMap:
     cell_size: tuple[float, float]
     redundancy: int = 0
     tau_plain: np.ndarray | None = None
+    eps_max: float = math.nan
+    resolution: float = math.nan
+    speed: float | None = None
 
     def navigable(self, eps_max: float) -> np.ndarray:
         """Cells of the navigation region ``tau < eps_max``, shape (ny, nx) bool."""
         return self.free & (self.tau < eps_max)
+
+    def to_dict(self) -> dict:
+        """Return the map's summary as a JSON-ready dict (what ``pefsim map --json`` prints).
+
+        Returns
+        -------
+        dict
+            ``model``, ``resolution`` [m], ``eps_max`` [m], ``fraction_navigable`` (of free cells,
+            ``tau < eps_max``), ``tau_min``/``tau_median``/``tau_max`` [m] over finite free cells
+            (null when there are none), ``cells`` (nx * ny), ``shape`` [ny, nx], ``free_cells``,
+            ``speed`` [m/s] (null: the static PEF).
+        """
+        tau_free = self.tau[self.free]
+        finite = tau_free[np.isfinite(tau_free)]
+        n_free = int(self.free.sum())
+        return {
+            "model": self.model.value,
+            "resolution": float(self.resolution),
+            "eps_max": float(self.eps_max),
+            "fraction_navigable": float(np.count_nonzero(tau_free < self.eps_max) / n_free) if n_free else 0.0,
+            "tau_min": json_number(finite.min()) if finite.size else None,
+            "tau_median": json_number(float(np.median(finite))) if finite.size else None,
+            "tau_max": json_number(finite.max()) if finite.size else None,
+            "cells": int(self.tau.size),
+            "shape": [int(self.y.size), int(self.x.size)],
+            "free_cells": n_free,
+            "speed": self.speed,
+        }
 
 
 def grid_centres(size: tuple[float, float], resolution: float,

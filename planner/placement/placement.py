@@ -47,6 +47,7 @@ import dataclasses
 import math
 import tomllib
 import warnings
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -135,6 +136,8 @@ class PlacementResult:
     target: float = float("nan")
     unplanned: tuple = ()
     finest_spacing: float | None = None
+    written: Path | None = None
+    """The scenario TOML with these markers :func:`pefsim.place` wrote (None: not asked, or no fix possible)."""
 
     @property
     def new_ids(self) -> tuple[str, ...]:
@@ -145,8 +148,35 @@ class PlacementResult:
         """Every marker of the placed layout: the kept ones unchanged, then the added ones."""
         return self.kept + tuple(site_marker(i, p, f) for (i, p), f in _facing_pairs(self))
 
-    def summary(self) -> dict:
-        """Return the placement as a JSON-ready dict (positions in metres, facings in degrees).
+    def shortfall(self, scenario: Scenario, *, unwritten: bool = False) -> str | None:
+        """Say in one line what the placement left undone (uncovered points, unplanned tasks), else None.
+
+        ``unwritten``: a scenario TOML was asked for (``out``) but not written (fewer than k markers).
+        """
+        n_bad, n_pts = len(self.uncovered), len(self.points)
+        if n_bad:
+            first = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.uncovered[:3])
+            note = "; out not written: no markers" if unwritten else ""
+            if scenario.placement.candidates:
+                hint = ""
+            else:
+                finest = scenario.placement.spacing if self.finest_spacing is None else self.finest_spacing
+                hint = (f"; candidate sites were sampled down to {finest:g} m apart"
+                        + (": posts (placement.marker_kind) may cover them"
+                           if scenario.placement.marker_kind.value == "flat" else ""))
+            return (f"{n_bad} of {n_pts} points cannot be covered by any candidate sites "
+                    f"(first: {first}){hint}{note}")
+        if self.unplanned:
+            return (f"{len(self.unplanned)} of {len(scenario.tasks)} tasks have no admissible route on the "
+                    f"placed markers, even with the cover target at {self.target:g} m: {self.unplanned[0]}")
+        return None
+
+    def fixable(self, markers_per_fix: int) -> bool:
+        """Whether the layout has the ``markers_per_fix`` markers a fix needs (else there is nothing to write)."""
+        return len(self.layout()) >= markers_per_fix
+
+    def to_dict(self) -> dict:
+        """Return the placement as a JSON-ready dict (what ``pefsim place --json`` prints; metres, degrees).
 
         ``markers`` is the whole layout, each marker with ``new`` (added by this placement);
         ``count`` and ``lower_bound`` are of the added ones.
@@ -244,8 +274,15 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     # the sites' visibility only: a PEF over them would list every pair of sites (4e6 for 3000
     # sites, past its limit), where a point's good pairs are among the few sites it sees
     points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-    vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points,
-                                                       widen=widen)[0].T)
+    # the same sites and points whatever the target: place_plannable's tighter covers reuse it
+    key = (points.tobytes(), np.ascontiguousarray(sites, dtype=float).tobytes(), kept, float(widen))
+    got = [e for e in _COVER_VIS if e[0]() is scenario and e[1] == key]
+    if got:
+        vis = got[0][2]
+    else:
+        vis = np.ascontiguousarray(scenario_visible_points(_site_scenario(scenario, sites, kept), points,
+                                                           widen=widen)[0].T)
+        _COVER_VIS[:] = [*_COVER_VIS[-(_COVER_VIS_KEPT - 1):], (weakref.ref(scenario), key, vis)]
     model = _model(scenario)
     kernel_model = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                     PefModel.GDOP: pef_kernels.GDOP}[model]
@@ -295,6 +332,12 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
                    row_ptr=np.searchsorted(er, np.arange(len(first_point) + 1)), ep=ep, ea=pj[ep], eb=pl[ep],
                    pj=pj, pl=pl, vis=np.ascontiguousarray(vis[first_point]), n_sites=n_sites)
     return cover, coverable
+
+
+#: The last visibility tables of :func:`build_cover`: (its scenario, weakly; its sites, points,
+#: kept markers and widening; the table, which is only read). A cover and its refinement's.
+_COVER_VIS: list = []
+_COVER_VIS_KEPT = 3
 
 
 def _search_seed(seed: int) -> int:
@@ -543,9 +586,8 @@ def write_scenario_with_markers(scenario: Scenario, result: PlacementResult, pat
     """
     import scenarios as scn
 
-    layout = result.layout()
-    if len(layout) < scenario.sensor.markers_per_fix:
-        raise PlanningError(f"placement chose {len(layout)} markers, fewer than markers_per_fix = "
+    if not result.fixable(scenario.sensor.markers_per_fix):
+        raise PlanningError(f"placement chose {len(result.layout())} markers, fewer than markers_per_fix = "
                             f"{scenario.sensor.markers_per_fix}: nothing to write")
     data = None
     if scenario.text:

@@ -339,8 +339,10 @@ def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
 
     Each point's bound depends only on its own ``(s, look)`` and on the path, so the bounds are
     remembered per path (keyed by the bytes of the path, ``reach`` and ``back``) and per point
-    (keyed by the bytes of ``s`` and ``look``): a remembered value is the number the kernel
-    computes, and only the points not seen before on that path are computed.
+    (keyed by the bytes of ``s`` and ``look``): a remembered value is the number computed, and
+    only the points not seen before on that path are computed. A point whose chords all lie on
+    one axis-aligned straight of the path has the bound 0 without the kernel
+    (:func:`_on_axis_aligned_straight`: exact there, where the kernel gives 0 or rounding).
     """
     s = np.asarray(s, dtype=float)
     look = np.broadcast_to(np.asarray(look, dtype=float), s.shape)
@@ -366,28 +368,155 @@ def _chords(path, s_v, s, look, reach: float, back: np.ndarray) -> np.ndarray:
     out = np.fromiter(map(known.get, names, itertools.repeat(math.nan)), dtype=float, count=len(names))
     todo = np.flatnonzero(np.isnan(out))
     if todo.size:
+        straight = _on_axis_aligned_straight(path, s_v, pairs[todo, 0], pairs[todo, 1], float(reach))
+        out[todo[straight]] = 0.0
+        known.update(zip(map(names.__getitem__, todo[straight].tolist()), itertools.repeat(0.0)))
+        todo = todo[~straight]
+    if todo.size:
         new = np.empty(todo.size)
+        px, py = np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1])
+        qs, ql = np.ascontiguousarray(pairs[todo, 0]), np.ascontiguousarray(pairs[todo, 1])
+        args = (px, py, s_v, qs, ql, float(reach), back, np.linspace(0.0, 1.0, 33), new)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # np.interp's slopes, as it computes them (a zero-length segment's is never read)
+            slope_x, slope_y = np.diff(px) / np.diff(s_v), np.diff(py) / np.diff(s_v)
+        seg = np.diff(s_v) > 0
+        plain = (np.isfinite(px).all() and np.isfinite(py).all() and np.isfinite(s_v).all()
+                 and bool((np.diff(s_v) >= 0).all()) and np.isfinite(qs).all() and np.isfinite(ql).all()
+                 and not np.isnan(slope_x[seg]).any() and not np.isnan(slope_y[seg]).any())
         # chunks of points on the kernel threads; each point's bound is its own
-        run_ranges(_chords_kernel, -(-todo.size // _CHORDS_CHUNK),
-                   (np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1]), s_v,
-                    np.ascontiguousarray(pairs[todo, 0]), np.ascontiguousarray(pairs[todo, 1]), float(reach),
-                    back, np.linspace(0.0, 1.0, 33), new), min_chunk=8)
+        if plain:
+            run_ranges(_chords_kernel, -(-todo.size // _CHORDS_CHUNK), (*args, slope_x, slope_y), min_chunk=8)
+        else:  # a NaN on the way: np.interp's own handling of it
+            run_ranges(_chords_kernel_interp, -(-todo.size // _CHORDS_CHUNK), args, min_chunk=8)
         out[todo] = new
         known.update(zip(map(names.__getitem__, todo.tolist()), new.tolist(), strict=True))
     return out.reshape(s.shape)
 
 
+def _on_axis_aligned_straight(path, s_v, s, look, reach: float) -> np.ndarray:
+    """Tell which points' chords all lie on one axis-aligned straight of the path, shape of ``s``.
+
+    Every chord of :func:`_chords` at ``(s, look)`` reads the path over ``[s - reach look - look,
+    s + look]``. Where every vertex there (those bracketing it too) has the same x, bit for bit,
+    and a monotone y, or the same y and a monotone x, that stretch of the polyline is one
+    segment of a line parallel to an axis (ends beyond the path clamp to its end vertices, on the
+    same line): ``path(q)`` lies between ``path(a)`` and ``path(b)`` for ``a <= q <= b``, so every
+    chord's distance, and the bound, is exactly 0. The kernel's arithmetic gives 0 or rounding
+    there (up to ~1e-15 m, np.interp's, not the path's): 0 is the bound proven, and no looser.
+    """
+    s = np.asarray(s, dtype=float)
+    look = np.asarray(look, dtype=float)
+    ok = np.isfinite(s) & np.isfinite(look)
+    # a margin for the rounding of the chords' arc lengths (each within a few ulp of its value)
+    pad = 1e-9 * (1.0 + np.abs(s) + np.abs(reach * look) + np.abs(look))
+    lo = np.searchsorted(s_v, np.where(ok, s - reach * look - look - pad, 0.0), side="right") - 1
+    hi = np.searchsorted(s_v, np.where(ok, s + look + pad, 0.0), side="left")
+    lo, hi = np.clip(lo, 0, len(s_v) - 1), np.clip(hi, 0, len(s_v) - 1)
+    d = np.diff(path, axis=0)
+
+    def count(flag):  # segments lo <= j < hi with the flag
+        c = np.concatenate([[0], np.cumsum(flag)])
+        return c[hi] - c[lo]
+
+    along_x = (count(d[:, 1] != 0) == 0) & ((count(d[:, 0] < 0) == 0) | (count(d[:, 0] > 0) == 0))
+    along_y = (count(d[:, 0] != 0) == 0) & ((count(d[:, 1] < 0) == 0) | (count(d[:, 1] > 0) == 0))
+    return ok & (along_x | along_y) & bool(np.isfinite(path).all())
+
+
 _CHORDS_CHUNK = 64
-"""Points :func:`_chords_kernel` interpolates the path for at a time."""
+"""Points a thread takes at a time (and :func:`_chords_kernel_interp` interpolates the path for)."""
+
+
+@compiled.njit(inline="always")
+def _locate(x, s_v, j):
+    # np.interp's segment of x: -1 below the path, len(s_v) beyond it, else the last j with
+    # s_v[j] <= x (whatever the search, there is one such j); walked from the guess j, which is
+    # near (the chords of one point lie within a few lookaheads), else bisected
+    n = s_v.size
+    if x > s_v[n - 1]:
+        return n
+    if x < s_v[0]:
+        return -1
+    j = min(max(j, 0), n - 1)
+    # (a bounded walk written as one loop with a counter compiled 2.5 times slower)
+    if s_v[j] > x:
+        if j >= 8 and s_v[j - 8] > x:
+            return np.searchsorted(s_v, x, side="right") - 1
+        while s_v[j] > x:
+            j -= 1
+        return j
+    if j + 9 < n and s_v[j + 9] <= x:
+        return np.searchsorted(s_v, x, side="right") - 1
+    while j + 1 < n and s_v[j + 1] <= x:
+        j += 1
+    return j
+
+
+@compiled.njit(inline="always")
+def _value(x, s_v, p, slope, j):
+    # np.interp's value at a finite x in segment j (_locate), its cases and arithmetic: with
+    # finite vertices and slopes it never takes its NaN fallbacks
+    n = s_v.size
+    if j == -1:
+        return p[0]
+    if j >= n - 1:
+        return p[n - 1]
+    if s_v[j] == x:
+        return p[j]
+    return slope[j] * (x - s_v[j]) + p[j]
 
 
 @compiled.njit(cache=True, nogil=True)
-def _chords_kernel(c0, c1, px, py, s_v, s, look, reach, back, frac, out):
-    # Thousands of fixes x 25 settle points x 33 chords: as numpy temporaries this was most of a
-    # plan's time. Same operations in the same order as the vectorised form it replaced; the
-    # path is interpolated for a chunk of fixes at a time (np.interp computes its slopes once a
-    # call, over the whole path: a call per fix costs that many times over on a long path).
-    # Chunks c0 <= c < c1 (of _CHORDS_CHUNK points), so that a thread's share is whole chunks.
+def _chords_kernel(c0, c1, px, py, s_v, s, look, reach, back, frac, out, slope_x, slope_y):
+    # Thousands of fixes x 25 settle points x 33 chords. The bits of _chords_kernel_interp (the
+    # form the identity tables were made with): the same interpolation (np.interp's segment,
+    # slope and formula, the slopes passed in as np.interp computes them) and the same chord
+    # arithmetic in the same order, without its temporaries and searches. Only the largest
+    # distance is kept, so math.hypot is called only for a chord whose squared distance is
+    # within 1e-9 (relative) of the largest seen: the others are shorter by more than hypot's
+    # error (< 1 ulp) and the squares' rounding (a few ulp) together, so they cannot be the
+    # maximum; squares under 1e-280 (underflow) are always taken.
+    # Chunks c0 <= c < c1 of _CHORDS_CHUNK points (a thread's share).
+    nb, nf = back.size, frac.size
+    jq = 0
+    for i in range(c0 * _CHORDS_CHUNK, min(c1 * _CHORDS_CHUNK, s.size)):
+        si, li = s[i], look[i]
+        best = -np.inf
+        top = 0.0  # the largest squared distance whose hypot was taken
+        for j in range(nb):
+            qj = si - reach * li * back[j]
+            jq = _locate(qj, s_v, jq)
+            xx = _value(qj, s_v, px, slope_x, jq)
+            xy = _value(qj, s_v, py, slope_y, jq)
+            ja = jq
+            jb = jq
+            for f in range(nf):
+                a = qj - li * frac[f]
+                b = a + li
+                ja = _locate(a, s_v, ja)
+                pax = _value(a, s_v, px, slope_x, ja)
+                pay = _value(a, s_v, py, slope_y, ja)
+                jb = _locate(b, s_v, jb)
+                abx = _value(b, s_v, px, slope_x, jb) - pax
+                aby = _value(b, s_v, py, slope_y, jb) - pay
+                ab2 = abx * abx + aby * aby
+                w = ((xx - pax) * abx + (xy - pay) * aby) / (ab2 if ab2 > 0 else 1.0)
+                w = min(max(w, 0.0), 1.0)
+                dx = xx - (pax + w * abx)
+                dy = xy - (pay + w * aby)
+                d2 = dx * dx + dy * dy
+                if top > 1e-280 and d2 < top * (1.0 - 1e-9):
+                    continue
+                best = max(best, math.hypot(dx, dy))
+                top = max(top, d2)
+        out[i] = best
+
+
+@compiled.njit(cache=True, nogil=True)
+def _chords_kernel_interp(c0, c1, px, py, s_v, s, look, reach, back, frac, out):
+    # The reference form of _chords_kernel, with np.interp (and its NaN handling) over a chunk
+    # of points at a time; called only where a NaN is about (never on a plan's path).
     nb, nf = back.size, frac.size
     chunk = _CHORDS_CHUNK
     q = np.empty(chunk * nb)
@@ -727,10 +856,10 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
     from scenarios.errors import PlanningError
 
     if scenario.sensor.markers_per_fix != 2:
-        raise PlanningError(f"--speed: the motion-aware map needs markers_per_fix = 2, got "
+        raise PlanningError(f"speed: the motion-aware map needs markers_per_fix = 2, got "
                             f"{scenario.sensor.markers_per_fix}")
     if not (speed >= 0.0 and math.isfinite(speed)):
-        raise PlanningError(f"--speed: expected a speed >= 0 m/s, got {speed}")
+        raise PlanningError(f"speed: expected a speed >= 0 m/s, got {speed}")
     static = pef.grid(resolution)
     xx, yy = np.meshgrid(static.x, static.y)
     xy = np.column_stack([xx.ravel(), yy.ravel()])
@@ -765,4 +894,4 @@ def moving_map(scenario: Scenario, pef, speed: float, resolution: float | None =
             best[win] = (first, second)
     shape = static.tau.shape
     tau = np.where(static.free.ravel(), tau, np.inf).reshape(shape)
-    return replace(static, tau=tau, best=best.reshape(*shape, 2))
+    return replace(static, tau=tau, best=best.reshape(*shape, 2), speed=float(speed))

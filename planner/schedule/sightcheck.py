@@ -22,6 +22,8 @@ times); rounding up only makes the check stricter.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from planner.pef.sight import SightRule
@@ -105,10 +107,37 @@ def seen_within(scenario: Scenario, points: np.ndarray, delta: np.ndarray) -> np
     normals = scenario.marker_normals()
     pieces = scenario.obstacle_pieces()
     sensor = scenario.sensor
+    # a point's row depends on the point, its margin and the scenario's sight alone: rows are
+    # remembered, and only points not asked before at their margin are tested (a schedule's
+    # slow-down attempts ask again for every sample before the stretch they slowed)
+    layouts = _SEEN.setdefault(pieces, {})
+    key = (markers.tobytes(), normals.tobytes(), tuple(float(b) for b in scenario.workspace.bounds),
+           float(sensor.max_range), float(sensor.max_incidence))
+    memo = layouts.pop(key, None)
+    if memo is None or len(memo) > _SEEN_KEPT:
+        memo = {}
+    layouts[key] = memo  # the most recent last; placement's earlier layouts go first
+    while len(layouts) > _SEEN_LAYOUTS:
+        layouts.pop(next(iter(layouts)))
+    p = np.ascontiguousarray(p)
+    names = p.view(np.dtype((np.void, p.itemsize * 2))).ravel().tolist()
     for step in np.unique(steps[steps >= 0]).tolist():
         rows = np.flatnonzero(steps == step)
-        rule = SightRule(margin=max(step, 0) * MARGIN_STEP)
-        vis, _ = visible_points(p[rows], markers, pieces, sensor.max_range, scenario.workspace.bounds,
-                                normals, sensor.max_incidence, rule)
-        out[rows] = vis.T
+        known = [memo.get((step, names[r])) for r in rows.tolist()]
+        todo = np.array([i for i, row in enumerate(known) if row is None], dtype=np.int64)
+        if todo.size:
+            rule = SightRule(margin=max(step, 0) * MARGIN_STEP)
+            vis, _ = visible_points(p[rows[todo]], markers, pieces, sensor.max_range, scenario.workspace.bounds,
+                                    normals, sensor.max_incidence, rule)
+            for i, col in zip(todo.tolist(), np.ascontiguousarray(vis.T), strict=True):
+                known[i] = memo[(step, names[rows[i]])] = col
+        out[rows] = np.stack(known) if known else out[rows]
     return out
+
+
+#: Rows of :func:`seen_within` kept per set of obstacles and sight inputs, by point and margin step.
+_SEEN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Rows kept for one layout's sight before they are forgotten at once (a row is M bytes).
+_SEEN_KEPT = 200_000
+#: Layouts (markers, sensor) kept per set of obstacles: placement plans one layout after another.
+_SEEN_LAYOUTS = 2

@@ -1,8 +1,8 @@
 """What a run did: contacts, stalls and waits, watched once a control tick, and the run's status.
 
-Both drivers (a lone robot's :func:`sim.episode.drive._drive` and a fleet's
-:class:`sim.episode.fleet._Robot`) build one :class:`RunWatch` per robot and call
-:meth:`RunWatch.tick` at each control tick, after the physics has stepped. It tells
+Every robot's driver (:class:`sim.episode.driver.RobotDriver`, alone or in a fleet) builds one
+:class:`RunWatch` and calls :meth:`RunWatch.tick` at each control tick, after the physics has
+stepped. It tells
 
 * ``collisions``: contact episodes of the robot's body with anything but the floor
   (:class:`sim.physics.contacts.ContactMonitor`), with the first one's time, true position, arc

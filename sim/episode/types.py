@@ -169,6 +169,92 @@ class EpisodeResult:
     plan: Plan
     summary: dict[str, Any] = field(default_factory=dict)
 
+    # A lone robot's run is a fleet of one: what reads a run's results reads both the same way.
+
+    @property
+    def robots(self) -> list[RobotResult]:
+        """Return the run's robots: this episode's robot alone, without a name."""
+        return [RobotResult(None, self, 0.0)]
+
+    @property
+    def names(self) -> list[str]:
+        """Return the names of the run's robots: none (a lone robot has no name)."""
+        return []
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the summary with JSON numbers (NaN and infinities as null), as ``pefsim run --json`` prints it."""
+        from scenarios.jsonable import json_number
+
+        return {k: json_number(v) for k, v in self.summary.items()}
+
+    def lines(self, scenario: Any) -> list[str]:
+        """Return the text ``pefsim run`` prints of this episode of ``scenario``."""
+        from sim.episode.printout import episode_lines
+
+        return episode_lines(scenario, self.task_index, self.summary)
+
+
+@dataclass
+class RobotResult:
+    """One robot of a fleet episode: its episode over all its tasks, and what the fleet did to it.
+
+    Attributes
+    ----------
+    name : str or None
+        None for a lone robot (``[[robots]]`` names a fleet's).
+    result : EpisodeResult
+        Its steps and fixes over all its tasks (``result.fixes.notes``: per fix, a FixNote whose ``hidden`` maps
+        marker index -> index of the robot that hid it at the fix start).
+    wait_time : float
+        Time it stood at the end of its reservation waiting for zones [s].
+    reserved : ndarray, shape (R, 3)
+        Its reservation at each control tick it drove: time [s], and the stretch of its whole
+        path it held, from and to (arc lengths [m]).
+    path : ndarray, shape (N, 2)
+        Its whole path (all its tasks chained) [m], the arc lengths of ``reserved`` are along it.
+    """
+
+    name: str | None
+    result: EpisodeResult
+    wait_time: float
+    reserved: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+
+@dataclass
+class FleetResult:
+    """A fleet's run: each robot's episode, and how often their footprints overlapped.
+
+    Attributes
+    ----------
+    robots : list of RobotResult
+        ``robots[i]`` for ``scenario.robots[i]``.
+    collisions : int
+        Times two robots' footprint bodies (cylinders of their radius) began to overlap.
+    duration : float
+        Simulated time until the last robot arrived (or the time limit) [s].
+    names : list of str
+        The robots' names, in order.
+    """
+
+    robots: list[RobotResult]
+    collisions: int
+    duration: float
+    names: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the run as ``pefsim run --json`` prints it: overlaps, duration and each robot's summary."""
+        from scenarios.jsonable import json_number
+
+        return {"collisions": self.collisions, "duration": self.duration,
+                "robots": [{k: json_number(v) for k, v in r.result.summary.items()} for r in self.robots]}
+
+    def lines(self, scenario: Any) -> list[str]:
+        """Return the text ``pefsim run`` prints of this run of ``scenario``."""
+        from sim.episode.printout import fleet_lines
+
+        return fleet_lines(scenario, [(r.name, r.result.summary) for r in self.robots], self.collisions, self.duration)
+
 
 SUMMARY_KEYS = ("reached", "duration", "steps", "fixes", "rmse", "max_error", "max_predicted_tau",
                 "eps_max", "violations", "seed", "mean_nees", "mean_nis", "blocked_markers", "fallback_fixes",

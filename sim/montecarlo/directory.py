@@ -24,7 +24,7 @@ from scenarios.schema import Scenario
 from sim.episode.types import ran as finished
 from sim.montecarlo import lock, parts, results
 from sim.montecarlo.results import SweepLayout
-from sim.montecarlo.rows import schemas
+from sim.montecarlo.rows import FLEET, schemas, table_schemas
 from sim.montecarlo.steps import StepsMode
 
 SWEEP_FORMAT = 2
@@ -72,7 +72,7 @@ def open_sweep_dir(scenario: Scenario, out: Path, resume: bool, task: int | None
     if not out.exists() or not any(not _is_ours(p.name) for p in out.iterdir()):
         return {}
     if not resume:
-        raise OutputError(f"{out}: output directory is not empty; use --resume to complete it or --out "
+        raise OutputError(f"{out}: output directory is not empty; resume to complete it, or choose another out "
                           "for a new one")
     try:
         previous_text = layout.scenario_toml.read_text(encoding="utf-8")
@@ -81,18 +81,18 @@ def open_sweep_dir(scenario: Scenario, out: Path, resume: bool, task: int | None
             raise ValueError("not an object")
     except (OSError, UnicodeDecodeError, ValueError):
         raise OutputError(f"{out}: not a pefsim mc directory (no readable scenario.toml and sweep.json); "
-                          "use another --out") from None
+                          "choose another out") from None
     if previous_text != scenario.text:
         raise OutputError(f"{out}: was made from another scenario (its scenario.toml differs from "
-                          f"{scenario.source}); use another --out")
+                          f"{scenario.source}); choose another out")
     if settings.get("task") != task:
-        raise OutputError(f"{out}: was made with --task {settings.get('task')}, not {task}; "
-                          "resume with the same --task or use another --out")
+        raise OutputError(f"{out}: was made with task {settings.get('task')}, not {task}; "
+                          "resume with the same task or choose another out")
     stored = stored_steps_mode(settings)
     if steps is not None and steps is not stored:
         # Mixed modes would leave some runs without the per-step rows a check aligns across runs.
-        raise OutputError(f"{out}: was made with --steps {stored.value}, not {steps.value}; "
-                          "resume with the same --steps (or without it) or use another --out")
+        raise OutputError(f"{out}: was made with steps {stored.value}, not {steps.value}; "
+                          "resume with the same steps (or without them) or choose another out")
     return settings
 
 
@@ -103,7 +103,7 @@ def init_sweep_dir(layout: SweepLayout, scenario: Scenario, task: int | None, ru
     results.write_atomic(layout.scenario_toml, scenario.text.encode("utf-8"))
     settings = {"format": SWEEP_FORMAT, "scenario": scenario.name, "task": task, "runs": runs,
                 "steps": steps.value}
-    if scenario.is_fleet:  # its tables have a row per robot (sim.montecarlo.rows.FLEET)
+    if table_schemas(scenario) is FLEET:  # its tables have a row per robot
         settings["fleet"] = True
     write_settings(layout, settings)
 

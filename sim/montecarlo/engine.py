@@ -27,23 +27,16 @@ import numpy as np
 
 from scenarios.errors import PefsimError, ScenarioError
 from scenarios.limits import MAX_RUNS
+from scenarios.output_names import check_output_names
 from scenarios.schema import Scenario
 from sim.montecarlo import directory, executors, lock, results
 from sim.montecarlo.directory import SWEEP_FORMAT, open_sweep_dir
 from sim.montecarlo.executors import ExecutorKind
 from sim.montecarlo.progress import progress_bar
 from sim.montecarlo.results import RunRecord, SweepLayout
-from sim.montecarlo.rows import (
-    FLEET_RUN_SCHEMA,
-    concat_columns,
-    fix_columns,
-    fleet_fix_columns,
-    run_row,
-    step_columns,
-)
+from sim.montecarlo.rows import SINGLE, Schemas, concat_columns, robot_tables, run_row, table_schemas
 from sim.montecarlo.steps import StepsMode, steps_mode
 from sim.montecarlo.summary import SweepSummary, succeeded, summarize
-from sim.output_names import check_output_names
 
 __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary", "check_arguments",
            "default_api", "default_out", "open_sweep_dir", "plan_runs", "succeeded", "summarize", "sweep"]
@@ -51,14 +44,15 @@ __all__ = ["SWEEP_FORMAT", "EpisodeApi", "RunSpec", "StepsMode", "SweepSummary",
 
 @dataclass(frozen=True)
 class EpisodeApi:
-    """The episode functions a sweep calls (``sim.episode.drive``'s; tests inject fakes).
+    """The episode functions a sweep calls (``sim.episode.run``'s; tests inject fakes).
 
     Attributes
     ----------
     prepare : callable ``(scenario, task_index) -> prepared``
-        Plans a task once; the result is picklable and shared by all runs of the task.
-    run_episode : callable ``(scenario, task_index, seed, world, prepared) -> EpisodeResult``
-        One episode; raises PefsimError for bad input, anything else is a crash.
+        Plans a run once; the result is picklable and shared by all runs of the task.
+    run_episode : callable ``(scenario, task_index, seed, world, prepared) -> FleetResult``
+        One run (:func:`sim.episode.run.run`: each robot's episode); raises PefsimError for bad
+        input, anything else is a crash.
     make_world : callable ``(scenario) -> world``, optional
         Builds the physics world a worker keeps and passes to every run (which resets it).
     """
@@ -70,47 +64,21 @@ class EpisodeApi:
     """Modules worth importing once before workers start (see :mod:`sim.montecarlo.executors`)."""
 
 
-def _prepare_fleet(scenario, task_index=0, *, traffic: bool = True):
-    from sim.episode import fleet
+def default_api(traffic: bool = True) -> EpisodeApi:
+    """Return the real episode API: :mod:`sim.episode.run` in a ``sim.physics.world.PhysicsWorld``.
 
-    return fleet.prepare_fleet(scenario, traffic=traffic)
-
-
-def _run_fleet(scenario, task_index=0, seed=0, world=None, prepared=None, q_scale=1.0):
-    from sim.episode import fleet
-
-    return fleet.run_fleet_episode(scenario, seed=seed, world=world, prepared=prepared, q_scale=q_scale)
-
-
-def fleet_api(traffic: bool = True) -> EpisodeApi:
-    """Return the real episode API of a fleet scenario: ``sim.episode.fleet`` in a fleet world.
-
-    Its ``prepare`` plans the whole fleet (whatever the task index) and its ``run_episode``
-    returns a :class:`~sim.episode.fleet.FleetResult`. ``traffic`` False plans each robot's
-    measurement schedule as if it drove alone (:func:`sim.episode.fleet.prepare_fleet`). Its
-    parts are module-level functions (and partials of them): the local pool pickles them to its
-    workers.
+    A run drives a lone robot's task, or a fleet's robots all together. ``traffic`` False plans
+    each fleet robot's measurement schedule as if it drove alone (a negative control). Its parts
+    are module-level functions (and partials of them): the local pool pickles them to its workers.
     """
     from functools import partial
 
-    from sim.physics.world import PhysicsWorld
-
-    preload = ("sim.episode.fleet", "sim.physics.world", "estimators.ekf", "sim.episode.fixes", "planner.pef.map")
-    return EpisodeApi(partial(_prepare_fleet, traffic=traffic), _run_fleet, partial(PhysicsWorld, fleet=True),
-                      preload)
-
-
-def default_api() -> EpisodeApi:
-    """Return the real episode API: ``sim.episode.drive`` in a ``sim.physics.world.PhysicsWorld``.
-
-    A fleet scenario (``[[robots]]``) runs :func:`fleet_api` instead.
-    """
-    from sim.episode import drive as episode
-    from sim.physics.world import PhysicsWorld
+    from sim.episode import run
 
     # The episode imports its filter and fix code lazily; workers need them all anyway.
-    preload = ("sim.episode.drive", "sim.physics.world", "estimators.ekf", "sim.episode.fixes", "planner.pef.map")
-    return EpisodeApi(episode.prepare, episode.run_episode, PhysicsWorld, preload)
+    preload = ("sim.episode.run", "sim.physics.world", "estimators.ekf", "sim.episode.fixes", "planner.pef.map")
+    prepare = run.prepare if traffic else partial(run.prepare, traffic=False)
+    return EpisodeApi(prepare, run.run, run.make_world, preload)
 
 
 @dataclass(frozen=True)
@@ -133,9 +101,9 @@ class RunSpec:
 
 def plan_runs(scenario: Scenario, runs: int, task: int | None = None, rrd_every: int = 0) -> list[RunSpec]:
     """List the runs ``0 .. runs-1``: run ``i`` drives task ``i % n_tasks`` unless ``task`` is set."""
-    n_tasks = len(scenario.tasks)
-    if scenario.is_fleet:   # every run drives the whole fleet: all its robots' tasks
-        n_tasks, task = 1, None
+    from sim.episode.run import task_choices
+
+    n_tasks = task_choices(scenario)   # a fleet's every run drives all its robots' tasks
     return [RunSpec(i, task if task is not None else i % n_tasks, scenario.seed,
                     record=rrd_every > 0 and i % rrd_every == 0) for i in range(runs)]
 
@@ -155,6 +123,7 @@ class WorkerPayload:
     api: EpisodeApi
     steps: StepsMode = StepsMode.ALL
     recorder: Recorder | None = None
+    schemas: Schemas = SINGLE
 
     @property
     def preload(self) -> tuple[str, ...]:
@@ -194,30 +163,19 @@ class RunContext:
             self._drop_world()  # it may be left in any state
             return RunContext.died(spec, _one_line(exc), time.perf_counter() - start)
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
-        if p.scenario.is_fleet:
-            return self._fleet_record(spec, result, wall, cpu)
-        row = run_row(spec.run, spec.seed_text, spec.task, result.summary, wall, cpu_time=cpu)
-        steps = step_columns(spec.run, result.steps, p.steps, result.fixes.t)
-        record = RunRecord(spec.run, row, steps, fix_columns(spec.run, result.fixes))
-        if spec.record:
-            record.recording, record.warning = self._recording(result)
-        return record
+        return self._record(spec, result, wall, cpu)
 
-    def _fleet_record(self, spec: RunSpec, result: Any, wall: float, cpu: float) -> RunRecord:
-        """Build a fleet run's record: a row per robot (each with the whole run's wall and CPU time)."""
+    def _record(self, spec: RunSpec, result: Any, wall: float, cpu: float) -> RunRecord:
+        """Build a run's record: a row per robot (each with the whole run's wall and CPU time)."""
         p = self.payload
         ids = p.scenario.marker_ids()
-        names = [r.name for r in result.robots]
         rows, steps, fixes = [], [], []
         for r in result.robots:
-            res = r.result
-            rows.append(run_row(spec.run, spec.seed_text, res.task_index, res.summary, wall, cpu_time=cpu,
-                                schema=FLEET_RUN_SCHEMA))
-            st = step_columns(spec.run, res.steps, p.steps, res.fixes.t)
+            row, st, fx = robot_tables(spec.run, spec.seed_text, r, p.schemas, p.steps, ids, result.names, wall, cpu)
+            rows.append(row)
             if st is not None:
-                st["robot"] = np.array([r.name] * len(st["run"]), dtype=object)
                 steps.append(st)
-            fixes.append(fleet_fix_columns(spec.run, res.fixes, r.name, ids, names))
+            fixes.append(fx)
         record = RunRecord(spec.run, rows, concat_columns(steps) if steps else None, concat_columns(fixes))
         if spec.record:
             record.recording, record.warning = self._recording(result)
@@ -275,9 +233,9 @@ def _one_line(exc: BaseException) -> str:
 def check_runs(runs: int) -> None:
     """Raise a one-line PefsimError unless 0 < ``runs`` <= MAX_RUNS (the file's own cap, montecarlo.runs)."""
     if runs <= 0:
-        raise ScenarioError(f"--runs: expected a positive number of runs, got {runs}")
+        raise ScenarioError(f"runs: expected a positive number of runs, got {runs}")
     if runs > MAX_RUNS:  # a row per run in every table
-        raise ScenarioError(f"--runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
+        raise ScenarioError(f"runs: expected at most {MAX_RUNS:.0e} runs, got {runs}")
 
 
 def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: int, rrd_every: int) -> None:
@@ -285,16 +243,13 @@ def check_arguments(scenario: Scenario, runs: int, task: int | None, workers: in
     check_runs(runs)
     if not scenario.tasks:
         raise ScenarioError(f"{scenario.source}: tasks: expected at least one [[tasks]] entry to drive")
-    if task is not None and scenario.is_fleet:
-        raise ScenarioError(f"--task: {scenario.source} is a fleet ([[robots]]): every run drives all its robots' "
-                            f"tasks, got --task {task}")
-    if task is not None and not 0 <= task < len(scenario.tasks):
-        raise ScenarioError(f"--task: expected 0 .. {len(scenario.tasks) - 1} "
-                            f"({len(scenario.tasks)} tasks in {scenario.source}), got {task}")
+    from sim.episode.run import check_task
+
+    check_task(scenario, task)
     if workers <= 0:
-        raise ScenarioError(f"--workers: expected a positive number, got {workers}")
+        raise ScenarioError(f"workers: expected a positive number, got {workers}")
     if rrd_every < 0:
-        raise ScenarioError(f"--rrd-every: expected 0 (none) or a positive period, got {rrd_every}")
+        raise ScenarioError(f"rrd_every: expected 0 (none) or a positive period, got {rrd_every}")
 
 
 def default_out(scenario: Scenario) -> Path:
@@ -359,12 +314,14 @@ def sweep(scenario: Scenario, out: str | Path | None = None, *, runs: int | None
     SweepSummary
     """
     kind = _executor_kind(executor)
+    if address and kind is not ExecutorKind.RAY:
+        raise ScenarioError(f"address: needs executor ray, got executor {kind.value}")
     if kind is ExecutorKind.RAY:
         executors.import_ray()
     if runs is not None:
         check_runs(runs)  # before the directory is made
-    check_output_names({"--out": out} if out is not None else {"--out (default mc-<scenario name>)":
-                                                                 default_out(scenario)})
+    check_output_names({"out": out} if out is not None else {"out (default mc-<scenario name>)":
+                                                               default_out(scenario)})
     out = Path(out) if out is not None else default_out(scenario)
     wanted = None if steps is None else steps_mode(steps)
     settings = open_sweep_dir(scenario, out, resume, task, wanted)
@@ -406,7 +363,7 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
              api: EpisodeApi | None, progress: bool | None, on_warning: Callable[[str], None] | None,
              warnings: list[Callable[[str], None]], recorder: Recorder | None = None) -> tuple[int, float]:
     """Plan the tasks, run ``todo`` and write each record as it comes; returns (runs executed, wall seconds)."""
-    api = api if api is not None else (fleet_api() if scenario.is_fleet else default_api())
+    api = api if api is not None else default_api()
     # Planning once here catches bad input (no route) before any worker starts.
     tasks = sorted({s.task for s in todo})
     prepared = {}
@@ -417,7 +374,8 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
     if settings:
         results.clean_unfinished(layout)
     directory.init_sweep_dir(layout, scenario, task, max(runs, int(settings.get("runs", 0))), mode)
-    payload = WorkerPayload(scenario, prepared, api, mode, recorder)
+    sch = table_schemas(scenario)
+    payload = WorkerPayload(scenario, prepared, api, mode, recorder, sch)
     executed = 0
     start = time.perf_counter()
     with progress_bar(total=runs, initial=runs - len(todo), enabled=progress) as bar:
@@ -428,7 +386,7 @@ def _execute(scenario: Scenario, layout: SweepLayout, settings: dict[str, Any], 
                 for record in stream:
                     if record.fatal is not None:
                         raise type(record.fatal)(f"run {record.run}: {record.fatal}") from None
-                    results.write_record(layout, record, fleet=scenario.is_fleet)
+                    results.write_record(layout, record, sch)
                     executed += 1
                     if record.warning:
                         warnings[-1](f"pefsim: warning: run {record.run}: {record.warning}")
@@ -447,4 +405,4 @@ def _executor_kind(executor: ExecutorKind | str) -> ExecutorKind:
         return ExecutorKind(executor)
     except ValueError:
         choices = ", ".join(k.value for k in ExecutorKind)
-        raise ScenarioError(f"--executor: expected one of {choices}, got {executor!r}") from None
+        raise ScenarioError(f"executor: expected one of {choices}, got {executor!r}") from None

@@ -50,7 +50,7 @@ class WorkerFactory(Protocol):
     def died(self, spec: Any, reason: str) -> Any: ...
 
 
-RAY_INSTALL_HINT = "--executor ray needs Ray: pip install 'pefsim[ray]'"
+RAY_INSTALL_HINT = "executor ray needs Ray: pip install 'pefsim[ray]'"
 
 # Start workers from a fresh single-threaded server process rather than by forking the caller,
 # which may hold threads (BLAS, tqdm, Ray) or a pybullet client that fork would duplicate.

@@ -121,8 +121,8 @@ def _stale(holder: Holder) -> bool:
 
 def _refusal(root: Path, holder: Holder) -> str:
     if holder.host != socket.gethostname():
-        return (f"{holder.describe(root)}; if that process is gone, delete {lock_path(root)} and use "
-                "--resume")
+        return (f"{holder.describe(root)}; if that process is gone, delete {lock_path(root)} and "
+                "resume")
     return holder.describe(root)
 
 

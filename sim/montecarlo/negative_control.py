@@ -14,8 +14,8 @@ import math
 from functools import partial
 from pathlib import Path
 
-from scenarios.errors import OutputError, SimulationError
-from sim.montecarlo.engine import EpisodeApi, default_api, fleet_api
+from scenarios.errors import OutputError, ScenarioError, SimulationError
+from sim.montecarlo.engine import EpisodeApi, default_api
 from sim.montecarlo.results import write_atomic
 
 NEGATIVE_CONTROL_JSON = "negative-control.json"
@@ -29,33 +29,33 @@ def check_q_scale(q_scale: float) -> float:
     return float(q_scale)
 
 
-def scaled_api(q_scale: float, fleet: bool = False, alone: bool = False) -> EpisodeApi:
+def check_alone(scenario, alone: bool) -> bool:
+    """Return ``alone`` as a bool; raise :class:`ScenarioError` if it is set for a scenario without ``[[robots]]``."""
+    if alone and not scenario.robots:
+        raise ScenarioError(f"{scenario.source}: alone: {scenario.name} is not a fleet scenario (no [[robots]])")
+    return bool(alone)
+
+
+def scaled_api(q_scale: float, alone: bool = False) -> EpisodeApi:
     """Return the real episode API with the filter's process noise times ``q_scale``.
 
     Parameters
     ----------
     q_scale : float
-        Process-noise factor (> 0); 1 is the filter as declared.
-    fleet : bool
-        The API of a fleet scenario (:func:`~sim.montecarlo.engine.fleet_api`): every robot's filter.
+        Process-noise factor (> 0); 1 is the filter as declared (every robot's).
     alone : bool
-        A fleet's schedules planned as if each robot drove alone (``fleet_api(traffic=False)``).
+        A fleet's schedules planned as if each robot drove alone (``default_api(traffic=False)``).
 
     Returns
     -------
     EpisodeApi
-        :func:`~sim.montecarlo.engine.default_api` (or ``fleet_api``) whose ``run_episode`` passes ``q_scale``.
+        :func:`~sim.montecarlo.engine.default_api` whose ``run_episode`` passes ``q_scale``.
     """
-    from sim.episode import drive as episode
-
-    if alone and not fleet:
-        raise SimulationError("alone: planning as if alone is for a fleet scenario ([[robots]])")
-    api = fleet_api(traffic=not alone) if fleet else default_api()
+    api = default_api(traffic=not alone)
     q_scale = check_q_scale(q_scale)
     if q_scale == 1.0:
         return api
-    return EpisodeApi(api.prepare, partial(api.run_episode if fleet else episode.run_episode, q_scale=q_scale),
-                      api.make_world, api.preload)
+    return EpisodeApi(api.prepare, partial(api.run_episode, q_scale=q_scale), api.make_world, api.preload)
 
 
 def mark(directory: str | Path, q_scale: float, alone: bool = False) -> None:

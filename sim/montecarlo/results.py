@@ -152,12 +152,11 @@ def write_atomic(path: Path, data: bytes | pa.Table) -> None:
         raise OutputError(f"{path}: cannot write: {exc.strerror or exc}") from None
 
 
-def write_record(layout: SweepLayout, record: RunRecord, fleet: bool = False) -> None:
+def write_record(layout: SweepLayout, record: RunRecord, sch: Schemas = SINGLE) -> None:
     """Write one finished run: steps, fixes and recording first, its ``runs`` row(s) last (the commit).
 
-    ``fleet``: the sweep's tables are a fleet's (:data:`~sim.montecarlo.rows.FLEET`).
+    ``sch``: the sweep's tables (:func:`~sim.montecarlo.rows.table_schemas`).
     """
-    sch = schemas(fleet)
     if record.steps is not None:
         storage = parts.positions_kept(sch.step_storage, record.steps)
         write_atomic(layout.part(layout.steps_dir, record.run), _table(record.steps, storage))
@@ -166,9 +165,9 @@ def write_record(layout: SweepLayout, record: RunRecord, fleet: bool = False) ->
     if record.recording is not None:
         layout.recordings_dir.mkdir(exist_ok=True)
         write_atomic(layout.part(layout.recordings_dir, record.run, ".rrd"), record.recording)
-    rows = record.row if isinstance(record.row, list) else [record.row]
-    if fleet:  # a crashed fleet run has one row, without robot
-        rows = [{**{n: None for n in sch.runs.names}, **r} for r in rows]
+    # a crashed run has one row, without the robot columns
+    rows = [{**{n: None for n in sch.runs.names}, **r} for r in (record.row if isinstance(record.row, list)
+                                                                 else [record.row])]
     write_atomic(layout.part(layout.runs_dir, record.run), pa.Table.from_pylist(rows, schema=sch.runs))
 
 
@@ -252,5 +251,5 @@ def _read(layout: SweepLayout, found: list[Path], schema: pa.Schema, columns: li
         return parts.read_parts(found, schema, columns)
     except parts.DamagedPartError as exc:
         # Skipping the run instead would change every count and N-run statistic without a trace.
-        raise OutputError(f"{exc}; pefsim mc SCENARIO --out {layout.root} --resume moves it aside and redoes "
+        raise OutputError(f"{exc}; resuming the sweep in {layout.root} moves it aside and redoes "
                           "its run") from None

@@ -139,6 +139,33 @@ def schemas(fleet: bool) -> Schemas:
     return FLEET if fleet else SINGLE
 
 
+def table_schemas(scenario: Any) -> Schemas:
+    """Return the schemas of ``scenario``'s sweeps: with a robot column when it names its robots (``[[robots]]``).
+
+    A lone robot's tables are a fleet of one's without the columns it never has (its name, the
+    waits and the lines of sight other robots hid).
+    """
+    return schemas(bool(scenario.robots))
+
+
+def robot_tables(run: int, seed: str, robot: Any, sch: Schemas, mode: StepsMode, marker_ids: list[str],
+                 names: list[str], wall_time: float | None,
+                 cpu_time: float | None) -> tuple[dict[str, Any], dict[str, np.ndarray] | None, dict[str, np.ndarray]]:
+    """Return one robot's runs row, step columns (None: not kept) and fix columns of run ``run``.
+
+    ``robot`` is a :class:`~sim.episode.types.RobotResult`; a named one (a fleet's) also gets the
+    robot columns of ``sch`` (:func:`fleet_fix_columns`), ``names`` being the fleet's robots in order.
+    """
+    res = robot.result
+    row = run_row(run, seed, res.task_index, res.summary, wall_time, cpu_time=cpu_time, schema=sch.runs)
+    steps = step_columns(run, res.steps, mode, res.fixes.t)
+    if robot.name is None:
+        return row, steps, fix_columns(run, res.fixes)
+    if steps is not None:
+        steps["robot"] = np.array([robot.name] * len(steps["run"]), dtype=object)
+    return row, steps, fleet_fix_columns(run, res.fixes, robot.name, marker_ids, names)
+
+
 # -- building rows ------------------------------------------------------------------------
 
 def run_row(run: int, seed: str, task: int, summary: dict[str, Any] | None, wall_time: float | None,

@@ -16,9 +16,9 @@ class StepsMode(str, Enum):
 
 
 def steps_mode(value: StepsMode | str) -> StepsMode:
-    """Parse a ``--steps`` value; raises a one-line ScenarioError for anything else."""
+    """Parse a ``steps`` value; raises a one-line ScenarioError for anything else."""
     try:
         return StepsMode(value)
     except ValueError:
         choices = ", ".join(m.value for m in StepsMode)
-        raise ScenarioError(f"--steps: expected one of {choices}, got {value!r}") from None
+        raise ScenarioError(f"steps: expected one of {choices}, got {value!r}") from None

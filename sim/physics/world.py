@@ -191,7 +191,9 @@ class PhysicsWorld:
         return body
 
     def place_bodies(self) -> None:
-        """Move every robot's body (:attr:`body_ids`) to the robot's true position (fleet worlds)."""
+        """Move every robot's body (:attr:`body_ids`) to the robot's true position (fleet worlds; else nothing)."""
+        if not self.body_ids:
+            return
         cid = self.client
         for r, body in zip(self.robots, self.body_ids, strict=True):
             x, y, _ = r.true_pose_tuple()

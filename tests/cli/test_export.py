@@ -97,7 +97,7 @@ def test_round_trip_hand_written_and_imported(capsys, tmp_path, graph_scenario):
 
 def test_export_errors(capsys, tmp_path, graph_scenario):
     code, _, err = run_cli(capsys, "export", graph_scenario)
-    assert code == 2 and err.count("\n") == 1 and "give at least one of --routes, --markers, --dxf" in err
+    assert code == 2 and err.count("\n") == 1 and "give at least one of routes, markers, dxf" in err
     code, _, err = run_cli(capsys, "export", "paper-two-markers", "--routes", tmp_path / "x.geojson")
     assert code == 2 and "has no route network" in err and not (tmp_path / "x.geojson").exists()
     code, _, err = run_cli(capsys, "export", graph_scenario, "--markers", tmp_path / "no" / "m.csv")

@@ -23,7 +23,7 @@ def _bad(capsys, argv: list[str], match: str) -> None:
 
 
 def test_runs_must_be_positive(capsys, tmp_path):
-    _bad(capsys, ["paper-docks", "--runs", "0", "--out", str(tmp_path / "a")], "--runs: expected a positive")
+    _bad(capsys, ["paper-docks", "--runs", "0", "--out", str(tmp_path / "a")], "runs: expected a positive")
     _bad(capsys, ["paper-docks", "--runs", "-5", "--out", str(tmp_path / "a")], "got -5")
 
 
@@ -38,13 +38,13 @@ def test_resume_on_a_directory_of_another_scenario(capsys, tmp_path):
     out = tmp_path / "docks"
     sweep(scenarios.load("paper-docks"), out, runs=2, workers=1, api=fe.API, progress=False)
     _bad(capsys, ["paper-two-markers", "--out", str(out), "--resume"], "was made from another scenario")
-    _bad(capsys, ["paper-docks", "--out", str(out)], "use --resume to complete it or --out")
+    _bad(capsys, ["paper-docks", "--out", str(out)], "resume to complete it, or choose another out")
 
 
 def test_unknown_task_and_stray_address(capsys, tmp_path):
-    _bad(capsys, ["paper-docks", "--task", "3", "--out", str(tmp_path / "t")], "--task: expected 0 .. 0")
+    _bad(capsys, ["paper-docks", "--task", "3", "--out", str(tmp_path / "t")], "task: expected 0 .. 0")
     _bad(capsys, ["paper-docks", "--address", "auto", "--out", str(tmp_path / "t")],
-         "--address: needs --executor ray")
+         "address: needs executor ray")
 
 
 def test_ray_missing_tells_how_to_install(capsys, tmp_path, monkeypatch):

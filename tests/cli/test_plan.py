@@ -80,7 +80,7 @@ def test_free_flag(capsys, tmp_path):
 
 @pytest.mark.parametrize("argv,pattern", [
     (["--from", "A", "--to", "Z"], "unknown dock 'Z'"),
-    (["--from", "A"], "give both --from and --to"),
+    (["--from", "A"], "give both start and goal"),
 ])
 def test_bad_requests_exit_2_with_one_line(capsys, tmp_path, argv, pattern):
     code, out, err = run_cli(capsys, "plan", "paper-docks", *argv, "-o", str(tmp_path / "x.png"))

@@ -16,11 +16,13 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import shutil
 
 import pytest
 
 import cli
 import scenarios
+from tests.cli.json_capture import printed, run_json
 
 PASS, FAIL, NA = "pass", "FAIL", "not applicable"
 
@@ -109,9 +111,9 @@ def test_from_rejects_another_scenario_and_sweep_flags(capsys, small_validated_s
 
 def test_bad_input_exits_2(capsys, tmp_path):
     _bad(capsys, [], "scenario: expected a scenario name or file")
-    _bad(capsys, ["paper-docks", "--alpha", "1.5"], "--alpha: expected a probability in (0, 1)")
-    _bad(capsys, ["paper-docks", "--q-scale", "-1"], "--q-scale: expected a positive number")
-    _bad(capsys, ["paper-docks", "--runs", "0"], "--runs: expected a positive number")
+    _bad(capsys, ["paper-docks", "--alpha", "1.5"], "alpha: expected a family false-alarm probability in (0, 1)")
+    _bad(capsys, ["paper-docks", "--q-scale", "-1"], "q_scale: expected a positive number")
+    _bad(capsys, ["paper-docks", "--runs", "0"], "runs: expected a positive number")
     _bad(capsys, ["--from", str(tmp_path)], "not a pefsim mc directory")
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "x").write_text("x")
@@ -162,3 +164,18 @@ def test_gaussian_coverage_and_its_negative_control(capsys, tmp_path):
                      "absolute_error = 0.0003\n", gauss)
     code, report = _validate(capsys, [noisy, "--runs", "6", "--workers", "2"])
     assert code == 1 and _status(report)["coverage"] == FAIL
+
+
+def test_mc_prints_the_sweeps_dict(capsys, monkeypatch, small_validated_sweep, tmp_path):
+    out = tmp_path / "mc"
+    shutil.copytree(small_validated_sweep[0], out)  # resumed with nothing left to run: no episode
+    argv = ["mc", "paper-two-markers", "--out", str(out), "--resume", "--no-report"]
+    doc, result = run_json(capsys, monkeypatch, "sweep", argv)
+    assert doc == printed(result.to_dict())
+    assert doc["runs"] == 4 and doc["executed"] == 0
+
+
+def test_validate_prints_the_reports_dict(capsys, monkeypatch, small_validated_sweep):
+    doc, result = run_json(capsys, monkeypatch, "validate", ["validate", "--from", str(small_validated_sweep[0])])
+    assert doc == printed(result.to_dict())
+    assert doc["sweep"] == str(small_validated_sweep[0]) and doc["wall_time"] > 0

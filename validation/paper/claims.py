@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from scenarios.errors import output_errors
-from sim.jsonable import json_number
+from scenarios.jsonable import json_number
 
 #: The paper's laser: 1 mm of error at 15 m (ch. 3), the relative range error Re [m/m].
 PAPER_RE = 1e-3 / 15.0

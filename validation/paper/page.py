@@ -39,6 +39,12 @@ class PaperPage:
     seconds: float = 0.0
     options: Options = field(default_factory=Options)
 
+    def to_dict(self) -> dict:
+        """Return the page as a JSON-ready dict (what ``pefsim paper --json`` prints; seconds to 0.1 s)."""
+        return {"out": str(self.out), "index": str(self.index), "quick": self.options.quick,
+                "seconds": round(self.seconds, 1), "claims": [c.to_dict() for c in self.claims],
+                "sections": [x.to_dict() for x in self.sections]}
+
 
 def reproduce_page(out_dir: str | Path, options: Options | None = None, only: set[int] | None = None,
                    sections: bool = True) -> PaperPage:

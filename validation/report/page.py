@@ -119,7 +119,7 @@ def build_figures(scenario: Scenario, root: Path, pef_map: Any = None) -> list[F
                           "layout fails the single-failure test the plan check counts; grey: after fixes "
                           "that lost more, which no such layout promises.",
                           figs.png_bytes(fig)))
-    if scenario.is_fleet:
+    if "blocked_by_robot" in results.sweep_schemas(root).fixes.names:   # robots hid lines of sight (a fleet's)
         fx = results.read_fixes(root, columns=["true_x", "true_y", "blocked_by_robot", "blocking_robots"])
         fig = figs.robot_blocked_map(scenario, col(fx, "true_x"), col(fx, "true_y"),
                                      fx.column("blocked_by_robot").to_pylist(),
@@ -229,7 +229,7 @@ def render_html(scenario: Scenario, root: Path, figures: list[Figure]) -> str:
         data = base64.b64encode(f.png).decode("ascii")
         parts.append(f"<figure><h2>{html.escape(f.title)}</h2><img alt='{html.escape(f.name)}' "
                      f"src='data:image/png;base64,{data}'><figcaption>{html.escape(f.caption)}</figcaption></figure>")
-    if scenario.is_fleet and "robot" in runs.column_names:
+    if "robot" in runs.column_names:
         parts.append("<h2>Per robot</h2>")
         parts.append(_table(["robot", "runs", "succeeded", "reached", "wait planned [s]", "wait mean [s]",
                              "wait max [s]", "hidden lines of sight per run", "collisions", "max error [mm]"],

@@ -459,3 +459,48 @@ def test_every_builtin_scenario_maps(name):
     assert np.all(pm.tau >= pm.tau_plain)
     assert np.all(pm.tau[fin] > 0)
     assert pm.model is PefModel(sc.planning.pef_model)
+
+
+@pytest.mark.parametrize("redundancy", [0, 1])
+def test_points_asked_twice_get_the_values_of_points_asked_once(warehouse, redundancy):
+    """PEF.at evaluates a repeated point once and hands each copy that point's values.
+
+    The same points without repeats, in another order, give each point the same tau, best,
+    tau_plain and fallback bit for bit (every point's value is its own). Negative control: the
+    answers of the shuffled points read in the asked order do not match (the points differ in
+    tau, so a wrong row would show).
+    """
+    sc = warehouse
+    pef = PEF(sc, redundancy=redundancy)
+    rng = np.random.default_rng(3)
+    x0, y0, x1, y1 = sc.workspace.bounds
+    once = np.column_stack([rng.uniform(x0, x1, 200), rng.uniform(y0, y1, 200)])
+    pick = rng.integers(0, len(once), 500)
+    twice = once[pick]
+    got = pef.at(twice, widen=0.05)
+    shuffle = rng.permutation(len(once))
+    ref = pef.at(once[shuffle], widen=0.05)
+    row = np.argsort(shuffle)[pick]
+    for name in ("tau", "best", "tau_plain", "fallback"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name)[row])
+    assert np.isfinite(got.tau).sum() > 100 and np.unique(got.tau[np.isfinite(got.tau)]).size > 100
+    assert not np.array_equal(got.tau, ref.tau[pick])
+
+
+def test_tau_subset_asked_again_answers_as_the_first_time(warehouse):
+    """The last tau_subset is remembered: asked again it is the same, and not the caller's edited copy.
+
+    Negative control: other subsets at the same points (a question the memo must not answer
+    with the last answer) give other values.
+    """
+    pef = PEF(warehouse)
+    rng = np.random.default_rng(4)
+    x0, y0, x1, y1 = warehouse.workspace.bounds
+    pts = np.column_stack([rng.uniform(x0, x1, 300), rng.uniform(y0, y1, 300)])
+    subs = np.array([[0, 1], [2, 5], [3, 7]])
+    first = pef.tau_subset(pts, subs)
+    want = first.copy()
+    first[:] = -1.0
+    np.testing.assert_array_equal(pef.tau_subset(pts, subs), want)
+    other = pef.tau_subset(pts, subs[:, ::-1] + 1)
+    assert np.isfinite(want).sum() > 50 and not np.array_equal(other, want)

@@ -76,7 +76,7 @@ def test_keep_written_scenario_keeps_the_file_markers(keep, warehouse, tmp_path)
     assert back.markers[:len(warehouse.markers)] == warehouse.markers
     assert [m.id for m in back.markers[len(warehouse.markers):]] == list(res.new_ids)
     assert back.placement.existing == "keep"
-    doc = res.summary()
+    doc = res.to_dict()
     assert doc["kept"] == [m.id for m in warehouse.markers] and doc["new"] == list(res.new_ids)
     assert [m["new"] for m in doc["markers"]] == [False] * len(warehouse.markers) + [True] * res.count
 

@@ -257,3 +257,93 @@ def test_chord_bound_is_the_distance_from_the_chords_shapely_measures():
     back = s[:, None] - SETTLE_LOOKAHEADS * look[:, None] * np.linspace(0.0, 1.0, 25)
     np.testing.assert_array_equal(settle_bound(path, s_v, s, look),
                                   chord_bound(path, s_v, back, np.repeat(look[:, None], 25, axis=1)).max(axis=1))
+
+
+def _chord_cases():
+    """Paths and points that exercise the interpolation's cases: turns, axis-aligned straights, vertices hit exactly."""
+    rng = np.random.default_rng(5)
+    walk = np.cumsum(rng.normal(size=(60, 2)) * 0.3, axis=0)
+    t = np.round(np.linspace(0.0, 10.0, 101), 1)
+    ell = np.column_stack([np.minimum(t, 5.0), np.maximum(t - 5.0, 0.0)])
+    ell = ell[np.r_[True, np.any(np.diff(ell, axis=0) != 0, axis=1)]]
+    arc = 40.0 + 7.0 * np.column_stack([np.cos(np.linspace(0.0, 2.0, 80)), np.sin(np.linspace(0.0, 2.0, 80))])
+    for path in (walk, ell, arc):
+        s_v = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
+        # before the start, beyond the end, on vertices, unsorted
+        s = rng.permutation(np.r_[rng.uniform(-1.0, s_v[-1] + 1.0, 150), s_v[::7], 0.0, s_v[-1]])
+        look = np.where(rng.random(s.size) < 0.5, 0.9, rng.uniform(0.3, 2.0, s.size))
+        yield path, s_v, s, look
+
+
+@pytest.mark.parametrize("reach", [0.0, SETTLE_LOOKAHEADS])
+def test_chord_kernel_is_the_interpolating_form_bit_for_bit(reach):
+    """The chord kernel's own interpolation and its skipped hypot calls give np.interp's form's bits.
+
+    The identity tables hash promises bit for bit, so nothing looser than equality is asserted.
+    Negative control: slopes one ulp off (``np.nextafter``) change some bound's bits, so the
+    comparison sees a change in the interpolation's last bit.
+    """
+    from planner.schedule.promise import _CHORDS_CHUNK, _chords_kernel, _chords_kernel_interp
+
+    back = np.linspace(0.0, 1.0, 25) if reach else np.zeros(1)
+    frac = np.linspace(0.0, 1.0, 33)
+    moved = 0
+    for path, s_v, s, look in _chord_cases():
+        px, py = np.ascontiguousarray(path[:, 0]), np.ascontiguousarray(path[:, 1])
+        chunks = -(-s.size // _CHORDS_CHUNK)
+        want, got, off = np.empty(s.size), np.empty(s.size), np.empty(s.size)
+        _chords_kernel_interp(0, chunks, px, py, s_v, s, look, reach, back, frac, want)
+        slope_x, slope_y = np.diff(px) / np.diff(s_v), np.diff(py) / np.diff(s_v)
+        _chords_kernel(0, chunks, px, py, s_v, s, look, reach, back, frac, got, slope_x, slope_y)
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+        _chords_kernel(0, chunks, px, py, s_v, s, look, reach, back, frac, off,
+                       np.nextafter(slope_x, np.inf), np.nextafter(slope_y, np.inf))
+        moved += int(np.sum(off.view(np.int64) != want.view(np.int64)))
+    assert moved > 0
+
+
+def test_chords_on_an_axis_aligned_straight_are_zero_and_no_looser_than_the_kernel():
+    """Points whose chords all lie on one axis-aligned leg get the bound 0; the others the kernel's bits.
+
+    An L of two axis-aligned legs sampled 0.1 m apart: on a leg every chord lies on the path (the
+    exact bound is 0, the kernel's np.interp arithmetic gives 0 or rounding), near the corner the
+    kernel's value is kept bit for bit. Negative control: one vertex of the first leg moved
+    1e-9 m off its line, the points whose window holds it are computed again (and are > 0).
+    """
+    from planner.schedule.promise import _CHORDS_CHUNK, _chords, _chords_kernel_interp
+
+    t = np.round(np.linspace(0.0, 20.0, 201), 1)
+    ell = np.column_stack([np.minimum(t, 10.0) + 3.7, np.maximum(t - 10.0, 0.0) - 1.3])
+    ell = ell[np.r_[True, np.any(np.diff(ell, axis=0) != 0, axis=1)]]
+    s_v = np.r_[0.0, np.cumsum(np.hypot(*np.diff(ell, axis=0).T))]
+    s = np.linspace(0.05, s_v[-1] - 0.05, 400)
+    look = np.full(s.size, 0.9)
+    back = np.linspace(0.0, 1.0, 25)
+
+    def kernel(path):
+        out = np.empty(s.size)
+        _chords_kernel_interp(0, -(-s.size // _CHORDS_CHUNK), np.ascontiguousarray(path[:, 0]),
+                              np.ascontiguousarray(path[:, 1]), s_v, s, look, SETTLE_LOOKAHEADS, back,
+                              np.linspace(0.0, 1.0, 33), out)
+        return out
+
+    got, want = _chords(ell, s_v, s, look, SETTLE_LOOKAHEADS, back), kernel(ell)
+    # zeroed: exactly the points whose vertices one spacing either side of [s - 4 look, s + look]
+    # lie on one leg (the path's ends clamp, on the same leg)
+    leg = [np.all(ell[(s_v >= a - 0.1) & (s_v <= b + 0.1), i] == c)
+           for a, b in zip(s - (SETTLE_LOOKAHEADS + 1.0) * look, s + look, strict=True)
+           for i, c in ((1, ell[0, 1]), (0, ell[-1, 0]))]
+    on_leg = np.array(leg).reshape(-1, 2).any(axis=1)
+    zeroed = (got == 0.0) & (want != 0.0)
+    assert on_leg.sum() > 200 and np.all(got[on_leg] == 0.0) and not zeroed[~on_leg].any()
+    assert np.all(got <= want)
+    corner = (s > 10.2) & (s < 12.0)  # the settle window behind holds the corner
+    assert np.all(want[corner] > 1e-3)
+    np.testing.assert_array_equal(got[~on_leg], want[~on_leg])
+    # negative control: a vertex 1e-9 m off the first leg's line
+    bent = ell.copy()
+    bent[40, 1] += 1e-9
+    got_bent, want_bent = _chords(bent, s_v, s, look, SETTLE_LOOKAHEADS, back), kernel(bent)
+    near = on_leg & (s - (SETTLE_LOOKAHEADS + 1.0) * look + 0.2 < s_v[40]) & (s_v[40] < s + look - 0.2)
+    assert near.any() and np.all(got_bent[near] > 0.0)
+    np.testing.assert_array_equal(got_bent[near], want_bent[near])

@@ -107,3 +107,38 @@ def test_negative_control_the_plan_made_without_the_check_counts_on_lines_it_may
         m.setattr(promise, "unseen", lambda scenario, subsets, poses, delta: np.zeros(len(subsets), bool))
         plan = pefsim.plan(sc, 0)
     assert _refused(sc, plan)
+
+
+def test_seen_within_remembers_rows_by_point_and_margin(grazing):
+    """Rows asked again (the same point at the same margin step) are the rows computed afresh.
+
+    Points near the grazing line of sight at margins either side of its 0.25 m clearance, asked
+    in two overlapping calls; each answer is compared with a call on an emptied memo. Negative
+    control: a memo that forgot the margin in its key answers the second call with the first
+    call's rows, which the comparison catches.
+    """
+    from planner.schedule import sightcheck
+
+    pts = np.array([P, (1.0, 5.3), (1.2, 5.25), (0.8, 5.2)])
+    first, second = np.full(4, 0.1), np.array([0.1, 0.4, 0.1, 0.4])
+
+    def fresh(points, delta):
+        sightcheck._SEEN.clear()
+        return sightcheck.seen_within(grazing, points, delta)
+
+    want1, want2 = fresh(pts, first), fresh(pts[::-1], second[::-1])
+    assert (want1 != want2[::-1]).any()  # the margin decides a line of sight here
+    sightcheck._SEEN.clear()
+    np.testing.assert_array_equal(sightcheck.seen_within(grazing, pts, first), want1)
+    np.testing.assert_array_equal(sightcheck.seen_within(grazing, pts[::-1], second[::-1]), want2)
+    # negative control: a memo whose rows ignore the margin (every row filed under each step too)
+    sightcheck._SEEN.clear()
+    sightcheck.seen_within(grazing, pts, first)
+    for memo in sightcheck._SEEN.values():
+        for rows in memo.values():
+            steps = {step for step, _ in rows}
+            for (_, name), row in list(rows.items()):
+                for step in steps | {int(np.ceil(0.4 / sightcheck.MARGIN_STEP - 1e-9))}:
+                    rows[(step, name)] = row
+    wrong = sightcheck.seen_within(grazing, pts[::-1], second[::-1])
+    assert (wrong != want2).any()

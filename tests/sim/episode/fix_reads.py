@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from sim.episode.drive import CONTROL_STEPS
+from sim.episode.driver import CONTROL_STEPS
 
 
 def fix_reads(first_step: int, k: int, measurement_time: float, dt: float) -> tuple[list[int], list[int]]:

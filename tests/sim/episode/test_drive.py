@@ -267,7 +267,8 @@ def test_each_run_draws_its_encoder_phases_and_the_filter_is_not_told():
     # An incremental encoder counts from wherever its wheel stopped: the run's phase is drawn from
     # its start stream (after the start pose), and the filter starts with the residuals unknown,
     # each at the variance of a residual uniform over a tick (tick^2 / 12).
-    from sim.episode.drive import _streams, encoder_phases, episode_localizer
+    from sim.episode.driver import encoder_phases, episode_localizer
+    from sim.episode.driver import streams as _streams
 
     phases = [encoder_phases(_streams(np.random.SeedSequence(7, spawn_key=(k,)))[0]) for k in range(400)]
     again = encoder_phases(_streams(np.random.SeedSequence(7, spawn_key=(0,)))[0])

@@ -123,12 +123,17 @@ def test_pefsim_run_prints_every_robot(tmp_path, capsys):
 
     path = tmp_path / "cross.toml"
     path.write_text(CROSS)
-    assert cli.main(["run", str(path), "--json"]) == 0
+    assert cli.main(["run", str(path), "--json", "--tum", str(tmp_path / "tum")]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["collisions"] == 0 and [r["robot"] for r in out["robots"]] == ["east", "north"]
     assert all(r["reached"] for r in out["robots"])
-    assert cli.main(["run", str(path), "--tum", str(tmp_path / "tum")]) == 2
-    assert "--tum: not yet for a fleet scenario" in capsys.readouterr().err
+    # each robot's trajectories in a folder named for it, a row per logged step
+    for r in out["robots"]:
+        for name in ("groundtruth.txt", "estimate.txt"):
+            lines = (tmp_path / "tum" / r["robot"] / name).read_text().splitlines()
+            assert len([x for x in lines if not x.startswith("#")]) == r["steps"]
+    assert cli.main(["run", str(path), "--task", "1"]) == 2
+    assert "task: " in capsys.readouterr().err
 
 
 @pytest.mark.e2e   # a sweep, its report's figures and the validation: ~40 s

@@ -3,7 +3,7 @@
 The episode's odometry (:class:`sim.physics.odometry.WheelOdometry`: quantised encoders, the
 nominal radius, the floor's random slip) reads wheels that roll a known rotation with the actual
 radii ``r (1 -/+ e)``. Each window starts the episode's filter
-(:func:`sim.episode.drive.episode_localizer`: wheel error and encoder residual states,
+(:func:`sim.episode.driver.episode_localizer`: wheel error and encoder residual states,
 :mod:`estimators.motion_quantised`) at the true pose and wheel error with a negligible
 covariance and lets it dead-reckon ``WINDOW`` control steps; its pose NEES at the end compares
 the covariance the process model predicts with the odometry error it actually makes. Nothing is
@@ -37,7 +37,7 @@ from estimators import consistency
 from estimators.motion import arc_step
 from estimators.motion_quantised import residual_block
 from estimators.predict import predict_step
-from sim.episode.drive import CONTROL_STEPS, episode_localizer
+from sim.episode.driver import CONTROL_STEPS, episode_localizer
 from sim.physics.config import PhysicsConfig
 from sim.physics.odometry import (
     NEXT_NORMAL,

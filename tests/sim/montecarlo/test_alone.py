@@ -18,7 +18,7 @@ import pefsim
 import scenarios
 from scenarios import ScenarioError
 from sim.episode import fleet
-from sim.montecarlo.engine import fleet_api
+from sim.montecarlo.engine import default_api
 from sim.montecarlo.negative_control import NEGATIVE_CONTROL_JSON, mark, read_mark
 
 
@@ -40,8 +40,8 @@ def planned(monkeypatch):
 
 
 @pytest.mark.parametrize("traffic", [True, False])
-def test_the_fleet_api_plans_with_or_without_traffic(planned, traffic):
-    fleet_api(traffic=traffic).prepare(scenarios.load("warehouse-fleet"))
+def test_the_episode_api_plans_with_or_without_traffic(planned, traffic):
+    default_api(traffic=traffic).prepare(scenarios.load("warehouse-fleet"))
     assert planned == [traffic]
 
 
@@ -50,7 +50,7 @@ def test_sweep_alone_plans_alone_and_marks_the_directory(monkeypatch, planned, t
     import sim.montecarlo.engine as engine
 
     def fake_sweep(scenario, out, *, api=None, then=None, **kwargs):
-        (api or fleet_api()).prepare(scenario)
+        (api or default_api()).prepare(scenario)
         summary = _Summary(str(out))
         then(summary)
         return summary
@@ -140,10 +140,10 @@ def test_the_fleet_planned_alone_breaks_the_plan_check(capsys, alone, runs, plan
 
 
 @pytest.mark.parametrize("traffic", [True, False])
-def test_the_fleet_api_crosses_to_worker_processes(planned, traffic):
+def test_the_episode_api_crosses_to_worker_processes(planned, traffic):
     """The local pool pickles the episode API to its workers (``--workers 2`` on a fleet died of it)."""
     import pickle
 
-    copy = pickle.loads(pickle.dumps(fleet_api(traffic=traffic)))
+    copy = pickle.loads(pickle.dumps(default_api(traffic=traffic)))
     copy.prepare(scenarios.load("warehouse-fleet"))
     assert planned == [traffic]

@@ -283,7 +283,7 @@ def test_steps_none_writes_no_step_parts_and_resume_keeps_the_mode(tmp_path, sce
     sweep(scenario, out, runs=3, workers=1, api=fe.API, progress=False, steps="none")
     layout = SweepLayout(out)
     assert not list(layout.steps_dir.iterdir())
-    with pytest.raises(OutputError, match="was made with --steps none, not all"):
+    with pytest.raises(OutputError, match="was made with steps none, not all"):
         sweep(scenario, out, runs=5, workers=1, api=fe.API, resume=True, progress=False, steps="all")
     summary = sweep(scenario, out, runs=5, workers=1, api=fe.API, resume=True, progress=False)
     assert summary.executed == 2 and summary.steps == "none" and not list(layout.steps_dir.iterdir())
@@ -309,7 +309,7 @@ def test_validation_of_a_lean_sweep_says_what_it_cannot_check(tmp_path, scenario
 def test_bad_steps_value_is_one_line(tmp_path, scenario):
     from scenarios.errors import ScenarioError
 
-    with pytest.raises(ScenarioError, match=r"--steps: expected one of all, fixes, none, got 'some'"):
+    with pytest.raises(ScenarioError, match=r"steps: expected one of all, fixes, none, got 'some'"):
         sweep(scenario, tmp_path / "x", runs=1, workers=1, api=fe.API, progress=False, steps="some")
     assert not (tmp_path / "x").exists()
 

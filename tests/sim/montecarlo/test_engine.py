@@ -164,11 +164,11 @@ def test_bad_input_in_a_run_stops_the_sweep_keeping_finished_runs(tmp_path, two_
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(runs=0), "--runs: expected a positive number of runs, got 0"),
+    (dict(runs=0), "runs: expected a positive number of runs, got 0"),
     (dict(runs=-3), "got -3"),
-    (dict(task=2), r"--task: expected 0 \.\. 1"),
-    (dict(workers=0), "--workers"),
-    (dict(executor="dask"), "--executor: expected one of local, ray"),
+    (dict(task=2), r"task: expected 0 \.\. 1"),
+    (dict(workers=0), "workers: expected a positive number, got 0"),
+    (dict(executor="dask"), "executor: expected one of local, ray"),
 ])
 def test_bad_arguments_are_one_line_errors(tmp_path, two_tasks, kwargs, match):
     args = dict(runs=2, api=fe.API, progress=False) | kwargs
@@ -181,12 +181,12 @@ def test_output_directory_rules(tmp_path, two_tasks):
     out = tmp_path / "dir"
     sweep(two_tasks, out, runs=3, workers=1, api=fe.API, progress=False)
     assert (out / "scenario.toml").read_text() == two_tasks.text
-    with pytest.raises(OutputError, match="not empty; use --resume"):
+    with pytest.raises(OutputError, match="not empty; resume to complete it"):
         sweep(two_tasks, out, runs=3, workers=1, api=fe.API, progress=False)
     other = scenarios.load("paper-docks")
     with pytest.raises(OutputError, match="was made from another scenario"):
         sweep(other, out, runs=3, workers=1, api=fe.API, resume=True, progress=False)
-    with pytest.raises(OutputError, match="was made with --task None, not 1"):
+    with pytest.raises(OutputError, match="was made with task None, not 1"):
         sweep(two_tasks, out, runs=3, task=1, workers=1, api=fe.API, resume=True, progress=False)
     stranger = tmp_path / "stranger"
     stranger.mkdir()

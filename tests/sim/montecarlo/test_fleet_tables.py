@@ -11,6 +11,7 @@ from sim.episode.types import FixNote
 from sim.montecarlo import results
 from sim.montecarlo.results import RunRecord, SweepLayout
 from sim.montecarlo.rows import (
+    FLEET,
     FLEET_FIX_SCHEMA,
     FLEET_RUN_SCHEMA,
     concat_columns,
@@ -47,7 +48,7 @@ def test_a_fleet_sweep_round_trips_a_row_per_robot(tmp_path):
     layout.sweep_json.write_text(json.dumps({"fleet": True, "steps": "all"}))
     names = ["a", "b"]
     for run in range(3):
-        results.write_record(layout, _fleet_record(sc, run, names), fleet=True)
+        results.write_record(layout, _fleet_record(sc, run, names), FLEET)
     runs = results.read_runs(tmp_path)
     assert runs.schema == FLEET_RUN_SCHEMA and runs.num_rows == 6
     assert runs.column("robot").to_pylist() == names * 3

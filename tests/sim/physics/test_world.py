@@ -11,7 +11,7 @@ import pytest
 
 import scenarios
 from scenarios.errors import SimulationError
-from sim.episode.drive import CONTROL_STEPS
+from sim.episode.driver import CONTROL_STEPS
 from sim.physics import robot as robot_module
 from sim.physics.config import PhysicsConfig
 from sim.physics.quiet import pb, silenced

@@ -2,7 +2,7 @@
 
 A name longer than the file system allows fails only when the file is opened, which for most
 outputs is after the work (a plan, a sweep); two outputs given the same path would overwrite one
-with the other. Both are refused here, in one line naming the option and the path, before any
+with the other. Both are refused here, in one line naming the parameter and the path, before any
 work starts.
 """
 
@@ -22,7 +22,7 @@ def check_output_names(outputs: Mapping[str, str | os.PathLike[str] | None]) -> 
     Parameters
     ----------
     outputs : mapping of str to path or None
-        Option name (as the user wrote it, e.g. ``"--routes"``) -> the path given (None: not
+        Parameter name (e.g. ``"routes"``) -> the path given (None: not
         asked for).
 
     Raises
