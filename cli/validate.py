@@ -33,6 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--alone", action="store_true",
                    help="NEGATIVE CONTROL ONLY, fleets: plan each robot's measurement schedule as if it drove "
                         "alone (no traffic prediction) to see the plan check fail when the others are ignored")
+    p.add_argument("--blocking-scale", type=float, default=None, metavar="K",
+                   help="NEGATIVE CONTROL ONLY, fleets: multiply the plan's predicted robot blocking by K "
+                        "(also with --from) to see the blocking check fail on a prediction K times off")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=run)
 
@@ -58,11 +61,13 @@ def run(args: argparse.Namespace) -> int:
     _check_args(args)
     if args.from_dir is not None:
         scenario = pefsim.load(args.scenario) if args.scenario is not None else None
-        report = pefsim.validate(args.from_dir, alpha=args.alpha, scenario=scenario)
+        report = pefsim.validate(args.from_dir, alpha=args.alpha, scenario=scenario,
+                                 blocking_scale=1.0 if args.blocking_scale is None else args.blocking_scale)
     else:
         report = pefsim.validate_scenario(args.scenario, runs=args.runs, out=args.out, workers=args.workers,
                                           alpha=args.alpha, q_scale=1.0 if args.q_scale is None else args.q_scale,
-                                          alone=args.alone, progress=None)
+                                          alone=args.alone, progress=None,
+                                          blocking_scale=1.0 if args.blocking_scale is None else args.blocking_scale)
     if args.json:
         print_json(report.to_dict())
     else:
@@ -83,6 +88,9 @@ def format_report(report) -> str:
     lines.extend(report.causes)
     if report.q_scale != 1.0:
         lines.append(f"NEGATIVE CONTROL: the filter's process noise was multiplied by {report.q_scale:g}")
+    if report.blocking_scale != 1.0:
+        lines.append(f"NEGATIVE CONTROL: the plan's predicted robot blocking was multiplied by "
+                     f"{report.blocking_scale:g}")
     if report.alone:
         lines.append("NEGATIVE CONTROL: each robot's measurement schedule was planned as if it drove alone "
                      "(no traffic prediction)")

@@ -529,7 +529,7 @@ def sweep(scenario: Scenario | str | Path, out: str | Path | None = None, *, run
 
 
 def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
-             scenario: Scenario | str | Path | None = None) -> ValidationReport:
+             scenario: Scenario | str | Path | None = None, blocking_scale: float = 1.0) -> ValidationReport:
     """Check a sweep's results against the predictions (containment, promise, bound, NEES, NIS, ...).
 
     The checks judge the sweep's tables; running the sweep is :func:`sweep`'s job.
@@ -544,6 +544,9 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
         :data:`validation.suite.DEFAULT_ALPHA` (0.01).
     scenario : Scenario, str or path, optional
         When given, the sweep must have been made from exactly this scenario.
+    blocking_scale : float
+        NEGATIVE CONTROL ONLY: multiply the plan's predicted robot blocking by this before the
+        checks (a fleet's ``blocking`` check must then fail).
 
     Returns
     -------
@@ -561,13 +564,15 @@ def validate(sweep: SweepSummary | str | Path, *, alpha: float | None = None,
     start = time.perf_counter()
     directory = sweep.out if isinstance(sweep, SweepSummary) else sweep
     expected = None if scenario is None else _scenario(scenario)
-    report = _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha)
+    report = _validate(load_sweep(directory, expected), alpha=DEFAULT_ALPHA if alpha is None else alpha,
+                       blocking_scale=blocking_scale)
     return dataclasses.replace(report, sweep=str(directory), wall_time=time.perf_counter() - start)
 
 
 def validate_scenario(scenario: Scenario | str | Path, *, runs: int | None = None, out: str | Path | None = None,
                       workers: int | None = None, alpha: float | None = None, q_scale: float = 1.0,
-                      alone: bool = False, progress: bool | None = False) -> ValidationReport:
+                      alone: bool = False, progress: bool | None = False,
+                      blocking_scale: float = 1.0) -> ValidationReport:
     """Sweep a scenario (:func:`sweep`, without its report) and judge the sweep (:func:`validate`).
 
     Every argument is checked before the sweep starts.
@@ -580,7 +585,7 @@ def validate_scenario(scenario: Scenario | str | Path, *, runs: int | None = Non
     out : str or path, optional
         Keep the sweep in this directory; default a temporary directory, deleted afterwards
         (the report's ``sweep`` is then None).
-    alpha : float, optional
+    alpha, blocking_scale : float, optional
         As :func:`validate`'s.
 
     Returns
@@ -602,7 +607,7 @@ def validate_scenario(scenario: Scenario | str | Path, *, runs: int | None = Non
     with tempfile.TemporaryDirectory(prefix="pefsim-validate-") as tmp:
         swept = sweep(sc, out if out is not None else Path(tmp) / "mc", runs=runs, workers=workers,
                       q_scale=q_scale, alone=alone, progress=progress, report=False)
-        report = validate(swept, alpha=alpha, scenario=sc)
+        report = validate(swept, alpha=alpha, scenario=sc, blocking_scale=blocking_scale)
     kept = None if out is None else str(out)
     return dataclasses.replace(report, sweep=kept, wall_time=time.perf_counter() - start)
 

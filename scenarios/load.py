@@ -207,7 +207,7 @@ def _check_body(t: Table, declared: RobotSpec, actual: RobotSpec, actual_t: Tabl
 
 
 #: Keys of a ``[[robots]]`` table besides the robot keys it may override.
-_FLEET_KEYS = ("name", "tasks", "start_time", "actual")
+_FLEET_KEYS = ("name", "tasks", "start_time", "start_jitter", "dwell", "speed_spread", "actual")
 
 
 def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[Task], workspace: Workspace,
@@ -240,6 +240,10 @@ def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[
                 t.fail(f"{t.key('tasks')}[{j}]", f"expected a task starting at dock {tasks[idx[j - 1]].goal!r} "
                        f"where task {idx[j - 1]} ends (task {i} starts at {tasks[i].start!r})", i)
         start_time = t.number("start_time", 0.0, low=0.0, high=1e6)
+        # the run-to-run timing spread (planner.fleet.timing): release delay, dwell, slower speed
+        start_jitter = t.number("start_jitter", 0.0, low=0.0, high=3600.0)
+        dwell = t.number("dwell", 0.0, low=0.0, high=3600.0)
+        speed_spread = t.number("speed_spread", 0.0, low=0.0, high=0.5)
         declared = _robot(t, robot)
         actual = _robot(t, robot_actual)
         if t.has("actual"):
@@ -251,10 +255,11 @@ def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[
         _check_path_samples(t, declared, workspace, fix_rate_hz)
         for key in t.data:
             if key not in _FLEET_KEYS and key not in t.used:
-                t.fail(t.key(key), "unknown key (a [[robots]] table takes name, tasks, start_time, actual "
-                       "and [robot] keys)", t.data[key])
+                t.fail(t.key(key), "unknown key (a [[robots]] table takes name, tasks, start_time, start_jitter, "
+                       "dwell, speed_spread, actual and [robot] keys)", t.data[key])
         t.done()
-        fleet.append(FleetRobot(name, tuple(int(i) for i in idx), start_time, declared, actual))
+        fleet.append(FleetRobot(name, tuple(int(i) for i in idx), start_time, declared, actual, start_jitter,
+                                dwell, speed_spread))
     return tuple(fleet)
 
 

@@ -329,6 +329,15 @@ class FleetRobot:
     robot_actual : RobotSpec
         The simulated robot: the scenario's ``[robot.actual]`` with this robot's overrides, then
         its own ``actual`` overrides, applied.
+    start_jitter : float
+        Largest release delay [s]: each run the robot leaves its first dock ``start_time + U``
+        later, U uniform on [0, start_jitter] (:mod:`planner.fleet.timing`).
+    dwell : float
+        Largest stand at each dock between two of its tasks [s]: each run and dock, uniform on
+        [0, dwell].
+    speed_spread : float
+        Each run the robot drives at f times its planned speeds, f uniform on
+        [1 - speed_spread, 1] (never faster than planned: the schedule's promises hold).
     """
 
     name: str
@@ -336,6 +345,9 @@ class FleetRobot:
     start_time: float
     robot: RobotSpec
     robot_actual: RobotSpec
+    start_jitter: float = 0.0
+    dwell: float = 0.0
+    speed_spread: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ is "not applicable", never a pass.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -62,6 +62,9 @@ class ValidationReport:
         A fleet's robots: the plan's longest predicted wait against the simulated ones.
     missing : int
         Runs the sweep was asked for that have not finished (an interrupted sweep).
+    blocking_scale : float
+        Factor the plan's predicted robot blocking was multiplied by before the checks (1 unless a
+        negative control of the ``blocking`` check).
     sweep : str or None
         The sweep directory judged, None when it was a temporary one, deleted since
         (``pefsim.validate_scenario`` without ``out``).
@@ -82,6 +85,7 @@ class ValidationReport:
     causes: list[str] = field(default_factory=list)
     waits: list[str] = field(default_factory=list)
     missing: int = 0
+    blocking_scale: float = 1.0
     sweep: str | None = None
     wall_time: float | None = None
 
@@ -107,6 +111,7 @@ class ValidationReport:
                 "alpha": self.alpha, "statistical_checks": self.statistical,
                 "alpha_per_check": self.alpha_per_check, "q_scale": self.q_scale, "alone": self.alone,
                 "causes": list(self.causes), "waits": list(self.waits), "missing_runs": self.missing,
+                "blocking_scale": self.blocking_scale,
                 "passed": self.passed,
                 "failed": self.failed, "checks": [c.to_dict() for c in self.checks], "sweep": self.sweep,
                 "wall_time": self.wall_time}
@@ -124,7 +129,7 @@ def check_alpha(alpha: float) -> None:
 
 
 def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Generator | None = None,
-             checks: tuple[Check, ...] = CHECKS) -> ValidationReport:
+             checks: tuple[Check, ...] = CHECKS, blocking_scale: float = 1.0) -> ValidationReport:
     """Run the checks on a sweep.
 
     Parameters
@@ -139,13 +144,24 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
         (so a sweep always gets the same verdict).
     checks : tuple of Check
         Which checks to run (default all, in report order).
+    blocking_scale : float
+        NEGATIVE CONTROL ONLY: multiply the plan's predicted robot blocking of every fix by this
+        (clipped to 1) before the checks, to see the ``blocking`` check fail on a prediction that
+        is off.
 
     Returns
     -------
     ValidationReport
     """
+    if not (isinstance(alpha, float | int) and 0.0 < alpha < 1.0):
+        raise SimulationError(f"alpha: expected a family false-alarm probability in (0, 1), got {alpha!r}")
+    if not (isinstance(blocking_scale, float | int) and 0.0 < blocking_scale < 1e6):
+        raise SimulationError(f"blocking_scale: expected a positive factor, got {blocking_scale!r}")
     check_alpha(alpha)
     rng = rng if rng is not None else validation_rng(data)
+    if blocking_scale != 1.0 and data.fixes.p_block_robot is not None:
+        fixes = replace(data.fixes, p_block_robot=np.minimum(data.fixes.p_block_robot * blocking_scale, 1.0))
+        data = replace(data, fixes=fixes)
     why_not = {c.name: c.why_not(data) for c in checks}
     m = sum(1 for c in checks if c.statistical and why_not[c.name] is None)
     per_check = alpha / m if m else None
@@ -158,4 +174,5 @@ def validate(data: SweepData, alpha: float = DEFAULT_ALPHA, rng: np.random.Gener
     return ValidationReport(scenario=data.scenario.name, source=data.source, runs=len(data.runs),
                             fixes=len(data.fixes), alpha=float(alpha), statistical=m,
                             alpha_per_check=per_check, q_scale=data.q_scale, checks=out, alone=data.alone,
-                            causes=outcome.causes(data), waits=outcome.waits(data), missing=data.missing)
+                            causes=outcome.causes(data), waits=outcome.waits(data), missing=data.missing,
+                            blocking_scale=float(blocking_scale))

@@ -10,12 +10,11 @@ argument) the probability per marker along a task's path, for the robot's place 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from planner.fleet.blocking import (
-    TIMING,
     TimingModel,
     Track,
     block_probability,
@@ -23,6 +22,7 @@ from planner.fleet.blocking import (
     tie,
     traffic_probability,
 )
+from planner.fleet.timing import declared_model
 from scenarios.schema import Scenario
 
 
@@ -83,9 +83,25 @@ class RobotBlocking:
         return float(self.p_fix[~self.protected].sum())
 
 
-def tracks_of(robots: Sequence, timing: TimingModel = TIMING) -> list[Track]:
-    """Each robot's refined timeline, its lags tied through its zone waits (``robots``: ``FleetRobotPlan``)."""
-    tracks = [Track.of(r.timeline, r.start_time, r.robot.radius, r.robot.height) for r in robots]
+def tracks_of(robots: Sequence, timing: TimingModel | None = None) -> list[Track]:
+    """Each robot's refined timeline, its lags tied through its zone waits (``robots``: ``FleetRobotPlan``).
+
+    Each track carries its robot's lag model: the simulated robots' own (:data:`planner.fleet.blocking.TIMING`) with the
+    robot's declared timing spread (``FleetRobotPlan.declared``, :func:`planner.fleet.timing.declared_model`);
+    ``timing`` given is used for every robot instead.
+    """
+    tracks = []
+    for r in robots:
+        tr = Track.of(r.timeline, r.start_time, r.robot.radius, r.robot.height)
+        declared = getattr(r, "declared", None)
+        if timing is None and declared is not None:
+            # the docks it dwells at: where each of its tasks but the first begins
+            docks = np.interp(tr.at_s(np.asarray(r.offsets[1:], float)), tr.t, tr.drive)
+            tr = replace(tr, timing=declared_model(declared, docks))
+            if tr.timing.tie_wait:
+                # with a spread, the waits decide who hides what: placed where the robots stand
+                tr = tr.stand_back(r.timeline, r.path, r.s)
+        tracks.append(tr)
     return tie(tracks, [r.timeline for r in robots], timing)
 
 
@@ -114,7 +130,7 @@ def _segment_density(scenario: Scenario, xy: np.ndarray) -> np.ndarray:
 
 
 def marker_risk(scenario: Scenario, tracks: list[Track], i: int, xy: np.ndarray, when: np.ndarray,
-                timing: TimingModel = TIMING, traffic_block: float | None = None) -> np.ndarray:
+                timing: TimingModel | None = None, traffic_block: float | None = None) -> np.ndarray:
     """Probability per marker that its line of sight from ``xy`` at planned time ``when`` is hidden.
 
     Parameters
@@ -164,7 +180,7 @@ def marker_risk(scenario: Scenario, tracks: list[Track], i: int, xy: np.ndarray,
 
 
 def risk(scenario: Scenario, tracks: list[Track], i: int, offset: float,
-         timing: TimingModel = TIMING) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+         timing: TimingModel | None = None) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """Make the ``block`` argument of :func:`planner.schedule.schedule.make_schedule` for robot i's task.
 
     ``offset`` is where the task's path begins along the robot's whole path [m]. The returned
@@ -187,7 +203,7 @@ def risk(scenario: Scenario, tracks: list[Track], i: int, offset: float,
 
 
 def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = None,
-            timing: TimingModel = TIMING) -> list[RobotBlocking]:
+            timing: TimingModel | None = None) -> list[RobotBlocking]:
     """Predicted blocking of every scheduled fix of every robot (``robots``: ``FleetRobotPlan``)."""
     tracks = tracks_of(robots, timing) if tracks is None else tracks
     m_pos, h = scenario.marker_positions(), _heights(scenario)

@@ -21,7 +21,7 @@ from planner.fleet.zones import Timeline, ZoneControl, predict_timeline
 from planner.plan import Plan, plan_task
 from planner.schedule.pathtime import Kinematics
 from scenarios.errors import PlanningError
-from scenarios.schema import RobotSpec, Scenario
+from scenarios.schema import FleetRobot, RobotSpec, Scenario
 
 
 @dataclass
@@ -54,6 +54,9 @@ class FleetRobotPlan:
         the others hide what a lone robot would count on.
     alone_time : float
         Its drive time as planned alone: the schedule of one robot, no waits [s].
+    declared : FleetRobot, optional
+        Its ``[[robots]]`` table: the timing spread its blocking prediction assumes
+        (:mod:`planner.fleet.timing`).
     """
 
     name: str
@@ -68,6 +71,7 @@ class FleetRobotPlan:
     blocking: RobotBlocking | None = None
     alone_blocking: RobotBlocking | None = None
     alone_time: float = math.nan
+    declared: FleetRobot | None = None
 
     @property
     def time(self) -> float:
@@ -80,11 +84,14 @@ class FleetPlan:
     """A fleet's plans: ``robots[i]`` for ``scenario.robots[i]``; ``traffic``: the flag it was planned with.
 
     ``note`` says how the traffic-aware schedule came about (None with ``traffic`` False).
+    ``order``: the planned order of passage the robots keep (:meth:`ZoneControl.precedence`) when
+    the stop rule alone could deadlock (a dock on another robot's path); None: the stop rule.
     """
 
     robots: list[FleetRobotPlan]
     traffic: bool
     note: TrafficNote | None = None
+    order: list[np.ndarray] | None = None
 
 
 def chain(plans: list[Plan]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -111,9 +118,46 @@ def chain(plans: list[Plan]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     return path, s, np.concatenate(spd), np.array(offsets)
 
 
-def zones_of(fleet: list[FleetRobotPlan]) -> ZoneControl:
-    """Fresh zone control of the fleet's whole paths."""
-    return ZoneControl([r.path for r in fleet], [r.robot.radius for r in fleet], [r.name for r in fleet])
+def zones_of(fleet: list[FleetRobotPlan], order: list[np.ndarray] | None = None, record: bool = False) -> ZoneControl:
+    """Fresh zone control of the fleet's whole paths (``order``: :class:`ZoneControl`'s ``after``)."""
+    return ZoneControl([r.path for r in fleet], [r.robot.radius for r in fleet], [r.name for r in fleet],
+                       after=order, record=record)
+
+
+#: Traffic density the rerouting of :func:`_reroute` puts on the segments the robots before a robot drive.
+REROUTE_TRAFFIC = 1.0
+
+
+def _reroute(scenario: Scenario, fleet: list[FleetRobotPlan], owns: list[Scenario], pefs: dict) -> None:
+    """Replan each robot but the first with the segments of the robots before it as busy (in place).
+
+    The route network's ``traffic`` criterion (:mod:`planner.routes.criteria`) gets density
+    :data:`REROUTE_TRAFFIC` on every segment an earlier robot's chosen routes use, and comes first
+    in the choice (lexicographic, the scenario's own choice breaking ties): a robot takes the way
+    the others use least where there is one (a second aisle for robots swapping docks).
+    """
+    busy: set[frozenset[str]] = set()
+    for k, r in enumerate(fleet):
+        if k:
+            net = scenario.routes
+            traffic = dict(net.traffic)
+            for a, b in net.segments:
+                if frozenset((a, b)) in busy:
+                    traffic[f"{a}-{b}"] = max(net.traffic_of(a, b), REROUTE_TRAFFIC)
+                    traffic.pop(f"{b}-{a}", None)
+            # busy segments first, then the scenario's own choice (its order, or its weights as the tie-break)
+            rest = tuple(c for c in owns[k].planning.order if c != "traffic")
+            planning = replace(owns[k].planning, order=("traffic", *rest))
+            own = replace(owns[k], routes=replace(net, traffic=traffic), planning=planning)
+            try:
+                plans = [plan_task(own, i, pef=pefs[r.robot]) for i in r.declared.tasks]
+            except PlanningError:
+                plans = r.plans
+            r.plans = plans
+            r.path, r.s, r.speed, r.offsets = chain(plans)
+        for p in r.plans:
+            nodes = p.candidates[p.chosen].nodes if p.chosen is not None else None
+            busy.update(frozenset(e) for e in zip(nodes or (), (nodes or ())[1:], strict=False))
 
 
 def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPlan:
@@ -160,10 +204,19 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
             except PlanningError as exc:
                 raise PlanningError(f"{scenario.source}: robots: {fr.name!r}, task {i}: {exc}") from None
         path, s, speed, offsets = chain(plans)
-        fleet.append(FleetRobotPlan(fr.name, plans, fr.start_time, fr.robot, offsets, path, s, speed))
+        fleet.append(FleetRobotPlan(fr.name, plans, fr.start_time, fr.robot, offsets, path, s, speed, declared=fr))
     try:
-        timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
-                                     [r.start_time for r in fleet])
+        try:
+            timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
+                                         [r.start_time for r in fleet])
+        except PlanningError as exc:
+            if "no robot can move" not in str(exc) or scenario.routes is None or len(fleet) < 2:
+                raise
+            # robots that trade docks along one route meet head-on with nowhere to stand aside:
+            # route each robot around the segments of the robots before it, where the network allows
+            _reroute(scenario, fleet, owns, pefs)
+            timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
+                                         [r.start_time for r in fleet])
     except PlanningError as exc:
         raise PlanningError(f"{scenario.source}: robots: {exc}") from None
     for r, tl in zip(fleet, timelines, strict=True):
@@ -177,4 +230,11 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
         r.alone_blocking = b
     for r, b in zip(fleet, exposure.predict(scenario, fleet) if traffic else alone, strict=True):
         r.blocking = b
-    return FleetPlan(robots=fleet, traffic=traffic, note=note)
+    order = None
+    zones = zones_of(fleet, record=True)
+    if zones.dock_conflict is not None:
+        # a dock on another robot's path: the robots keep the order of passage of the plan's
+        # timeline, which cannot deadlock whatever their timing (planner.fleet.zones)
+        predict_timeline(zones, [Kinematics(r.s, r.speed) for r in fleet], [r.start_time for r in fleet])
+        order = zones.precedence()
+    return FleetPlan(robots=fleet, traffic=traffic, note=note, order=order)

@@ -18,16 +18,20 @@ do not touch. A cell is held by at most one robot.
 to where it may drive. It releases the cells of the samples it has passed (a cell stays held
 while a later held sample still covers it). It may drive up to sample ``end_i``; to go further
 it reserves the stretch ``end_i + 1 .. k`` where k is its next *stop*, atomically: all its cells
-or none. A stop is the path's last sample (its final dock) or a *safe* sample: one whose
+or none. A stop is a *safe* sample: one whose
 footprint meets no cell of any other robot's *remaining* path (samples ``lo_j ..`` to the end,
 the cells robot j will still need). On a route network the stops are where a robot's path
 leaves the shared stretches: before a junction or an aisle another robot will use, the "wait at
 a node" of AGV practice, with the node being the last point of the robot's path clear of the
 others.
 
-**The rule cannot deadlock.** Each robot's first and last samples (its start and final docks)
-must meet no cell of any other robot's path (:class:`ZoneControl` refuses otherwise: a robot
-parked on another's path blocks it forever, whatever the rule). Then:
+**Docks.** A robot's final dock is a stop like any other sample: only once it is safe. A robot
+that finishes where another must still pass waits at its last safe stop until that one has
+passed (:meth:`ZoneControl.next_stop` finds no stop; the robot whose remaining path still meets
+its way is ``refused_by``). A start dock is free once its robot has left it.
+
+**The stop rule cannot deadlock when every start and final dock is clear of the other robots'
+paths** (:attr:`ZoneControl.dock_conflict` is None). Then:
 
 1. A robot only ever waits at the end of its reservation, which is a stop: its start, its
    final dock, or a sample that was safe when it was reserved. Other robots' remaining paths only
@@ -48,6 +52,29 @@ parked on another's path blocks it forever, whatever the rule). Then:
    Each grant moves a robot to a later stop, and each path has finitely many: every robot
    reaches its final dock (no livelock either: the robot refused for a cell gets it once its
    holder has passed, unless another robot got it first, which can happen only finitely often).
+
+**Docks on other robots' paths: the plan's order of passage.** Fleets trade docks (a swap, a
+rotation, a robot parked on the only corridor), and then 1 fails: a robot standing on its start
+holds cells another robot needs, and a robot waiting for a dock to clear may wait for one that
+waits for it. Whether that happens depends on who comes first, which a real fleet's timing
+changes. So the planner drives the fleet once through the stop rule (:func:`predict_timeline`;
+it refuses the fleet when no robot can move, as three robots rotating through one hub, each on
+a spur the next must leave first), recording in which order the robots held each cell
+(``record=True``), and the robots keep that order whatever their timing
+(:meth:`ZoneControl.precedence`, ``after=``): robot i may reserve its sample k only when, for
+each cell of k, every robot whose holding of the cell came before i's in the plan has passed
+the holding's last sample; samples are reserved one by one (no stops needed). It cannot
+deadlock: suppose every robot not yet arrived is refused, standing at the end of its
+reservation (it has freed all behind it). Take the refused robot i whose refused sample k the
+plan reserved earliest. The cell that refused it is either still held by a robot j whose holding
+comes first in the plan (a robot holding it in a later holding would have needed i's holding
+done, which it is not), or owed to such a j that has not passed that holding's last sample
+b. In the plan j passed b, so reserved b + 1, before i reserved k; standing short of b, j is
+refused at a sample the plan reserved no later than b + 1: earlier than k, against the choice
+of i. The order is a total order of the plan's events, so every chain of waits ends. Cells stay
+exclusive, so the clearance holds as under the stop rule. ``tests/planner/fleet/test_dock_trades.py``
+drives the hard cases with timings the plan never saw; without stops or the order the same
+fleets deadlock.
 
 The adversarial cases (head-on on one segment, three robots in a cycle, a crossing) are in
 ``tests/planner/fleet/test_zones.py``.
@@ -156,15 +183,21 @@ class ZoneControl:
         Clearance each robot keeps beyond its radius [m].
     cell : float
         Side of a zone cell [m].
+    record : bool
+        Record the order in which the robots hold each cell (:meth:`precedence`).
+    after : sequence of ndarray, optional
+        A recorded run's :meth:`precedence`: requests keep that order of passage, sample by
+        sample (module docstring), instead of reserving stop by stop.
 
     Raises
     ------
     PlanningError
-        A robot's start or final dock lies within the clearance of another robot's path.
+        Two robots' starts, or two robots' final docks, lie within each other's clearance.
     """
 
     def __init__(self, paths: Sequence[np.ndarray], radii: Sequence[float], names: Sequence[str] | None = None,
-                 *, margin: float = DEFAULT_MARGIN, cell: float = DEFAULT_CELL) -> None:
+                 *, margin: float = DEFAULT_MARGIN, cell: float = DEFAULT_CELL, record: bool = False,
+                 after: Sequence[np.ndarray] | None = None) -> None:
         self.paths = [np.asarray(p, float).reshape(-1, 2) for p in paths]
         n = len(self.paths)
         if len(radii) != n or any(len(p) == 0 for p in self.paths):
@@ -191,7 +224,17 @@ class ZoneControl:
                 if j != i:
                     rows[j] = np.maximum.reduceat(self._last[j][ids], indptr[:-1])
             self._need.append(rows)
-        self._check_docks()
+        #: Why the stop rule alone cannot keep this fleet from deadlock (None: every robot's start
+        #: and final dock lie clear of the others' paths, module docstring).
+        self.dock_conflict = self._dock_conflict()
+        self._check_apart()
+        #: The plan's order of passage (:meth:`precedence`): ``after[i][j, k]`` is the sample robot
+        #: j must have passed before robot i may reserve its sample k (-1: none). Given, requests
+        #: follow it sample by sample instead of stop by stop.
+        self.after = None if after is None else [np.asarray(a, dtype=np.int64) for a in after]
+        self._record = record
+        #: A recording run's holdings, per cell: (robot, last sample of the holding) in the order freed.
+        self._history: dict[int, list[tuple[int, int]]] = {}
         self.owner = np.full(g, -1, dtype=np.int32)
         self._count = [np.zeros(g, dtype=np.int32) for _ in range(n)]
         self.lo = [0] * n
@@ -203,16 +246,28 @@ class ZoneControl:
 
     # -- the rule ---------------------------------------------------------------------------
 
-    def _check_docks(self) -> None:
+    def _check_apart(self) -> None:
+        """Refuse two robots whose starts, or whose final docks, share a cell: they would stand on each other."""
+        for k, what in ((0, "starts"), (-1, "final docks")):
+            seen: dict[int, int] = {}
+            for i, (indptr, ids) in enumerate(self._feet):
+                kk = k % (len(indptr) - 1)
+                for c in ids[indptr[kk]:indptr[kk + 1]].tolist():
+                    j = seen.setdefault(c, i)
+                    if j != i:
+                        raise PlanningError(f"zone control: {self.names[j]}'s and {self.names[i]}'s {what} lie within "
+                                            f"{self.reach[i] + self.reach[j]:.2f} m of each other: one robot would "
+                                            f"stand on the other")
+
+    def _dock_conflict(self) -> str | None:
         for i, need in enumerate(self._need):
             for k, what in ((0, "start"), (len(self.paths[i]) - 1, "final dock")):
                 j = int(np.argmax(need[:, k]))
                 if need[j, k] >= 0:
                     x, y = self.paths[i][k]
-                    raise PlanningError(
-                        f"zone control: {self.names[i]}'s {what} ({x:.2f}, {y:.2f}) lies within "
-                        f"{self.reach[i] + self.reach[j]:.2f} m of {self.names[j]}'s path: a robot standing there "
-                        f"would block the other for ever (give it a dock off the others' paths)")
+                    return (f"{self.names[i]}'s {what} ({x:.2f}, {y:.2f}) lies within "
+                            f"{self.reach[i] + self.reach[j]:.2f} m of {self.names[j]}'s path")
+        return None
 
     def _cells(self, i: int, a: int, b: int) -> np.ndarray:
         """Cells of robot i's samples a .. b-1."""
@@ -230,14 +285,18 @@ class ZoneControl:
         need = self._need[i][:, k]
         return np.all(need < (lo[:, None] if np.ndim(k) else lo), axis=0)
 
-    def next_stop(self, i: int) -> int:
-        """Robot i's next stop after its reservation end: a safe sample, or its last one."""
+    def next_stop(self, i: int) -> int | None:
+        """Robot i's next stop after its reservation end: the first safe sample (None: none is safe yet).
+
+        Its final dock is a stop only when safe, as any other sample: a dock another robot has
+        still to pass is reserved once that robot has passed it.
+        """
         e, last = self.end[i], len(self.paths[i]) - 1
         if e >= last:
             return last
-        ks = np.arange(e + 1, last)
-        ok = np.flatnonzero(self.safe(i, ks)) if len(ks) else ks
-        return int(ks[ok[0]]) if len(ok) else last
+        ks = np.arange(e + 1, last + 1)
+        ok = np.flatnonzero(self.safe(i, ks))
+        return int(ks[ok[0]]) if len(ok) else None
 
     def request(self, i: int, s: float) -> bool:
         """Extend robot i's reservation to arc length ``s`` [m] (on its path); tell whether it reaches it.
@@ -247,8 +306,15 @@ class ZoneControl:
         """
         n = len(self.paths[i])
         target = min(int(np.searchsorted(self.s[i], s, side="left")), n - 1)
+        if self.after is not None:
+            return self._request_in_order(i, target)
         while self.end[i] < target:
             k = self.next_stop(i)
+            if k is None:
+                # every sample ahead is on a path another robot has still to drive: wait for it
+                need, lo = self._need[i][:, self.end[i] + 1:], np.asarray(self.lo)[:, None]
+                self.refused_by[i] = int(np.argmax(np.any(need >= lo, axis=1)))
+                return False
             cells = self._cells(i, self.end[i] + 1, k + 1)
             held = self.owner[cells]
             others = held[(held >= 0) & (held != i)]
@@ -256,6 +322,25 @@ class ZoneControl:
                 self.refused_by[i] = int(others[0])
                 return False
             self._take(i, self.end[i] + 1, k + 1)
+            self.end[i] = k
+        return True
+
+    def _request_in_order(self, i: int, target: int) -> bool:
+        """Reserve robot i's samples up to ``target`` one by one, in the plan's order of passage."""
+        lo = np.asarray(self.lo)
+        after = self.after[i]
+        while self.end[i] < target:
+            k = self.end[i] + 1
+            late = np.flatnonzero(after[:, k] >= lo)
+            if len(late):
+                self.refused_by[i] = int(late[0])
+                return False
+            held = self.owner[self._cells(i, k, k + 1)]
+            others = held[(held >= 0) & (held != i)]
+            if len(others):
+                self.refused_by[i] = int(others[0])
+                return False
+            self._take(i, k, k + 1)
             self.end[i] = k
         return True
 
@@ -279,7 +364,56 @@ class ZoneControl:
         np.subtract.at(self._count[i], cells, 1)
         free = cells[self._count[i][cells] == 0]
         self.owner[free] = -1
+        if self._record and len(free):
+            # the holding of each freed cell ends at the last released sample covering it
+            indptr = self._feet[i][0]
+            sample = np.repeat(np.arange(self.lo[i], k), np.diff(indptr[self.lo[i]:k + 1]))
+            last = {}
+            for c, q in zip(cells.tolist(), sample.tolist(), strict=True):
+                last[c] = q
+            for c in np.unique(free).tolist():
+                self._history.setdefault(c, []).append((i, last[c]))
         self.lo[i] = k
+
+    def precedence(self) -> list[np.ndarray]:
+        """Return the order of passage of a recording run (``record=True``), driven to its end.
+
+        For each robot i an int array (n, N_i): entry [j, k] is the last sample of robot j's
+        path that robot j must have passed (freed) before robot i may reserve its sample k:
+        over the cells of sample k, the largest last sample of j's holdings of the cell that
+        came before i's holding of it in this run (-1: none). Cells still held (the final
+        docks) count as held for ever.
+        """
+        n = len(self.paths)
+        hist = {c: list(h) for c, h in self._history.items()}
+        for c in np.flatnonzero(self.owner >= 0).tolist():
+            hist.setdefault(c, []).append((int(self.owner[c]), np.iinfo(np.int64).max))
+        out = []
+        for i in range(n):
+            indptr, ids = self._feet[i]
+            sample = np.repeat(np.arange(len(self.paths[i])), np.diff(indptr))
+            after = np.full((n, len(self.paths[i])), -1, dtype=np.int64)
+            order = np.argsort(ids, kind="stable")
+            cells, starts = np.unique(ids[order], return_index=True)
+            for c, ks in zip(cells.tolist(), np.split(sample[order], starts[1:]), strict=True):
+                h = hist.get(c, [])
+                if not any(r != i for r, _ in h):
+                    continue
+                prefix = np.full((len(h) + 1, n), -1, dtype=np.int64)   # largest b per robot before each holding
+                for m, (r, b) in enumerate(h):
+                    prefix[m + 1] = prefix[m]
+                    if r != i:
+                        prefix[m + 1, r] = max(prefix[m, r], b)
+                mine = [(m, b) for m, (r, b) in enumerate(h) if r == i]
+                if not mine:
+                    raise PlanningError(f"zone control: {self.names[i]} never held a cell of its path: "
+                                        "the recording run did not reach its end")
+                pos = np.array([m for m, _ in mine])
+                ends = np.array([b for _, b in mine])
+                which = np.minimum(np.searchsorted(ends, ks, side="left"), len(mine) - 1)
+                after[:, ks] = np.maximum(after[:, ks], prefix[pos[which]].T)
+            out.append(after)
+        return out
 
     # -- reading ------------------------------------------------------------------------------
 

@@ -78,6 +78,11 @@ class Mission:
         When it leaves its first dock [s] (its release).
     blocking : planner.fleet.exposure.RobotBlocking, optional
         The plan's probability that other robots hide a scheduled marker at each fix.
+    speed_factor : float
+        It drives at this fraction of its planned speeds (a fleet robot's drawn timing,
+        :mod:`planner.fleet.timing`).
+    dwell : tuple of float
+        How long it stands at the dock ending each of its tasks but the last [s].
     """
 
     plans: list[Plan]
@@ -86,6 +91,8 @@ class Mission:
     where: str
     start_time: float = 0.0
     blocking: Any = None
+    speed_factor: float = 1.0
+    dwell: tuple[float, ...] = ()
 
 
 def check_control_period(world) -> float:
@@ -215,6 +222,7 @@ class RobotDriver:
         self.waiting = False   # stood at the end of its reservation at the last tick (the gate sets it)
         self.hold = scenario.montecarlo.hold
         self.hold_until: float | None = None   # when its hold at the final dock ends
+        self.dwell_until: float | None = None  # when its dwell at a dock between two tasks ends
         self.arrival = math.nan
         self.wait_limit, self.names = math.inf, None   # a fleet sets them (sim.episode.outcome)
         self._drawn: frozenset[int] = frozenset()   # lines of sight blocked at the last fix start
@@ -261,7 +269,8 @@ class RobotDriver:
     def _follower(self, plan: Plan) -> PurePursuit:
         """Return the path follower of ``plan``, at the plan's speeds."""
         robot = self.sc.robot
-        return PurePursuit(path=plan.path, speed=plan.speed, max_speed=robot.max_speed,
+        f = self.mission.speed_factor
+        return PurePursuit(path=plan.path, speed=plan.speed if f == 1.0 else plan.speed * f, max_speed=robot.max_speed,
                            max_yaw_rate=robot.max_yaw_rate)
 
     def _next_task(self) -> None:
@@ -436,6 +445,12 @@ class RobotDriver:
                 self.start_fix(self.fix_s[self.next_fix], t)
             return
         if self.task + 1 < len(self.mission.plans):
+            # it dwells at the dock as long as its mission says, then drives its next task
+            if self.dwell_until is None:
+                self.dwell_until = t + (self.mission.dwell[self.task] if self.mission.dwell else 0.0)
+            if t < self.dwell_until - 1e-9:
+                return
+            self.dwell_until = None
             self._next_task()
             return
         if self.hold_until is None:

@@ -19,6 +19,12 @@ what the fleet adds is scheduled here. At each control tick a robot
   (``beyond_redundancy``), and the single-failure test (runs column ``lost_guarantee``) judges
   the robot's certified bound wherever a fix lost at most one of them.
 
+Each robot keeps the timing its run drew from its declared spread (:mod:`planner.fleet.timing`,
+from a stream of its own under the episode's seed): it leaves its first dock that much later,
+dwells at each dock between two tasks, and drives at that fraction of its planned speeds
+(:class:`sim.episode.driver.Mission`). When a dock lies on another robot's path the zones keep
+the plan's order of passage (``FleetPlan.order``, :mod:`planner.fleet.zones`).
+
 Robot bodies are cylinders of each robot's radius and height that only rays see
 (:meth:`sim.physics.world.PhysicsWorld.place_bodies`); the bodies are moved to the robots before
 every fix start and measurement. ``FleetResult.collisions`` counts pairs of those bodies that start to
@@ -37,6 +43,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from planner.fleet import timing as fleet_timing
 from planner.fleet.plan import FleetPlan, FleetRobotPlan, plan_fleet, zones_of
 from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode.drive import check_markers, seed_sequence
@@ -197,14 +204,17 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
     predicted_end = max(float(rp.timeline.end_time) for rp in plans)
     t_max = time_limit if time_limit is not None else 3.0 * predicted_end + 30.0 + scenario.montecarlo.hold
     n_max = int(t_max / dt_ctrl) + 2
-    zones = zones_of(plans)
+    zones = zones_of(plans, prepared.plan.order)
     names = [fr.name for fr in scenario.robots]
     robots, gates = [], []
     for i, (fr, rp) in enumerate(zip(scenario.robots, plans, strict=True)):
         # robot 0 draws from exactly the streams a lone robot would
         own = ss if i == 0 else np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, 4, i))
+        # this run's draw of the robot's declared timing spread (planner.fleet.timing)
+        drawn = fleet_timing.draw(fr, fleet_timing.stream(ss, i))
         mission = Mission(rp.plans, tuple(int(k) for k in fr.tasks), rp.offsets, f"robot {fr.name!r}",
-                          start_time=fr.start_time, blocking=rp.blocking)
+                          start_time=fr.start_time + drawn.release_delay, blocking=rp.blocking,
+                          speed_factor=drawn.speed_factor, dwell=drawn.dwell)
         gates.append(ZoneGate(zones, i))
         # planner and filter see this robot's declared spec, the physics its actual one
         sc = replace(scenario, robot=fr.robot, robot_actual=fr.robot_actual)

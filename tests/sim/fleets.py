@@ -51,3 +51,103 @@ tasks = [0]
 name = "north"
 tasks = [1]
 """
+
+# A hall with a rack block in the middle: a south aisle (y = 2) and a longer north one (y = 8.5)
+# between a west dock W and an east dock E, and a dock N on a spur off the north aisle.
+_TRADES_FLOOR = """
+seed = 11
+[workspace]
+size = [16.0, 10.0]
+[[obstacles]]
+center = [8.0, 5.25]
+size = [8.0, 2.5]
+[[markers]]
+id = "SW"
+position = [0.0, 0.0]
+height = 0.3
+[[markers]]
+id = "S"
+position = [8.0, 0.0]
+height = 0.3
+[[markers]]
+id = "SE"
+position = [16.0, 0.0]
+height = 0.3
+[[markers]]
+id = "NE"
+position = [16.0, 10.0]
+height = 0.3
+[[markers]]
+id = "NM"
+position = [5.0, 10.0]
+height = 0.3
+[[markers]]
+id = "NW"
+position = [0.0, 10.0]
+height = 0.3
+[[markers]]
+id = "W"
+position = [0.0, 5.0]
+height = 0.3
+[[markers]]
+id = "E"
+position = [16.0, 5.0]
+height = 0.3
+[sensor]
+[robot]
+[planning]
+eps_max = 0.05
+resolution = 0.2
+[[docks]]
+name = "W"
+node = "W"
+[[docks]]
+name = "E"
+node = "E"
+yaw_deg = 180.0
+[[docks]]
+name = "N"
+node = "N"
+yaw_deg = 90.0
+[routes]
+nodes = { W = [1.5, 5.0], E = [14.5, 5.0], N = [11.0, 9.25], wm = [3.0, 5.0], em = [13.0, 5.0], sw = [3.0, 2.0], se = [13.0, 2.0], nw = [3.0, 8.5], n = [11.0, 8.5], ne = [13.0, 8.5] }
+segments = [["W", "wm"], ["wm", "sw"], ["wm", "nw"], ["sw", "se"], ["se", "em"], ["em", "E"], ["nw", "n"], ["n", "ne"], ["ne", "em"], ["n", "N"]]
+"""
+
+#: Two robots trading docks: r1 W -> E while r2 E -> W (one aisle each).
+SWAP = _TRADES_FLOOR.replace("seed = 11", 'name = "swap"\nseed = 11') + """
+[[tasks]]
+from = "W"
+to = "E"
+[[tasks]]
+from = "E"
+to = "W"
+[[robots]]
+name = "r1"
+tasks = [0]
+[[robots]]
+name = "r2"
+tasks = [1]
+"""
+
+#: Three robots in a rotation: r1 W -> E, r2 E -> N, r3 N -> W (each ends where the next starts).
+ROTATION = _TRADES_FLOOR.replace("seed = 11", 'name = "rotation"\nseed = 11') + """
+[[tasks]]
+from = "W"
+to = "E"
+[[tasks]]
+from = "E"
+to = "N"
+[[tasks]]
+from = "N"
+to = "W"
+[[robots]]
+name = "r1"
+tasks = [0]
+[[robots]]
+name = "r2"
+tasks = [1]
+[[robots]]
+name = "r3"
+tasks = [2]
+"""

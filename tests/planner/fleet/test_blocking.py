@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,6 +12,8 @@ from scipy.special import ndtr
 from planner.fleet.blocking import (
     FINE_DT,
     POS_SD,
+    STAND_BACK,
+    STAND_SD,
     TimingModel,
     Track,
     block_probability,
@@ -137,6 +140,52 @@ def test_a_robot_waiting_for_another_takes_its_lag_from_the_release():
     assert mean[0] == pytest.approx(4.2 - 7.0, abs=0.11)
     # with robot 0 leaving on time it would have waited
     assert np.any(tie([Track.of(tl, 0.0, 0.4, 0.5) for tl in (tl0, tl1)], [tl0, tl1], late)[1].root == 0)
+
+
+def test_with_a_timing_spread_a_waiting_robot_stands_where_the_plan_has_it_against_its_holder():
+    """Robot 1 waits (2-3 s) for robot 0; with a declared spread (``tie_wait``) it is tied from the wait's start.
+
+    During the wait it stands until robot 0 has passed, whenever it arrived: against robot 0 its
+    lag is robot 0's at the release plus the restart (variance ``release_var`` and robot 0's drift
+    over the 0.5 s to the release), not its own lag (two independent lags: ``2 base_var`` and
+    more). Afterwards the difference is the restart and both drifts, the speed factor's part
+    growing with the square of the time driven. Negative control: without ``tie_wait`` the wait
+    is the robot's own lag.
+    """
+    t = np.arange(0.0, 6.0 + 1e-9, 0.1)
+    waiting = (t > 2.0 + 1e-9) & (t < 3.0 + 1e-9)
+    x1 = np.where(t < 2.0, t, np.where(t < 3.0, 2.0, t - 1.0))
+    tl0 = _timeline(np.column_stack([t, np.full(len(t), 5.0)]), t)
+    tl1 = _timeline(np.column_stack([x1, np.zeros(len(t))]), t, waiting, np.where(waiting, 0, -1))
+    model = TimingModel(lag0=1.0, lag_rate=0.01, release_lag=0.7, base_var=0.3, var_rate=0.02, release_var=0.05,
+                        var_quad=0.001, tie_wait=True)
+    tracks = tie([Track.of(tl, 0.0, 0.4, 0.5) for tl in (tl0, tl1)], [tl0, tl1], model)
+    mean, var = lag_difference(tracks, 0, 1, np.array([2.5, 5.0]), model)
+    assert mean[0] == pytest.approx(-0.01 * 0.5 - 0.7, abs=2e-3)
+    assert var[0] == pytest.approx(0.05 + 0.02 * 0.5 + 0.001 * 0.5**2, abs=2e-3)
+    d1_since = 1.9
+    assert mean[1] == pytest.approx(0.01 * 2.0 - 0.7 - 0.01 * d1_since, abs=2e-3)
+    assert var[1] == pytest.approx(0.05 + 0.02 * d1_since + 0.001 * d1_since**2 + 0.02 * 2.0 + 0.001 * 2.0**2,
+                                   abs=3e-3)
+    loose = replace(model, tie_wait=False)
+    _, var = lag_difference(tie([Track.of(tl, 0.0, 0.4, 0.5) for tl in (tl0, tl1)], [tl0, tl1], loose), 0, 1,
+                            np.array([2.5]), loose)
+    assert var[0] > 2 * 0.3
+
+
+def test_a_waiting_robot_is_placed_where_the_simulated_one_stands():
+    # it stops STAND_BACK short of the timeline's place, spread STAND_SD; driving, POS_SD at its place;
+    # on its start dock it is where the dock is, spread STAND_SD
+    t = np.arange(0.0, 6.0 + 1e-9, 0.1)
+    waiting = (t > 2.0 + 1e-9) & (t < 3.0 + 1e-9)
+    x1 = np.where(t < 2.0, t, np.where(t < 3.0, 2.0, t - 1.0))
+    path = np.column_stack([np.arange(0.0, 5.0 + 1e-9, 0.1), np.zeros(51)])
+    tl = _timeline(np.column_stack([x1, np.zeros(len(t))]), t, waiting)
+    tr = Track.of(tl, 0.0, 0.4, 0.5).stand_back(tl, path, path[:, 0])
+    k = tr.sample(np.array([2.5, 1.0, 0.0]))
+    assert tr.xy[k[0], 0] == pytest.approx(2.0 - STAND_BACK) and tr.pos_sd[k[0]] == STAND_SD
+    assert tr.xy[k[1], 0] == pytest.approx(1.0) and tr.pos_sd[k[1]] == POS_SD
+    assert tr.xy[k[2], 0] == 0.0 and tr.pos_sd[k[2]] == STAND_SD      # on its start dock
 
 
 @pytest.fixture(scope="module")

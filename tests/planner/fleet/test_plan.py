@@ -70,12 +70,12 @@ def test_chain_joins_at_the_dock_once():
 
 
 @pytest.mark.e2e  # plans two of the built-in's robots (~30 s); tests/planner/fleet/test_zones.py refuses it fast
-def test_a_dock_on_another_robots_path_is_refused_in_one_line():
+def test_two_robots_on_one_dock_are_refused_in_one_line():
     from dataclasses import replace
 
     sc = load("warehouse-fleet")
-    # r3 given r1's task: both start on dock A, which is on the other's path
+    # r3 given r1's task: both start on dock A
     bad = replace(sc, robots=(sc.robots[0], replace(sc.robots[2], tasks=(0,))))
-    with pytest.raises(PlanningError, match=r"^warehouse-fleet\.toml: robots: zone control: r1's start "
-                                            r"\(2\.00, 2\.00\) lies within 1\.10 m of r3's path"):
+    with pytest.raises(PlanningError, match=r"^warehouse-fleet\.toml: robots: zone control: r1's and r3's starts "
+                                            r"lie within 1\.10 m of each other"):
         plan_fleet(bad, traffic=False)  # zone control refuses the docks whatever the schedule
