@@ -143,7 +143,7 @@ def test_looser_never_worse(name):
 
 
 @pytest.mark.e2e
-@pytest.mark.parametrize("name", ["warehouse", "paper-docks", "random:0", "random:1"])
+@pytest.mark.parametrize("name", ["warehouse", "paper-docks", *[f"random:{i}" for i in range(10)]])
 def test_looser_never_more_reflectors(name):
     from planner.placement.plannable import place_plannable
 
