@@ -7,13 +7,26 @@ import pytest
 
 import scenarios
 from planner.schedule.drift import drift_bound
-from sim.episode.certify import certified_bound, lost_markers, single_failure_excused
+from sim.episode.certify import certified_bound, heading_quantum, lost_markers, single_failure_excused, turning
+
+
+def _played_turning(heading, quantum):
+    # turning's docstring, step by step: the play follows the unwrapped heading only when it
+    # leaves the band of +-quantum around it, and its moves add up
+    turn, y, prev, u = [0.0], heading[0], heading[0], heading[0]
+    for h in heading[1:]:
+        u += (h - prev + np.pi) % (2.0 * np.pi) - np.pi
+        prev = h
+        z = min(max(y, u - quantum), u + quantum)
+        turn.append(turn[-1] + abs(z - y))
+        y = z
+    return np.array(turn)
 
 
 def _reference(robot, t, s, heading, fix_t, fix_tau, fix_time):
     # module docstring: the smallest, over the fixes completed before a step (the dock at t[0]
     # with promise 0 among them), of promise + drift since the fix's start
-    turn = np.concatenate([[0.0], np.cumsum(np.abs(np.angle(np.exp(1j * np.diff(heading)))))])
+    turn = _played_turning(heading, heading_quantum(robot))
     fix_t, fix_tau = np.r_[t[0], fix_t], np.r_[0.0, fix_tau]
     out = np.full(t.size, np.inf)
     for ft, tau in zip(fix_t, fix_tau, strict=True):
@@ -105,3 +118,25 @@ def test_lost_markers_counts_the_scheduled_subset_and_its_fallback():
     assert lost_markers(frozenset({7, 11}), sched, fbs) == 2
     assert lost_markers(frozenset({3}), sched, ((), (3, 11))) == 1   # no fallback named: one lost
     assert lost_markers(frozenset({3, 9}), sched, ()) == 1
+
+
+def test_turning_is_the_play_of_the_heading_and_ignores_the_quantum():
+    """A straight whose estimate steps back and forth by a quantum did not turn; a real turn counts.
+
+    Negative control: summing the steps themselves (what the bound counted before) charges the
+    straight a quantum per step.
+    """
+    robot = scenarios.load("warehouse").robot
+    q = heading_quantum(robot)
+    assert q == pytest.approx(2.0 * np.pi * 0.1 / 2048 / 0.5)
+    rng = np.random.default_rng(3)
+    straight = 0.3 + q * rng.integers(0, 2, 600)           # the count one tick either way
+    assert turning(straight, q)[-1] == 0.0
+    raw = np.sum(np.abs(np.diff(straight)))
+    assert raw > 100 * q                                   # the old count: some 300 quanta
+    # a quarter turn with the same jitter, across the wrap at +-pi: at least the turn less a band
+    turn = np.angle(np.exp(1j * (np.pi - 0.5 + np.linspace(0.0, np.pi / 2, 600) + q * rng.integers(0, 2, 600))))
+    got = turning(turn, q)
+    assert np.pi / 2 - 2 * q <= got[-1] <= np.pi / 2 + 2 * q
+    assert np.all(np.diff(got) >= 0.0)
+    np.testing.assert_allclose(got, _played_turning(turn, q), rtol=0, atol=1e-12)

@@ -30,7 +30,8 @@ slip per physics step, a process-noise floor of 1e-16 instead of 1e-12 m^2, the 
 quantisation as harmonic phasors with a per-run encoder phase, the drive's position loop); the
 declared radius containing the body (paper-two-markers' radius 0.2 -> 0.201 m; warehouse equal);
 the line-of-sight margin from the plan's certified pose bound, with schedules on a ladder of
-certified errors (paper-two-markers keeps its schedule; the runs rows carry the outcome columns).
+certified errors (paper-two-markers keeps its schedule; the runs rows carry the outcome columns); the certified
+bound's turning net of the encoders' quantisation (the ``certified`` step column only).
 """
 
 from __future__ import annotations
