@@ -1,14 +1,13 @@
 """Nav2's depot map with Nav2's own route graph, from an empty floor: place, plan, drive, no contact.
 
-Needs the Nav2 depot map (``depot.yaml`` and ``.pgm``) and its route graph
-(``depot_graph.geojson``) in the folder ``PEFSIM_REAL_MAPS`` names; skipped without them. The
+Nav2's depot map (``depot.yaml`` and ``.pgm``) and its route graph (``depot_graph.geojson``)
+are checked in beside the scenario (``tests/data/realmaps/README.md``: source, licence). The
 scenario is ``tests/data/realmaps/depot.toml`` (a robot of Nav2's default size: radius 0.22 m,
 wheel base 0.287 m, wheel radius 0.033 m; three tasks between graph nodes across the depot).
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +24,6 @@ from tests.sim.episode.bodyclear import body_clearance, excess_offset
 
 pytestmark = pytest.mark.e2e
 
-MAPS = os.environ.get("PEFSIM_REAL_MAPS")
 SCENARIO = Path(__file__).resolve().parents[1] / "data" / "realmaps" / "depot.toml"
 RUNS = 3
 """Sweep runs (one per task): every one must reach its goal without touching anything."""
@@ -33,12 +31,9 @@ RUNS = 3
 
 @pytest.fixture(scope="module")
 def placed():
-    if not MAPS or not all((Path(MAPS) / f).is_file() for f in ("depot.yaml", "depot_graph.geojson")):
-        pytest.skip("PEFSIM_REAL_MAPS does not name a folder with depot.yaml and depot_graph.geojson "
-                    "(Nav2's depot map and route graph)")
     # Nav2's own graph gives two edges each of three ids: read, said once, every edge kept
     with pytest.warns(ScenarioWarning, match="repeated edge ids 10006, 10007, 10012, 10013, 10020, 10021"):
-        sc = scenarios.loads(SCENARIO.read_text(), source=SCENARIO.name, base=Path(MAPS))
+        sc = scenarios.load(str(SCENARIO))
     assert not sc.markers
     assert len(sc.routes.nodes) == 34 and len(sc.routes.segments) == 39
     assert not any(e.why_not for e in sc.routes.edges)   # every edge keeps the radius from the map

@@ -1,14 +1,14 @@
 """The turtlebot3 world map from an empty floor: place, plan, drive; the body never touches a pillar.
 
-Needs the ROBOTIS map (``tb3_world.yaml`` and ``.pgm``) in the folder ``PEFSIM_REAL_MAPS`` names;
-skipped without it. The scenario is ``tests/data/realmaps/tb3_world.toml`` (a turtlebot3-sized
-robot: radius 0.2 m, wheel base 0.3 m, wheel radius 0.033 m; three tasks across the arena).
+The ROBOTIS map (``tb3_world.yaml`` and ``.pgm``) is checked in beside the scenario
+(``tests/data/realmaps/README.md``: source, licence). The scenario is
+``tests/data/realmaps/tb3_world.toml`` (a turtlebot3-sized robot: radius 0.2 m, wheel base 0.3 m,
+wheel radius 0.033 m; three tasks across the arena).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import os
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,6 @@ from tests.sim.episode.bodyclear import body_clearance, excess_offset
 
 pytestmark = pytest.mark.e2e
 
-MAPS = os.environ.get("PEFSIM_REAL_MAPS")
 SCENARIO = Path(__file__).resolve().parents[1] / "data" / "realmaps" / "tb3_world.toml"
 RUNS = 6
 """Sweep runs (two per task): every one must reach its goal without touching anything."""
@@ -33,9 +32,7 @@ RUNS = 6
 
 @pytest.fixture(scope="module")
 def placed():
-    if not MAPS or not (Path(MAPS) / "tb3_world.yaml").is_file():
-        pytest.skip("PEFSIM_REAL_MAPS does not name a folder with tb3_world.yaml (the ROBOTIS turtlebot3 world map)")
-    sc = scenarios.loads(SCENARIO.read_text(), source=SCENARIO.name, base=Path(MAPS))
+    sc = scenarios.load(str(SCENARIO))
     assert not sc.markers
     result = pefsim.place(sc)
     assert not result.unplanned
