@@ -22,14 +22,8 @@ import json
 import math
 import os
 import statistics
-import sys
 import tempfile
 import time
-from pathlib import Path
-
-# Run as a script, this folder comes first on sys.path, and benchmarks/planner.py would shadow
-# the planner package.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 import scenarios  # noqa: E402
 from sim.episode.drive import prepare, run_episode  # noqa: E402

@@ -18,12 +18,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import json
-import sys
 import time
-from pathlib import Path
-
-# Run as a script, this folder comes first on sys.path (benchmarks/planner.py would shadow).
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 import numpy as np  # noqa: E402
 

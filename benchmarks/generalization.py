@@ -17,8 +17,6 @@ Then the failing worlds, each with the failing check's detail and what was drawn
 
     python -m benchmarks.generalization --worlds 6 --runs 20 --workers 1 --seed 1
 
-(as a module: run as a script, ``benchmarks/planner.py`` would shadow the ``planner`` package).
-
 ``--out DIR`` keeps the worlds' TOML files and sweeps there; by default they go to a temporary
 directory removed at the end. ``--resume`` (with ``--out``) reads back the worlds already drawn
 there and completes their sweeps (``pefsim.sweep(resume=True)``): a benchmark cut short goes on

@@ -12,13 +12,7 @@ extrapolated to all pairs. The exact solver is also timed on the default warehou
 from __future__ import annotations
 
 import json
-import sys
 import time
-from pathlib import Path
-
-# Run as a script, this file's folder comes first on sys.path; keep package imports clean.
-if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
-    sys.path.pop(0)
 
 import numpy as np  # noqa: E402
 

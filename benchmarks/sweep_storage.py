@@ -24,10 +24,6 @@ import tempfile
 import time
 from pathlib import Path
 
-# Run as a script, this folder comes first on sys.path, where benchmarks/planner.py would
-# shadow the planner package (in this process and in every worker it starts).
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
 import numpy as np  # noqa: E402
 
 import scenarios  # noqa: E402

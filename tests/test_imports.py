@@ -157,3 +157,12 @@ def test_test_modules_share_helpers_not_each_other():
     assert not offenders, offenders
     assert _test_module_imports("from tests.sim.test_random_worlds import over_promise") == [
         "tests.sim.test_random_worlds"]  # the scan sees what it forbids
+
+
+def test_no_benchmark_script_is_named_like_a_package():
+    """``python benchmarks/NAME.py`` puts ``benchmarks/`` first on sys.path: a script named like one
+    of our packages shadows it in every other script (``benchmarks/planner.py`` broke ``physics.py``)."""
+    bench = {p.stem for p in (ROOT / "benchmarks").glob("*.py")}
+    packages = {p.parent.name for p in ROOT.glob("*/__init__.py")}
+    assert {"planner", "sim", "scenarios"} <= packages
+    assert not bench & packages, sorted(bench & packages)

@@ -1,6 +1,6 @@
 """Planner costs: free-space grid search on a 1000 x 1000 grid, route choice on a 50-segment network.
 
-Run: ``python benchmarks/planner.py [--queries 8]``. The baseline is a pure-Python heapq
+Run: ``python benchmarks/planning.py [--queries 8]``. The baseline is a pure-Python heapq
 A* with the same cost model and heuristic, measured in this same run on a 200 x 200 subgrid
 and extrapolated to the full grid per expanded node. Each figure is the best of several
 repeats (robust to other load on the machine). The last line is one JSON object.
@@ -14,14 +14,8 @@ import heapq
 import importlib.util
 import json
 import math
-import sys
 import time
 from pathlib import Path
-
-# Run as a script, this file's folder comes first on sys.path and this module (planner.py)
-# would shadow the planner package.
-if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
-    sys.path.pop(0)
 
 import numpy as np  # noqa: E402
 
