@@ -180,7 +180,7 @@ class PEF:
         return PefResult(tau=tau, best=best, tau_plain=tau_plain, fallback=fallback)
 
     def _memo(self, name: str, widen: float) -> PointMemo:
-        """The memo of ``name``'s per-point results at ``widen`` (:mod:`planner.pef.pointmemo`).
+        """Return the memo of ``name``'s per-point results at ``widen`` (:mod:`planner.pef.pointmemo`).
 
         Held for this PEF's scenario and settings; a change of either starts afresh.
         """

@@ -20,7 +20,7 @@ MAX_POINTS = 2_000_000
 
 
 def point_keys(pts: np.ndarray) -> list[bytes]:
-    """The exact bits of each point of ``pts`` (N, 2) float64, contiguous, as N keys."""
+    """Return the exact bits of each point of ``pts`` (N, 2) float64, contiguous, as N keys."""
     return np.ascontiguousarray(pts, dtype=float).view(np.dtype((np.void, 16))).ravel().tolist()
 
 
@@ -43,12 +43,12 @@ class PointMemo:
         self.epoch = 0
 
     def find(self, keys: list[bytes]) -> np.ndarray:
-        """Row of each key, -1 where not held, shape (N,) int64."""
+        """Return the row of each key, -1 where not held, shape (N,) int64."""
         get = self._index.get
         return np.fromiter((get(k, -1) for k in keys), dtype=np.int64, count=len(keys))
 
     def held(self, keys: list[bytes], compute: Callable[[np.ndarray], list[np.ndarray]] | None = None) -> np.ndarray:
-        """Row of each key, shape (N,) int64, the points not held yet computed and added first.
+        """Return the row of each key, shape (N,) int64, the points not held yet computed and added first.
 
         ``compute(first)`` returns the arrays' rows of the points ``first`` (indices into
         ``keys``: the first occurrence of each key not held); None: the memo holds no arrays.
@@ -86,5 +86,5 @@ class PointMemo:
         self.size = base + n
 
     def rows(self, idx: np.ndarray) -> list[np.ndarray]:
-        """The held rows ``idx`` (N,) (all >= 0) of each array, copies."""
+        """Return the held rows ``idx`` (N,) (all >= 0) of each array, copies."""
         return [a[idx] for a in self._rows]

@@ -21,8 +21,11 @@ from planner.pef.map import PEF
 
 
 def batches(rng: np.random.Generator) -> list[np.ndarray]:
-    """Three batches over paper-docks' floor: the second repeats half the first, the third the
-    second's points moved by 1-9 mm (what a coarse memo confuses) and the signed zeros."""
+    """Return three batches of points over paper-docks' floor.
+
+    The second repeats half the first, the third the second's points moved by 1-9 mm (what a
+    coarse memo confuses) and the signed zeros.
+    """
     def draw(n):
         return np.column_stack([rng.uniform(0.5, 19.5, n), rng.uniform(0.5, 11.5, n)])
     a = draw(40)
