@@ -337,36 +337,49 @@ class PEF:
         visible: elsewhere the value is inf without a clipping).
         """
         sc = self.scenario
-        held = self._memo("exact subsets", 0.0)
-        ids = held.held(point_keys(pts))  # each point's number (the same point, the same number)
-        values = getattr(self, "_exact_values", None)
-        if values is None or values[0] is not held or values[1] != held.epoch:  # the points renumbered
-            values = self._exact_values = (held, held.epoch, {})
-        table = values[2]
-        if len(table) > MAX_EXACT_VALUES:
-            table.clear()
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
                                      sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
                                      self.rule, bodies=self.markers)
-        local = np.arange(self.k, dtype=np.int64)
+        ids = self._exact_ids(pts)
         out = np.full((sub.shape[0], pts.shape[0]), np.inf)
-        for i, row in enumerate(sub.tolist()):
+        for i, row in enumerate(sub):
             seen = np.flatnonzero(vis_used[np.searchsorted(used, row)].all(axis=0))
-            tag = tuple(row)
-            want = [(tag, int(ids[j])) for j in seen.tolist()]
-            got = np.fromiter((table.get(w, np.nan) for w in want), dtype=float, count=len(want))
-            todo: dict[tuple, int] = {}
-            for q in np.flatnonzero(np.isnan(got)).tolist():
-                todo.setdefault(want[q], int(seen[q]))
-            if todo:
-                cols = np.fromiter(todo.values(), dtype=np.int64, count=len(todo))
-                vis = np.ones((self.k, len(cols)), dtype=bool)
-                table.update(zip(todo, self._exact_subset(pts[cols], vis, local, self.markers[row]).tolist(),
-                                 strict=True))
-                got = np.fromiter((table[w] for w in want), dtype=float, count=len(want))
-            out[i, seen] = got
+            out[i, seen] = self._exact_held(pts, ids, seen, row)
         return out
+
+    def _exact_ids(self, pts: np.ndarray) -> np.ndarray:
+        """Return each point's number in the memo of exact values (:meth:`_exact_held`), (N,)."""
+        return self._memo("exact", 0.0).held(point_keys(pts))
+
+    def _exact_held(self, pts: np.ndarray, ids: np.ndarray, rows: np.ndarray, subset: np.ndarray) -> np.ndarray:
+        """:meth:`_exact_subset` of ``subset`` (k,) at ``pts[rows]``, each (point, subset) clipped once.
+
+        ``ids`` (N,): the points' numbers from :meth:`_exact_ids`. The value of a subset at a point
+        is the clipping of its markers' fault area there, whoever asks (:meth:`at` for the best
+        subset, :meth:`tau_subset` for given ones): the values computed before are held.
+        """
+        memo = self._memo("exact", 0.0)
+        values = getattr(self, "_exact_values", None)
+        if values is None or values[0] is not memo or values[1] != memo.epoch:  # the points renumbered
+            values = self._exact_values = (memo, memo.epoch, {})
+        table = values[2]
+        if len(table) > MAX_EXACT_VALUES:
+            table.clear()
+        tag = tuple(subset.tolist())
+        want = [(tag, i) for i in ids[rows].tolist()]
+        got = np.fromiter((table.get(w, np.nan) for w in want), dtype=float, count=len(want))
+        todo: dict[tuple, int] = {}
+        for q in np.flatnonzero(np.isnan(got)).tolist():
+            todo.setdefault(want[q], int(rows[q]))
+        if todo:
+            at = np.fromiter(todo.values(), dtype=np.int64, count=len(todo))
+            vis = np.ones((self.k, len(at)), dtype=bool)
+            local = np.arange(self.k, dtype=np.int64)
+            table.update(zip(todo, self._exact_subset(pts[at], vis, local, self.markers[subset]).tolist(),
+                             strict=True))
+            got = np.fromiter((table[w] for w in want), dtype=float, count=len(want))
+        return got
 
     # --- internals ----------------------------------------------------------------------------
 
@@ -460,11 +473,13 @@ class PEF:
         best_lin = lin.min(axis=1, keepdims=True)
         cand = np.isfinite(lin) & (lin <= self.exact_margin * best_lin)
         pts = np.column_stack([px, py])
+        ids = self._exact_ids(pts)
         exact = np.full((n, nsub), np.inf)
         for s in range(nsub):
-            rows = np.flatnonzero(cand[:, s])
+            # the candidates the subset is visible from (elsewhere inf without a clipping)
+            rows = np.flatnonzero(cand[:, s] & vis[self.subsets[s]].all(axis=0))
             if rows.size:
-                exact[rows, s] = self._exact_subset(pts[rows], vis[:, rows], self.subsets[s])
+                exact[rows, s] = self._exact_held(pts, ids, rows, self.subsets[s])
         idx = np.where(np.isfinite(exact).any(axis=1), exact.argmin(axis=1), -1)
         best = np.where(idx[:, None] >= 0, self.subsets[np.maximum(idx, 0)], -1)
         return exact.min(axis=1), best

@@ -296,7 +296,8 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     for rung in ladder:
         try:
             sched = _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
-                                  heading_error, increment, block, block_limit, protect)
+                                  heading_error, increment, block, block_limit, protect,
+                                  beat=None if slow is None else slow.slowdown_time)
         except PlanningError as exc:
             failed = exc
             continue
@@ -352,11 +353,16 @@ def rungs(eps_max: float, floor: float) -> list[float]:
 
 
 def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error, increment,
-                  block, block_limit, protect, slow: bool = True) -> Schedule:
+                  block, block_limit, protect, slow: bool = True, beat: float | None = None) -> Schedule:
     """Return the schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone.
 
     With ``slow`` False the drive keeps the planned speeds ``v``: the first stretch without a
-    schedule raises instead of being slowed down.
+    schedule raises instead of being slowed down. With ``beat`` [s], the search gives up (raises)
+    as soon as the speeds it tries cost at least that much time: every later attempt only slows
+    them further (:func:`_slow_stretch` lowers caps), and the schedule's own slow-downs for its
+    fixes only lower them again (:func:`planner.schedule.promise.slowed_speeds`), so a schedule
+    it could still find would slow the drive by at least ``beat``, and :func:`make_schedule`
+    would not take it.
     """
     sensor, robot = scenario.sensor, scenario.robot
     fix_time = k * sensor.measurement_time
@@ -372,6 +378,9 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
     t_planned = Kinematics(s_v, v).t_v[-1]
     v_try = v
     while True:
+        if beat is not None and v_try is not v and not Kinematics(s_v, v_try).t_v[-1] - t_planned < beat:
+            raise PlanningError(f"schedule: slowed by {Kinematics(s_v, v_try).t_v[-1] - t_planned:.3g} s, "
+                                f"not less than the {beat:.3g} s of the schedule already found")
         try:
             sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
                              t_planned, block, block_limit, protect)
