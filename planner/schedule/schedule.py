@@ -383,7 +383,7 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
                                 f"not less than the {beat:.3g} s of the schedule already found")
         try:
             sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
-                             t_planned, block, block_limit, protect)
+                             t_planned, block, block_limit, protect, prove=not slow)
             return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
         except StretchError as exc:
             if not slow:
@@ -443,8 +443,13 @@ def _avoid(levels: promise.Levels, risky: np.ndarray, limit: float) -> promise.L
 
 
 def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned,
-             block=None, block_limit=1.0, protect=True) -> Schedule:
-    """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists."""
+             block=None, block_limit=1.0, protect=True, prove=False) -> Schedule:
+    """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists.
+
+    With ``prove``, where lower bounds of the promises (:func:`planner.schedule.promise.lower_levels`)
+    already leave no schedule, the error raised names the stretch of those bounds, not of the
+    promises: only for a caller that uses the failure, not its stretch (the ladder at speed).
+    """
     sensor, eps = scenario.sensor, scenario.planning.eps_max
     fix_time = k * sensor.measurement_time
     tr = sample_track(path, v, spacing, fix_time, gap, measurements=k)
@@ -464,9 +469,15 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     seen = sightcheck.seen_within(scenario, tr.xy, eps + promise.tracking_bound(path, tr.kin.s_v, v, tr.s))
     sub_idx = np.asarray(subsets, dtype=np.int64)
     tau_s = np.where(seen[:, sub_idx].all(axis=2).T, tau_s, np.inf)
+    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
+    if prove and block is None and k == 2 and np.isfinite(tau_s).any():
+        # With promises no smaller than these bounds every sample is usable at most where it is
+        # here, and reaches at most as far (the search's windows shrink as a promise grows): if
+        # the search fails on the bounds, it fails on the promises, at every speed level.
+        search(Windows(tr, drift, eps, gap), promise.lower_levels(scenario, subsets, tr, path, tau_s)[None],
+               limit, k, policy, switch_tolerance)
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
           else promise.Levels(promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))))
-    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
     risky = None
     if block is not None:
         risky = _subset_risk(block, subsets, tr) > block_limit
