@@ -285,6 +285,7 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     allowed = SLOWDOWN_SHARE * Kinematics(s_v, v).t_v[-1]
     ladder = rungs(eps_max, floor)
     failed = None
+    at_speed = {}  # each rung's failure at speed, where computed: the slow-down search's first attempt
     # at the planned speed first: one attempt a rung, no slow-downs (module docstring)
     for rung in ladder:
         try:
@@ -292,12 +293,14 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
                                  heading_error, increment, block, block_limit, protect, slow=False)
         except PlanningError as exc:
             failed = exc
+            if not isinstance(exc, _Proven):
+                at_speed[rung] = exc
     slow = None
     for rung in ladder:
         try:
             sched = _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
                                   heading_error, increment, block, block_limit, protect,
-                                  beat=None if slow is None else slow.slowdown_time)
+                                  beat=None if slow is None else slow.slowdown_time, first=at_speed.get(rung))
         except PlanningError as exc:
             failed = exc
             continue
@@ -353,7 +356,8 @@ def rungs(eps_max: float, floor: float) -> list[float]:
 
 
 def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error, increment,
-                  block, block_limit, protect, slow: bool = True, beat: float | None = None) -> Schedule:
+                  block, block_limit, protect, slow: bool = True, beat: float | None = None,
+                  first: PlanningError | None = None) -> Schedule:
     """Return the schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone.
 
     With ``slow`` False the drive keeps the planned speeds ``v``: the first stretch without a
@@ -362,7 +366,9 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
     them further (:func:`_slow_stretch` lowers caps), and the schedule's own slow-downs for its
     fixes only lower them again (:func:`planner.schedule.promise.slowed_speeds`), so a schedule
     it could still find would slow the drive by at least ``beat``, and :func:`make_schedule`
-    would not take it.
+    would not take it. ``first``: what the attempt at the planned speeds ``v`` raised before (an
+    attempt is a function of its arguments; the ladder at speed made it), raised again instead
+    of making it again.
     """
     sensor, robot = scenario.sensor, scenario.robot
     fix_time = k * sensor.measurement_time
@@ -382,6 +388,8 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
             raise PlanningError(f"schedule: slowed by {Kinematics(s_v, v_try).t_v[-1] - t_planned:.3g} s, "
                                 f"not less than the {beat:.3g} s of the schedule already found")
         try:
+            if first is not None and v_try is v:
+                raise first
             sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
                              t_planned, block, block_limit, protect, prove=not slow)
             return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
@@ -474,8 +482,11 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         # With promises no smaller than these bounds every sample is usable at most where it is
         # here, and reaches at most as far (the search's windows shrink as a promise grows): if
         # the search fails on the bounds, it fails on the promises, at every speed level.
-        search(Windows(tr, drift, eps, gap), promise.lower_levels(scenario, subsets, tr, path, tau_s)[None],
-               limit, k, policy, switch_tolerance)
+        try:
+            search(Windows(tr, drift, eps, gap), promise.lower_levels(scenario, subsets, tr, path, tau_s)[None],
+                   limit, k, policy, switch_tolerance)
+        except PlanningError as exc:
+            raise _Proven(str(exc)) from None
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
           else promise.Levels(promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))))
     risky = None
@@ -550,6 +561,10 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                            (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
     return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
                     worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
+
+
+class _Proven(PlanningError):
+    """No schedule at speed, proven from the promises' lower bounds (:func:`_attempt`'s ``prove``)."""
 
 
 class _Unseen(Exception):
