@@ -294,7 +294,7 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
         except PlanningError as exc:
             failed = exc
             if not isinstance(exc, _Proven):
-                at_speed[rung] = exc
+                at_speed[rung] = _bare(exc)
     slow = None
     for rung in ladder:
         try:
@@ -561,6 +561,20 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                            (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
     return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
                     worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
+
+
+def _bare(exc: BaseException) -> BaseException:
+    """Return ``exc`` with its traceback, and those of the exceptions it was raised in, dropped.
+
+    A traceback holds its frames' locals: an attempt's samples, promises and levels (the hall:
+    ~100 MB an attempt), which an exception kept for later would keep alive.
+    """
+    seen, e = set(), exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        e.__traceback__ = None
+        e = e.__cause__ or e.__context__
+    return exc
 
 
 class _Proven(PlanningError):
