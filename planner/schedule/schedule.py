@@ -471,22 +471,23 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         both = np.vstack([tr.xy, tr.xy_c])
         tau = np.asarray(pef.tau_subset(both, np.asarray(subsets)), dtype=float)
     tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
+    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
+    if prove and block is None and k == 2 and np.isfinite(tau_s).any():
+        # With promises no smaller than these bounds every sample is usable at most where it is
+        # here, and reaches at most as far (the search's windows shrink as a promise grows): if
+        # the search fails on the bounds, it fails on the promises, at every speed level. (Bounds
+        # of every visible subset: the sight check below only takes subsets out.)
+        try:
+            search(Windows(tr, drift, eps, gap), promise.lower_levels(scenario, subsets, tr, path, tau_s)[None],
+                   limit, k, policy, switch_tolerance)
+        except PlanningError as exc:
+            raise _Proven(str(exc)) from None
     # the map sees with the smallest pose bound the plan can certify (planner.pef.sight); the search
     # counts a subset at a sample only where it stays in sight within the pose bound it assumes
     # there: the tracking bound and eps (the bound searched for) as the estimate's error
     seen = sightcheck.seen_within(scenario, tr.xy, eps + promise.tracking_bound(path, tr.kin.s_v, v, tr.s))
     sub_idx = np.asarray(subsets, dtype=np.int64)
     tau_s = np.where(seen[:, sub_idx].all(axis=2).T, tau_s, np.inf)
-    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
-    if prove and block is None and k == 2 and np.isfinite(tau_s).any():
-        # With promises no smaller than these bounds every sample is usable at most where it is
-        # here, and reaches at most as far (the search's windows shrink as a promise grows): if
-        # the search fails on the bounds, it fails on the promises, at every speed level.
-        try:
-            search(Windows(tr, drift, eps, gap), promise.lower_levels(scenario, subsets, tr, path, tau_s)[None],
-                   limit, k, policy, switch_tolerance)
-        except PlanningError as exc:
-            raise _Proven(str(exc)) from None
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
           else promise.Levels(promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))))
     risky = None
