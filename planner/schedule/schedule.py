@@ -57,11 +57,14 @@ The bound searched for, and what ``eps_max`` does
     a schedule at speed gives it: a smaller error than asked for is not worth a slower drive
     (paper-docks at 10 mm took 44 s instead of 21 s at 20 mm), and the slow-down searches of the
     small rungs were most of a plan's time when they ran first (the hall's 10 mm rung: 59
-    attempts, 91 s, for nothing). Only when no rung has a schedule at speed are they searched
-    again with slow-downs, in increasing order: the first whose slow-downs cost at most
-    :data:`SLOWDOWN_SHARE` of the planned time gives the schedule, otherwise the one that slows
-    the drive least. The admissible set only grows with ``eps_max``, and a schedule at speed
-    stays the same; a schedule that had to slow down may give way, at a larger ``eps_max``, to
+    attempts, 91 s, for nothing). At speed only a rung's failure matters, so it is proven, where
+    it can be, from lower bounds of the promises (:func:`planner.schedule.promise.lower_levels`)
+    without computing them. Only when no rung has a schedule at speed are they searched
+    again with slow-downs, in increasing order (each from its failure at speed): the first whose
+    slow-downs cost at most :data:`SLOWDOWN_SHARE` of the planned time gives the schedule,
+    otherwise the one that slows the drive least (a rung's search stops once its speeds cost as
+    much as the least so far). The admissible set only grows with ``eps_max``, and a schedule at
+    speed stays the same; a schedule that had to slow down may give way, at a larger ``eps_max``, to
     one at speed with a larger promise (the paper's compromise between speed and accuracy).
 """
 
