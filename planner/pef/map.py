@@ -49,6 +49,7 @@ import numpy as np
 from estimators.fault.linearized import chi2_2dof_ppf
 from planner.pef import kernels as pef_kernels
 from planner.pef.gridtiles import parallelogram_grid
+from planner.pef.pointmemo import PointMemo, point_keys
 from planner.pef.result import PefMap, PefResult, grid_centres
 from planner.pef.visibility import scenario_sight_rule, scenario_visible_grid, scenario_visible_points, visible_points
 from scenarios.errors import PlanningError
@@ -58,6 +59,8 @@ from scenarios.schema import PefModel, Scenario
 EXACT_MARGIN = 1.5
 #: Most marker subsets a PEF scores per point (C(M, k)); the list alone takes 8 k bytes each.
 MAX_SUBSETS = 2_000_000
+#: Most exact (point, subset) values a PEF holds (:meth:`PEF.tau_subset`; ~150 bytes each).
+MAX_EXACT_VALUES = 1_000_000
 
 _KERNEL_MODEL = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                  PefModel.GDOP: pef_kernels.GDOP}
@@ -165,8 +168,33 @@ class PEF:
             fallback subsets.
         """
         pts = _points(points)
-        # each point's value is its own: a point asked twice (candidate routes share their
-        # stretches: a third of the hall's samples) is evaluated once
+        # each point's value is its own: a point asked again, in this call or an earlier one (the
+        # schedule samples a path again for each rung and slow-down attempt), is not evaluated again
+        memo = self._memo("at", widen)
+
+        def compute(first: np.ndarray) -> list[np.ndarray]:
+            r = self._at_points(pts[first], widen)
+            return [r.tau, r.best, r.tau_plain, r.fallback]
+
+        tau, best, tau_plain, fallback = memo.rows(memo.held(point_keys(pts), compute))
+        return PefResult(tau=tau, best=best, tau_plain=tau_plain, fallback=fallback)
+
+    def _memo(self, name: str, widen: float) -> PointMemo:
+        """Return the memo of ``name``'s per-point results at ``widen`` (:mod:`planner.pef.pointmemo`).
+
+        Held for this PEF's scenario and settings; a change of either starts afresh.
+        """
+        config = (self.sight, self.rule, self.model, self.k, self.redundancy, self.exact_margin,
+                  self.markers.tobytes())
+        memos = getattr(self, "_memos", None)
+        if memos is None or memos[0] is not self.scenario or memos[1] != config:
+            memos = self._memos = (self.scenario, config, {})
+        return memos[2].setdefault((name, float(widen)), PointMemo())
+
+    def _at_points(self, pts: np.ndarray, widen: float) -> PefResult:
+        """:meth:`at` of ``pts`` (N, 2), without the memo of earlier calls."""
+        # a point asked twice (candidate routes share their stretches: a third of the hall's
+        # samples) is evaluated once
         _, first, again = np.unique(pts.view(np.dtype((np.void, pts.itemsize * 2))).ravel(),
                                     return_index=True, return_inverse=True)
         if first.size < len(pts):
@@ -174,7 +202,7 @@ class PEF:
             rank = np.empty(len(pts), dtype=np.int64)
             rank[order] = np.arange(order.size)
             at = rank[first[again.ravel()]]
-            r = self.at(pts[order], widen)
+            r = self._at_points(pts[order], widen)
             return PefResult(tau=r.tau[at], best=r.best[at],
                              tau_plain=None if r.tau_plain is None else r.tau_plain[at],
                              fallback=None if r.fallback is None else r.fallback[at])
@@ -282,6 +310,10 @@ class PEF:
         if last is not None and last[0] == key:
             out = last[1].copy()
             return out if many else out[0]
+        if self.model is PefModel.EXACT:
+            out = self._exact_subsets(pts, sub)
+            self._subset_last = (key, out.copy())
+            return out if many else out[0]
         sc = self.scenario
         used = np.unique(sub)
         vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
@@ -292,13 +324,62 @@ class PEF:
         px, py = pts[:, 0].copy(), pts[:, 1].copy()
         for i, row in enumerate(sub):
             vis = np.ascontiguousarray(vis_used[np.searchsorted(used, row)])  # rows in subset order
-            if self.model is PefModel.EXACT:
-                out[i] = self._exact_subset(pts, vis, local, self.markers[row])
-            else:
-                out[i] = self._kernel(px, py, vis, local.reshape(1, -1), _KERNEL_MODEL[self.model],
-                                      self.markers[row])[0]
+            out[i] = self._kernel(px, py, vis, local.reshape(1, -1), _KERNEL_MODEL[self.model],
+                                  self.markers[row])[0]
         self._subset_last = (key, out.copy())
         return out if many else out[0]
+
+    def _exact_subsets(self, pts: np.ndarray, sub: np.ndarray) -> np.ndarray:
+        """:meth:`tau_subset` of the ``exact`` model, (C, N) for subsets ``sub`` (C, k) at ``pts`` (N, 2).
+
+        A clipping (milliseconds each) is done once per point and subset: the values computed
+        in earlier calls are held (:mod:`planner.pef.pointmemo`; only those, where the subset is
+        visible: elsewhere the value is inf without a clipping).
+        """
+        sc = self.scenario
+        used = np.unique(sub)
+        vis_used, _ = visible_points(pts, self.markers[used], sc.obstacle_pieces(), self.sensor.max_range,
+                                     sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
+                                     self.rule, bodies=self.markers)
+        ids = self._exact_ids(pts)
+        out = np.full((sub.shape[0], pts.shape[0]), np.inf)
+        for i, row in enumerate(sub):
+            seen = np.flatnonzero(vis_used[np.searchsorted(used, row)].all(axis=0))
+            out[i, seen] = self._exact_held(pts, ids, seen, row)
+        return out
+
+    def _exact_ids(self, pts: np.ndarray) -> np.ndarray:
+        """Return each point's number in the memo of exact values (:meth:`_exact_held`), (N,)."""
+        return self._memo("exact", 0.0).held(point_keys(pts))
+
+    def _exact_held(self, pts: np.ndarray, ids: np.ndarray, rows: np.ndarray, subset: np.ndarray) -> np.ndarray:
+        """:meth:`_exact_subset` of ``subset`` (k,) at ``pts[rows]``, each (point, subset) clipped once.
+
+        ``ids`` (N,): the points' numbers from :meth:`_exact_ids`. The value of a subset at a point
+        is the clipping of its markers' fault area there, whoever asks (:meth:`at` for the best
+        subset, :meth:`tau_subset` for given ones): the values computed before are held.
+        """
+        memo = self._memo("exact", 0.0)
+        values = getattr(self, "_exact_values", None)
+        if values is None or values[0] is not memo or values[1] != memo.epoch:  # the points renumbered
+            values = self._exact_values = (memo, memo.epoch, {})
+        table = values[2]
+        if len(table) > MAX_EXACT_VALUES:
+            table.clear()
+        tag = tuple(subset.tolist())
+        want = [(tag, i) for i in ids[rows].tolist()]
+        got = np.fromiter((table.get(w, np.nan) for w in want), dtype=float, count=len(want))
+        todo: dict[tuple, int] = {}
+        for q in np.flatnonzero(np.isnan(got)).tolist():
+            todo.setdefault(want[q], int(rows[q]))
+        if todo:
+            at = np.fromiter(todo.values(), dtype=np.int64, count=len(todo))
+            vis = np.ones((self.k, len(at)), dtype=bool)
+            local = np.arange(self.k, dtype=np.int64)
+            table.update(zip(todo, self._exact_subset(pts[at], vis, local, self.markers[subset]).tolist(),
+                             strict=True))
+            got = np.fromiter((table[w] for w in want), dtype=float, count=len(want))
+        return got
 
     # --- internals ----------------------------------------------------------------------------
 
@@ -392,11 +473,13 @@ class PEF:
         best_lin = lin.min(axis=1, keepdims=True)
         cand = np.isfinite(lin) & (lin <= self.exact_margin * best_lin)
         pts = np.column_stack([px, py])
+        ids = self._exact_ids(pts)
         exact = np.full((n, nsub), np.inf)
         for s in range(nsub):
-            rows = np.flatnonzero(cand[:, s])
+            # the candidates the subset is visible from (elsewhere inf without a clipping)
+            rows = np.flatnonzero(cand[:, s] & vis[self.subsets[s]].all(axis=0))
             if rows.size:
-                exact[rows, s] = self._exact_subset(pts[rows], vis[:, rows], self.subsets[s])
+                exact[rows, s] = self._exact_held(pts, ids, rows, self.subsets[s])
         idx = np.where(np.isfinite(exact).any(axis=1), exact.argmin(axis=1), -1)
         best = np.where(idx[:, None] >= 0, self.subsets[np.maximum(idx, 0)], -1)
         return exact.min(axis=1), best

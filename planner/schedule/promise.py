@@ -723,6 +723,56 @@ def levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau:
     return Levels(first, rest)
 
 
+def lower_levels(scenario: Scenario, subsets, tr: Track, path: np.ndarray, static_tau: np.ndarray) -> np.ndarray:
+    """Return a lower bound on every candidate fix's promise at any of :func:`levels`' speeds (k = 2), (C, n) [m].
+
+    For each measurement order, each speed level's fix of subset c started at sample j (the same
+    poses and visibility as :func:`levels`), :func:`perturbed_diameters` gives a parallelogram
+    diagonal ``2 / sin w sqrt(h1^2 + h2^2 + 2 h1 h2 |cos w|)`` whose half-widths ``h_i`` are at
+    least ``rho(r_i)`` (the range bound at the planned range: every term it adds is >= 0) and
+    whose angle ``w`` is at least as far from 90 deg as the planned one ``a`` (so ``sin w <= sin a
+    = |u1 x u2|``): the promise is at least ``2 sqrt(rho(r1)^2 + rho(r2)^2) / |u1 x u2|``, here
+    taken 1e-9 smaller against rounding, 0 where the markers' directions are parallel. The
+    smallest over the levels and both orders is returned (inf where the subset is not visible).
+
+    The pose bound, the odometry shift and the ball iteration are not computed: a tenth of the
+    cost. :func:`planner.schedule.schedule.make_schedule` proves with it that a bound has no
+    schedule at the planned speed without computing the promises.
+    """
+    n = len(tr.s)
+    k = 2
+    visible = np.isfinite(static_tau)
+    markers = scenario.marker_positions()
+    mt = scenario.sensor.measurement_time
+    s_path = tr.kin.s_v
+    pairs = np.asarray(subsets, dtype=np.int64)
+    out = np.full(visible.shape, np.inf)
+    v_plan = mean_speed(tr.kin, tr.t_start, k * mt)
+    v_plan[0] = 0.0
+    todo = [(tr.xy_m, visible)]
+    for f in (*SPEED_LEVELS[1:], None):   # the slower levels of :func:`levels`, the same poses
+        v = np.full(n, scenario.planning.min_fix_speed) if f is None else f * v_plan
+        v = np.maximum(v, scenario.planning.min_fix_speed)
+        slower = v < v_plan * (1.0 - 1e-9)
+        if not slower.any():
+            continue
+        s_m = tr.s[:, None] + v[:, None] * mt * np.arange(1, k + 1)[None, :]
+        at = np.stack([np.interp(s_m, s_path, path[:, 0]), np.interp(s_m, s_path, path[:, 1])], axis=-1)
+        todo.append((at, visible & slower[None, :]))
+    for poses, where in todo:
+        c, j = np.nonzero(where)
+        for order in (pairs[c], pairs[c, ::-1]):
+            v = poses[j] - markers[order]                                     # (E, 2, 2)
+            r = np.hypot(v[..., 0], v[..., 1])
+            u = v / np.where(r > 0, r, 1.0)[..., None]
+            cross = np.abs(u[:, 0, 0] * u[:, 1, 1] - u[:, 0, 1] * u[:, 1, 0])
+            rho = scenario.sensor.range_bound(r)
+            with np.errstate(divide="ignore"):
+                lb = np.where(cross > 0.0, 2.0 * np.sqrt(rho[:, 0] ** 2 + rho[:, 1] ** 2) / cross, 0.0) * (1.0 - 1e-9)
+            out[c, j] = np.minimum(out[c, j], lb)
+    return out
+
+
 def _slowed_bound(scenario, path, s_path, s_m, v, estimate):
     """:func:`pose_bound` of fixes driven at no more than ``v`` (n,) over their stretch (``slowed_speeds``)."""
     k = s_m.shape[1]

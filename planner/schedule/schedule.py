@@ -57,11 +57,14 @@ The bound searched for, and what ``eps_max`` does
     a schedule at speed gives it: a smaller error than asked for is not worth a slower drive
     (paper-docks at 10 mm took 44 s instead of 21 s at 20 mm), and the slow-down searches of the
     small rungs were most of a plan's time when they ran first (the hall's 10 mm rung: 59
-    attempts, 91 s, for nothing). Only when no rung has a schedule at speed are they searched
-    again with slow-downs, in increasing order: the first whose slow-downs cost at most
-    :data:`SLOWDOWN_SHARE` of the planned time gives the schedule, otherwise the one that slows
-    the drive least. The admissible set only grows with ``eps_max``, and a schedule at speed
-    stays the same; a schedule that had to slow down may give way, at a larger ``eps_max``, to
+    attempts, 91 s, for nothing). At speed only a rung's failure matters, so it is proven, where
+    it can be, from lower bounds of the promises (:func:`planner.schedule.promise.lower_levels`)
+    without computing them. Only when no rung has a schedule at speed are they searched
+    again with slow-downs, in increasing order (each from its failure at speed): the first whose
+    slow-downs cost at most :data:`SLOWDOWN_SHARE` of the planned time gives the schedule,
+    otherwise the one that slows the drive least (a rung's search stops once its speeds cost as
+    much as the least so far). The admissible set only grows with ``eps_max``, and a schedule at
+    speed stays the same; a schedule that had to slow down may give way, at a larger ``eps_max``, to
     one at speed with a larger promise (the paper's compromise between speed and accuracy).
 """
 
@@ -285,6 +288,7 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     allowed = SLOWDOWN_SHARE * Kinematics(s_v, v).t_v[-1]
     ladder = rungs(eps_max, floor)
     failed = None
+    at_speed = {}  # each rung's failure at speed, where computed: the slow-down search's first attempt
     # at the planned speed first: one attempt a rung, no slow-downs (module docstring)
     for rung in ladder:
         try:
@@ -292,11 +296,14 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
                                  heading_error, increment, block, block_limit, protect, slow=False)
         except PlanningError as exc:
             failed = exc
+            if not isinstance(exc, _Proven):
+                at_speed[rung] = _bare(exc)
     slow = None
     for rung in ladder:
         try:
             sched = _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
-                                  heading_error, increment, block, block_limit, protect)
+                                  heading_error, increment, block, block_limit, protect,
+                                  beat=None if slow is None else slow.slowdown_time, first=at_speed.get(rung))
         except PlanningError as exc:
             failed = exc
             continue
@@ -352,11 +359,19 @@ def rungs(eps_max: float, floor: float) -> list[float]:
 
 
 def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error, increment,
-                  block, block_limit, protect, slow: bool = True) -> Schedule:
+                  block, block_limit, protect, slow: bool = True, beat: float | None = None,
+                  first: PlanningError | None = None) -> Schedule:
     """Return the schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone.
 
     With ``slow`` False the drive keeps the planned speeds ``v``: the first stretch without a
-    schedule raises instead of being slowed down.
+    schedule raises instead of being slowed down. With ``beat`` [s], the search gives up (raises)
+    as soon as the speeds it tries cost at least that much time: every later attempt only slows
+    them further (:func:`_slow_stretch` lowers caps), and the schedule's own slow-downs for its
+    fixes only lower them again (:func:`planner.schedule.promise.slowed_speeds`), so a schedule
+    it could still find would slow the drive by at least ``beat``, and :func:`make_schedule`
+    would not take it. ``first``: what the attempt at the planned speeds ``v`` raised before (an
+    attempt is a function of its arguments; the ladder at speed made it), raised again instead
+    of making it again.
     """
     sensor, robot = scenario.sensor, scenario.robot
     fix_time = k * sensor.measurement_time
@@ -372,9 +387,14 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
     t_planned = Kinematics(s_v, v).t_v[-1]
     v_try = v
     while True:
+        if beat is not None and v_try is not v and not Kinematics(s_v, v_try).t_v[-1] - t_planned < beat:
+            raise PlanningError(f"schedule: slowed by {Kinematics(s_v, v_try).t_v[-1] - t_planned:.3g} s, "
+                                f"not less than the {beat:.3g} s of the schedule already found")
         try:
+            if first is not None and v_try is v:
+                raise first
             sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
-                             t_planned, block, block_limit, protect)
+                             t_planned, block, block_limit, protect, prove=not slow)
             return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
         except StretchError as exc:
             if not slow:
@@ -434,8 +454,13 @@ def _avoid(levels: promise.Levels, risky: np.ndarray, limit: float) -> promise.L
 
 
 def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned,
-             block=None, block_limit=1.0, protect=True) -> Schedule:
-    """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists."""
+             block=None, block_limit=1.0, protect=True, prove=False) -> Schedule:
+    """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists.
+
+    With ``prove``, where lower bounds of the promises (:func:`planner.schedule.promise.lower_levels`)
+    already leave no schedule, the error raised names the stretch of those bounds, not of the
+    promises: only for a caller that uses the failure, not its stretch (the ladder at speed).
+    """
     sensor, eps = scenario.sensor, scenario.planning.eps_max
     fix_time = k * sensor.measurement_time
     tr = sample_track(path, v, spacing, fix_time, gap, measurements=k)
@@ -449,6 +474,17 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
         both = np.vstack([tr.xy, tr.xy_c])
         tau = np.asarray(pef.tau_subset(both, np.asarray(subsets)), dtype=float)
     tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
+    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
+    if prove and block is None and k == 2 and np.isfinite(tau_s).any():
+        # With promises no smaller than these bounds every sample is usable at most where it is
+        # here, and reaches at most as far (the search's windows shrink as a promise grows): if
+        # the search fails on the bounds, it fails on the promises, at every speed level. (Bounds
+        # of every visible subset: the sight check below only takes subsets out.)
+        try:
+            search(Windows(tr, drift, eps, gap), promise.lower_levels(scenario, subsets, tr, path, tau_s)[None],
+                   limit, k, policy, switch_tolerance)
+        except PlanningError as exc:
+            raise _Proven(str(exc)) from None
     # the map sees with the smallest pose bound the plan can certify (planner.pef.sight); the search
     # counts a subset at a sample only where it stays in sight within the pose bound it assumes
     # there: the tracking bound and eps (the bound searched for) as the estimate's error
@@ -457,7 +493,6 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     tau_s = np.where(seen[:, sub_idx].all(axis=2).T, tau_s, np.inf)
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
           else promise.Levels(promise.Level(tau_s, np.zeros(tau_s.shape, bool), np.full(n, np.nan))))
-    limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
     risky = None
     if block is not None:
         risky = _subset_risk(block, subsets, tr) > block_limit
@@ -530,6 +565,24 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
                            (float(tr.s[starts[max(f, 0)]]), float(tr.s[i])))
     return Schedule(fixes=fixes, s=tr.s[tr.vertex_idx].copy(), predicted_error=err[tr.vertex_idx].copy(),
                     worst=worst, speed=v_new, slowdown_time=float(kin.t_v[-1] - t_planned))
+
+
+def _bare(exc: BaseException) -> BaseException:
+    """Return ``exc`` with its traceback, and those of the exceptions it was raised in, dropped.
+
+    A traceback holds its frames' locals: an attempt's samples, promises and levels (the hall:
+    ~100 MB an attempt), which an exception kept for later would keep alive.
+    """
+    seen, e = set(), exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        e.__traceback__ = None
+        e = e.__cause__ or e.__context__
+    return exc
+
+
+class _Proven(PlanningError):
+    """No schedule at speed, proven from the promises' lower bounds (:func:`_attempt`'s ``prove``)."""
 
 
 class _Unseen(Exception):

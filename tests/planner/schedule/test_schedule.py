@@ -274,3 +274,59 @@ def test_single_point_path(warehouse):
     # the error until the end is the standstill fix's promise (its first range carried over sub-tick motion)
     assert sched.predicted_error == pytest.approx([sched.fixes[0].predicted_tau])
     assert sched.fixes[0].predicted_tau > sched.fixes[0].tau
+
+
+class _FourTimes:
+    """Kinematics whose times are four times too long: a slow-down's cost overstated (negative control)."""
+
+    def __init__(self, s_v, v):
+        from planner.schedule.pathtime import Kinematics
+
+        self.t_v = 4.0 * Kinematics(s_v, v).t_v
+
+
+def _pruned_outcomes(sc, pef, path, v, beats):
+    """``{beat: slow-down time or None (the search gave up)}`` of the slow-down search of one rung."""
+    from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA
+    from planner.schedule.schedule import _schedule_for
+
+    out = {}
+    for beat in beats:
+        try:
+            out[beat] = _schedule_for(sc, pef, path, v, 2, None, "often", 0.2, K_SIGMA, 0.0, DEFAULT_INCREMENT,
+                                      None, 1.0, True, beat=beat).slowdown_time
+        except PlanningError as exc:
+            assert "already found" in str(exc)
+            out[beat] = None
+    return out
+
+
+def test_a_slow_down_search_gives_up_only_where_its_schedule_would_not_be_taken(warehouse, monkeypatch):
+    """A rung's slow-down search gives up early only where its schedule would not be taken.
+
+    Given the slow-down ``beat`` of a schedule already found, it stops only when the schedule it
+    would find slows the drive by at least ``beat`` (make_schedule takes the one that slows
+    least, and the smaller rung on a tie); elsewhere it returns that very schedule.
+
+    Negative control: the cost of the speeds tried overstated four times (a prune that is not
+    proven) gives up where the schedule would have been taken.
+    """
+    from planner.schedule import schedule as schedule_module
+
+    sc, pef = warehouse
+    sc = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.03))
+    path = route(sc, ["A", "C"])
+    fast = np.full(len(path), 6.0)  # slow-downs needed (test_drift_limited_stretch_is_named)
+    full = _pruned_outcomes(sc, pef, path, fast, [None])[None]
+    assert full > 0.0
+    beats = [0.5 * full, full, 1.01 * full, 1.5 * full]
+
+    def sound(got):
+        return all(got[b] == full if got[b] is not None else full >= b for b in beats)
+
+    got = _pruned_outcomes(sc, pef, path, fast, beats)
+    assert sound(got)
+    assert got[0.5 * full] is None and got[1.5 * full] == full  # it did give up, and did not always
+    monkeypatch.setattr(schedule_module, "Kinematics", _FourTimes)
+    # it gives up at 1.5 x the schedule's own slow-down, which make_schedule would have taken
+    assert _pruned_outcomes(sc, pef, path, fast, [1.5 * full])[1.5 * full] is None, "cannot fail"
