@@ -22,9 +22,10 @@ prediction itself states for fixes independent within a run; it only lowers z (f
 false alarms) and keeps a sweep of identical runs (a fleet that keeps time like a clock: s^2 = 0)
 from failing on a difference of rounding: a prediction within 1e-6 of 0 or 1 at every fix passes,
 one that states a spread the runs do not have fails. The factor ``1 + R / N`` is the prediction's
-own sampling error: it is the mean over N draws of the declared spread
-(:data:`planner.fleet.sampled.DRAWS`), so its total over R runs errs with a variance of at most
-``R^2 Var(O_r) / N`` (Sobol points do no worse than independent draws), ``R / N`` times the runs'.
+own sampling error: it is the mean over N independent draws of the declared spread
+(:data:`planner.fleet.sampled.DRAWS`) of a per-draw expected count whose variance is at most
+Var(O_r), so its total over R runs errs with a variance of at most ``R^2 Var(O_r) / N``, ``R / N``
+times the runs'.
 
 Fixes the plan states no probability for (``p_block_robot`` NaN: their blocking hinges on the path
 followers' tracking errors, the same in every run, :mod:`planner.fleet.sampled`; and the fixes a
