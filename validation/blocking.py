@@ -13,7 +13,7 @@ E_r = sum of p over them; under the prediction (each fix blocked with its predic
 whatever the dependence within a run) ``D_r = O_r - E_r`` has mean 0, and the D_r of the R runs
 are independent and identically distributed (one plan, one scenario). The statistic is
 
-    z = sum_r D_r / sqrt(V),  V = max(R s^2, sum of p (1 - p) over every fix),
+    z = sum_r D_r / sqrt(V),  V = max(R s^2, sum of p (1 - p) over every fix) (1 + R / N),
 
 s^2 the sample variance of the D_r (the variance of a sum over independent runs, however the
 fixes of a run depend on each other). By the central limit theorem over the runs z is standard
@@ -21,7 +21,15 @@ normal when the prediction holds (asymptotically in R). The second term of V is 
 prediction itself states for fixes independent within a run; it only lowers z (fewer
 false alarms) and keeps a sweep of identical runs (a fleet that keeps time like a clock: s^2 = 0)
 from failing on a difference of rounding: a prediction within 1e-6 of 0 or 1 at every fix passes,
-one that states a spread the runs do not have fails.
+one that states a spread the runs do not have fails. The factor ``1 + R / N`` is the prediction's
+own sampling error: it is the mean over N independent draws of the declared spread
+(:data:`planner.fleet.sampled.DRAWS`) of a per-draw expected count whose variance is at most
+Var(O_r), so its total over R runs errs with a variance of at most ``R^2 Var(O_r) / N``, ``R / N``
+times the runs'.
+
+Fixes the plan states no probability for (``p_block_robot`` NaN: their blocking hinges on the path
+followers' tracking errors, the same in every run, :mod:`planner.fleet.sampled`; and the fixes a
+robot takes on its final dock, which the schedule does not name) are left out and counted apart.
 
 The runs are independent draws of the timing only when the fleet declares a timing spread: the
 simulated robots keep time to about 0.01 s (:data:`planner.fleet.blocking.TIMING`), so without one
@@ -30,13 +38,20 @@ model's error, the same in every run. The check then does not apply (it used to 
 scheduled fix's rows as one dependent trial, which left it a handful of trials: 339.7 predicted
 against 0 observed passed).
 
-**Power.** A prediction k times the truth shifts the sum by (k - 1) sum E_r / k while V stays
-of the order of R Var(O_r): a prediction 2x too high or too low fails once the runs expect a few
-dozen blocked fixes in all. The check reports the z a prediction scaled by 1/2 and by 2 would
-have had on the same runs (``z_half``, ``z_double``), so that a pass shows what it could have
-caught. A total can hide a prediction that puts its mass on the wrong fixes (the blocked ones
-predicted clear and as many clear ones predicted blocked): the same test is made in each bin of
-the predicted probability (:data:`EDGES`), and the check fails when the total's or a bin's
+**Power.** A prediction scaled by k (``--blocking-scale k``) shifts the sum by (1 - k) E, E the
+prediction's total, while V stays R Var(O_r) (E_r is the same in every run): its z is about
+``(1 - k) E / sqrt(V)``, so the test fails a prediction twice the truth with probability about
+``Phi(E / sqrt(V) - z_c)`` and one half the truth with ``Phi(E / (2 sqrt(V)) - z_c)`` (z_c the
+critical value below). Fixes of one run hide together (a robot standing in the way hides a
+reflector for a stretch of fixes), so V exceeds E by the mean size of such a stretch, and the
+power grows with the count of independent blocking events, not of blocked fixes: at 200 runs a
+half-size prediction is failed with probability 0.9 once E / sqrt(V) >= 2 (z_c + 1.28). The check
+reports both powers and the z a prediction scaled by 1/2 and by 2 would have had on the same runs
+(``z_half``, ``z_double``), so that a pass shows what it could have caught.
+
+A total can hide a prediction that puts its mass on the wrong fixes (the blocked ones predicted
+clear and as many clear ones predicted blocked): the same test is made in each bin of the
+predicted probability (:data:`EDGES`), and the check fails when the total's or a bin's
 ``|z|`` exceeds ``Phi^-1(1 - a / (2 m))``, m = 1 + the bins (Bonferroni: false-alarm probability
 at most a).
 """
@@ -48,6 +63,7 @@ import math
 import numpy as np
 from scipy.stats import norm
 
+from planner.fleet.sampled import DRAWS
 from validation.data import CheckResult, CheckStatus, SweepData
 
 EDGES = (0.0, 0.02, 0.1, 0.3, 0.7, 0.9, 0.98, 1.0)
@@ -91,7 +107,7 @@ def _z(d_run: np.ndarray, floor: float) -> tuple[float, float]:
     """Return z and its variance V for per-run differences ``d_run`` (module docstring)."""
     n_runs = len(d_run)
     v_runs = float(np.sum((d_run - d_run.mean()) ** 2) * n_runs / (n_runs - 1)) if n_runs > 1 else 0.0
-    v = max(v_runs, floor)
+    v = max(v_runs, floor) * (1.0 + n_runs / DRAWS)
     total = float(d_run.sum())
     if v <= 0.0:
         return (0.0 if total == 0.0 else math.copysign(math.inf, total)), v
@@ -125,20 +141,29 @@ def blocking(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRe
     # what the same runs say of a prediction half and twice as large (the check's power, shown)
     z_half, z_double = (_z(o_run - k * e_run, _floor(np.clip(k * p, 0.0, 1.0)))[0] for k in (0.5, 2.0))
     total_e, total_s = float(p.sum()), int(obs.sum())
+    # the power against a prediction twice and half the truth (module docstring)
+    reach = total_e / math.sqrt(v) if v > 0 else math.inf
+    power_double, power_half = float(norm.cdf(reach - z_crit)), float(norm.cdf(reach / 2.0 - z_crit))
+    apart = ~ok
+    n_apart, hid_apart = int(apart.sum()), int(np.asarray(fx.robot_blocked, bool)[apart].sum())
     per_bin = "; ".join(f"p {r['p_from']:.3g}..{r['p_to']:.3g}: {r['observed']}/{r['expected']:.1f} "
                         f"(z {_fmt(r['z'])})" for r in rows)
     side = "" if not failed else (" (more blocked than predicted)" if z > 0 else " (fewer blocked than predicted)")
     detail = (f"fixes with a scheduled line of sight hidden by a robot, observed against expected, the {n_runs} runs "
               f"as independent units: z = (sum O_r - sum E_r) / sqrt(V), V the larger of the runs' variance x R "
               f"({_fmt(v)}) and the prediction's for independent fixes ({_fmt(floor)}){side}; the same runs against "
-              f"a prediction half as large give z {_fmt(z_half)}, twice as large {_fmt(z_double)}; the same test per "
+              f"a prediction half as large give z {_fmt(z_half)}, twice as large {_fmt(z_double)}; power against a "
+              f"prediction twice the truth {power_double:.2f}, half the truth {power_half:.2f}; {n_apart} fixes "
+              f"without a prediction (undecided or on the final dock; {hid_apart} hidden) left out; the same test per "
               f"bin of the predicted probability, observed/expected: {per_bin}; a = alpha / {m} tests")
     return CheckResult("blocking", CheckStatus.FAIL if failed or bins_off else CheckStatus.PASS,
                        f"{total_s} blocked, {total_e:.1f} expected, z {_fmt(z)}, {bins_off}/{len(rows)} bins off",
                        f"|z| <= {z_crit:.3g}", alpha, detail,
                        {"z": z, "z_crit": z_crit, "tests": m, "variance": v, "variance_floor": floor,
                         "observed": total_s, "expected": total_e, "fixes": int(ok.sum()), "runs": n_runs,
-                        "z_half": z_half, "z_double": z_double, "failed_bins": bins_off, "per_bin": rows})
+                        "z_half": z_half, "z_double": z_double, "power_double": power_double,
+                        "power_half": power_half, "fixes_apart": n_apart, "hidden_apart": hid_apart,
+                        "draws": DRAWS, "failed_bins": bins_off, "per_bin": rows})
 
 
 def _fmt(x: float) -> str:

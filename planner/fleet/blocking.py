@@ -36,9 +36,12 @@ Several robots block independently: ``p = 1 - prod_j (1 - p_j)``.
 **Limit.** The geometry is the plan's: where the measuring robot is at its fix and where a robot
 stands, to the spread that varies between runs (:data:`STAND_SD`). A ray that passes within a
 centimetre or two of a standing robot's body is hidden or not by the path follower's tracking
-error, which is the same in every run and not modelled: such fixes are predicted hidden with the
-chance that the robot stands there, and are not (``warehouse-fleet-spread`` with a 12 s, 0.8-1.0
-spread at 200 runs: 234.7 fixes predicted hidden, 76 were; ``docs/benchmarks.md``). The ``blocking`` check says so.
+error, which is the same in every run and not modelled here; and the normal law stands in for
+uniform release delays whose difference is triangular (``warehouse-fleet-spread`` with a 12 s,
+0.8-1.0 spread at 200 runs: 234.7 fixes predicted hidden, 76 were; ``docs/benchmarks.md``). The
+schedule's risk (:func:`planner.fleet.exposure.risk`) still comes from this model; a fleet that
+declares a timing spread has its prediction from the spread's own draws, with such rays set apart
+(:mod:`planner.fleet.sampled`).
 
 **Traffic that is not simulated** (``routes.traffic``, a density in [0, 1] per segment): it adds,
 for a fix on a segment of density d, ``traffic_block * d`` for each of its lines of sight to a

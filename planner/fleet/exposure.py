@@ -2,7 +2,8 @@
 
 Built on the model of :mod:`planner.fleet.blocking` and the fleet's predicted timelines:
 :func:`predict` gives each scheduled fix's probability per counted marker (and that at least
-one is hidden) from the other robots, and from traffic that is not simulated; :func:`risk`
+one is hidden) from the other robots, and from traffic that is not simulated (for a fleet that
+declares a timing spread, from the spread's own draws, :mod:`planner.fleet.sampled`); :func:`risk`
 gives the measurement schedule (:func:`planner.schedule.schedule.make_schedule`, its ``block``
 argument) the probability per marker along a task's path, for the robot's place in the fleet.
 """
@@ -22,6 +23,7 @@ from planner.fleet.blocking import (
     tie,
     traffic_probability,
 )
+from planner.fleet.sampled import UNDECIDED, predict_sampled
 from planner.fleet.timing import declared_model
 from scenarios.schema import Scenario
 
@@ -50,6 +52,10 @@ class RobotBlocking:
         Probability that traffic not simulated (``routes.traffic``) hides each.
     protected : ndarray of bool, shape (F,)
         The fix names a fallback for every marker (one lost line of sight keeps the promise).
+    undecided : ndarray of bool, shape (F,), optional
+        Whether the fix's lines of sight are hidden hinges on the path followers' tracking errors,
+        not on the timing (:mod:`planner.fleet.sampled`): ``p_robot`` and ``p_fix`` are then the
+        plan's geometry's, not a chance the runs can test (None: every fix decided).
     """
 
     task: np.ndarray
@@ -61,6 +67,7 @@ class RobotBlocking:
     p_fix: np.ndarray
     p_traffic: np.ndarray
     protected: np.ndarray
+    undecided: np.ndarray | None = None
 
     def of(self, task: int, fix: int) -> tuple[np.ndarray, float]:
         """Return the predictions of fix ``fix`` of plan ``task``: p per scheduled marker (k,), p of the fix."""
@@ -202,9 +209,24 @@ def risk(scenario: Scenario, tracks: list[Track], i: int, offset: float,
     return block
 
 
+def _declares_spread(robots: Sequence) -> bool:
+    """Whether the fleet declares a timing spread (every robot its ``[[robots]]`` table, one a spread)."""
+    declared = [getattr(r, "declared", None) for r in robots]
+    return all(d is not None for d in declared) and any(
+        d.start_jitter > 0 or d.dwell > 0 or d.speed_spread > 0 for d in declared)
+
+
 def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = None,
             timing: TimingModel | None = None) -> list[RobotBlocking]:
-    """Predicted blocking of every scheduled fix of every robot (``robots``: ``FleetRobotPlan``)."""
+    """Predicted blocking of every scheduled fix of every robot (``robots``: ``FleetRobotPlan``).
+
+    A fleet that declares a timing spread (and no ``tracks`` or ``timing`` given) is predicted from
+    the spread's draws (:func:`planner.fleet.sampled.predict_sampled`), which also names the fixes
+    whose blocking hinges on the tracking errors (``RobotBlocking.undecided``); otherwise from the
+    Gaussian lag model of :mod:`planner.fleet.blocking`.
+    """
+    sampled = predict_sampled(scenario, robots) if tracks is None and timing is None and _declares_spread(robots) \
+        else None
     tracks = tracks_of(robots, timing) if tracks is None else tracks
     m_pos, h = scenario.marker_positions(), _heights(scenario)
     tops = max(t.height for t in tracks)
@@ -227,7 +249,7 @@ def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = N
         w = np.repeat(when, k)
         free_ray, free_fix = np.ones(n_fix * k), np.ones(n_fix)
         for j, tr in enumerate(tracks):
-            if j == i:
+            if j == i or sampled is not None:
                 continue
             mean, var = lag_difference(tracks, i, j, when, timing)
             mu, v = np.repeat(mean, k), np.repeat(var, k)
@@ -236,9 +258,13 @@ def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = N
             free_fix *= 1.0 - block_probability(tr, origin, tracks[i].height, target, ht, w, mu, v,
                                                 group=np.repeat(np.arange(n_fix), k))
         dens = np.repeat(_segment_density(scenario, xy), k)
+        p_robot, p_fix, undecided = (1.0 - free_ray).reshape(n_fix, k), 1.0 - free_fix, None
+        if sampled is not None:
+            p_robot, p_fix = sampled.p_robot[i].reshape(n_fix, k), sampled.p_fix[i]
+            undecided = sampled.undecided[i] > UNDECIDED
         out.append(RobotBlocking(task=np.array(task, int), fix=np.array(fix, int), time=when, s=s, markers=markers,
-                                 p_robot=(1.0 - free_ray).reshape(n_fix, k), p_fix=1.0 - free_fix,
+                                 p_robot=p_robot, p_fix=p_fix,
                                  p_traffic=traffic_probability(dens, ht, tops).reshape(n_fix, k),
-                                 protected=np.array(prot, bool)))
+                                 protected=np.array(prot, bool), undecided=undecided))
     return out
 

@@ -283,11 +283,14 @@ class RobotDriver:
         if self.watch is not None:
             self.watch.follow(plan.path, self.offset)
         self.fix_s = [f.s for f in plan.schedule.fixes]   # compared at every control step: floats
-        # the plan's probability that robots hide a scheduled marker at each fix (the blocking check)
+        # the plan's probability that robots hide a scheduled marker at each fix (the blocking check);
+        # NaN where it hinges on the tracking errors, not on the timing (RobotBlocking.undecided)
         self.p_fix = [math.nan] * len(self.fix_s)
         b = self.mission.blocking
         if b is not None:
-            for f, p in zip(b.fix[b.task == self.task].tolist(), b.p_fix[b.task == self.task].tolist(), strict=True):
+            mine = b.task == self.task
+            p_mine = np.where(b.undecided[mine], math.nan, b.p_fix[mine]) if b.undecided is not None else b.p_fix[mine]
+            for f, p in zip(b.fix[mine].tolist(), p_mine.tolist(), strict=True):
                 self.p_fix[f] = p
         self.scheduled += len(self.fix_s)
         self.next_fix, self.last_fix_start = 0, -math.inf

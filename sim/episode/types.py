@@ -144,7 +144,9 @@ class FixNote:
         to that robot's index.
     p_block_robot : float
         The plan's probability that another robot hides at least one of the scheduled markers
-        at the fix start (:attr:`planner.fleet.exposure.RobotBlocking.p_fix`); NaN: none made.
+        at the fix start (:attr:`planner.fleet.exposure.RobotBlocking.p_fix`); NaN: none made (a
+        fix on the final dock, or one whose blocking hinges on the tracking errors:
+        :attr:`planner.fleet.exposure.RobotBlocking.undecided`).
     sight_hidden : dict of int to int
         Every marker, scheduled or not, whose line of sight another robot's body hid at the fix
         start while the laser would have seen it without the robots (in range, facing, no wall on

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.stats import binom
+from scipy.stats import binom, norm
 
 import scenarios
 from validation.blocking import blocking, blocking_why_not
@@ -149,8 +149,50 @@ def test_sure_predictions_pass_when_they_come_true_and_fail_when_reversed(fleet_
     p = np.where(truth, 1.0 - 1e-6, 1e-6)
     res = blocking(_deterministic(fleet_scenario, p, truth), ALPHA, np.random.default_rng(0))
     assert res.status.value == "pass", res.detail
-    assert res.values["variance"] == pytest.approx(res.values["variance_floor"])
+    # the runs' variance is 0: V is the prediction's own, times the sampling error's 1 + R / draws
+    assert res.values["variance"] == pytest.approx(res.values["variance_floor"] * (1.0 + RUNS / res.values["draws"]))
     # negative control: the hidden fixes are the ones predicted clear and the other way round
     swapped = np.r_[np.zeros(8, bool), np.ones(8, bool), np.zeros(492, bool)]
     res = blocking(_deterministic(fleet_scenario, p, swapped), ALPHA, np.random.default_rng(0))
     assert res.status.value == "FAIL", res.detail
+
+
+def _stretches(scenario, seed: int, q: float, predicted: float, runs: int = RUNS, length: int = 5) -> SweepData:
+    """Each run one robot stands in one line of sight or not (probability q): ``length`` fixes hidden together."""
+    rng = np.random.default_rng(seed)
+    hidden = np.repeat(rng.uniform(size=runs) < q, length)
+    n = runs * length
+    z = np.zeros(n)
+    fixes = FixTable(run=np.repeat(np.arange(runs) * ROBOTS, length), fix=np.tile(np.arange(length), runs),
+                     true_xy=np.zeros((n, 2)), snapshot_xy=np.zeros((n, 2)), snapshot_cov=np.zeros((n, 2, 2)),
+                     snapshot_error=z, predicted_tau=np.ones(n), contained=np.ones(n, bool), fault_diameter=z, nis=z,
+                     n_accepted=np.zeros(n, np.int64), markers=np.zeros((n, 2), np.int64),
+                     p_block_robot=np.full(n, predicted), robot_blocked=hidden)
+    units = np.arange(runs) * ROBOTS
+    table = RunTable(run=units, ok=np.ones(runs, bool), succeeded=np.ones(runs, bool), mean_nees=np.full(runs, 3.0))
+    return SweepData(scenario=scenario, runs=table, fixes=fixes)
+
+
+def test_the_stated_power_is_how_often_a_prediction_half_the_truth_fails(fleet_scenario):
+    """Stretches of 5 fixes hidden together in 17 % of the runs: the power against half is about 1/2.
+
+    The check states, on each calibrated sweep, the power against a prediction half the truth
+    (``power_half``); over 60 sweeps the mean stated power must match the share of the same
+    sweeps with the prediction halved that fail, within 3 binomial sd (0.19 at 60) plus 0.1 for
+    the normal approximation of the power at 200 runs. Negative control: the power of a test
+    that took the ~170 blocked fixes for independent (V = E, ``Phi(sqrt(E) / 2 - z_c)`` = 1.0) is
+    farther off than that.
+    """
+    q, sweeps = 0.17, 60
+    stated, failed, naive = [], 0, []
+    for i in range(sweeps):
+        honest = blocking(_stretches(fleet_scenario, 700 + i, q, q), ALPHA, np.random.default_rng(0))
+        stated.append(honest.values["power_half"])
+        naive.append(norm.cdf(np.sqrt(honest.values["expected"]) / 2.0 - honest.values["z_crit"]))
+        halved = blocking(_stretches(fleet_scenario, 700 + i, q, q / 2.0), ALPHA, np.random.default_rng(0))
+        failed += halved.status.value == "FAIL"
+    share = failed / sweeps
+    tol = 3.0 * np.sqrt(0.25 / sweeps) + 0.1
+    assert 0.15 < share < 0.85, share                     # a case where the power is not trivially 0 or 1
+    assert abs(np.mean(stated) - share) < tol, (np.mean(stated), share)
+    assert abs(np.mean(naive) - share) > tol              # the negative control
