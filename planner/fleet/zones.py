@@ -269,6 +269,13 @@ class ZoneControl:
                             f"{self.reach[i] + self.reach[j]:.2f} m of {self.names[j]}'s path")
         return None
 
+    def meets(self, i: int, k: int) -> np.ndarray:
+        """Return, per robot j, the last sample of j's path sharing a zone cell with robot i's sample ``k``.
+
+        -1 where none does, and for i itself; shape (n,).
+        """
+        return self._need[i][:, k].copy()
+
     def _cells(self, i: int, a: int, b: int) -> np.ndarray:
         """Cells of robot i's samples a .. b-1."""
         indptr, ids = self._feet[i]
