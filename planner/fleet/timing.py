@@ -6,8 +6,9 @@ drives a little slower than planned. A ``[[robots]]`` table declares how much
 
 * ``start_jitter`` J [s]: the robot leaves its first dock ``start_time + U`` with U uniform on
   [0, J] (mean J / 2, variance J^2 / 12);
-* ``dwell`` W [s]: at each dock between two of its tasks it stands uniform on [0, W] before the
-  next task (mean W / 2, variance W^2 / 12 each, independent);
+* ``dwell`` W [s]: at each dock between two of its tasks (and at its last task's dock when it
+  drives on to its parking place) it stands uniform on [0, W] before the next leg (mean W / 2,
+  variance W^2 / 12 each, independent);
 * ``speed_spread`` s: it drives at f times its planned speeds for the whole run, f uniform on
   [1 - s, 1]; never faster, since the measurement schedule's promises assume at most the
   planned speed. A stretch planned to take d seconds then takes d / f: a lag of d (1 / f - 1),

@@ -76,6 +76,14 @@ exclusive, so the clearance holds as under the stop rule. ``tests/planner/fleet/
 drives the hard cases with timings the plan never saw; without stops or the order the same
 fleets deadlock.
 
+**Parking.** A robot whose last dock another robot passes later may name a parking place, a dock
+off every other robot's path (:mod:`planner.fleet.parking`): it drives on to it, planned like a
+task, and its last task's dock becomes a sample of its path like any other. Zone control sees only
+longer paths and a final dock clear of the others' paths, so both arguments above hold as they
+are; a robot parked on the only corridor, which neither stop rule nor order could drive (it had
+nowhere to stand aside), is driven in ``tests/planner/fleet/test_parking.py`` with timings the plan
+never saw.
+
 The adversarial cases (head-on on one segment, three robots in a cycle, a crossing) are in
 ``tests/planner/fleet/test_zones.py``.
 """
