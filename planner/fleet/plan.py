@@ -244,6 +244,7 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
                 # robots that trade docks along one route meet head-on with nowhere to stand aside:
                 # route each robot around the segments of the robots before it, where the network allows
                 _reroute(scenario, fleet, owns, pefs)
+                check_parking(zones_of(fleet), fleet)
                 timelines = predict()
     except PlanningError as exc:
         docks = blocking_docks(zones_of(fleet), fleet, passers) if jammed(exc) else ""
