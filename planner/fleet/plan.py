@@ -224,19 +224,22 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
         return "no robot can move" in str(exc)
 
     try:
+        jam = None
         try:
             timelines = predict()
         except PlanningError as exc:
             if not jammed(exc):
                 raise
-            timelines = None
+            timelines, jam = None, exc
         # a robot that would finish where another passes later drives on to its parking place
         passers = later_passers(zones_of(fleet), fleet, timelines)
-        if add_parking(scenario, fleet, owns, pefs, passers, chain):
+        parked = add_parking(scenario, fleet, owns, pefs, passers, chain)
+        if parked:
             check_parking(zones_of(fleet), fleet)
-            timelines = None
-        if timelines is None:
+        if timelines is None or parked:
             try:
+                if jam is not None and not parked:
+                    raise jam     # the stop rule jammed on these very paths
                 timelines = predict()
             except PlanningError as exc:
                 if not jammed(exc) or scenario.routes is None or len(fleet) < 2:

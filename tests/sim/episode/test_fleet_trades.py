@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenarios import loads
+from scenarios import load, loads
 from sim.episode.fleet import prepare_fleet, run_fleet_episode
 from tests.sim import fleets
 
@@ -51,3 +51,18 @@ def test_a_robot_finishing_on_the_only_corridor_parks_off_it_and_nobody_touches(
             assert s["reached"] and s["status"] == "ok" and s["collisions"] == 0, (r.name, s["status"])
             end = r.result.steps.true_pose[-1, :2]
             assert np.hypot(*(end - sc.dock(dock).position)) < 0.05 + sc.planning.eps_max, (r.name, end)
+
+
+@pytest.mark.e2e   # plans twelve tasks on the 120 x 80 m hall and drives ~600 robot-seconds: about a minute of CPU
+def test_the_hall_fleet_trades_docks_without_a_collision():
+    # six robots in three pairs, each pair trading docks, two tasks each (scenarios/library/hall-fleet.toml)
+    sc = load("hall-fleet")
+    prepared = prepare_fleet(sc)
+    assert prepared.plan.order is not None     # docks on other robots' paths: the order of passage rules
+    res = run_fleet_episode(sc, seed=1, prepared=prepared)
+    assert res.collisions == 0
+    for r, fr in zip(res.robots, sc.robots, strict=True):
+        s = r.result.summary
+        assert s["reached"] and s["status"] == "ok" and s["collisions"] == 0, (r.name, s["status"])
+        goal = sc.dock(sc.tasks[fr.tasks[-1]].goal).position
+        assert np.hypot(*(r.result.steps.true_pose[-1, :2] - goal)) < 0.05 + sc.planning.eps_max, r.name
