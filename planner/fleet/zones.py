@@ -79,10 +79,10 @@ fleets deadlock.
 **Parking.** A robot whose last dock another robot passes later may name a parking place, a dock
 off every other robot's path (:mod:`planner.fleet.parking`): it drives on to it, planned like a
 task, and its last task's dock becomes a sample of its path like any other. Zone control sees only
-longer paths and a final dock clear of the others' paths, so both arguments above hold as they
-are; a robot parked on the only corridor, which neither stop rule nor order could drive (it had
-nowhere to stand aside), is driven in ``tests/planner/fleet/test_parking.py`` with timings the plan
-never saw.
+a longer path ending on a dock clear of the others' paths: the stop rule's argument holds when the
+starts are clear too, the order of passage's in any case. A robot parked on the only corridor,
+which neither could drive before (it had nowhere to stand aside: no robot can move), is driven in
+``tests/planner/fleet/test_parking.py`` with timings the plan never saw.
 
 The adversarial cases (head-on on one segment, three robots in a cycle, a crossing) are in
 ``tests/planner/fleet/test_zones.py``.
