@@ -341,7 +341,8 @@ class FleetRobot:
     park : str, optional
         A dock it drives to after its last task when that task's dock lies on a stretch of
         another robot's path which that robot drives after this one arrives
-        (:mod:`planner.fleet.parking`); None: it waits short of that dock until the other has passed.
+        (:mod:`planner.fleet.parking`); None: it waits short of that dock until the other has passed
+        (where no robot could move then, the planner picks a place).
     """
 
     name: str

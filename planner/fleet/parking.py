@@ -21,13 +21,16 @@ at all (no robot can move) every such dock counts as passed later.
 their samples, parking legs included), so a parked robot is in nobody's way: zone control's
 argument for docks clear of the other robots' paths then holds for it (:mod:`planner.fleet.zones`).
 A named place on another robot's path is refused, naming both. A robot whose dock lies on a
-later path and that names no parking place waits as before; if the fleet then cannot move,
-planning is refused naming the robot, its dock and the robot that must pass it
-(:func:`blocking_docks`).
+later path and that names no parking place waits as before. Only where the fleet then cannot move
+the planner picks one for it (:func:`pick_parking`): the nearest dock of the scenario that no robot
+starts, ends or parks at and that lies off every other robot's path, with an admissible route to
+it; where there is none, planning is refused naming the robot, its dock and the robot that must
+pass it (:func:`blocking_docks`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -85,8 +88,48 @@ def later_passers(zones: ZoneControl, fleet: Sequence, timelines: Sequence[Timel
     return out
 
 
+#: Most docks :func:`pick_parking` tries to plan a route to, nearest first, for one robot (each
+#: attempt is a full route search with its schedule: seconds on a big floor).
+PICK_TRIES = 3
+
+
+def pick_parking(scenario: Scenario, fleet: Sequence, zones: ZoneControl, i: int, own: Scenario,
+                 pef) -> tuple[str, object] | None:
+    """Pick a parking place for robot ``i`` that names none; return it and the leg's plan (None: none found).
+
+    Candidates: the scenario's docks that no robot starts, ends or parks at, whose position lies
+    farther from every other robot's path (its samples, ``zones.paths``) than the two robots'
+    reaches plus two cell diagonals (so that no zone cell can be shared; :func:`check_parking`
+    checks the cells themselves afterwards), nearest to robot ``i``'s last dock first; the first of
+    :data:`PICK_TRIES` with an admissible route from there wins.
+    """
+    used = set()
+    for r in fleet:
+        used.update(p.start for p in r.plans)
+        used.update(p.goal for p in r.plans)
+        if getattr(r.declared, "park", None) is not None:
+            used.add(r.declared.park)
+    here = np.asarray(zones.paths[i][-1], float)
+    gap = 2.0 * math.sqrt(2.0) * zones.grid.cell
+    found = []
+    for d in scenario.docks:
+        if d.name in used:
+            continue
+        p = np.asarray(d.position, float)
+        clear = all(float(np.hypot(*(zones.paths[j] - p).T).min()) > zones.reach[i] + zones.reach[j] + gap
+                    for j in range(len(fleet)) if j != i)
+        if clear:
+            found.append((float(np.hypot(*(p - here))), d.name))
+    for _, name in sorted(found)[:PICK_TRIES]:
+        try:
+            return name, plan_route(own, fleet[i].plans[-1].goal, name, pef=pef)
+        except PlanningError:
+            continue
+    return None
+
+
 def add_parking(scenario: Scenario, fleet: list, owns: Sequence[Scenario], pefs: dict, passers: Sequence[int],
-                chain: Callable) -> list[int]:
+                chain: Callable, pick: bool = False) -> list[int]:
     """Give each robot that names a parking place and has a later passer a last leg to it (in place).
 
     Parameters
@@ -103,6 +146,9 @@ def add_parking(scenario: Scenario, fleet: list, owns: Sequence[Scenario], pefs:
         :func:`later_passers`.
     chain : callable
         :func:`planner.fleet.plan.chain`.
+    pick : bool
+        Pick a parking place (:func:`pick_parking`) for a robot with a later passer that names
+        none: the stop rule could not drive the fleet.
 
     Returns
     -------
@@ -117,14 +163,22 @@ def add_parking(scenario: Scenario, fleet: list, owns: Sequence[Scenario], pefs:
     parked = []
     for i, (r, j) in enumerate(zip(fleet, passers, strict=True)):
         park = getattr(r.declared, "park", None)
-        if j < 0 or park is None or r.park is not None:
+        if j < 0 or r.park is not None or (park is None and not pick):
             continue
         goal = r.plans[-1].goal
-        try:
-            leg = plan_route(owns[i], goal, park, pef=pefs[r.robot])
-        except PlanningError as exc:
-            raise PlanningError(f"{r.name} parks at {park!r} ({goal!r} lies on {fleet[j].name}'s later path), "
-                                f"but {exc}") from None
+        if park is None:
+            # the fleet's paths as they are now (earlier robots' parking legs included)
+            zones = ZoneControl([q.path for q in fleet], [q.robot.radius for q in fleet])
+            picked = pick_parking(scenario, fleet, zones, i, owns[i], pefs[r.robot])
+            if picked is None:
+                continue
+            park, leg = picked
+        else:
+            try:
+                leg = plan_route(owns[i], goal, park, pef=pefs[r.robot])
+            except PlanningError as exc:
+                raise PlanningError(f"{r.name} parks at {park!r} ({goal!r} lies on {fleet[j].name}'s later path), "
+                                    f"but {exc}") from None
         r.plans = [*r.plans, leg]
         r.path, r.s, r.speed, r.offsets = chain(r.plans)
         r.park = park

@@ -6,7 +6,7 @@
 one path (task i+1 starts at the dock task i ended at, checked by the loader) and predicts,
 through zone control (:mod:`planner.fleet.zones`), when each robot is where, waits included. A
 robot whose last dock another robot passes later drives on to its parking place when it names
-one (:mod:`planner.fleet.parking`).
+one, or when the fleet cannot move otherwise and the planner finds one (:mod:`planner.fleet.parking`).
 """
 
 from __future__ import annotations
@@ -193,7 +193,7 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
     PlanningError
         Not a fleet scenario, a task or parking leg without an admissible route, a parking place
         on another robot's path, or a fleet zone control cannot drive (no robot can move; the
-        message names each robot whose last dock lies on another's path and has no parking place).
+        message names each robot whose last dock lies on another's path and that got no parking place).
     """
     if not scenario.robots:
         raise PlanningError(f"scenario {scenario.name!r} has no [[robots]]: plan its tasks one by one")
@@ -216,42 +216,41 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
         path, s, speed, offsets = chain(plans)
         fleet.append(FleetRobotPlan(fr.name, plans, fr.start_time, fr.robot, offsets, path, s, speed, declared=fr))
 
-    def predict() -> list:
-        return predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
-                                [r.start_time for r in fleet])
-
-    def jammed(exc: PlanningError) -> bool:
-        return "no robot can move" in str(exc)
-
-    try:
-        jam = None
+    def drive() -> tuple[list | None, PlanningError | None]:
+        """Return the fleet's timelines under the stop rule, or None and why no robot can move."""
         try:
-            timelines = predict()
+            return predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
+                                    [r.start_time for r in fleet]), None
         except PlanningError as exc:
-            if not jammed(exc):
+            if "no robot can move" not in str(exc):
                 raise
-            timelines, jam = None, exc
-        # a robot that would finish where another passes later drives on to its parking place
+            return None, exc
+
+    passers: list[int] = []
+    try:
+        timelines, jam = drive()
+        # a robot that would finish where another passes later drives on to the parking place it names
         passers = later_passers(zones_of(fleet), fleet, timelines)
-        parked = add_parking(scenario, fleet, owns, pefs, passers, chain)
-        if parked:
+        if add_parking(scenario, fleet, owns, pefs, passers, chain):
             check_parking(zones_of(fleet), fleet)
-        if timelines is None or parked:
-            try:
-                if jam is not None and not parked:
-                    raise jam     # the stop rule jammed on these very paths
-                timelines = predict()
-            except PlanningError as exc:
-                if not jammed(exc) or scenario.routes is None or len(fleet) < 2:
-                    raise
-                # robots that trade docks along one route meet head-on with nowhere to stand aside:
-                # route each robot around the segments of the robots before it, where the network allows
-                _reroute(scenario, fleet, owns, pefs)
+            timelines, jam = drive()
+        if jam is not None and scenario.routes is not None and len(fleet) >= 2:
+            # robots that trade docks along one route meet head-on with nowhere to stand aside:
+            # route each robot around the segments of the robots before it, where the network allows
+            _reroute(scenario, fleet, owns, pefs)
+            check_parking(zones_of(fleet), fleet)
+            timelines, jam = drive()
+        if jam is not None:
+            # still nobody can move: robots finishing on another's path get a parking place picked
+            passers = later_passers(zones_of(fleet), fleet, None)
+            if add_parking(scenario, fleet, owns, pefs, passers, chain, pick=True):
                 check_parking(zones_of(fleet), fleet)
-                timelines = predict()
+                timelines, jam = drive()
+        if jam is not None:
+            docks = blocking_docks(zones_of(fleet), fleet, passers)
+            raise PlanningError(f"{jam}" + (f"; {docks}" if docks else ""))
     except PlanningError as exc:
-        docks = blocking_docks(zones_of(fleet), fleet, passers) if jammed(exc) else ""
-        raise PlanningError(f"{scenario.source}: robots: {exc}" + (f"; {docks}" if docks else "")) from None
+        raise PlanningError(f"{scenario.source}: robots: {exc}") from None
     for r, tl in zip(fleet, timelines, strict=True):
         r.timeline = tl
         r.alone_time = float(Kinematics(r.s, r.speed).t_v[-1])

@@ -77,7 +77,8 @@ drives the hard cases with timings the plan never saw; without stops or the orde
 fleets deadlock.
 
 **Parking.** A robot whose last dock another robot passes later may name a parking place, a dock
-off every other robot's path (:mod:`planner.fleet.parking`): it drives on to it, planned like a
+off every other robot's path (or get one from the planner where the fleet could not move
+otherwise, :mod:`planner.fleet.parking`): it drives on to it, planned like a
 task, and its last task's dock becomes a sample of its path like any other. Zone control sees only
 a longer path ending on a dock clear of the others' paths: the stop rule's argument holds when the
 starts are clear too, the order of passage's in any case. A robot parked on the only corridor,

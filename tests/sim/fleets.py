@@ -154,7 +154,8 @@ tasks = [2]
 
 # One corridor (y = 2, between a wall block to the north and the workspace's south wall) from a
 # west dock W to an east dock E; r1 starts at M1 on the corridor and ends at M2 on it, r0 drives
-# W -> E 15 s later; a parking dock P at the end of a spur north of the corridor.
+# W -> E 15 s later; a dock P at the end of a spur north of the corridor, a dock Q on the
+# corridor where the spur leaves it.
 _CORRIDOR = """
 seed = 5
 [workspace]
@@ -227,6 +228,9 @@ node = "M1"
 name = "M2"
 node = "M2"
 [[docks]]
+name = "Q"
+node = "j"
+[[docks]]
 name = "P"
 node = "P"
 yaw_deg = 90.0
@@ -249,8 +253,11 @@ tasks = [1]
 """
 
 #: A robot that finishes on the only corridor another drives later: r1 M1 -> M2, r0 W -> E 15 s later.
-#: Without a parking place no robot can move; ``PARKED`` names one.
+#: Waiting, no robot can move: the planner picks P (Q is nearer but on r0's path).
 CORRIDOR = _CORRIDOR.replace("seed = 5", 'name = "corridor"\nseed = 5')
-#: ``CORRIDOR`` with r1's parking place P: it drives M1 -> M2, then on to P, out of r0's way.
+#: ``CORRIDOR`` with r1's parking place P named: it drives M1 -> M2, then on to P, out of r0's way.
 PARKED = CORRIDOR.replace('name = "corridor"', 'name = "parked"').replace(
     'name = "r1"\ntasks = [1]', 'name = "r1"\ntasks = [1]\npark = "P"')
+#: ``CORRIDOR`` without the dock P: no parking place to name or pick.
+NOWHERE = CORRIDOR.replace('name = "corridor"', 'name = "nowhere"').replace(
+    '[[docks]]\nname = "P"\nnode = "P"\nyaw_deg = 90.0\n', '')

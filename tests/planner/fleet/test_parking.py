@@ -3,9 +3,10 @@
 The hard case: r1 starts on the corridor and its task ends on it, r0 drives the corridor later.
 Neither can stand aside, so zone control's stop rule drives nobody (``no robot can move``); with
 a parking place off the corridor r1 drives on to it and r0 passes. Planned on a scenario floor
-(:data:`tests.sim.fleets.PARKED`, its negative control :data:`~tests.sim.fleets.CORRIDOR` without
-the parking place), abstractly with timings the plan never saw (as ``test_dock_trades.py``), and in
-physics (``tests/sim/episode/test_fleet_trades.py``).
+(:data:`tests.sim.fleets.PARKED` names the place, :data:`~tests.sim.fleets.CORRIDOR` leaves it to
+the planner, the negative control :data:`~tests.sim.fleets.NOWHERE` has none), abstractly with
+timings the plan never saw (as ``test_dock_trades.py``), and in physics
+(``tests/sim/episode/test_fleet_trades.py``).
 """
 
 from __future__ import annotations
@@ -53,10 +54,19 @@ def test_the_robot_finishing_on_the_corridor_parks_and_the_plan_drives():
     assert r0.timeline.s[-1] == pytest.approx(r0.s[-1])
 
 
-def test_negative_control_without_a_parking_place_it_is_refused_naming_the_robot():
+def test_with_none_named_the_planner_picks_a_dock_off_the_others_paths():
+    # the stop rule cannot drive the corridor: r1 gets the spur's dock P, not Q, which is nearer
+    # to M2 but on r0's corridor
+    fp = plan_fleet(loads(fleets.CORRIDOR, source="corridor.toml"), traffic=False)
+    r0, r1 = fp.robots
+    assert r0.park is None and r1.park == "P" and [p.goal for p in r1.plans] == ["M2", "P"]
+    assert zones_of(fp.robots).meets(1, len(r1.path) - 1)[0] == -1
+
+
+def test_negative_control_with_no_parking_place_it_is_refused_naming_the_robot():
     with pytest.raises(PlanningError, match=r"no robot can move.*r1's final dock 'M2' \(12\.00, 2\.00\) lies on "
                                             r"r0's path: name a parking place for r1"):
-        plan_fleet(loads(fleets.CORRIDOR, source="corridor.toml"), traffic=False)
+        plan_fleet(loads(fleets.NOWHERE, source="nowhere.toml"), traffic=False)
 
 
 def test_a_parking_place_on_another_path_is_refused():
