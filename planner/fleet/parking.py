@@ -22,10 +22,11 @@ their samples, parking legs included), so a parked robot is in nobody's way: zon
 argument for docks clear of the other robots' paths then holds for it (:mod:`planner.fleet.zones`).
 A named place on another robot's path is refused, naming both. A robot whose dock lies on a
 later path and that names no parking place waits as before. Only where the fleet then cannot move
-(robots meeting head-on routed around each other too) the planner picks one for it (:func:`pick_parking`): the nearest dock of the scenario that no robot
-starts, ends or parks at and that lies off every other robot's path, with an admissible route to
-it; where there is none, planning is refused naming the robot, its dock and the robot that must
-pass it (:func:`blocking_docks`).
+(robots meeting head-on routed around each other too) the planner picks one for it
+(:func:`pick_parking`): the nearest dock of the scenario that no robot starts, ends or parks at
+and that lies off every other robot's path, with an admissible route to it; where there is none,
+planning is refused naming the robot, its dock and the robot that must pass it
+(:func:`blocking_docks`).
 """
 
 from __future__ import annotations
