@@ -112,3 +112,39 @@ def write_hall(folder: str | Path, markers: bool = True, marker_kind: str | None
     path.write_text(hall_toml(markers, marker_kind=marker_kind, pitch=pitch, face_markers=face_markers),
                     encoding="utf-8")
     return path
+
+
+#: The 6-robot fleet of the built-in ``hall-fleet``: each robot's docks in driving order (its tasks
+#: go from each dock to the next). Bottom docks D1, D3, ... D23 sit at x = 5, 15, ... 115 m below
+#: the lower cross aisle, top docks D2, D4, ... D24 above the upper one. Three pairs, in the west,
+#: the middle and the east of the hall, each of two robots that trade docks: the first drives
+#: along the lower cross aisle and up the next rack aisle to the dock the second starts from; the
+#: second drives along the upper cross aisle and down the first aisle to the dock the first left.
+FLEET = (("r1", ("D1", "D3", "D4")), ("r2", ("D4", "D2", "D1")),
+         ("r3", ("D9", "D11", "D12")), ("r4", ("D12", "D10", "D9")),
+         ("r5", ("D17", "D19", "D20")), ("r6", ("D20", "D18", "D17")))
+
+
+def hall_fleet_toml() -> str:
+    """Return the built-in ``hall-fleet`` scenario: the hall of :func:`hall_toml` with the fleet :data:`FLEET`."""
+    text = hall_toml(markers=True)
+    head, _, _ = text.rpartition("[[tasks]]")
+    desc = text.splitlines()[1].split('"')[1]
+    head = head.replace('name = "hall-120x80"', 'name = "hall-fleet"', 1).replace(
+        desc, f"{desc}; a fleet of {len(FLEET)} robots trading docks, most with several tasks", 1)
+    # the shortest admissible route first: the rack aisles, not the walls' better-lit detours
+    head = head.replace("[planning]\n", '[planning]\norder = ["length", "accuracy"]\n', 1)
+    out = [head.rstrip(), ""]
+    tasks: list[tuple[str, str]] = []
+    robots = []
+    for name, docks in FLEET:
+        idx = []
+        for a, b in zip(docks, docks[1:], strict=False):
+            idx.append(len(tasks))
+            tasks.append((a, b))
+        robots.append((name, idx))
+    for a, b in tasks:
+        out += ["[[tasks]]", f'from = "{a}"', f'to = "{b}"', ""]
+    for name, idx in robots:
+        out += ["[[robots]]", f'name = "{name}"', f"tasks = {idx}", ""]
+    return "\n".join(out)

@@ -207,11 +207,11 @@ def _check_body(t: Table, declared: RobotSpec, actual: RobotSpec, actual_t: Tabl
 
 
 #: Keys of a ``[[robots]]`` table besides the robot keys it may override.
-_FLEET_KEYS = ("name", "tasks", "start_time", "start_jitter", "dwell", "speed_spread", "actual")
+_FLEET_KEYS = ("name", "tasks", "start_time", "start_jitter", "dwell", "speed_spread", "park", "actual")
 
 
 def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[Task], workspace: Workspace,
-            fix_rate_hz: float) -> tuple[FleetRobot, ...]:
+            fix_rate_hz: float, dock_names: set[str] = frozenset()) -> tuple[FleetRobot, ...]:
     """Read the ``[[robots]]`` tables: a fleet in one world (empty: one robot, as without them).
 
     Each table names the robot, the tasks it drives in order (indices into ``[[tasks]]``, each
@@ -244,6 +244,12 @@ def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[
         start_jitter = t.number("start_jitter", 0.0, low=0.0, high=3600.0)
         dwell = t.number("dwell", 0.0, low=0.0, high=3600.0)
         speed_spread = t.number("speed_spread", 0.0, low=0.0, high=0.5)
+        # where it goes after its last task if it would stand in another robot's way there
+        park = t.string("park") if t.has("park") else None
+        if park is not None and park not in dock_names:
+            t.fail(t.key("park"), "expected a dock name (" + ", ".join(sorted(dock_names)) + ")", park)
+        if park is not None and park == tasks[idx[-1]].goal:
+            t.fail(t.key("park"), f"expected a dock other than {park!r}, where the robot's last task ends", park)
         declared = _robot(t, robot)
         actual = _robot(t, robot_actual)
         if t.has("actual"):
@@ -256,10 +262,10 @@ def _robots(root: Table, robot: RobotSpec, robot_actual: RobotSpec, tasks: list[
         for key in t.data:
             if key not in _FLEET_KEYS and key not in t.used:
                 t.fail(t.key(key), "unknown key (a [[robots]] table takes name, tasks, start_time, start_jitter, "
-                       "dwell, speed_spread, actual and [robot] keys)", t.data[key])
+                       "dwell, speed_spread, park, actual and [robot] keys)", t.data[key])
         t.done()
         fleet.append(FleetRobot(name, tuple(int(i) for i in idx), start_time, declared, actual, start_jitter,
-                                dwell, speed_spread))
+                                dwell, speed_spread, park))
     return tuple(fleet)
 
 
@@ -449,7 +455,7 @@ def from_dict(data: dict[str, Any], source: str = "<dict>", base: Path | None = 
         tasks.append(Task(a, b))
         t.done()
 
-    robots = _robots(root, robot, robot_actual, tasks, workspace, sensor.fix_rate_hz)
+    robots = _robots(root, robot, robot_actual, tasks, workspace, sensor.fix_rate_hz, dock_names)
 
     mc_t = root.table("montecarlo", {})
     montecarlo = MonteCarloSpec(

@@ -338,6 +338,11 @@ class FleetRobot:
     speed_spread : float
         Each run the robot drives at f times its planned speeds, f uniform on
         [1 - speed_spread, 1] (never faster than planned: the schedule's promises hold).
+    park : str, optional
+        A dock it drives to after its last task when that task's dock lies on a stretch of
+        another robot's path which that robot drives after this one arrives
+        (:mod:`planner.fleet.parking`); None: it waits short of that dock until the other has passed
+        (where no robot could move then, the planner picks a place).
     """
 
     name: str
@@ -348,6 +353,7 @@ class FleetRobot:
     start_jitter: float = 0.0
     dwell: float = 0.0
     speed_spread: float = 0.0
+    park: str | None = None
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,9 @@
 :func:`planner.plan.plan_task` (the robot's own declared spec, so a robot that overrides
 ``radius`` or ``max_speed`` gets its own clearance and speeds), chains each robot's plans into
 one path (task i+1 starts at the dock task i ended at, checked by the loader) and predicts,
-through zone control (:mod:`planner.fleet.zones`), when each robot is where, waits included.
+through zone control (:mod:`planner.fleet.zones`), when each robot is where, waits included. A
+robot whose last dock another robot passes later drives on to its parking place when it names
+one, or when the fleet cannot move otherwise and the planner finds one (:mod:`planner.fleet.parking`).
 """
 
 from __future__ import annotations
@@ -16,9 +18,10 @@ import numpy as np
 
 from planner.fleet import exposure
 from planner.fleet.exposure import RobotBlocking
+from planner.fleet.parking import add_parking, blocking_docks, check_parking, later_passers
 from planner.fleet.traffic import TrafficNote, plan_traffic
 from planner.fleet.zones import Timeline, ZoneControl, predict_timeline
-from planner.plan import Plan, plan_task
+from planner.plan import Plan, plan_route, plan_task
 from planner.schedule.pathtime import Kinematics
 from scenarios.errors import PlanningError
 from scenarios.schema import FleetRobot, RobotSpec, Scenario
@@ -32,7 +35,7 @@ class FleetRobotPlan:
     ----------
     name : str
     plans : list of Plan
-        One per task, in driving order.
+        One per task, in driving order, and the leg to its parking place last when it parks.
     start_time : float
         When it leaves its first dock [s].
     robot : RobotSpec
@@ -57,6 +60,9 @@ class FleetRobotPlan:
     declared : FleetRobot, optional
         Its ``[[robots]]`` table: the timing spread its blocking prediction assumes
         (:mod:`planner.fleet.timing`).
+    park : str, optional
+        The dock it drives on to after its last task, its parking place (the last of ``plans``;
+        :mod:`planner.fleet.parking`); None: it stays at its last task's dock.
     """
 
     name: str
@@ -72,6 +78,7 @@ class FleetRobotPlan:
     alone_blocking: RobotBlocking | None = None
     alone_time: float = math.nan
     declared: FleetRobot | None = None
+    park: str | None = None
 
     @property
     def time(self) -> float:
@@ -151,6 +158,8 @@ def _reroute(scenario: Scenario, fleet: list[FleetRobotPlan], owns: list[Scenari
             own = replace(owns[k], routes=replace(net, traffic=traffic), planning=planning)
             try:
                 plans = [plan_task(own, i, pef=pefs[r.robot]) for i in r.declared.tasks]
+                if r.park is not None:
+                    plans.append(plan_route(own, plans[-1].goal, r.park, pef=pefs[r.robot]))
             except PlanningError:
                 plans = r.plans
             r.plans = plans
@@ -182,8 +191,9 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
     Raises
     ------
     PlanningError
-        Not a fleet scenario, a task without an admissible route, or docks that zone control
-        refuses (a robot's start or final dock on another robot's path).
+        Not a fleet scenario, a task or parking leg without an admissible route, a parking place
+        on another robot's path, or a fleet zone control cannot drive (no robot can move; the
+        message names each robot whose last dock lies on another's path and that got no parking place).
     """
     if not scenario.robots:
         raise PlanningError(f"scenario {scenario.name!r} has no [[robots]]: plan its tasks one by one")
@@ -205,18 +215,40 @@ def plan_fleet(scenario: Scenario, *, traffic: bool = True, pef=None) -> FleetPl
                 raise PlanningError(f"{scenario.source}: robots: {fr.name!r}, task {i}: {exc}") from None
         path, s, speed, offsets = chain(plans)
         fleet.append(FleetRobotPlan(fr.name, plans, fr.start_time, fr.robot, offsets, path, s, speed, declared=fr))
-    try:
+
+    def drive() -> tuple[list | None, PlanningError | None]:
+        """Return the fleet's timelines under the stop rule, or None and why no robot can move."""
         try:
-            timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
-                                         [r.start_time for r in fleet])
+            return predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
+                                    [r.start_time for r in fleet]), None
         except PlanningError as exc:
-            if "no robot can move" not in str(exc) or scenario.routes is None or len(fleet) < 2:
+            if "no robot can move" not in str(exc):
                 raise
+            return None, exc
+
+    passers: list[int] = []
+    try:
+        timelines, jam = drive()
+        # a robot that would finish where another passes later drives on to the parking place it names
+        passers = later_passers(zones_of(fleet), fleet, timelines)
+        if add_parking(scenario, fleet, owns, pefs, passers, chain):
+            check_parking(zones_of(fleet), fleet)
+            timelines, jam = drive()
+        if jam is not None and scenario.routes is not None and len(fleet) >= 2:
             # robots that trade docks along one route meet head-on with nowhere to stand aside:
             # route each robot around the segments of the robots before it, where the network allows
             _reroute(scenario, fleet, owns, pefs)
-            timelines = predict_timeline(zones_of(fleet), [Kinematics(r.s, r.speed) for r in fleet],
-                                         [r.start_time for r in fleet])
+            check_parking(zones_of(fleet), fleet)
+            timelines, jam = drive()
+        if jam is not None:
+            # still nobody can move: robots finishing on another's path get a parking place picked
+            passers = later_passers(zones_of(fleet), fleet, None)
+            if add_parking(scenario, fleet, owns, pefs, passers, chain, pick=True):
+                check_parking(zones_of(fleet), fleet)
+                timelines, jam = drive()
+        if jam is not None:
+            docks = blocking_docks(zones_of(fleet), fleet, passers)
+            raise PlanningError(f"{jam}" + (f"; {docks}" if docks else ""))
     except PlanningError as exc:
         raise PlanningError(f"{scenario.source}: robots: {exc}") from None
     for r, tl in zip(fleet, timelines, strict=True):

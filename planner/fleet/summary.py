@@ -30,7 +30,7 @@ class RobotSummary:
     ----------
     name : str
     tasks : list of str
-        ``A -> B`` per task, in driving order.
+        ``A -> B`` per task, in driving order (``A -> P (park)``: the leg to its parking place).
     fixes : int
         Scheduled fixes.
     expected_blocked_los : float
@@ -101,7 +101,8 @@ def summarize(scenario: Scenario, fleet) -> list[RobotSummary]:
         fix_near = _near(b.s, risky, NEAR)
         n_near, n_far = int(fix_near.sum()), int((~fix_near).sum())
         out.append(RobotSummary(
-            name=r.name, tasks=[f"{p.start} -> {p.goal}" for p in r.plans], fixes=len(b.s),
+            name=r.name, tasks=[f"{p.start} -> {p.goal}" + (" (park)" if r.park is not None and q == len(r.plans) - 1
+                                                            else "") for q, p in enumerate(r.plans)], fixes=len(b.s),
             expected_blocked_los=b.expected_blocked_los, expected_blocked_fixes=b.expected_blocked_fixes,
             expected_unprotected=b.expected_unprotected, expected_traffic_los=float(b.p_traffic.sum()),
             wait_time=float(r.timeline.wait_time), time=r.time, alone_time=float(r.alone_time),

@@ -6,8 +6,9 @@ drives a little slower than planned. A ``[[robots]]`` table declares how much
 
 * ``start_jitter`` J [s]: the robot leaves its first dock ``start_time + U`` with U uniform on
   [0, J] (mean J / 2, variance J^2 / 12);
-* ``dwell`` W [s]: at each dock between two of its tasks it stands uniform on [0, W] before the
-  next task (mean W / 2, variance W^2 / 12 each, independent);
+* ``dwell`` W [s]: at each dock between two of its tasks (and at its last task's dock when it
+  drives on to its parking place) it stands uniform on [0, W] before the next leg (mean W / 2,
+  variance W^2 / 12 each, independent);
 * ``speed_spread`` s: it drives at f times its planned speeds for the whole run, f uniform on
   [1 - s, 1]; never faster, since the measurement schedule's promises assume at most the
   planned speed. A stretch planned to take d seconds then takes d / f: a lag of d (1 / f - 1),
@@ -62,13 +63,15 @@ def stream(ss: np.random.SeedSequence, i: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, TIMING_KEY, i)))
 
 
-def draw(fr: FleetRobot, rng: np.random.Generator) -> TimingDraw:
+def draw(fr: FleetRobot, rng: np.random.Generator, legs: int | None = None) -> TimingDraw:
     """Draw one run's release delay, dwells and speed factor of robot ``fr`` (module docstring).
 
     Always draws the same count of numbers (one, one per dock, one), so that a robot's later
     draws do not depend on which spreads are declared; a spread of 0 gives exactly 0 (or 1).
+    ``legs``: the legs it drives (default its tasks; one more when it drives on to its parking
+    place, :mod:`planner.fleet.parking`, and then dwells at its last task's dock as at the others).
     """
-    u = rng.random(len(fr.tasks) + 1)
+    u = rng.random((len(fr.tasks) if legs is None else legs) + 1)
     return TimingDraw(release_delay=float(fr.start_jitter * u[0]),
                       dwell=tuple(float(fr.dwell * x) for x in u[1:-1]),
                       speed_factor=float(1.0 - fr.speed_spread * u[-1]))

@@ -76,6 +76,15 @@ exclusive, so the clearance holds as under the stop rule. ``tests/planner/fleet/
 drives the hard cases with timings the plan never saw; without stops or the order the same
 fleets deadlock.
 
+**Parking.** A robot whose last dock another robot passes later may name a parking place, a dock
+off every other robot's path (or get one from the planner where the fleet could not move
+otherwise, :mod:`planner.fleet.parking`): it drives on to it, planned like a
+task, and its last task's dock becomes a sample of its path like any other. Zone control sees only
+a longer path ending on a dock clear of the others' paths: the stop rule's argument holds when the
+starts are clear too, the order of passage's in any case. A robot parked on the only corridor,
+which neither could drive before (it had nowhere to stand aside: no robot can move), is driven in
+``tests/planner/fleet/test_parking.py`` with timings the plan never saw.
+
 The adversarial cases (head-on on one segment, three robots in a cycle, a crossing) are in
 ``tests/planner/fleet/test_zones.py``.
 """
@@ -268,6 +277,13 @@ class ZoneControl:
                     return (f"{self.names[i]}'s {what} ({x:.2f}, {y:.2f}) lies within "
                             f"{self.reach[i] + self.reach[j]:.2f} m of {self.names[j]}'s path")
         return None
+
+    def meets(self, i: int, k: int) -> np.ndarray:
+        """Return, per robot j, the last sample of j's path sharing a zone cell with robot i's sample ``k``.
+
+        -1 where none does, and for i itself; shape (n,).
+        """
+        return self._need[i][:, k].copy()
 
     def _cells(self, i: int, a: int, b: int) -> np.ndarray:
         """Cells of robot i's samples a .. b-1."""

@@ -69,7 +69,7 @@ class Mission:
     plans : list of Plan
         One per task, in driving order (each with a measurement schedule).
     tasks : tuple of int
-        The indices into ``scenario.tasks`` of ``plans``.
+        The indices into ``scenario.tasks`` of ``plans`` (-1: a fleet robot's leg to its parking place).
     offsets : ndarray, shape (len(plans),)
         Arc length along the whole path where each plan begins [m].
     where : str

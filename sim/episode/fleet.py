@@ -211,8 +211,10 @@ def _drive_fleet(scenario, ss, world, prepared, time_limit, q_scale) -> FleetRes
         # robot 0 draws from exactly the streams a lone robot would
         own = ss if i == 0 else np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, 4, i))
         # this run's draw of the robot's declared timing spread (planner.fleet.timing)
-        drawn = fleet_timing.draw(fr, fleet_timing.stream(ss, i))
-        mission = Mission(rp.plans, tuple(int(k) for k in fr.tasks), rp.offsets, f"robot {fr.name!r}",
+        drawn = fleet_timing.draw(fr, fleet_timing.stream(ss, i), legs=len(rp.plans))
+        # a parking leg (planner.fleet.parking) is no task of the scenario: -1
+        legs = tuple(int(k) for k in fr.tasks) + (-1,) * (len(rp.plans) - len(fr.tasks))
+        mission = Mission(rp.plans, legs, rp.offsets, f"robot {fr.name!r}",
                           start_time=fr.start_time + drawn.release_delay, blocking=rp.blocking,
                           speed_factor=drawn.speed_factor, dwell=drawn.dwell)
         gates.append(ZoneGate(zones, i))

@@ -74,6 +74,9 @@ start_time = 4.5
     assert r1.robot.height == 1.2 and r1.robot.max_speed == 0.8
     assert r1.robot_actual.height == 1.2 and r1.robot_actual.max_speed == 0.7
     assert r2.robot == sc.robot and r2.robot_actual == sc.robot_actual and r2.start_time == 4.5
+    assert r1.park is None and r2.park is None
+    parked = loads(text(robots='[[robots]]\nname = "r1"\ntasks = [0]\npark = "C"'), source="f.toml")
+    assert parked.robots[0].park == "C"
     assert [m.height for m in sc.markers] == [None, 0.3]
 
 
@@ -93,6 +96,11 @@ start_time = 4.5
     ('[[robots]]\nname = "r"\ntasks = [0]\n[robots.actual]\nheight = 500.0',
      r"robots\[0\]\.actual\.height: expected a number <= 20"),
     ('[[robots]]\nname = "r"\ntasks = [true]', r"robots\[0\]\.tasks: expected a non-empty list"),
+    ('[[robots]]\nname = "r"\ntasks = [0]\npark = "Z"',
+     r'robots\[0\]\.park: expected a dock name \(A, B, C\), got "Z"'),
+    ('[[robots]]\nname = "r"\ntasks = [0]\npark = "B"',
+     r"robots\[0\]\.park: expected a dock other than 'B', where the robot's last task ends"),
+    ('[[robots]]\nname = "r"\ntasks = [0]\npark = 3', r"robots\[0\]\.park: expected a string, got 3"),
 ])
 def test_bad_robots_name_file_key_and_value(robots, pattern):
     with pytest.raises(ScenarioError, match=pattern):
@@ -114,3 +122,21 @@ def test_builtin_fleet_loads():
     sc = load("warehouse-fleet")
     assert [r.name for r in sc.robots] == ["r1", "r2", "r3"]
     assert all(m.height is not None and m.height < sc.robot.height for m in sc.markers)
+
+
+def test_builtin_hall_fleet_is_the_hall_its_generator_writes():
+    # the 120 x 80 m hall of the benchmarks with six robots trading docks, most with two tasks
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    spec = importlib.util.spec_from_file_location("hall_scenario", root / "benchmarks" / "hall_scenario.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    assert (root / "scenarios" / "library" / "hall-fleet.toml").read_text() == gen.hall_fleet_toml()
+    sc = load("hall-fleet")
+    assert sc.workspace.size == (120.0, 80.0) and len(sc.robots) == 6
+    assert sum(len(r.tasks) > 1 for r in sc.robots) >= 3
+    starts = {sc.tasks[r.tasks[0]].start for r in sc.robots}
+    ends = {sc.tasks[r.tasks[-1]].goal for r in sc.robots}
+    assert len(starts & ends) >= 2      # robots end on docks others start from: they trade docks

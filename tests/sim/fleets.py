@@ -151,3 +151,113 @@ tasks = [1]
 name = "r3"
 tasks = [2]
 """
+
+# One corridor (y = 2, between a wall block to the north and the workspace's south wall) from a
+# west dock W to an east dock E; r1 starts at M1 on the corridor and ends at M2 on it, r0 drives
+# W -> E 15 s later; a dock P at the end of a spur north of the corridor, a dock Q on the
+# corridor where the spur leaves it.
+_CORRIDOR = """
+seed = 5
+[workspace]
+size = [20.0, 8.0]
+[[obstacles]]
+center = [7.5, 5.75]
+size = [15.0, 4.5]
+[[obstacles]]
+center = [18.75, 5.75]
+size = [2.5, 4.5]
+[[markers]]
+id = "SW"
+position = [0.0, 0.0]
+height = 0.3
+[[markers]]
+id = "S1"
+position = [7.0, 0.0]
+height = 0.3
+[[markers]]
+id = "S2"
+position = [13.0, 0.0]
+height = 0.3
+[[markers]]
+id = "SE"
+position = [20.0, 0.0]
+height = 0.3
+[[markers]]
+id = "N1"
+position = [4.0, 3.5]
+height = 0.3
+[[markers]]
+id = "N2"
+position = [11.0, 3.5]
+height = 0.3
+[[markers]]
+id = "PW"
+position = [15.0, 6.0]
+height = 0.3
+[[markers]]
+id = "PE"
+position = [17.5, 6.0]
+height = 0.3
+[[markers]]
+id = "PN"
+position = [16.25, 8.0]
+height = 0.3
+[[markers]]
+id = "W"
+position = [0.0, 2.0]
+height = 0.3
+[[markers]]
+id = "E"
+position = [20.0, 2.0]
+height = 0.3
+[sensor]
+[robot]
+[planning]
+eps_max = 0.05
+resolution = 0.2
+[[docks]]
+name = "W"
+node = "W"
+[[docks]]
+name = "E"
+node = "E"
+[[docks]]
+name = "M1"
+node = "M1"
+[[docks]]
+name = "M2"
+node = "M2"
+[[docks]]
+name = "Q"
+node = "j"
+[[docks]]
+name = "P"
+node = "P"
+yaw_deg = 90.0
+[routes]
+nodes = { W = [1.0, 2.0], M1 = [6.0, 2.0], M2 = [12.0, 2.0], j = [16.25, 2.0], E = [19.0, 2.0], P = [16.25, 6.5] }
+segments = [["W", "M1"], ["M1", "M2"], ["M2", "j"], ["j", "E"], ["j", "P"]]
+[[tasks]]
+from = "W"
+to = "E"
+[[tasks]]
+from = "M1"
+to = "M2"
+[[robots]]
+name = "r0"
+tasks = [0]
+start_time = 15.0
+[[robots]]
+name = "r1"
+tasks = [1]
+"""
+
+#: A robot that finishes on the only corridor another drives later: r1 M1 -> M2, r0 W -> E 15 s later.
+#: Waiting, no robot can move: the planner picks P (Q is nearer but on r0's path).
+CORRIDOR = _CORRIDOR.replace("seed = 5", 'name = "corridor"\nseed = 5')
+#: ``CORRIDOR`` with r1's parking place P named: it drives M1 -> M2, then on to P, out of r0's way.
+PARKED = CORRIDOR.replace('name = "corridor"', 'name = "parked"').replace(
+    'name = "r1"\ntasks = [1]', 'name = "r1"\ntasks = [1]\npark = "P"')
+#: ``CORRIDOR`` without the dock P: no parking place to name or pick.
+NOWHERE = CORRIDOR.replace('name = "corridor"', 'name = "nowhere"').replace(
+    '[[docks]]\nname = "P"\nnode = "P"\nyaw_deg = 90.0\n', '')

@@ -17,6 +17,7 @@ import pytest
 from planner.fleet.zones import DEFAULT_MARGIN, ZoneControl, predict_timeline
 from scenarios.errors import PlanningError
 from tests.planner.fleet.zone_runs import (
+    CLEAR,
     DEVIATION,
     RADIUS,
     floor,
@@ -25,11 +26,8 @@ from tests.planner.fleet.zone_runs import (
     polyline,
     random_fleet,
     run_abstract,
+    timings,
 )
-
-TRIALS = 30
-# Held footprints are disjoint and each robot is within DEVIATION of a held sample (test_deadlock_search)
-CLEAR = 2.0 * (RADIUS + DEFAULT_MARGIN) - 2.0 * DEVIATION
 
 # r1 W -> E by the north aisle while r2 E -> W by the south one: each starts on the other's final dock
 SWAP = [polyline((0, 5), (2, 5), (3, 8), (17, 8), (18, 5), (20, 5)),
@@ -64,11 +62,6 @@ def plan(paths, starts):
     assert zc.dock_conflict is not None   # the old rule refused every one of these fleets
     tls = predict_timeline(zc, [kinematics(p) for p in paths], starts, dt=0.05)
     return tls, zc.precedence()
-
-
-def timings(rng: np.random.Generator, n: int):
-    """TRIALS draws of speeds [m/s] and start times [s] for n robots."""
-    return [(list(rng.uniform(0.3, 1.5, n)), list(rng.uniform(0.0, 40.0, n))) for _ in range(TRIALS)]
 
 
 @pytest.mark.parametrize("case", sorted(CASES))

@@ -31,6 +31,10 @@ GOAL_TOLERANCE = PurePursuit.goal_tolerance
 #: Farthest a robot stands from the held sample nearest it [m]: STOP_MARGIN at a stop, the goal
 #: tolerance at its dock, half a spacing while it drives.
 DEVIATION = max(STOP_MARGIN, GOAL_TOLERANCE, SPACING / 2)
+#: Closest two robots driven by :func:`run_abstract` may come [m]: held footprints are disjoint and
+#: each robot is within DEVIATION of a held sample.
+CLEAR = 2.0 * (RADIUS + DEFAULT_MARGIN) - 2.0 * DEVIATION
+TRIALS = 30          # timings drawn per fleet by :func:`timings`
 
 
 def polyline_of(pts) -> np.ndarray:
@@ -159,6 +163,11 @@ def run_abstract(zc: ZoneControl, speeds, starts) -> tuple[bool, float, str]:
             return False, closest, still
         t += DT
     return True, closest, ""
+
+
+def timings(rng: np.random.Generator, n: int) -> list[tuple[list[float], list[float]]]:
+    """TRIALS draws of speeds [m/s] (0.3-1.5) and start times [s] (0-40) for n robots: timings no plan saw."""
+    return [(list(rng.uniform(0.3, 1.5, n)), list(rng.uniform(0.0, 40.0, n))) for _ in range(TRIALS)]
 
 
 def polyline(*pts: tuple[float, float]) -> np.ndarray:
