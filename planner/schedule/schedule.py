@@ -516,7 +516,7 @@ class _Memo:
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
-    """``a`` made read-only (shared between attempts)."""
+    """Make ``a`` read-only and return it (shared between attempts)."""
     a.flags.writeable = False
     return a
 
