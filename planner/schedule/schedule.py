@@ -483,9 +483,9 @@ class _Memo:
     The rungs of the ladder differ in ``eps_max`` only: each rung's attempt at the planned speeds
     samples the same track, scores the same subsets and (with ``prove``) bounds the same promises
     from below. Each is a function of the path, the speeds, the sampling and the PEF, none of
-    ``eps_max``; the arrays are kept read-only, so an attempt cannot change what the next reads.
-    One entry: a slowed attempt's speeds are new, and an entry holds a few (C, n) arrays (tens
-    of MB on the hall).
+    ``eps_max`` (the scenarios of one :func:`make_schedule` differ in nothing else); the arrays
+    are kept read-only, so an attempt cannot change what the next reads. One entry: a slowed
+    attempt's speeds are new, and an entry holds two (C, n) arrays (~12 MB on the hall).
     """
 
     def __init__(self):
