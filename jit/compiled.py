@@ -469,9 +469,6 @@ def _check_on_load(module_name: str) -> None:
         cache = getattr(obj, "_cache", None)
         if cache is None or not hasattr(cache, "cache_path") or "load_overload" in vars(cache):
             continue  # not cached (numba's null cache), or armed already
-        if not callable(getattr(type(cache), "load_overload", None)):
-            _flush_stale(obj)  # a numba that reads its cache otherwise: check now, as before
-            continue
 
         def load_overload(*args, _obj=obj, _cache=cache, **kwargs):
             vars(_cache).pop("load_overload", None)  # numba's own method from now on
