@@ -17,11 +17,10 @@ the old code. :func:`keep_fresh`, called at the end of a module that defines cac
 keys each of them on the sources of every module whose kernels it reaches, or whose constants
 it reads (found from the names its code uses, transitively): when their hash differs from the one
 stored beside the cache, the kernel's cache is flushed, and numba compiles it afresh on first use.
+For a module of :class:`Kernel` objects this happens in :func:`jit`, when they become dispatchers.
 
-The check of a kernel runs as numba first looks for it in its cache (its first call, or the first
-compilation of a kernel that calls it), so a command hashes the sources of the kernels it runs, not
-of every kernel its modules define: a few source files per kernel. Where the cache directory cannot
-be written numba does not cache either, and nothing is stored.
+It costs one hash of a few source files per module. Where the cache directory cannot be written
+numba does not cache either, and nothing is stored.
 
 The first run on a machine compiles every kernel it calls (tens of seconds for a whole episode);
 :func:`announce_compiles` makes a program say so on stderr as the first compilation starts (how
@@ -176,7 +175,7 @@ def jit() -> None:
                 if type(value) is Kernel:
                     names[name] = swap[id(value)]
         for name in _fresh_pending:
-            _check_on_load(name)
+            _flush_stale(name)
         _fresh_pending.clear()
 
 
@@ -438,61 +437,39 @@ def _digest(files: list[Path]) -> str:
 
 
 def keep_fresh(module_name: str) -> None:
-    """Flush the cache of every cached kernel of a module whose inlined sources changed, before numba reads it.
+    """Flush the cache of every cached kernel of a module whose inlined sources changed.
 
     Parameters
     ----------
     module_name : str
         ``__name__`` of the calling module (call it after the module's kernels are defined).
-        Each kernel is checked as numba first reads its cache (:func:`_check_on_load`); kernels of
-        :func:`njit` once they are numba dispatchers (:func:`jit`).
+        Kernels of :func:`njit` are checked when they become numba dispatchers (:func:`jit`).
     """
     with _lock:
         if not _jitted and any(type(v) is Kernel for v in vars(sys.modules[module_name]).values()):
             _fresh_pending.append(module_name)
             return
-    _check_on_load(module_name)
+    _flush_stale(module_name)
 
 
-def _check_on_load(module_name: str) -> None:
-    """Make each cached dispatcher of a module run :func:`_flush_stale` before numba first reads its cache.
-
-    numba's dispatcher reads its cache (``load_overload`` of its cache object) under numba's
-    compiler lock, on a signature it has not compiled in this process: before its first call
-    runs, and before a kernel that calls it compiles. The check, shadowing that method on the
-    one cache object, runs there once and removes itself; a kernel no command runs is never
-    hashed.
-    """
-    for obj in list(vars(sys.modules[module_name]).values()):
+def _flush_stale(module_name: str) -> None:
+    module = sys.modules[module_name]
+    for obj in list(vars(module).values()):
         if not (_is_dispatcher(obj) and obj.__module__ == module_name):
             continue
         cache = getattr(obj, "_cache", None)
-        if cache is None or not hasattr(cache, "cache_path") or "load_overload" in vars(cache):
-            continue  # not cached (numba's null cache), or armed already
-
-        def load_overload(*args, _obj=obj, _cache=cache, **kwargs):
-            vars(_cache).pop("load_overload", None)  # numba's own method from now on
-            _flush_stale(_obj)
-            return _cache.load_overload(*args, **kwargs)
-
-        cache.load_overload = load_overload
-
-
-def _flush_stale(obj) -> None:
-    """Flush the cache of a cached dispatcher whose inlined sources changed since its stamp."""
-    cache = obj._cache
-    files = inlined_sources(obj)
-    if not files:
-        return  # inlines nothing: numba's own key is enough
-    digest = _digest(files)
-    stamp = Path(cache.cache_path) / f"{obj.__module__}.{obj.py_func.__qualname__}{_STAMP_SUFFIX}"
-    try:
-        if stamp.read_text() == digest:
-            return
-    except OSError:
-        pass
-    cache.flush()
-    try:
-        stamp.write_text(digest)
-    except OSError:
-        pass  # a read-only tree: numba cannot cache here either
+        files = inlined_sources(obj)
+        if not files or cache is None or not hasattr(cache, "cache_path"):
+            continue  # not cached, or inlines nothing: numba's own key is enough
+        digest = _digest(files)
+        stamp = Path(cache.cache_path) / f"{module_name}.{obj.py_func.__qualname__}{_STAMP_SUFFIX}"
+        try:
+            if stamp.read_text() == digest:
+                continue
+        except OSError:
+            pass
+        cache.flush()
+        try:
+            stamp.write_text(digest)
+        except OSError:
+            pass  # a read-only tree: numba cannot cache here either

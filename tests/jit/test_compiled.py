@@ -108,45 +108,6 @@ def test_every_module_whose_cached_kernels_inline_others_keeps_them_fresh():
     assert missing == []
 
 
-TWO_CALLERS = textwrap.dedent("""\
-    import callee
-    from jit import compiled
-
-
-    @compiled.njit(cache=True)
-    def g(x):
-        return 2.0 * callee.f(x)
-
-
-    @compiled.njit(cache=True)
-    def h(x):
-        return 3.0 * callee.f(x)
-    """)
-
-
-def test_only_the_kernels_a_program_runs_are_hashed(tmp_path):
-    """The freshness check of a kernel runs as numba reads its cache: ``g`` runs, ``h`` never does.
-
-    A stamp is written by the check only (a kernel that inlines a callee); the control is ``g``'s,
-    and an edit of the callee still reaches ``g``, and then ``h`` when it first runs.
-    """
-    (tmp_path / "callee.py").write_text(LAZY_CALLEE.format(add=1.0))
-    (tmp_path / "two.py").write_text(TWO_CALLERS + "\n\ncompiled.keep_fresh(__name__)\n")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
-
-    def run(call: str) -> float:
-        out = subprocess.run([sys.executable, "-c", f"import two; print(two.{call}(1.0))"], cwd=tmp_path, env=env,
-                             capture_output=True, text=True, timeout=120, check=True)
-        return float(out.stdout)
-
-    assert run("g") == 4.0
-    stamps = sorted(p.name for p in tmp_path.glob("__pycache__/*.inlined"))
-    assert stamps == ["two.g.inlined"]
-    (tmp_path / "callee.py").write_text(LAZY_CALLEE.format(add=2.0))
-    assert (run("g"), run("h")) == (6.0, 9.0)
-    assert sorted(p.name for p in tmp_path.glob("__pycache__/*.inlined")) == ["two.g.inlined", "two.h.inlined"]
-
-
 CONSTANTS = "LIMIT = {value}\n"
 CONSTANT_READER = textwrap.dedent("""\
     import constants
