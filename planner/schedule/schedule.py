@@ -287,13 +287,14 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
     s_v = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
     allowed = SLOWDOWN_SHARE * Kinematics(s_v, v).t_v[-1]
     ladder = rungs(eps_max, floor)
+    memo = _Memo()  # what the rungs' attempts at the same speeds share (_Memo)
     failed = None
     at_speed = {}  # each rung's failure at speed, where computed: the slow-down search's first attempt
     # at the planned speed first: one attempt a rung, no slow-downs (module docstring)
     for rung in ladder:
         try:
             return _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
-                                 heading_error, increment, block, block_limit, protect, slow=False)
+                                 heading_error, increment, block, block_limit, protect, slow=False, memo=memo)
         except PlanningError as exc:
             failed = exc
             if not isinstance(exc, _Proven):
@@ -303,7 +304,8 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
         try:
             sched = _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
                                   heading_error, increment, block, block_limit, protect,
-                                  beat=None if slow is None else slow.slowdown_time, first=at_speed.get(rung))
+                                  beat=None if slow is None else slow.slowdown_time, first=at_speed.get(rung),
+                                  memo=memo)
         except PlanningError as exc:
             failed = exc
             continue
@@ -360,7 +362,7 @@ def rungs(eps_max: float, floor: float) -> list[float]:
 
 def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, k_sigma, heading_error, increment,
                   block, block_limit, protect, slow: bool = True, beat: float | None = None,
-                  first: PlanningError | None = None) -> Schedule:
+                  first: PlanningError | None = None, memo: _Memo | None = None) -> Schedule:
     """Return the schedule of :func:`make_schedule` for the bound ``scenario.planning.eps_max`` alone.
 
     With ``slow`` False the drive keeps the planned speeds ``v``: the first stretch without a
@@ -371,7 +373,7 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
     it could still find would slow the drive by at least ``beat``, and :func:`make_schedule`
     would not take it. ``first``: what the attempt at the planned speeds ``v`` raised before (an
     attempt is a function of its arguments; the ladder at speed made it), raised again instead
-    of making it again.
+    of making it again. ``memo``: shared with the other rungs' searches (:class:`_Memo`).
     """
     sensor, robot = scenario.sensor, scenario.robot
     fix_time = k * sensor.measurement_time
@@ -394,7 +396,7 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
             if first is not None and v_try is v:
                 raise first
             sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
-                             t_planned, block, block_limit, protect, prove=not slow)
+                             t_planned, block, block_limit, protect, prove=not slow, memo=memo)
             return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
         except StretchError as exc:
             if not slow:
@@ -453,8 +455,74 @@ def _avoid(levels: promise.Levels, risky: np.ndarray, limit: float) -> promise.L
     return levels.map(edit)
 
 
+@dataclass
+class _Static:
+    """What an attempt at given speeds computes before its bound ``eps_max`` enters.
+
+    Attributes
+    ----------
+    tr : Track
+        The samples of the path at those speeds.
+    subsets : list of tuple of int
+        Candidate marker subsets (C).
+    tau_s : ndarray, shape (C, n)
+        The static PEF over each sample's fix stretch [m].
+    lower : ndarray, shape (C, n), or None
+        :func:`planner.schedule.promise.lower_levels` once computed [m].
+    """
+
+    tr: object
+    subsets: list
+    tau_s: np.ndarray
+    lower: np.ndarray | None = None
+
+
+class _Memo:
+    """The :class:`_Static` part of the last attempt of one :func:`make_schedule`, reused at the same speeds.
+
+    The rungs of the ladder differ in ``eps_max`` only: each rung's attempt at the planned speeds
+    samples the same track, scores the same subsets and (with ``prove``) bounds the same promises
+    from below. Each is a function of the path, the speeds, the sampling and the PEF, none of
+    ``eps_max`` (the scenarios of one :func:`make_schedule` differ in nothing else); the arrays
+    are kept read-only, so an attempt cannot change what the next reads. One entry: a slowed
+    attempt's speeds are new, and an entry holds two (C, n) arrays (~12 MB on the hall).
+    """
+
+    def __init__(self):
+        self._key = None
+        self._static: _Static | None = None
+
+    def static(self, pef, path, v, spacing, fix_time, gap, k) -> _Static:
+        key = (id(pef), path.tobytes(), np.asarray(v, dtype=float).tobytes(), spacing, fix_time, gap, k)
+        if self._static is not None and key == self._key:
+            return self._static
+        tr = sample_track(path, v, spacing, fix_time, gap, measurements=k)
+        n = len(tr.s)
+        subsets = _candidate_subsets(pef, tr.xy, k)
+        if not subsets:
+            tau = np.full((1, 2 * n), np.inf)
+            subsets = [tuple(range(k))]
+        else:
+            # tau at the samples and at the exact completion points of fixes started there
+            both = np.vstack([tr.xy, tr.xy_c])
+            tau = np.asarray(pef.tau_subset(both, np.asarray(subsets)), dtype=float)
+        tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
+        # the pef lives as long as the make_schedule call that holds this memo: its id is its own
+        for a in vars(tr).values():
+            if isinstance(a, np.ndarray):
+                _frozen(a)
+        self._key, self._static = key, _Static(tr, subsets, _frozen(tau_s))
+        return self._static
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """Make ``a`` read-only and return it (shared between attempts)."""
+    a.flags.writeable = False
+    return a
+
+
 def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, drift, t_planned,
-             block=None, block_limit=1.0, protect=True, prove=False) -> Schedule:
+             block=None, block_limit=1.0, protect=True, prove=False, memo: _Memo | None = None) -> Schedule:
     """One schedule at vertex speeds ``v``, or a :class:`StretchError` naming where none exists.
 
     With ``prove``, where lower bounds of the promises (:func:`planner.schedule.promise.lower_levels`)
@@ -463,26 +531,19 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     """
     sensor, eps = scenario.sensor, scenario.planning.eps_max
     fix_time = k * sensor.measurement_time
-    tr = sample_track(path, v, spacing, fix_time, gap, measurements=k)
+    static = (memo or _Memo()).static(pef, path, v, spacing, fix_time, gap, k)
+    tr, subsets, tau_s = static.tr, static.subsets, static.tau_s
     n = len(tr.s)
-    subsets = _candidate_subsets(pef, tr.xy, k)
-    if not subsets:
-        tau = np.full((1, 2 * n), np.inf)
-        subsets = [tuple(range(k))]
-    else:
-        # tau at the samples and at the exact completion points of fixes started there
-        both = np.vstack([tr.xy, tr.xy_c])
-        tau = np.asarray(pef.tau_subset(both, np.asarray(subsets)), dtype=float)
-    tau_s = _stretch_tau(tau[:, :n], tau[:, n:], tr.c_idx)  # the static PEF over each stretch
     limit = eps / (1.0 + promise.POLYGON_TOLERANCE)
     if prove and block is None and k == 2 and np.isfinite(tau_s).any():
         # With promises no smaller than these bounds every sample is usable at most where it is
         # here, and reaches at most as far (the search's windows shrink as a promise grows): if
         # the search fails on the bounds, it fails on the promises, at every speed level. (Bounds
         # of every visible subset: the sight check below only takes subsets out.)
+        if static.lower is None:
+            static.lower = _frozen(promise.lower_levels(scenario, subsets, tr, path, tau_s))
         try:
-            search(Windows(tr, drift, eps, gap), promise.lower_levels(scenario, subsets, tr, path, tau_s)[None],
-                   limit, k, policy, switch_tolerance)
+            search(Windows(tr, drift, eps, gap), static.lower[None], limit, k, policy, switch_tolerance)
         except PlanningError as exc:
             raise _Proven(str(exc)) from None
     # the map sees with the smallest pose bound the plan can certify (planner.pef.sight); the search
