@@ -21,10 +21,12 @@ schedule that avoids risky subsets without that test, and the unprotected exposu
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
 from planner.fleet import exposure
+from planner.fleet.sampled import sampled_drives
 from planner.fleet.zones import predict_timeline
 from planner.plan import Plan
 from planner.routes.smoothing import speed_profile
@@ -57,14 +59,18 @@ def _signature(plan: Plan) -> tuple:
     return tuple((round(f.s, 6), f.markers) for f in plan.schedule.fixes)
 
 
-def reschedule(scenario: Scenario, robot, own: Scenario, pef, tracks, i: int, limit: float
+def reschedule(scenario: Scenario, robot, own: Scenario, pef, tracks, i: int, limit: float, risk_of=None
                ) -> tuple[list[Plan], list[int]]:
-    """Schedule robot ``i``'s tasks anew against the others' ``tracks``; return them and the tasks left unprotected."""
+    """Schedule robot ``i``'s tasks anew against the others' ``tracks``; return them and the tasks left unprotected.
+
+    ``risk_of(i, offset)`` gives a task's ``block`` argument instead of :func:`planner.fleet.exposure.risk`
+    on ``tracks`` (a fleet with a declared spread: its sampled drives).
+    """
     plans, loose = [], []
     for q, (plan, off) in enumerate(zip(robot.plans, robot.offsets, strict=True)):
         cand = plan.candidates[plan.chosen]
         base = speed_profile(cand.path, own.robot)
-        block = exposure.risk(scenario, tracks, i, float(off))
+        block = exposure.risk(scenario, tracks, i, float(off)) if risk_of is None else risk_of(i, float(off))
         # the body's clearance holds at the new speeds too (slowed where it needs, as the plan was)
         try:
             sched = cleared_schedule(own, pef, cand.path.points, base, plan.start, plan.goal, block=block,
@@ -100,10 +106,15 @@ def plan_traffic(scenario: Scenario, robots: list, owns: list[Scenario], pefs: l
     rounds = 0
     for rounds in range(1, ROUNDS + 1):  # noqa: B007 (the count of rounds run is reported)
         tracks = exposure.tracks_of(robots)
+        risk_of = None
+        if exposure.declares_spread(robots):
+            # the spread's own draws through the fleet's zone gate: the model the prediction uses
+            drives = sampled_drives(scenario, robots)
+            risk_of = partial(exposure.risk_sampled, scenario, robots, drives)
         changed = False
         new = []
         for i, r in enumerate(robots):
-            plans, lost = reschedule(scenario, r, owns[i], pefs[i], tracks, i, limit)
+            plans, lost = reschedule(scenario, r, owns[i], pefs[i], tracks, i, limit, risk_of)
             loose[r.name] = lost
             changed |= [_signature(p) for p in plans] != [_signature(p) for p in r.plans]
             new.append(plans)

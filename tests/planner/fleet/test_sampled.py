@@ -39,6 +39,7 @@ def _fleet(jitter: float, marker_x: float = 0.0, b_start: float = 0.0):
     a = _robot("A", np.column_stack([np.linspace(-10.0, 10.0, 201), np.zeros(201)]), 0.0, 0.0, [fix])
     b = _robot("B", np.column_stack([np.linspace(0.0, 10.0, 101), np.full(101, 3.0)]), b_start, jitter)
     scenario = SimpleNamespace(seed=3, marker_positions=lambda: np.array([[marker_x, 6.0]]),
+                               sensor=SimpleNamespace(measurement_time=0.02, markers_per_fix=1),
                                marker_heights=lambda: np.array([0.3]))
     return scenario, [a, b]
 
