@@ -55,6 +55,7 @@ the simulation leaves its ``p_block_robot`` NaN and the ``blocking`` check count
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -122,6 +123,17 @@ class SampledBlocking:
     count_var: float = 0.0
 
 
+def _lerp(xs: list, ys: list, x: float) -> float:
+    """``np.interp`` of one scalar on lists (the drive's inner loop asks a few times a tick)."""
+    k = bisect.bisect_right(xs, x)
+    if k <= 0:
+        return ys[0]
+    if k >= len(xs):
+        return ys[-1]
+    x0, x1 = xs[k - 1], xs[k]
+    return ys[k - 1] + (ys[k] - ys[k - 1]) * ((x - x0) / (x1 - x0) if x1 > x0 else 0.0)
+
+
 def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], factors: Sequence[float],
                dwells: Sequence[np.ndarray], hold: float = 0.0, dt: float = DT, accel: float = FOLLOWER_MAX_ACCEL
                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -171,7 +183,9 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
         # cumulative turning at each sample: the turn at a vertex between its two segments
         theta = np.concatenate([[0.0], np.cumsum(turn), [turn.sum()]])[:len(r.s)]
         u = np.maximum.accumulate(np.asarray(r.s, float) - CORNER_GAIN * theta)
-        driven.append(u + 1e-9 * np.arange(len(u)))
+        driven.append((u + 1e-9 * np.arange(len(u))).tolist())
+    path_s = [np.asarray(r.s, float).tolist() for r in robots]
+    speeds = [np.asarray(r.speed, float).tolist() for r in robots]
     u_now = [0.0] * n
     first_on_dock = [any(len(p.schedule.fixes) and p.schedule.fixes[0].s <= 1e-9 for p in r.plans[:1])
                      for r in robots]
@@ -208,7 +222,7 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
                     zones.stand(i)
                 rows[i].append((t + dt, s[i], True))
                 continue
-            ref = min(float(np.interp(s[i], r.s, r.speed)) * factors[i], r.robot.max_speed,
+            ref = min(_lerp(path_s[i], speeds[i], s[i]) * factors[i], r.robot.max_speed,
                       math.sqrt(1.6 * accel * max(end - s[i] - GOAL_TOLERANCE, 0.0)))
             ref = max(ref, 0.02)
             cmd = min(max(ref, v[i] - accel * dt), v[i] + accel * dt)
@@ -216,9 +230,9 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
             new = min(cmd, cap)
             if new > 0.0:
                 room = zones.reserved_to(i) - STOP_MARGIN if math.isfinite(cap) else end
-                u_room = float(np.interp(room, r.s, driven[i]))
+                u_room = _lerp(path_s[i], driven[i], room)
                 u_now[i] = max(u_now[i], min(u_now[i] + 0.5 * (v[i] + new) * dt, u_room))
-                s[i] = float(np.interp(u_now[i], driven[i], r.s))
+                s[i] = _lerp(driven[i], path_s[i], u_now[i])
             v[i] = new
             rows[i].append((t + dt, s[i], new == 0.0))
         t += dt
@@ -243,9 +257,19 @@ def _zones(robots: Sequence, order, record: bool = False) -> ZoneControl:
                        after=order, record=record)
 
 
-def _stand_bound(r, s: np.ndarray) -> np.ndarray:
-    """Bound on where robot ``r`` standing at arc length(s) ``s`` is [m]: on its start dock, elsewhere."""
-    return np.where(s <= 0.0, DOCK_BOUND, tracking_bound(r.path, r.s, r.speed, s) + STAND_BACK)
+def _path_bounds(robots: Sequence) -> list[np.ndarray]:
+    """Each robot's tracking bound at its path's samples [m] (:func:`planner.schedule.promise.tracking_bound`)."""
+    return [tracking_bound(r.path, r.s, r.speed, np.asarray(r.s, float)) for r in robots]
+
+
+def _stand_bound(r, bound: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Bound on where robot ``r`` standing at arc length(s) ``s`` is [m]: on its start dock, elsewhere.
+
+    ``bound``: its tracking bound at its path's samples (:func:`_path_bounds`); between two samples
+    the larger of the two.
+    """
+    k = np.clip(np.searchsorted(r.s, s), 1, len(r.s) - 1)
+    return np.where(s <= 0.0, DOCK_BOUND, np.maximum(bound[k - 1], bound[k]) + STAND_BACK)
 
 
 def _at(t: np.ndarray, s: np.ndarray, stand: np.ndarray, when: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -288,10 +312,12 @@ def _hold(scenario) -> float:
 class SampledDrives:
     """The fleet's drives in D draws of its declared spread (:func:`drive_draw`), for the schedule's risk.
 
-    ``drives[n][i]`` is robot i's (t, s, stand) in draw n.
+    ``drives[n][i]`` is robot i's (t, s, stand) in draw n; ``bounds[i]`` its tracking bound at its
+    path's samples.
     """
 
     drives: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]
+    bounds: list[np.ndarray]
 
 
 def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> SampledDrives:
@@ -299,7 +325,7 @@ def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> Sampl
     order = _order(robots)
     hold = _hold(scenario)
     return SampledDrives([drive_draw(robots, _zones(robots, order), st, f, dw, hold=hold)
-                          for st, f, dw in _timings(scenario, robots, draws)])
+                          for st, f, dw in _timings(scenario, robots, draws)], _path_bounds(robots))
 
 
 def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: np.ndarray, xy: np.ndarray,
@@ -352,7 +378,7 @@ def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: n
             dist = np.hypot(*(w - uu[:, None] * dvec).T).reshape(len(s), len(low))
             sd = np.where(still, STAND_SD, POS_SD)[:, None]
             cover = ndtr((r_j.robot.radius - dist) / sd)
-            band = (g_i + _stand_bound(r_j, s_place))[:, None]
+            band = (g_i + _stand_bound(r_j, drives.bounds[j], s_place))[:, None]
             cover = np.where(still[:, None] & (np.abs(dist - r_j.robot.radius) < band), 1.0, cover)
             keep *= 1.0 - np.where(some, cover, 0.0)
         free += keep
@@ -381,6 +407,7 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS) -> SampledBl
     order = _order(robots)
     timing = _timings(scenario, robots, draws)
     hold = _hold(scenario)
+    bounds = _path_bounds(robots)
     # the fixes of each robot: arc length, rays, and the bound on the measuring robot's offset
     fixes = []
     for r in robots:
@@ -442,7 +469,7 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS) -> SampledBl
                 cover = np.where(some, ndtr((robots[j].robot.radius - dist) / sd), 0.0)
                 free_r *= 1.0 - cover
                 free_f *= 1.0 - cover.max(axis=1)
-                band = (g_i + _stand_bound(robots[j], s_place))[:, None]
+                band = (g_i + _stand_bound(robots[j], bounds[j], s_place))[:, None]
                 und |= still & np.any(some & (np.abs(dist - robots[j].robot.radius) < band), axis=1)
             free_ray[i][n], free_fix[i][n], undecided[i][n] = free_r, free_f, und
     share = [u.mean(axis=0) for u in undecided]
