@@ -11,7 +11,11 @@ on the run's stream, as the simulation draws them), and compared with the episod
 * ``pos``: at every logged step, the distance between the model's robot and the simulated one [m];
 * ``waits``: each zone wait longer than 1 s in the episode (the robot's speed below 3 mm/s between
   its first and last move) against the model's wait that overlaps it: where (distance [m]) and how
-  long (model minus simulation [s]); waits in one but not the other are counted (``unmatched``).
+  long (model minus simulation [s]); waits in one but not the other are counted (``unmatched``);
+* ``counts``: per run, the fixes the plan decided (``p_block_robot`` not NaN) that a robot hid in
+  the episode, against the model's expected count with that run's own draws
+  (:func:`planner.fleet.sampled.predict_sampled` given them): their totals, and how much of the
+  runs' spread about the plan's expected count (the same in every run) the run's own draws explain.
 
 The plan is made anew from the sweep's ``scenario.toml`` (as ``validate --from`` does). Nothing is
 written.
@@ -34,8 +38,9 @@ def _table(path, columns) -> types.SimpleNamespace:
     return types.SimpleNamespace(**{c: tab.column(c).to_numpy(zero_copy_only=False) for c in columns})
 
 
-def _stops(t: np.ndarray, moving: np.ndarray, standing: np.ndarray, min_len: float = 1.0) -> list[tuple[float, float, int]]:
-    """Stretches (start, end, first index) where ``standing`` holds for over ``min_len`` s between the first and last move."""
+def _stops(t: np.ndarray, moving: np.ndarray, standing: np.ndarray, min_len: float = 1.0
+           ) -> list[tuple[float, float, int]]:
+    """Stretches (start, end, first index) ``standing`` holds over ``min_len`` s, between the first and last move."""
     mv = np.flatnonzero(moving)
     out = []
     if len(mv) == 0:
@@ -70,6 +75,9 @@ def main() -> None:
     robots = prepare_fleet(sc).plan.robots
     order = sampled._order(robots)
     fix_dt, pos, place, longer, unmatched, matched = [], [], [], [], 0, 0
+    observed, own, plan_e = [], [], []
+    decided = [~r.blocking.undecided if r.blocking.undecided is not None else np.ones(len(r.blocking.p_fix), bool)
+               for r in robots]
     for run in range(args.runs):
         ss = np.random.SeedSequence(sc.seed, spawn_key=(run,))
         starts, factors, dwells = [], [], []
@@ -81,7 +89,13 @@ def main() -> None:
         model = sampled.drive_draw(robots, sampled._zones(robots, order), starts, factors, dwells,
                                    hold=sampled._hold(sc))
         steps = _table(sweep / "steps" / f"run-{run:06d}.parquet", ["t", "true_x", "true_y", "robot"])
-        fixes = _table(sweep / "fixes" / f"run-{run:06d}.parquet", ["t", "true_x", "true_y", "robot"])
+        fixes = _table(sweep / "fixes" / f"run-{run:06d}.parquet",
+                       ["t", "true_x", "true_y", "robot", "p_block_robot", "blocked_by_robot_count"])
+        with_p = np.isfinite(fixes.p_block_robot.astype(float))
+        observed.append(int(np.sum(with_p & (fixes.blocked_by_robot_count > 0))))
+        plan_e.append(float(np.sum(fixes.p_block_robot[with_p])))
+        mine = sampled.predict_sampled(sc, robots, timing=[(starts, factors, dwells)])
+        own.append(float(sum(p[m].sum() for p, m in zip(mine.p_fix, decided, strict=True))))
         for i, r in enumerate(robots):
             tm, sm, stm = model[i]
             m = steps.robot == r.name
@@ -117,21 +131,31 @@ def main() -> None:
             unmatched += sum(1 for c, e, _ in mod_stops if not any(a < e and b > c for a, b, _ in sim_stops))
     pos = np.concatenate(pos)
     q = [50, 90, 95, 99]
+    observed, own, plan_e = np.asarray(observed, float), np.asarray(own), np.asarray(plan_e)
+    counts = {"observed": int(observed.sum()), "own_draws": round(float(own.sum()), 1),
+              "plan": round(float(plan_e.sum()), 1),
+              "residual_var_own": round(float(np.var(observed - own)), 2),
+              "residual_var_plan": round(float(np.var(observed - plan_e)), 2)}
     out = {"runs": args.runs,
            "fix_dt_percentiles": dict(zip(map(str, [1, 5, 50, 95, 99]),
-                                          np.round(np.percentile(fix_dt, [1, 5, 50, 95, 99]), 3).tolist(), strict=True)),
+                                          np.round(np.percentile(fix_dt, [1, 5, 50, 95, 99]), 3).tolist(),
+                                          strict=True)),
            "fix_dt_mean": round(float(np.mean(fix_dt)), 3), "fixes": len(fix_dt),
            "pos_percentiles": dict(zip(map(str, q), np.round(np.percentile(pos, q), 3).tolist(), strict=True)),
            "waits_matched": matched, "waits_unmatched": unmatched,
            "wait_place_max": round(max(place), 3) if place else None,
            "wait_longer_in_model": {"mean": round(float(np.mean(longer)), 3) if longer else None,
                                     "min": round(min(longer), 3) if longer else None,
-                                    "max": round(max(longer), 3) if longer else None}}
+                                    "max": round(max(longer), 3) if longer else None},
+           "counts": counts}
     print(f"{args.runs} runs: scheduled fixes {len(fix_dt)}, model minus simulation time: median "
           f"{out['fix_dt_percentiles']['50']:+.2f} s, 5-95 % {out['fix_dt_percentiles']['5']:+.2f} .. "
           f"{out['fix_dt_percentiles']['95']:+.2f} s; robots apart (m) p50/p90/p95/p99 {out['pos_percentiles']}; "
           f"waits {matched} matched (places within {out['wait_place_max']} m, model longer by "
-          f"{out['wait_longer_in_model']}), {unmatched} unmatched")
+          f"{out['wait_longer_in_model']}), {unmatched} unmatched; hidden decided fixes {counts['observed']}, "
+          f"the model with each run's own draws {counts['own_draws']}, the plan {counts['plan']}; variance of "
+          f"observed minus expected per run {counts['residual_var_own']} (own draws) against "
+          f"{counts['residual_var_plan']} (the plan's)")
     print(json.dumps(out))
 
 

@@ -371,7 +371,8 @@ def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: n
             a, dvec, some = segs[j]
             t_j, s_j, stand_j = run[j]
             s_place, still = _at(t_j, s_j, stand_j, when)
-            place = np.column_stack([np.interp(s_place, r_j.s, r_j.path[:, 0]), np.interp(s_place, r_j.s, r_j.path[:, 1])])
+            place = np.column_stack([np.interp(s_place, r_j.s, r_j.path[:, 0]),
+                                     np.interp(s_place, r_j.s, r_j.path[:, 1])])
             w = np.repeat(place, len(low), axis=0) - a
             L2 = np.einsum("qi,qi->q", dvec, dvec)
             uu = np.clip(np.einsum("qi,qi->q", w, dvec) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
@@ -386,7 +387,8 @@ def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: n
     return out
 
 
-def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS) -> SampledBlocking:
+def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS, timing: Sequence | None = None
+                    ) -> SampledBlocking:
     """Predict every scheduled fix's blocking from the declared spread's draws (module docstring).
 
     Parameters
@@ -397,6 +399,9 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS) -> SampledBl
         The planned fleet, each with its ``declared`` ``[[robots]]`` table.
     draws : int
         Draws of the spread.
+    timing : sequence of (starts, factors, dwells), optional
+        Given draws instead (each robot's release [s], speed factor and dwells [s]): e.g. one run's
+        own, to set the model against that run (``benchmarks/fleet_timelines.py``).
 
     Returns
     -------
@@ -405,7 +410,8 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS) -> SampledBl
     n_rob = len(robots)
     m_pos, h = scenario.marker_positions(), scenario.marker_heights()
     order = _order(robots)
-    timing = _timings(scenario, robots, draws)
+    timing = _timings(scenario, robots, draws) if timing is None else list(timing)
+    draws = len(timing)
     hold = _hold(scenario)
     bounds = _path_bounds(robots)
     # the fixes of each robot: arc length, rays, and the bound on the measuring robot's offset

@@ -31,8 +31,8 @@ from planner.fleet.zones import predict_timeline
 from planner.plan import Plan
 from planner.routes.smoothing import speed_profile
 from planner.schedule.clearance import ClearanceError, cleared_schedule
-from planner.schedule.search import StretchError
 from planner.schedule.pathtime import Kinematics
+from planner.schedule.search import StretchError
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 

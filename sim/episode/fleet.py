@@ -53,6 +53,7 @@ from sim.episode.follower import SPEED, YAW_RATE
 from sim.episode.outcome import longest_run, wait_bound, wait_cycles
 from sim.episode.types import FleetResult, RobotResult
 
+
 @dataclass
 class FleetPrepared:
     """What a fleet episode needs that does not depend on its seed: the fleet's plans and the PEF."""

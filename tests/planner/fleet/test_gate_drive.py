@@ -51,7 +51,8 @@ def _drive(fleet, zones):
 def _closest(fleet, runs) -> float:
     t = np.union1d(runs[0][0], runs[1][0])
     xy = [np.column_stack([np.interp(np.interp(t, tt, ss), r.s, r.path[:, 0]),
-                           np.interp(np.interp(t, tt, ss), r.s, r.path[:, 1])]) for r, (tt, ss, _) in zip(fleet, runs)]
+                           np.interp(np.interp(t, tt, ss), r.s, r.path[:, 1])])
+          for r, (tt, ss, _) in zip(fleet, runs, strict=True)]
     return float(np.hypot(*(xy[0] - xy[1]).T).min())
 
 
