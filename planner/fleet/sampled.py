@@ -22,17 +22,21 @@ near dock F that r1 hides there in one run in ten were predicted never hidden.) 
 * leaves ``start_time + U J`` (plus the standstill fix on its dock) and is commanded its path
   follower's speed: its planned speed times f, braked for its task's end as the follower brakes,
   changed by at most :data:`planner.schedule.promise.FOLLOWER_MAX_ACCEL` per second: the ramp from
-  rest at each start and after each zone wait comes out of it;
+  rest at each start and after each zone wait comes out of it; it gains :data:`CORNER_GAIN` of
+  arc length per radian its path turns, as the follower cuts the corners;
 * stands its dwell at each dock between two tasks, and on its final dock once there;
 * stands where the gate stops it while it waits.
 
-Against the 200 episodes of that sweep, each run's own draws driven at :data:`DT`: the model's
-robots are within 1-3 cm of the simulated ones half the time (0.2-0.7 m at the 95th percentile, where
-one ramps up a few tenths of a second before the other), wait at the same places to the centimetre
-and 0.4-0.8 s longer (``benchmarks/blocking_calibration.py``, docs/benchmarks.md).
+Against that sweep's episodes, each run's own draws driven at :data:`DT`
+(``benchmarks/fleet_timelines.py``, first 40 runs): the model's robots are within 0.4 cm of the
+simulated ones half the time and 0.15 m at the 95th percentile (0.63 m before the follower's corner
+cutting was modelled, :data:`CORNER_GAIN`), each scheduled fix 0.11 s early in the median (5-95 %
+-0.29 .. +0.02 s), and every zone wait of the episodes is one of the model's, at the same place
+within 1.5 cm, -0.18 .. +0.30 s as long (docs/benchmarks.md, ``fleet_timelines``).
 
 The measurement schedule's risk comes from the same draws (:func:`sampled_risk`,
-:mod:`planner.fleet.traffic`), so that a fix the spread leaves likely hidden gets a fallback.
+:mod:`planner.fleet.traffic`), so that a fix the spread leaves likely hidden gets a fallback where
+one exists (a stretch where none does is left unprotected, and the plan says so).
 
 Robot i measures fix f when its drive reaches the fix's arc length; robot j then covers the fix's
 ray q with probability ``Phi((r_j - d_q) / sd)``, d_q the distance of j's centre to the ray's low
