@@ -44,7 +44,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.fleet import timing as fleet_timing
-from planner.fleet.gate import BRAKE, LOOKAHEAD, RELEASE_SLACK, STOP_MARGIN, WAIT_SPEED, zone_cap  # noqa: F401 (the gate's constants, read here by tests)
+from planner.fleet.gate import zone_cap
 from planner.fleet.plan import FleetPlan, FleetRobotPlan, plan_fleet, zones_of
 from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode.drive import check_markers, seed_sequence
