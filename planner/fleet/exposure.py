@@ -23,7 +23,7 @@ from planner.fleet.blocking import (
     tie,
     traffic_probability,
 )
-from planner.fleet.sampled import UNDECIDED, predict_sampled
+from planner.fleet.sampled import UNDECIDED, SampledDrives, predict_sampled, sampled_risk
 from planner.fleet.timing import declared_model
 from scenarios.schema import Scenario
 
@@ -209,7 +209,36 @@ def risk(scenario: Scenario, tracks: list[Track], i: int, offset: float,
     return block
 
 
-def _declares_spread(robots: Sequence) -> bool:
+def risk_sampled(scenario: Scenario, robots: Sequence, drives: SampledDrives, i: int, offset: float
+                 ) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """Make the ``block`` argument of the schedule for robot i's task from its fleet's sampled drives.
+
+    As :func:`risk`, for a fleet that declares a timing spread: the robots' blocking from the
+    spread's own draws driven through the fleet's zone gate (:func:`planner.fleet.sampled.sampled_risk`,
+    the model the plan's prediction and the ``blocking`` check use), traffic that is not simulated
+    as :func:`marker_risk` has it.
+    """
+    cache: dict[bytes, np.ndarray] = {}
+    h = _heights(scenario)
+    tops = max(r.robot.height for r in robots)
+
+    def block(s: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, float)
+        key = s.tobytes()
+        if key not in cache:
+            p = sampled_risk(scenario, robots, drives, i, offset + s, xy, scenario.planning.eps_max)
+            low = np.flatnonzero(np.isfinite(h))
+            dens = _segment_density(scenario, xy)
+            if len(low) and np.any(dens > 0):
+                traffic = traffic_probability(np.repeat(dens, len(low)), np.tile(h[low], len(s)), tops)
+                p[low] = 1.0 - (1.0 - p[low]) * (1.0 - traffic.reshape(len(s), len(low)).T)
+            cache[key] = p
+        return cache[key]
+
+    return block
+
+
+def declares_spread(robots: Sequence) -> bool:
     """Whether the fleet declares a timing spread (every robot its ``[[robots]]`` table, one a spread)."""
     declared = [getattr(r, "declared", None) for r in robots]
     return all(d is not None for d in declared) and any(
@@ -225,7 +254,7 @@ def predict(scenario: Scenario, robots: Sequence, tracks: list[Track] | None = N
     whose blocking hinges on the tracking errors (``RobotBlocking.undecided``); otherwise from the
     Gaussian lag model of :mod:`planner.fleet.blocking`.
     """
-    sampled = predict_sampled(scenario, robots) if tracks is None and timing is None and _declares_spread(robots) \
+    sampled = predict_sampled(scenario, robots) if tracks is None and timing is None and declares_spread(robots) \
         else None
     tracks = tracks_of(robots, timing) if tracks is None else tracks
     m_pos, h = scenario.marker_positions(), _heights(scenario)

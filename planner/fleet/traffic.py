@@ -21,20 +21,30 @@ schedule that avoids risky subsets without that test, and the unprotected exposu
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
 from planner.fleet import exposure
+from planner.fleet.sampled import sampled_drives
 from planner.fleet.zones import predict_timeline
 from planner.plan import Plan
 from planner.routes.smoothing import speed_profile
 from planner.schedule.clearance import ClearanceError, cleared_schedule
 from planner.schedule.pathtime import Kinematics
+from planner.schedule.search import StretchError
 from scenarios.errors import PlanningError
 from scenarios.schema import Scenario
 
 ROUNDS = 3
 """Most rounds of re-scheduling against the others' timelines."""
+EXEMPT_TRIES = 4
+"""Most schedules tried for one task of a fleet with a declared spread, each exempting from the risk
+the stretches where the last found no protected schedule (:func:`reschedule`)."""
+EXEMPT_REACH = 0.5
+"""How far either side of a stretch without a protected schedule the exemption reaches [m]: the
+search names the sample where the error ran out; the fixes that could have served it lie within
+a few fix gaps (0.2 m at 1 m/s and 5 Hz) before it."""
 BLOCK_SHARE = 0.5
 """Share of the plan's failure budget ``1 - montecarlo.success_target`` one fix's blocking may take."""
 
@@ -57,24 +67,57 @@ def _signature(plan: Plan) -> tuple:
     return tuple((round(f.s, 6), f.markers) for f in plan.schedule.fixes)
 
 
-def reschedule(scenario: Scenario, robot, own: Scenario, pef, tracks, i: int, limit: float
+def _exempting(block, stretches: list[tuple[float, float]]):
+    """``block`` with no risk within EXEMPT_REACH of ``stretches`` (arc lengths of the task [m])."""
+    if not stretches:
+        return block
+
+    def masked(s: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        p = np.array(block(s, xy), dtype=float, copy=True)
+        s = np.asarray(s, float)
+        for a, b in stretches:
+            p[:, (s >= a - EXEMPT_REACH) & (s <= b + EXEMPT_REACH)] = 0.0
+        return p
+
+    return masked
+
+
+def reschedule(scenario: Scenario, robot, own: Scenario, pef, tracks, i: int, limit: float, risk_of=None
                ) -> tuple[list[Plan], list[int]]:
-    """Schedule robot ``i``'s tasks anew against the others' ``tracks``; return them and the tasks left unprotected."""
+    """Schedule robot ``i``'s tasks anew against the others' ``tracks``; return them and the tasks left unprotected.
+
+    ``risk_of(i, offset)`` gives a task's ``block`` argument instead of :func:`planner.fleet.exposure.risk`
+    on ``tracks`` (a fleet with a declared spread: its sampled drives). Such a fleet's task is not
+    left wholly unprotected where one stretch has no protected schedule: the stretches the search
+    names are exempted from the risk (planned as if no robot were near) and the rest protected,
+    up to EXEMPT_TRIES schedules; the task then counts as left unprotected.
+    """
     plans, loose = [], []
     for q, (plan, off) in enumerate(zip(robot.plans, robot.offsets, strict=True)):
         cand = plan.candidates[plan.chosen]
         base = speed_profile(cand.path, own.robot)
-        block = exposure.risk(scenario, tracks, i, float(off))
+        block = exposure.risk(scenario, tracks, i, float(off)) if risk_of is None else risk_of(i, float(off))
         # the body's clearance holds at the new speeds too (slowed where it needs, as the plan was)
-        try:
-            sched = cleared_schedule(own, pef, cand.path.points, base, plan.start, plan.goal, block=block,
-                                     block_limit=limit)
-        except ClearanceError:
-            raise
-        except PlanningError:
+        sched = None
+        tries = EXEMPT_TRIES if risk_of is not None else 1
+        exempt: list[tuple[float, float]] = []
+        for _ in range(tries):
+            try:
+                sched = cleared_schedule(own, pef, cand.path.points, base, plan.start, plan.goal,
+                                         block=_exempting(block, exempt), block_limit=limit)
+                break
+            except ClearanceError:
+                raise
+            except StretchError as exc:
+                # no protected schedule through these stretches: plan them as if no robot were near
+                exempt += [exc.stretch, *exc.more]
+            except PlanningError:
+                break
+        if sched is None or exempt:
+            loose.append(q)
+        if sched is None:
             sched = cleared_schedule(own, pef, cand.path.points, base, plan.start, plan.goal, block=block,
                                      block_limit=limit, protect=False)
-            loose.append(q)
         plans.append(replace(plan, speed=sched.speed, schedule=sched))
     return plans, loose
 
@@ -100,10 +143,15 @@ def plan_traffic(scenario: Scenario, robots: list, owns: list[Scenario], pefs: l
     rounds = 0
     for rounds in range(1, ROUNDS + 1):  # noqa: B007 (the count of rounds run is reported)
         tracks = exposure.tracks_of(robots)
+        risk_of = None
+        if exposure.declares_spread(robots):
+            # the spread's own draws through the fleet's zone gate: the model the prediction uses
+            drives = sampled_drives(scenario, robots)
+            risk_of = partial(exposure.risk_sampled, scenario, robots, drives)
         changed = False
         new = []
         for i, r in enumerate(robots):
-            plans, lost = reschedule(scenario, r, owns[i], pefs[i], tracks, i, limit)
+            plans, lost = reschedule(scenario, r, owns[i], pefs[i], tracks, i, limit, risk_of)
             loose[r.name] = lost
             changed |= [_signature(p) for p in plans] != [_signature(p) for p in r.plans]
             new.append(plans)

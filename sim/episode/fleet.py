@@ -44,6 +44,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.fleet import timing as fleet_timing
+from planner.fleet.gate import zone_cap
 from planner.fleet.plan import FleetPlan, FleetRobotPlan, plan_fleet, zones_of
 from scenarios import PlanningError, Scenario, SimulationError
 from sim.episode.drive import check_markers, seed_sequence
@@ -51,22 +52,6 @@ from sim.episode.driver import Mission, RobotDriver, advance, check_control_peri
 from sim.episode.follower import SPEED, YAW_RATE
 from sim.episode.outcome import longest_run, wait_bound, wait_cycles
 from sim.episode.types import FleetResult, RobotResult
-
-STOP_MARGIN = 0.05
-"""A robot aims to stop this far before the end of its reservation [m] (the follower's overshoot)."""
-RELEASE_SLACK = 0.1
-"""A robot releases the zones of its path up to this far behind its estimate [m]: its true
-position may trail the estimate's projection by the tracking error."""
-LOOKAHEAD = 0.5
-"""A robot asks for the floor this far beyond its braking distance [m], so that it rarely
-slows for a reservation it would have got."""
-BRAKE = 0.8
-"""Share of the follower's deceleration limit a zone stop uses (the follower brakes for its goal
-with the same share)."""
-WAIT_SPEED = 0.02
-"""A robot whose zone speed cap is below this [m/s] stands at the end of its reservation: it
-waits there, within ``STOP_MARGIN`` + 0.5 mm of its stop (a cap this low leaves ``0.02^2 / (2 BRAKE
-a)`` of room, a = 0.5 m/s^2), and holds the stop's cells alone (``margin`` of the zones covers the gap)."""
 
 
 @dataclass
@@ -118,24 +103,9 @@ class ZoneGate:
         return v, omega
 
     def _cap(self, d: RobotDriver, v: float, omega: float) -> tuple[float, float]:
-        zones, i = self.zones, self.i
-        s_glob = d.offset + d.s_now
-        zones.release(i, s_glob - RELEASE_SLACK)
-        a = d.follower.max_accel
-        brake = v * v / (2.0 * BRAKE * a)
-        zones.request(i, s_glob + brake + LOOKAHEAD)
-        if zones.reserved_to(i) >= zones.length(i):
-            # reserved to its final dock: the follower's own goal stop rules (compared as arc
-            # lengths: the room below and the way left summed in another order differed in the
-            # last bit, and a robot 5 cm short of its goal was held there for good)
-            d.body.park(False)
-            return v, omega
-        room = zones.reserved_to(i) - STOP_MARGIN - s_glob
-        cap = math.sqrt(2.0 * BRAKE * a * max(room, 0.0))
-        if cap < WAIT_SPEED:
-            # it stands at its stop, parked: the samples just before a stop need not be safe,
-            # and a waiting robot that held them could block the robot it waits for (zones.stand)
-            zones.stand(i)
+        cap = zone_cap(self.zones, self.i, d.offset + d.s_now, v, d.follower.max_accel)
+        if cap == 0.0:
+            # it stands at its stop, parked (planner.fleet.gate: it holds the stop's cells alone)
             d.body.park(True)
             d.waited += d.dt_ctrl
             d.waiting = True

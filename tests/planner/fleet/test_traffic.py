@@ -80,3 +80,24 @@ def test_the_fleet_density_pools_the_robots_fixes_over_their_lengths():
     near, far = fleet_density([robot(2.0, 4.0, 10, 20), robot(0.0, 6.0, 0, 10)])
     assert near == pytest.approx(5.0) and far == pytest.approx(3.0)
     assert math.isnan(fleet_density([robot(0.0, 6.0, 0, 10)])[0])
+
+
+def test_a_stretch_without_a_protected_schedule_is_exempted_alone():
+    """The risk is zeroed within EXEMPT_REACH of each named stretch and nowhere else.
+
+    A task of a fleet with a declared spread whose protected schedule fails on one stretch keeps
+    the risk (and so the protection) everywhere else. Negative control: with no stretch named the
+    risk is the block function's own.
+    """
+    import numpy as np
+
+    from planner.fleet.traffic import EXEMPT_REACH, _exempting
+
+    s = np.linspace(0.0, 10.0, 101)
+    xy = np.column_stack([s, np.zeros_like(s)])
+    block = lambda s_, xy_: np.full((3, len(s_)), 0.4)  # noqa: E731 (a stand-in risk)
+    got = _exempting(block, [(4.0, 4.2)])(s, xy)
+    inside = (s >= 4.0 - EXEMPT_REACH) & (s <= 4.2 + EXEMPT_REACH)
+    assert np.all(got[:, inside] == 0.0) and np.all(got[:, ~inside] == 0.4)
+    assert 0 < inside.sum() < len(s)
+    assert np.all(_exempting(block, [])(s, xy) == 0.4)   # the negative control

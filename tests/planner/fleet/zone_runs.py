@@ -15,11 +15,11 @@ import math
 
 import numpy as np
 
+from planner.fleet.gate import BRAKE, LOOKAHEAD, RELEASE_SLACK, STOP_MARGIN
 from planner.fleet.zones import DEFAULT_MARGIN, ZoneControl
 from planner.schedule.pathtime import Kinematics
 from scenarios.errors import PlanningError
 from scenarios.worlds import draw_world
-from sim.episode.fleet import BRAKE, LOOKAHEAD, RELEASE_SLACK, STOP_MARGIN
 from sim.episode.follower import PurePursuit
 
 SPACING = 0.05       # sample spacing of the paths [m] (the planner's are finer than 0.1 m)
