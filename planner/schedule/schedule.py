@@ -62,8 +62,11 @@ The bound searched for, and what ``eps_max`` does
     without computing them. Only when no rung has a schedule at speed are they searched
     again with slow-downs, in increasing order (each from its failure at speed): the first whose
     slow-downs cost at most :data:`SLOWDOWN_SHARE` of the planned time gives the schedule,
-    otherwise the one that slows the drive least (a rung's search stops once its speeds cost as
-    much as the least so far). The admissible set only grows with ``eps_max``, and a schedule at
+    otherwise the one that slows the drive least, the smaller rung on a tie. Each search first
+    stops once its speeds cost more than the allowance; the least slow-down is then searched from
+    the largest rung down, each search stopping once its speeds cost more than the least so far
+    (a search's cost only grows, so no schedule that could be chosen is missed, and a small rung
+    that crawls is cut after a few attempts). The admissible set only grows with ``eps_max``, and a schedule at
     speed stays the same; a schedule that had to slow down may give way, at a larger ``eps_max``, to
     one at speed with a larger promise (the paper's compromise between speed and accuracy).
 """
