@@ -51,6 +51,7 @@ from planner.pef import kernels as pef_kernels
 from planner.pef.gridtiles import parallelogram_grid
 from planner.pef.pointmemo import PointMemo, point_keys
 from planner.pef.result import PefMap, PefResult, grid_centres
+from planner.pef.subsetvalues import SubsetValues
 from planner.pef.visibility import scenario_sight_rule, scenario_visible_grid, scenario_visible_points, visible_points
 from scenarios.errors import PlanningError
 from scenarios.schema import PefModel, Scenario
@@ -59,8 +60,6 @@ from scenarios.schema import PefModel, Scenario
 EXACT_MARGIN = 1.5
 #: Most marker subsets a PEF scores per point (C(M, k)); the list alone takes 8 k bytes each.
 MAX_SUBSETS = 2_000_000
-#: Most exact (point, subset) values a PEF holds (:meth:`PEF.tau_subset`; ~150 bytes each).
-MAX_EXACT_VALUES = 1_000_000
 
 _KERNEL_MODEL = {PefModel.PARALLELOGRAM: pef_kernels.PARALLELOGRAM, PefModel.STRIPS: pef_kernels.STRIPS,
                  PefModel.GDOP: pef_kernels.GDOP}
@@ -342,6 +341,7 @@ class PEF:
                                      sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
                                      self.rule, bodies=self.markers)
         ids = self._exact_ids(pts)
+        self._exact_values()
         out = np.full((sub.shape[0], pts.shape[0]), np.inf)
         for i, row in enumerate(sub):
             seen = np.flatnonzero(vis_used[np.searchsorted(used, row)].all(axis=0))
@@ -357,29 +357,26 @@ class PEF:
 
         ``ids`` (N,): the points' numbers from :meth:`_exact_ids`. The value of a subset at a point
         is the clipping of its markers' fault area there, whoever asks (:meth:`at` for the best
-        subset, :meth:`tau_subset` for given ones): the values computed before are held.
+        subset, :meth:`tau_subset` for given ones): the values computed before are held
+        (:mod:`planner.pef.subsetvalues`; a call starts with :meth:`_exact_values`).
         """
+        local = np.arange(self.k, dtype=np.int64)
+
+        def clip(first: np.ndarray) -> np.ndarray:
+            at = rows[first]
+            return self._exact_subset(pts[at], np.ones((self.k, len(at)), dtype=bool), local, self.markers[subset])
+
+        return self._exact_values(begin=False).values(tuple(subset.tolist()), ids[rows], clip)
+
+    def _exact_values(self, begin: bool = True) -> SubsetValues:
+        """Return the store of exact values (numbered by :meth:`_exact_ids`'s memo); ``begin``: a call starts."""
         memo = self._memo("exact", 0.0)
-        values = getattr(self, "_exact_values", None)
-        if values is None or values[0] is not memo or values[1] != memo.epoch:  # the points renumbered
-            values = self._exact_values = (memo, memo.epoch, {})
-        table = values[2]
-        if len(table) > MAX_EXACT_VALUES:
-            table.clear()
-        tag = tuple(subset.tolist())
-        want = [(tag, i) for i in ids[rows].tolist()]
-        got = np.fromiter((table.get(w, np.nan) for w in want), dtype=float, count=len(want))
-        todo: dict[tuple, int] = {}
-        for q in np.flatnonzero(np.isnan(got)).tolist():
-            todo.setdefault(want[q], int(rows[q]))
-        if todo:
-            at = np.fromiter(todo.values(), dtype=np.int64, count=len(todo))
-            vis = np.ones((self.k, len(at)), dtype=bool)
-            local = np.arange(self.k, dtype=np.int64)
-            table.update(zip(todo, self._exact_subset(pts[at], vis, local, self.markers[subset]).tolist(),
-                             strict=True))
-            got = np.fromiter((table[w] for w in want), dtype=float, count=len(want))
-        return got
+        held = getattr(self, "_exact_store", None)
+        if held is None or held[0] is not memo or held[1] != memo.epoch:  # the points renumbered
+            held = self._exact_store = (memo, memo.epoch, SubsetValues())
+        if begin:
+            held[2].begin()
+        return held[2]
 
     # --- internals ----------------------------------------------------------------------------
 
@@ -474,6 +471,7 @@ class PEF:
         cand = np.isfinite(lin) & (lin <= self.exact_margin * best_lin)
         pts = np.column_stack([px, py])
         ids = self._exact_ids(pts)
+        self._exact_values()
         exact = np.full((n, nsub), np.inf)
         for s in range(nsub):
             # the candidates the subset is visible from (elsewhere inf without a clipping)

@@ -62,8 +62,11 @@ The bound searched for, and what ``eps_max`` does
     without computing them. Only when no rung has a schedule at speed are they searched
     again with slow-downs, in increasing order (each from its failure at speed): the first whose
     slow-downs cost at most :data:`SLOWDOWN_SHARE` of the planned time gives the schedule,
-    otherwise the one that slows the drive least (a rung's search stops once its speeds cost as
-    much as the least so far). The admissible set only grows with ``eps_max``, and a schedule at
+    otherwise the one that slows the drive least, the smaller rung on a tie. Each search first
+    stops once its speeds cost more than the allowance; the least slow-down is then searched from
+    the largest rung down, each search stopping once its speeds cost more than the least so far
+    (a search's cost only grows, so no schedule that could be chosen is missed, and a small rung
+    that crawls is cut after a few attempts). The admissible set only grows with ``eps_max``, and a schedule at
     speed stays the same; a schedule that had to slow down may give way, at a larger ``eps_max``, to
     one at speed with a larger promise (the paper's compromise between speed and accuracy).
 """
@@ -299,27 +302,53 @@ def make_schedule(scenario: Scenario, pef, path: np.ndarray, speed: np.ndarray |
             failed = exc
             if not isinstance(exc, _Proven):
                 at_speed[rung] = _bare(exc)
-    slow = None
+    # The slow-down searches give the first rung (in increasing order) whose schedule slows the
+    # drive by at most `allowed`, else the one that slows it least (the smallest rung on a tie).
+    # A search's slow-downs only grow attempt by attempt (_schedule_for's `beat`), so a search
+    # cut once its speeds cost more than `allowed` finds every such schedule; and where none
+    # has one, the least is searched from the largest rung down, each search cut once it costs
+    # more than the least so far: the small rungs, which crawl (seed 23's world 20: 5 mm with
+    # ever more of its 24 m halved, hundreds of attempts), are cut after a few attempts instead
+    # of searched to the end before the larger ones give them a bound to beat.
     for rung in ladder:
         try:
             sched = _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
-                                  heading_error, increment, block, block_limit, protect,
-                                  beat=None if slow is None else slow.slowdown_time, first=at_speed.get(rung),
-                                  memo=memo)
-        except PlanningError as exc:
-            failed = exc
+                                  heading_error, increment, block, block_limit, protect, beat=_past(allowed),
+                                  first=at_speed.get(rung), memo=memo)
+        except PlanningError:
             continue
         if sched.slowdown_time <= allowed:
             return sched
-        # if none plans within the allowance: the one that slows the drive least (the smallest
-        # rung on a tie); a smaller rung that crawls (paper-two-markers: +47 s for 2 mm against
-        # +0.6 s for 3 mm) is a worse plan, and its hundreds of slowed fixes left the filter
-        # overconfident
-        if slow is None or sched.slowdown_time < slow.slowdown_time:
+    # none plans within the allowance: the one that slows the drive least; a smaller rung that
+    # crawls (paper-two-markers: +47 s for 2 mm against +0.6 s for 3 mm) is a worse plan, and
+    # its hundreds of slowed fixes left the filter overconfident
+    slow = None
+    failed = None
+    for rung in reversed(ladder):
+        try:
+            sched = _schedule_for(_at(scenario, rung), pef, path, v, k, spacing, policy, switch_tolerance, k_sigma,
+                                  heading_error, increment, block, block_limit, protect,
+                                  beat=None if slow is None else _past(slow.slowdown_time),
+                                  first=at_speed.get(rung), memo=memo)
+        except PlanningError as exc:
+            # what is raised when no rung has a schedule: the largest rung's failure, searched
+            # without a bound (no schedule was found before it)
+            failed = exc if failed is None else failed
+            continue
+        if slow is None or sched.slowdown_time <= slow.slowdown_time:
             slow = sched
     if slow is not None:
         return slow
     raise failed
+
+
+def _past(t: float) -> float:
+    """Return a search's ``beat`` [s] that lets it find every schedule slowing the drive by at most ``t`` [s].
+
+    A little more than ``t``: the cut compares the speeds' slow-down, the choice the schedule's,
+    each summed its own way; cutting later only costs an attempt or two, never an answer.
+    """
+    return t * (1.0 + 1e-9) + 1e-9
 
 
 def _at(scenario: Scenario, rung: float) -> Scenario:
@@ -392,15 +421,22 @@ def _schedule_for(scenario, pef, path, v, k, spacing, policy, switch_tolerance, 
         if beat is not None and v_try is not v and not Kinematics(s_v, v_try).t_v[-1] - t_planned < beat:
             raise PlanningError(f"schedule: slowed by {Kinematics(s_v, v_try).t_v[-1] - t_planned:.3g} s, "
                                 f"not less than the {beat:.3g} s of the schedule already found")
+        tried = None
         try:
             if first is not None and v_try is v:
                 raise first
-            sched = _attempt(scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift,
-                             t_planned, block, block_limit, protect, prove=not slow, memo=memo)
+            tried = None if memo is None or not slow else memo.tried(scenario.planning.eps_max, v_try)
+            sched = tried.outcome() if tried is not None and tried.known else _attempt(
+                scenario, pef, path, v_try, spacing, k, gap, policy, switch_tolerance, drift, t_planned, block,
+                block_limit, protect, prove=not slow, memo=memo)
+            if tried is not None:
+                tried.keep(sched)
             return sched if v_try is v else _mark_slowed(sched, s_v, v, v_try)
         except StretchError as exc:
             if not slow:
                 raise
+            if tried is not None:
+                tried.keep(_bare(exc))
             slower, moved = v_try, False
             for stretch in (exc.stretch, *exc.more):
                 cand = _slow_stretch(s_v, slower, stretch, scenario.planning.min_fix_speed)
@@ -491,6 +527,16 @@ class _Memo:
     def __init__(self):
         self._key = None
         self._static: _Static | None = None
+        self._tried: dict[tuple, _Tried] = {}
+
+    def tried(self, eps: float, v: np.ndarray) -> _Tried:
+        """Return the outcome of the slow-down attempt for bound ``eps`` [m] at vertex speeds ``v`` [m/s].
+
+        An attempt is a function of the bound and the speeds (the rest is fixed within one
+        :func:`make_schedule`): the searches of the allowance and of the least slow-down
+        (:func:`make_schedule`) make the same attempts again.
+        """
+        return self._tried.setdefault((float(eps), np.asarray(v, dtype=float).tobytes()), _Tried())
 
     def static(self, pef, path, v, spacing, fix_time, gap, k) -> _Static:
         key = (id(pef), path.tobytes(), np.asarray(v, dtype=float).tobytes(), spacing, fix_time, gap, k)
@@ -513,6 +559,24 @@ class _Memo:
                 _frozen(a)
         self._key, self._static = key, _Static(tr, subsets, _frozen(tau_s))
         return self._static
+
+
+class _Tried:
+    """What one slow-down attempt gave: its schedule or its :class:`StretchError` once :attr:`known`."""
+
+    def __init__(self):
+        self.known = False
+        self._outcome: Schedule | StretchError | None = None
+
+    def keep(self, outcome: Schedule | StretchError) -> None:
+        """Hold the attempt's schedule, or its error (without its traceback: :func:`_bare`)."""
+        self.known, self._outcome = True, outcome
+
+    def outcome(self) -> Schedule:
+        """Return the schedule held, or raise the error held."""
+        if isinstance(self._outcome, StretchError):
+            raise self._outcome
+        return self._outcome
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -330,3 +330,82 @@ def test_a_slow_down_search_gives_up_only_where_its_schedule_would_not_be_taken(
     monkeypatch.setattr(schedule_module, "Kinematics", _FourTimes)
     # it gives up at 1.5 x the schedule's own slow-down, which make_schedule would have taken
     assert _pruned_outcomes(sc, pef, path, fast, [1.5 * full])[1.5 * full] is None, "cannot fail"
+
+
+def _one_by_one(sc, pef, path, v):
+    """make_schedule's slow-down searches as they were: rungs in increasing order, each cut only by the least so far.
+
+    Returns the schedule (or the error) and the number of attempts; the rungs here have no
+    schedule at speed, so the at-speed ladder is left out (its failures are re-made, not reused).
+    """
+    from planner.pef.sight import estimate_floor
+    from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA
+    from planner.schedule.pathtime import Kinematics
+    from planner.schedule.schedule import SLOWDOWN_SHARE, _at, _schedule_for, rungs
+
+    s_v = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    allowed = SLOWDOWN_SHARE * Kinematics(s_v, v).t_v[-1]
+    tau = pef.at(path).tau
+    floor = max(estimate_floor(sc.sensor) * (1.0 + POLYGON_TOLERANCE), float(np.max(tau)))
+    slow, failed = None, None
+    for rung in rungs(sc.planning.eps_max, floor):
+        try:
+            sched = _schedule_for(_at(sc, rung), pef, path, v, 2, None, "often", 0.2, K_SIGMA, 0.0,
+                                  DEFAULT_INCREMENT, None, 1.0, True,
+                                  beat=None if slow is None else slow.slowdown_time)
+        except PlanningError as exc:
+            failed = exc
+            continue
+        if sched.slowdown_time <= allowed:
+            return sched
+        if slow is None or sched.slowdown_time < slow.slowdown_time:
+            slow = sched
+    if slow is None:
+        raise failed
+    return slow
+
+
+def _counted(monkeypatch, fn, *args):
+    """Return ``fn(*args)`` and the slow-down attempts it made."""
+    from planner.schedule import schedule as schedule_module
+
+    n = [0]
+    attempt = schedule_module._attempt
+
+    def counting(*a, **kw):
+        n[0] += not kw.get("prove", False)
+        return attempt(*a, **kw)
+
+    monkeypatch.setattr(schedule_module, "_attempt", counting)
+    out = fn(*args)
+    monkeypatch.setattr(schedule_module, "_attempt", attempt)
+    return out, n[0]
+
+
+def test_the_least_slow_down_is_searched_from_the_largest_rung_with_the_same_answer(warehouse, monkeypatch):
+    """The slow-down searches give the schedule the rungs searched one by one in increasing order give.
+
+    The warehouse's A-C at 6 m/s has no schedule at speed; the 20 mm rung's search crawls (a
+    ~476 s slow-down), the 30 mm one slows by ~12 s, the 50 mm one by ~4 s, none within the
+    allowance. Searched from the largest rung down (each cut once it costs more than the least
+    so far), the 20 mm rung is cut after a few attempts: the same schedule, compared whole
+    (fixes, speeds, errors: exact, no tolerance), from fewer attempts.
+
+    Negative control: the first rung's schedule (what searching in increasing order without
+    the least-slow-down rule returns) differs from the one chosen, so the comparison can fail.
+    """
+    sc, pef = warehouse
+    sc = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.05))
+    path = route(sc, ["A", "C"])
+    fast = np.full(len(path), 6.0)
+    want, n_old = _counted(monkeypatch, _one_by_one, sc, pef, path, fast)
+    got, n_new = _counted(monkeypatch, make_schedule, sc, pef, path, fast)
+    assert repr(got) == repr(want) and got.speed.tobytes() == want.speed.tobytes()
+    assert got.slowdown_time > 0.0
+    assert n_new < n_old, (n_new, n_old)
+    from planner.schedule.drift import DEFAULT_INCREMENT, K_SIGMA
+    from planner.schedule.schedule import _at, _schedule_for
+
+    first = _schedule_for(_at(sc, 0.02), pef, path, fast, 2, None, "often", 0.2, K_SIGMA, 0.0, DEFAULT_INCREMENT,
+                          None, 1.0, True)
+    assert repr(first) != repr(got), "the first rung's schedule is the one chosen: the test could not fail"
