@@ -160,8 +160,11 @@ def test_test_modules_share_helpers_not_each_other():
 
 
 def test_no_benchmark_script_is_named_like_a_package():
-    """``python benchmarks/NAME.py`` puts ``benchmarks/`` first on sys.path: a script named like one
-    of our packages shadows it in every other script (``benchmarks/planner.py`` broke ``physics.py``)."""
+    """No benchmark script is named like one of our packages.
+
+    ``python benchmarks/NAME.py`` puts ``benchmarks/`` first on sys.path: a script named like one
+    of our packages shadows it in every other script (``benchmarks/planner.py`` broke ``physics.py``).
+    """
     bench = {p.stem for p in (ROOT / "benchmarks").glob("*.py")}
     packages = {p.parent.name for p in ROOT.glob("*/__init__.py")}
     assert {"planner", "sim", "scenarios"} <= packages

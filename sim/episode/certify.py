@@ -26,7 +26,7 @@ _CHUNK = 1 << 20
 
 
 def heading_quantum(robot: RobotSpec) -> float:
-    """The odometry's heading resolution [rad]: one encoder tick of one wheel over the wheel base."""
+    """Return the odometry's heading resolution [rad]: one encoder tick of one wheel over the wheel base."""
     return 2.0 * np.pi * robot.wheel_radius / robot.encoder_ticks / robot.wheel_base
 
 

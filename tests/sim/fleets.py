@@ -110,8 +110,19 @@ name = "N"
 node = "N"
 yaw_deg = 90.0
 [routes]
-nodes = { W = [1.5, 5.0], E = [14.5, 5.0], N = [11.0, 9.25], wm = [3.0, 5.0], em = [13.0, 5.0], sw = [3.0, 2.0], se = [13.0, 2.0], nw = [3.0, 8.5], n = [11.0, 8.5], ne = [13.0, 8.5] }
-segments = [["W", "wm"], ["wm", "sw"], ["wm", "nw"], ["sw", "se"], ["se", "em"], ["em", "E"], ["nw", "n"], ["n", "ne"], ["ne", "em"], ["n", "N"]]
+segments = [["W", "wm"], ["wm", "sw"], ["wm", "nw"], ["sw", "se"], ["se", "em"], ["em", "E"], ["nw", "n"],
+            ["n", "ne"], ["ne", "em"], ["n", "N"]]
+[routes.nodes]
+W = [1.5, 5.0]
+E = [14.5, 5.0]
+N = [11.0, 9.25]
+wm = [3.0, 5.0]
+em = [13.0, 5.0]
+sw = [3.0, 2.0]
+se = [13.0, 2.0]
+nw = [3.0, 8.5]
+n = [11.0, 8.5]
+ne = [13.0, 8.5]
 """
 
 #: Two robots trading docks: r1 W -> E while r2 E -> W (one aisle each).
