@@ -44,6 +44,7 @@ def zone_cap(zones, i: int, s: float, v: float, accel: float) -> float:
     Parameters
     ----------
     zones : planner.fleet.zones.ZoneControl
+        The fleet's zone control (robot ``i``'s reservation is updated in place).
     i : int
         The robot.
     s : float
@@ -63,6 +64,8 @@ def zone_cap(zones, i: int, s: float, v: float, accel: float) -> float:
     zones.request(i, s + v * v / (2.0 * BRAKE * accel) + LOOKAHEAD)
     end = zones.reserved_to(i)
     if end >= zones.length(i):
+        # compared as arc lengths, not as room left: the room and the way left, summed in another
+        # order, differed in the last bit, and a robot 5 cm short of its goal was held there for good
         return math.inf
     cap = math.sqrt(2.0 * BRAKE * accel * max(end - STOP_MARGIN - s, 0.0))
     if cap < WAIT_SPEED:

@@ -187,6 +187,8 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
         # cumulative turning at each sample: the turn at a vertex between its two segments
         theta = np.concatenate([[0.0], np.cumsum(turn), [turn.sum()]])[:len(r.s)]
         u = np.maximum.accumulate(np.asarray(r.s, float) - CORNER_GAIN * theta)
+        # strictly increasing (the running maximum holds u flat along a sharp turn), so that _lerp
+        # back from driven distance to arc length has one answer; 1e-9 m per sample moves no place
         driven.append((u + 1e-9 * np.arange(len(u))).tolist())
     path_s = [np.asarray(r.s, float).tolist() for r in robots]
     speeds = [np.asarray(r.speed, float).tolist() for r in robots]
@@ -257,6 +259,7 @@ def _order(robots: Sequence) -> list[np.ndarray] | None:
 
 
 def _zones(robots: Sequence, order, record: bool = False) -> ZoneControl:
+    """Return a fresh zone control of the fleet's paths, kept in ``order`` (:func:`_order`) where given."""
     return ZoneControl([r.path for r in robots], [r.robot.radius for r in robots], [r.name for r in robots],
                        after=order, record=record)
 
