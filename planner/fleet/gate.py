@@ -32,6 +32,9 @@ with the same share)."""
 GOAL_TOLERANCE = 0.05
 """The path follower's goal tolerance [m] (``sim.episode.follower.PurePursuit.goal_tolerance``): a
 robot is done with a task within it of the task's end, and stands there."""
+CREEP_SPEED = 0.02
+"""The path follower's least commanded speed short of its goal [m/s] (``sim.episode.follower``: it
+creeps rather than stall within a rounding of its goal tolerance)."""
 WAIT_SPEED = 0.02
 """A robot whose zone speed cap is below this [m/s] stands at the end of its reservation: it
 waits there, within ``STOP_MARGIN`` + 0.5 mm of its stop (a cap this low leaves ``0.02^2 / (2 BRAKE

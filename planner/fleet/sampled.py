@@ -68,7 +68,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from planner.fleet.blocking import POS_SD, STAND_BACK, STAND_SD, low_segment
-from planner.fleet.gate import GOAL_TOLERANCE, STOP_MARGIN, zone_cap
+from planner.fleet.gate import BRAKE, CREEP_SPEED, GOAL_TOLERANCE, STOP_MARGIN, zone_cap
 from planner.fleet.zones import ZoneControl, predict_timeline
 from planner.schedule.pathtime import Kinematics
 from planner.schedule.promise import FOLLOWER_MAX_ACCEL, tracking_bound
@@ -146,7 +146,7 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
     Each control tick of ``dt`` every robot in index order (as the simulation's robots tick) is
     commanded its path follower's speed: the planned speed at its place times its factor (at most
     its ``max_speed``), at most the speed from which it stops within the goal tolerance at its
-    task's end (the follower's ``sqrt(1.6 a d)``, creeping at 0.02 m/s), and changed by at most
+    task's end (the follower's ``sqrt(2 BRAKE a d)``, creeping at ``CREEP_SPEED``), and changed by at most
     ``a dt`` from the last; the zone gate (:func:`planner.fleet.gate.zone_cap`, the simulation's
     own rule) then releases behind it, requests ahead and caps it, or has it stand at its stop.
     Its arc length advances by the mean of the two ticks' speeds (exact for a constant
@@ -229,8 +229,8 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
                 rows[i].append((t + dt, s[i], True))
                 continue
             ref = min(_lerp(path_s[i], speeds[i], s[i]) * factors[i], r.robot.max_speed,
-                      math.sqrt(1.6 * accel * max(end - s[i] - GOAL_TOLERANCE, 0.0)))
-            ref = max(ref, 0.02)
+                      math.sqrt(2.0 * BRAKE * accel * max(end - s[i] - GOAL_TOLERANCE, 0.0)))
+            ref = max(ref, CREEP_SPEED)
             cmd = min(max(ref, v[i] - accel * dt), v[i] + accel * dt)
             cap = zone_cap(zones, i, s[i], cmd, accel)
             new = min(cmd, cap)
