@@ -327,12 +327,22 @@ class SampledDrives:
     bounds: list[np.ndarray]
 
 
-def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> SampledDrives:
-    """Drive the fleet in ``draws`` draws of its declared spread (the first of :func:`predict_sampled`'s)."""
+def drive_timings(scenario, robots: Sequence, timing: Sequence
+                  ) -> list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    """Drive the fleet (:func:`drive_draw`) once per given draw of its timing, through fresh zones each time.
+
+    ``timing``: per draw, each robot's release [s], speed factor and dwells [s] (as
+    :func:`predict_sampled`'s ``timing``). Returns per draw, per robot, (t, s, stand) as
+    :func:`drive_draw` does.
+    """
     order = _order(robots)
     hold = _hold(scenario)
-    return SampledDrives([drive_draw(robots, _zones(robots, order), st, f, dw, hold=hold)
-                          for st, f, dw in _timings(scenario, robots, draws)], _path_bounds(robots))
+    return [drive_draw(robots, _zones(robots, order), st, f, dw, hold=hold) for st, f, dw in timing]
+
+
+def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> SampledDrives:
+    """Drive the fleet in ``draws`` draws of its declared spread (the first of :func:`predict_sampled`'s)."""
+    return SampledDrives(drive_timings(scenario, robots, _timings(scenario, robots, draws)), _path_bounds(robots))
 
 
 def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: np.ndarray, xy: np.ndarray,
