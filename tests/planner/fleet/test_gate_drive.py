@@ -78,7 +78,7 @@ def test_a_robot_waits_where_the_gate_stops_it_and_the_two_never_touch():
     assert abs(arrive_a - _alone()) < SLACK, arrive_a
     # B's wait: standing between its start and its end, short of the crossing (y = s - 10)
     waiting = wb & (sb > 0.0) & (sb < fleet[1].s[-1] - GOAL_TOLERANCE)
-    assert waiting.sum() * 0.05 > 1.0
+    assert waiting.sum() * DT > 1.0
     y_wait = sb[waiting] - 10.0
     assert np.ptp(y_wait) < 1e-9                                    # one place, held still
     gap = -float(y_wait[0])
