@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/fleet_timelines.py SWEEP_DIR [--runs 40]``; the last line is JSON. The
 sweep must be of a fleet with a declared timing spread, recorded with ``--steps all``. For each
-run the model (:func:`planner.fleet.sampled.drive_draw`, the fleet driven kinematically through
+run the model (:func:`planner.fleet.sampled.drive_timings`, the fleet driven kinematically through
 its zone gate) is driven with that run's own draws of the spread (:func:`planner.fleet.timing.draw`
 on the run's stream, as the simulation draws them), and compared with the episode:
 
@@ -73,7 +73,6 @@ def main() -> None:
     sweep = Path(args.sweep)
     sc = scenarios.load(sweep / "scenario.toml")
     robots = prepare_fleet(sc).plan.robots
-    order = sampled._order(robots)
     fix_dt, pos, place, longer, unmatched, matched = [], [], [], [], 0, 0
     observed, own, plan_e = [], [], []
     decided = [~r.blocking.undecided if r.blocking.undecided is not None else np.ones(len(r.blocking.p_fix), bool)
@@ -86,8 +85,7 @@ def main() -> None:
             starts.append(fr.start_time + d.release_delay)
             factors.append(d.speed_factor)
             dwells.append(np.asarray(d.dwell, float))
-        model = sampled.drive_draw(robots, sampled._zones(robots, order), starts, factors, dwells,
-                                   hold=sampled._hold(sc))
+        model = sampled.drive_timings(sc, robots, [(starts, factors, dwells)])[0]
         steps = _table(sweep / "steps" / f"run-{run:06d}.parquet", ["t", "true_x", "true_y", "robot"])
         fixes = _table(sweep / "fixes" / f"run-{run:06d}.parquet",
                        ["t", "true_x", "true_y", "robot", "p_block_robot", "blocked_by_robot_count"])

@@ -216,7 +216,10 @@ def risk_sampled(scenario: Scenario, robots: Sequence, drives: SampledDrives, i:
     As :func:`risk`, for a fleet that declares a timing spread: the robots' blocking from the
     spread's own draws driven through the fleet's zone gate (:func:`planner.fleet.sampled.sampled_risk`,
     the model the plan's prediction and the ``blocking`` check use), traffic that is not simulated
-    as :func:`marker_risk` has it.
+    as :func:`marker_risk` has it. ``drives``: :func:`planner.fleet.sampled.sampled_drives` of
+    ``robots``; ``offset``: where the task's path begins along robot i's whole path [m]. The returned
+    function maps the task's arc lengths (n,) [m] and positions (n, 2) [m] to the probability per
+    marker (M, n).
     """
     cache: dict[bytes, np.ndarray] = {}
     h = _heights(scenario)

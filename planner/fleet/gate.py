@@ -32,6 +32,9 @@ with the same share)."""
 GOAL_TOLERANCE = 0.05
 """The path follower's goal tolerance [m] (``sim.episode.follower.PurePursuit.goal_tolerance``): a
 robot is done with a task within it of the task's end, and stands there."""
+CREEP_SPEED = 0.02
+"""The path follower's least commanded speed short of its goal [m/s] (``sim.episode.follower``: it
+creeps rather than stall within a rounding of its goal tolerance)."""
 WAIT_SPEED = 0.02
 """A robot whose zone speed cap is below this [m/s] stands at the end of its reservation: it
 waits there, within ``STOP_MARGIN`` + 0.5 mm of its stop (a cap this low leaves ``0.02^2 / (2 BRAKE
@@ -44,6 +47,7 @@ def zone_cap(zones, i: int, s: float, v: float, accel: float) -> float:
     Parameters
     ----------
     zones : planner.fleet.zones.ZoneControl
+        The fleet's zone control (robot ``i``'s reservation is updated in place).
     i : int
         The robot.
     s : float
@@ -63,6 +67,8 @@ def zone_cap(zones, i: int, s: float, v: float, accel: float) -> float:
     zones.request(i, s + v * v / (2.0 * BRAKE * accel) + LOOKAHEAD)
     end = zones.reserved_to(i)
     if end >= zones.length(i):
+        # compared as arc lengths, not as room left: the room and the way left, summed in another
+        # order, differed in the last bit, and a robot 5 cm short of its goal was held there for good
         return math.inf
     cap = math.sqrt(2.0 * BRAKE * accel * max(end - STOP_MARGIN - s, 0.0))
     if cap < WAIT_SPEED:

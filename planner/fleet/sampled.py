@@ -68,7 +68,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from planner.fleet.blocking import POS_SD, STAND_BACK, STAND_SD, low_segment
-from planner.fleet.gate import GOAL_TOLERANCE, STOP_MARGIN, zone_cap
+from planner.fleet.gate import BRAKE, CREEP_SPEED, GOAL_TOLERANCE, STOP_MARGIN, zone_cap
 from planner.fleet.zones import ZoneControl, predict_timeline
 from planner.schedule.pathtime import Kinematics
 from planner.schedule.promise import FOLLOWER_MAX_ACCEL, tracking_bound
@@ -146,7 +146,7 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
     Each control tick of ``dt`` every robot in index order (as the simulation's robots tick) is
     commanded its path follower's speed: the planned speed at its place times its factor (at most
     its ``max_speed``), at most the speed from which it stops within the goal tolerance at its
-    task's end (the follower's ``sqrt(1.6 a d)``, creeping at 0.02 m/s), and changed by at most
+    task's end (the follower's ``sqrt(2 BRAKE a d)``, creeping at ``CREEP_SPEED``), and changed by at most
     ``a dt`` from the last; the zone gate (:func:`planner.fleet.gate.zone_cap`, the simulation's
     own rule) then releases behind it, requests ahead and caps it, or has it stand at its stop.
     Its arc length advances by the mean of the two ticks' speeds (exact for a constant
@@ -187,6 +187,8 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
         # cumulative turning at each sample: the turn at a vertex between its two segments
         theta = np.concatenate([[0.0], np.cumsum(turn), [turn.sum()]])[:len(r.s)]
         u = np.maximum.accumulate(np.asarray(r.s, float) - CORNER_GAIN * theta)
+        # strictly increasing (the running maximum holds u flat along a sharp turn), so that _lerp
+        # back from driven distance to arc length has one answer; 1e-9 m per sample moves no place
         driven.append((u + 1e-9 * np.arange(len(u))).tolist())
     path_s = [np.asarray(r.s, float).tolist() for r in robots]
     speeds = [np.asarray(r.speed, float).tolist() for r in robots]
@@ -227,8 +229,8 @@ def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], fa
                 rows[i].append((t + dt, s[i], True))
                 continue
             ref = min(_lerp(path_s[i], speeds[i], s[i]) * factors[i], r.robot.max_speed,
-                      math.sqrt(1.6 * accel * max(end - s[i] - GOAL_TOLERANCE, 0.0)))
-            ref = max(ref, 0.02)
+                      math.sqrt(2.0 * BRAKE * accel * max(end - s[i] - GOAL_TOLERANCE, 0.0)))
+            ref = max(ref, CREEP_SPEED)
             cmd = min(max(ref, v[i] - accel * dt), v[i] + accel * dt)
             cap = zone_cap(zones, i, s[i], cmd, accel)
             new = min(cmd, cap)
@@ -257,6 +259,7 @@ def _order(robots: Sequence) -> list[np.ndarray] | None:
 
 
 def _zones(robots: Sequence, order, record: bool = False) -> ZoneControl:
+    """Return a fresh zone control of the fleet's paths, kept in ``order`` (:func:`_order`) where given."""
     return ZoneControl([r.path for r in robots], [r.robot.radius for r in robots], [r.name for r in robots],
                        after=order, record=record)
 
@@ -324,12 +327,22 @@ class SampledDrives:
     bounds: list[np.ndarray]
 
 
-def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> SampledDrives:
-    """Drive the fleet in ``draws`` draws of its declared spread (the first of :func:`predict_sampled`'s)."""
+def drive_timings(scenario, robots: Sequence, timing: Sequence
+                  ) -> list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    """Drive the fleet (:func:`drive_draw`) once per given draw of its timing, through fresh zones each time.
+
+    ``timing``: per draw, each robot's release [s], speed factor and dwells [s] (as
+    :func:`predict_sampled`'s ``timing``). Returns per draw, per robot, (t, s, stand) as
+    :func:`drive_draw` does.
+    """
     order = _order(robots)
     hold = _hold(scenario)
-    return SampledDrives([drive_draw(robots, _zones(robots, order), st, f, dw, hold=hold)
-                          for st, f, dw in _timings(scenario, robots, draws)], _path_bounds(robots))
+    return [drive_draw(robots, _zones(robots, order), st, f, dw, hold=hold) for st, f, dw in timing]
+
+
+def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> SampledDrives:
+    """Drive the fleet in ``draws`` draws of its declared spread (the first of :func:`predict_sampled`'s)."""
+    return SampledDrives(drive_timings(scenario, robots, _timings(scenario, robots, draws)), _path_bounds(robots))
 
 
 def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: np.ndarray, xy: np.ndarray,

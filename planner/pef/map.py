@@ -341,7 +341,7 @@ class PEF:
                                      sc.workspace.bounds, sc.marker_normals()[used], self.sensor.max_incidence,
                                      self.rule, bodies=self.markers)
         ids = self._exact_ids(pts)
-        self._exact_values()
+        self._exact_values()  # a call begins: only now may the store drop values (planner.pef.subsetvalues)
         out = np.full((sub.shape[0], pts.shape[0]), np.inf)
         for i, row in enumerate(sub):
             seen = np.flatnonzero(vis_used[np.searchsorted(used, row)].all(axis=0))
@@ -471,7 +471,7 @@ class PEF:
         cand = np.isfinite(lin) & (lin <= self.exact_margin * best_lin)
         pts = np.column_stack([px, py])
         ids = self._exact_ids(pts)
-        self._exact_values()
+        self._exact_values()  # a call begins: only now may the store drop values (planner.pef.subsetvalues)
         exact = np.full((n, nsub), np.inf)
         for s in range(nsub):
             # the candidates the subset is visible from (elsewhere inf without a clipping)

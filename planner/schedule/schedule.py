@@ -539,6 +539,30 @@ class _Memo:
         return self._tried.setdefault((float(eps), np.asarray(v, dtype=float).tobytes()), _Tried())
 
     def static(self, pef, path, v, spacing, fix_time, gap, k) -> _Static:
+        """Return the :class:`_Static` part of an attempt at vertex speeds ``v``, computed once per speeds.
+
+        Parameters
+        ----------
+        pef : PEF
+            The map the attempt scores subsets with (held by the :func:`make_schedule` call).
+        path : ndarray, shape (P, 2)
+            The path's vertices [m].
+        v : ndarray, shape (P,)
+            Speed at each vertex [m/s].
+        spacing : float or None
+            Sample spacing of the track [m] (:func:`sample_track`).
+        fix_time : float
+            Time one fix takes [s].
+        gap : float
+            Least time between two fixes [s].
+        k : int
+            Markers per fix.
+
+        Returns
+        -------
+        _Static
+            Read-only: the same object while the arguments stay the same.
+        """
         key = (id(pef), path.tobytes(), np.asarray(v, dtype=float).tobytes(), spacing, fix_time, gap, k)
         if self._static is not None and key == self._key:
             return self._static

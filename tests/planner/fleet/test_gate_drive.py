@@ -78,7 +78,7 @@ def test_a_robot_waits_where_the_gate_stops_it_and_the_two_never_touch():
     assert abs(arrive_a - _alone()) < SLACK, arrive_a
     # B's wait: standing between its start and its end, short of the crossing (y = s - 10)
     waiting = wb & (sb > 0.0) & (sb < fleet[1].s[-1] - GOAL_TOLERANCE)
-    assert waiting.sum() * 0.05 > 1.0
+    assert waiting.sum() * DT > 1.0
     y_wait = sb[waiting] - 10.0
     assert np.ptp(y_wait) < 1e-9                                    # one place, held still
     gap = -float(y_wait[0])
@@ -116,3 +116,15 @@ def test_the_drive_ramps_and_brakes_as_the_follower_does():
     assert abs(arrive - _alone()) < SLACK, (arrive, _alone())
     no_braking = 1.0 / ACCEL + (20.0 - GOAL_TOLERANCE - 1.0)
     assert abs(no_braking - _alone()) > SLACK
+
+
+def test_the_gate_assumes_the_goal_tolerance_the_simulated_follower_has():
+    """planner.fleet.gate's copy of the follower's goal tolerance is the follower's own.
+
+    The planner may not import sim (layers), so the sampled drive keeps a copy; this check fails
+    the day one side changes without the other (an exact comparison of two constants: nothing to
+    control for).
+    """
+    from sim.episode.follower import PurePursuit
+
+    assert PurePursuit.goal_tolerance == GOAL_TOLERANCE   # the dataclass default

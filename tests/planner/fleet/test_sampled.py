@@ -84,3 +84,26 @@ def test_a_ray_grazing_a_standing_robot_within_the_tracking_bounds_is_undecided(
     if not undecided:
         assert got.p_fix[0][0] > 1.0 - 1e-6
     assert 0.01 + DOCK_BOUND > RADIUS - 0.39 and 0.01 + DOCK_BOUND < RADIUS - 0.37   # the bounds the cases straddle
+
+
+def test_the_schedules_risk_is_the_predictions_blocking_on_the_same_draws():
+    """sampled_risk (the measurement schedule's risk) gives the fix the prediction's probability.
+
+    Both drive the same first 128 draws of the spread (:func:`planner.fleet.sampled.sampled_drives`
+    and ``predict_sampled(draws=128)``) and score B's body on the same ray: with one marker the two
+    products are the same operations, so they agree to rounding (1e-12), and both to the closed form
+    1 - 9.735 / J within the tolerance of the test above (false alarm 0.3 %). Negative control: the
+    closed form of a jitter 1.5 x as long is farther than that tolerance.
+    """
+    from planner.fleet.sampled import sampled_drives, sampled_risk
+
+    jitter, draws = 20.0, 128
+    scenario, fleet = _fleet(jitter)
+    risk = sampled_risk(scenario, fleet, sampled_drives(scenario, fleet, draws=draws), 0, np.array([10.0]),
+                        np.array([[0.0, 0.0]]), 0.01)
+    assert risk.shape == (1, 1)
+    p = float(predict_sampled(scenario, fleet, draws=draws).p_fix[0][0])
+    assert abs(float(risk[0, 0]) - p) < 1e-12, (risk, p)
+    tol = 3.0 * math.sqrt(_exact(jitter) * (1.0 - _exact(jitter)) / draws) + 0.007 + 0.005
+    assert abs(float(risk[0, 0]) - _exact(jitter)) < tol
+    assert abs(float(risk[0, 0]) - _exact(1.5 * jitter)) > tol       # the negative control
