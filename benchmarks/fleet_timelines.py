@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/fleet_timelines.py SWEEP_DIR [--runs 40]``; the last line is JSON. The
 sweep must be of a fleet with a declared timing spread, recorded with ``--steps all``. For each
-run the model (:func:`planner.fleet.sampled.drive_timings`, the fleet driven kinematically through
+run the model (:func:`planner.fleet.drive.drive_timings`, the fleet driven kinematically through
 its zone gate) is driven with that run's own draws of the spread (:func:`planner.fleet.timing.draw`
 on the run's stream, as the simulation draws them), and compared with the episode:
 
@@ -66,7 +66,7 @@ def main() -> None:
     args = ap.parse_args()
 
     import scenarios
-    from planner.fleet import sampled
+    from planner.fleet import drive, sampled
     from planner.fleet import timing as fleet_timing
     from sim.episode.fleet import prepare_fleet
 
@@ -85,7 +85,7 @@ def main() -> None:
             starts.append(fr.start_time + d.release_delay)
             factors.append(d.speed_factor)
             dwells.append(np.asarray(d.dwell, float))
-        model = sampled.drive_timings(sc, robots, [(starts, factors, dwells)])[0]
+        model = drive.drive_timings(sc, robots, [(starts, factors, dwells)])[0]
         steps = _table(sweep / "steps" / f"run-{run:06d}.parquet", ["t", "true_x", "true_y", "robot"])
         fixes = _table(sweep / "fixes" / f"run-{run:06d}.parquet",
                        ["t", "true_x", "true_y", "robot", "p_block_robot", "blocked_by_robot_count"])

@@ -12,25 +12,17 @@ So the prediction drives the fleet once per draw of the spread, :data:`DRAWS` in
 from a generator seeded from the scenario's seed (so that the prediction's own sampling error has
 the plain variance the ``blocking`` check allows for), and averages what it sees. Each draw drives
 the fleet kinematically through its zone control with the simulation's own gate
-(:func:`drive_draw`, :func:`planner.fleet.gate.zone_cap`: release behind, request up to the braking
-distance ahead, stop STOP_MARGIN short of the reservation's end): a robot waits where and as long as
-the simulated one does. (The plan's own timeline, :func:`planner.fleet.zones.predict_timeline`,
-reserves step by step and stands at the reservation's end: on ``warehouse-fleet-spread`` with a 30 s
-spread it had r1 waiting 1-4 m short of where the simulated r1 waits, at (25.0, 11.8), and r3's fixes
-near dock F that r1 hides there in one run in ten were predicted never hidden.) In each draw a robot
+(:mod:`planner.fleet.drive`): a robot waits where and as long as the simulated one does. (The plan's
+own timeline, :func:`planner.fleet.zones.predict_timeline`, reserves step by step and stands at the
+reservation's end: on ``warehouse-fleet-spread`` with a 30 s spread it had r1 waiting 1-4 m short of
+where the simulated r1 waits, at (25.0, 11.8), and r3's fixes near dock F that r1 hides there in one
+run in ten were predicted never hidden.)
 
-* leaves ``start_time + U J`` (plus the standstill fix on its dock) and is commanded its path
-  follower's speed: its planned speed times f, braked for its task's end as the follower brakes,
-  changed by at most :data:`planner.schedule.promise.FOLLOWER_MAX_ACCEL` per second: the ramp from
-  rest at each start and after each zone wait comes out of it; it gains :data:`CORNER_GAIN` of
-  arc length per radian its path turns, as the follower cuts the corners;
-* stands its dwell at each dock between two tasks, and on its final dock once there;
-* stands where the gate stops it while it waits.
-
-Against that sweep's episodes, each run's own draws driven at :data:`DT`
+Against that sweep's episodes, each run's own draws driven at :data:`planner.fleet.drive.DT`
 (``benchmarks/fleet_timelines.py``, first 40 runs): the model's robots are within 0.4 cm of the
-simulated ones half the time and 0.15 m at the 95th percentile (0.63 m before the follower's corner
-cutting was modelled, :data:`CORNER_GAIN`), each scheduled fix 0.11 s early in the median (5-95 %
+simulated ones half the time and 0.15 m at the 95th percentile (0.63 m before the follower's
+corner cutting was modelled, :data:`planner.fleet.drive.CORNER_GAIN`), each scheduled fix 0.11 s
+early in the median (5-95 %
 -0.29 .. +0.02 s), and every zone wait of the episodes is one of the model's, at the same place
 within 1.5 cm, -0.18 .. +0.30 s as long (docs/benchmarks.md, ``fleet_timelines``).
 
@@ -59,8 +51,6 @@ the simulation leaves its ``p_block_robot`` NaN and the ``blocking`` check count
 
 from __future__ import annotations
 
-import bisect
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -68,11 +58,9 @@ import numpy as np
 from scipy.special import ndtr
 
 from planner.fleet.blocking import POS_SD, STAND_BACK, STAND_SD, low_segment
-from planner.fleet.gate import BRAKE, CREEP_SPEED, GOAL_TOLERANCE, STOP_MARGIN, zone_cap
-from planner.fleet.zones import ZoneControl, predict_timeline
-from planner.schedule.pathtime import Kinematics
-from planner.schedule.promise import FOLLOWER_MAX_ACCEL, tracking_bound
-from scenarios.errors import PlanningError
+from planner.fleet.drive import drive_timings, iter_drives
+from planner.fleet.gate import GOAL_TOLERANCE
+from planner.schedule.promise import tracking_bound
 
 #: Draws of the timing spread. The prediction's own sampling error enters the check as a bias: the
 #: prediction of one run's count is the mean of DRAWS independent draws of a variable whose
@@ -84,19 +72,11 @@ SPREAD_KEY = 17
 #: Share of the draws above which a fix is undecided (module docstring): its prediction may be off by
 #: at most that much, and the undecided mass left in decided fixes is reported.
 UNDECIDED = 0.01
-#: Time step of the sampled timelines [s] (that of the plan's own timeline).
-DT = 0.05
 #: Draws of the spread behind the measurement schedule's risk (:func:`sampled_drives`): the risk is
 #: compared with a limit of a few per cent (:func:`planner.fleet.traffic.block_limit`, 0.025 on
 #: ``warehouse-fleet``); a share of 128 draws errs by at most 3 sqrt(0.025 x 0.975 / 128) = 0.041
 #: there (false alarm 0.3 %), and a fix hidden in one run in ten (the case that matters) is told apart.
 RISK_DRAWS = 128
-#: Arc length a simulated robot gains on its path per radian it turns [m/rad]: the pure-pursuit
-#: follower cuts inside each corner, so its projection on the path runs ahead of the distance it
-#: drove. Measured on ``warehouse-fleet-spread`` (30 s spread, 40 episodes against the kinematic
-#: drive of each run's own draws, the runs where neither waits): the lag grows 0.04 (r2) and 0.067
-#: (r3) m per radian of the path's cumulative turning, 1110 points; pooled 0.06.
-CORNER_GAIN = 0.06
 #: Bound on where a robot stands on its start dock [m]: three times the start pose's 1 mm
 #: (``sim.episode.driver.START_POS_STD``).
 DOCK_BOUND = 0.003
@@ -125,143 +105,6 @@ class SampledBlocking:
     undecided: list[np.ndarray]
     count_mean: float = 0.0
     count_var: float = 0.0
-
-
-def _lerp(xs: list, ys: list, x: float) -> float:
-    """``np.interp`` of one scalar on lists (the drive's inner loop asks a few times a tick)."""
-    k = bisect.bisect_right(xs, x)
-    if k <= 0:
-        return ys[0]
-    if k >= len(xs):
-        return ys[-1]
-    x0, x1 = xs[k - 1], xs[k]
-    return ys[k - 1] + (ys[k] - ys[k - 1]) * ((x - x0) / (x1 - x0) if x1 > x0 else 0.0)
-
-
-def drive_draw(robots: Sequence, zones: ZoneControl, starts: Sequence[float], factors: Sequence[float],
-               dwells: Sequence[np.ndarray], hold: float = 0.0, dt: float = DT, accel: float = FOLLOWER_MAX_ACCEL
-               ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Drive the fleet kinematically through its zones as the simulation does, in one draw of its timing.
-
-    Each control tick of ``dt`` every robot in index order (as the simulation's robots tick) is
-    commanded its path follower's speed: the planned speed at its place times its factor (at most
-    its ``max_speed``), at most the speed from which it stops within the goal tolerance at its
-    task's end (the follower's ``sqrt(2 BRAKE a d)``, creeping at ``CREEP_SPEED``), and changed by at most
-    ``a dt`` from the last; the zone gate (:func:`planner.fleet.gate.zone_cap`, the simulation's
-    own rule) then releases behind it, requests ahead and caps it, or has it stand at its stop.
-    Its arc length advances by the mean of the two ticks' speeds (exact for a constant
-    acceleration). A robot stands on its dock until ``starts[i]`` (plus ``hold``, the standstill
-    fix, when its first fix is on the dock), at each task's end for its dwell, and, arrived, on its
-    final dock (:meth:`planner.fleet.zones.ZoneControl.stand`, as the simulation's robot does).
-
-    Parameters
-    ----------
-    robots : sequence of FleetRobotPlan
-    zones : ZoneControl
-        Fresh zone control of the fleet (consumed).
-    starts : sequence of float
-        Release of each robot [s].
-    factors : sequence of float
-        Speed factor of each robot.
-    dwells : sequence of ndarray
-        Per robot, its dwell at the end of each of its tasks but the last [s].
-    hold : float
-        Time the standstill fix on the start dock takes [s].
-    dt : float
-        Control period [s].
-    accel : float
-        The path follower's acceleration limit [m/s^2].
-
-    Returns
-    -------
-    list of (t, s, stand)
-        Per robot, the ticks' times (T,) [s], arc lengths (T,) [m] and whether it stood (T,) bool.
-    """
-    n = len(robots)
-    ends = [list(np.asarray(r.offsets, float)[1:]) + [float(r.s[-1])] for r in robots]
-    # distance driven to reach each path sample: the follower cuts the corners (CORNER_GAIN)
-    driven = []
-    for r in robots:
-        d = np.diff(np.asarray(r.path, float), axis=0)
-        turn = np.abs(np.diff(np.unwrap(np.arctan2(d[:, 1], d[:, 0])))) if len(d) > 1 else np.zeros(0)
-        # cumulative turning at each sample: the turn at a vertex between its two segments
-        theta = np.concatenate([[0.0], np.cumsum(turn), [turn.sum()]])[:len(r.s)]
-        u = np.maximum.accumulate(np.asarray(r.s, float) - CORNER_GAIN * theta)
-        # strictly increasing (the running maximum holds u flat along a sharp turn), so that _lerp
-        # back from driven distance to arc length has one answer; 1e-9 m per sample moves no place
-        driven.append((u + 1e-9 * np.arange(len(u))).tolist())
-    path_s = [np.asarray(r.s, float).tolist() for r in robots]
-    speeds = [np.asarray(r.speed, float).tolist() for r in robots]
-    u_now = [0.0] * n
-    first_on_dock = [any(len(p.schedule.fixes) and p.schedule.fixes[0].s <= 1e-9 for p in r.plans[:1])
-                     for r in robots]
-    go = [float(starts[i]) + (hold if first_on_dock[i] else 0.0) for i in range(n)]
-    s, v = [0.0] * n, [0.0] * n
-    task, until = [0] * n, [None] * n
-    done = [False] * n
-    rows = [[(0.0, 0.0, True)] for _ in range(n)]
-    max_time = 10.0 * (max(go) + max(float(Kinematics(r.s, r.speed).t_v[-1]) for r in robots) + 60.0)
-    t = 0.0
-    while not all(done):
-        if t > max_time:
-            raise PlanningError("zone control: the sampled fleet had not arrived after "
-                                f"{max_time:.0f} s")
-        for i, r in enumerate(robots):
-            if done[i] or t < go[i] - 1e-9:
-                rows[i].append((t + dt, s[i], True))
-                continue
-            end = ends[i][task[i]]
-            if until[i] is not None:
-                # dwelling at the end of a task
-                if t < until[i] - 1e-9:
-                    rows[i].append((t + dt, s[i], True))
-                    continue
-                until[i] = None
-                task[i] += 1
-                end = ends[i][task[i]]
-            if end - s[i] < GOAL_TOLERANCE:
-                v[i] = 0.0
-                if task[i] + 1 < len(ends[i]):
-                    until[i] = t + float(dwells[i][task[i]])
-                else:
-                    done[i] = True
-                    zones.stand(i)
-                rows[i].append((t + dt, s[i], True))
-                continue
-            ref = min(_lerp(path_s[i], speeds[i], s[i]) * factors[i], r.robot.max_speed,
-                      math.sqrt(2.0 * BRAKE * accel * max(end - s[i] - GOAL_TOLERANCE, 0.0)))
-            ref = max(ref, CREEP_SPEED)
-            cmd = min(max(ref, v[i] - accel * dt), v[i] + accel * dt)
-            cap = zone_cap(zones, i, s[i], cmd, accel)
-            new = min(cmd, cap)
-            if new > 0.0:
-                room = zones.reserved_to(i) - STOP_MARGIN if math.isfinite(cap) else end
-                u_room = _lerp(path_s[i], driven[i], room)
-                u_now[i] = max(u_now[i], min(u_now[i] + 0.5 * (v[i] + new) * dt, u_room))
-                s[i] = _lerp(driven[i], path_s[i], u_now[i])
-            v[i] = new
-            rows[i].append((t + dt, s[i], new == 0.0))
-        t += dt
-    out = []
-    for i in range(n):
-        arr = np.array(rows[i], dtype=float)
-        out.append((arr[:, 0], arr[:, 1], arr[:, 2] > 0.5))
-    return out
-
-
-def _order(robots: Sequence) -> list[np.ndarray] | None:
-    """Return the plan's order of passage when a dock lies on another's path (as ``plan_fleet`` records it)."""
-    zones = _zones(robots, None, record=True)
-    if zones.dock_conflict is None:
-        return None
-    predict_timeline(zones, [Kinematics(r.s, r.speed) for r in robots], [r.start_time for r in robots])
-    return zones.precedence()
-
-
-def _zones(robots: Sequence, order, record: bool = False) -> ZoneControl:
-    """Return a fresh zone control of the fleet's paths, kept in ``order`` (:func:`_order`) where given."""
-    return ZoneControl([r.path for r in robots], [r.robot.radius for r in robots], [r.name for r in robots],
-                       after=order, record=record)
 
 
 def _path_bounds(robots: Sequence) -> list[np.ndarray]:
@@ -310,14 +153,9 @@ def _timings(scenario, robots: Sequence, draws: int) -> list[tuple[list, list, l
     return out
 
 
-def _hold(scenario) -> float:
-    """Time the standstill fix on the start dock holds a robot there [s]: it measures its markers one by one."""
-    return scenario.sensor.measurement_time * scenario.sensor.markers_per_fix
-
-
 @dataclass(frozen=True)
 class SampledDrives:
-    """The fleet's drives in D draws of its declared spread (:func:`drive_draw`), for the schedule's risk.
+    """The fleet's drives in D draws of its declared spread (:mod:`planner.fleet.drive`), for the schedule's risk.
 
     ``drives[n][i]`` is robot i's (t, s, stand) in draw n; ``bounds[i]`` its tracking bound at its
     path's samples.
@@ -325,19 +163,6 @@ class SampledDrives:
 
     drives: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]
     bounds: list[np.ndarray]
-
-
-def drive_timings(scenario, robots: Sequence, timing: Sequence
-                  ) -> list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
-    """Drive the fleet (:func:`drive_draw`) once per given draw of its timing, through fresh zones each time.
-
-    ``timing``: per draw, each robot's release [s], speed factor and dwells [s] (as
-    :func:`predict_sampled`'s ``timing``). Returns per draw, per robot, (t, s, stand) as
-    :func:`drive_draw` does.
-    """
-    order = _order(robots)
-    hold = _hold(scenario)
-    return [drive_draw(robots, _zones(robots, order), st, f, dw, hold=hold) for st, f, dw in timing]
 
 
 def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> SampledDrives:
@@ -426,10 +251,8 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS, timing: Sequ
     """
     n_rob = len(robots)
     m_pos, h = scenario.marker_positions(), scenario.marker_heights()
-    order = _order(robots)
     timing = _timings(scenario, robots, draws) if timing is None else list(timing)
     draws = len(timing)
-    hold = _hold(scenario)
     bounds = _path_bounds(robots)
     # the fixes of each robot: arc length, rays, and the bound on the measuring robot's offset
     fixes = []
@@ -451,9 +274,8 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS, timing: Sequ
     free_ray = [np.zeros((draws, len(f[0]), f[2].shape[1])) for f in fixes]
     free_fix = [np.zeros((draws, len(f[0]))) for f in fixes]
     undecided = [np.zeros((draws, len(f[0])), bool) for f in fixes]
-    for n in range(draws):
-        starts, factors, dwells = timing[n]
-        runs = drive_draw(robots, _zones(robots, order), starts, factors, dwells, hold=hold)
+    for n, runs in enumerate(iter_drives(scenario, robots, timing)):
+        starts = timing[n][0]
         tracks = []
         for r, (t, s_tl, stand) in zip(robots, runs, strict=True):
             xy = np.column_stack([np.interp(s_tl, r.s, r.path[:, 0]), np.interp(s_tl, r.s, r.path[:, 1])])

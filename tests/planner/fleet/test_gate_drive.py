@@ -1,4 +1,4 @@
-"""The sampled blocking model's kinematic drive through the zone gate (planner.fleet.sampled.drive_draw).
+"""The sampled blocking model's kinematic drive through the zone gate (planner.fleet.drive.drive_draw).
 
 Two robots of radius 0.4 m cross at the origin: A drives east along y = 0, B north along x = 0,
 both released at t = 0 at 1 m/s, 10 m from the crossing. A asks first each tick (index order, as the
@@ -12,8 +12,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from planner.fleet.drive import drive_draw
 from planner.fleet.gate import GOAL_TOLERANCE, STOP_MARGIN
-from planner.fleet.sampled import drive_draw
 from planner.fleet.zones import DEFAULT_MARGIN, ZoneControl
 
 RADIUS = 0.4
