@@ -170,6 +170,36 @@ def sampled_drives(scenario, robots: Sequence, draws: int = RISK_DRAWS) -> Sampl
     return SampledDrives(drive_timings(scenario, robots, _timings(scenario, robots, draws)), _path_bounds(robots))
 
 
+def _covers(r_j, track: tuple, when: np.ndarray, a: np.ndarray, dvec: np.ndarray, m: int
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where robot ``r_j`` is at times ``when`` (n,) of its drive, and how likely its body covers m rays.
+
+    ``track``: its (t, s, stand) in one draw (:func:`planner.fleet.drive.drive_draw`); ``a``,
+    ``dvec`` (n m, 2) [m]: each ray's low part from ``a`` along ``dvec``
+    (:func:`planner.fleet.blocking.low_segment`), the m rays of each time in a row.
+
+    Returns
+    -------
+    dist : ndarray, shape (n, m)
+        Distance of its centre to each ray's low part [m].
+    cover : ndarray, shape (n, m)
+        ``Phi((radius - dist) / sd)``: sd ``STAND_SD`` standing, ``POS_SD`` driving.
+    still : ndarray of bool, shape (n,)
+        Standing then.
+    s_place : ndarray, shape (n,)
+        Its arc length then [m].
+    """
+    t_j, s_j, stand_j = track
+    s_place, still = _at(t_j, s_j, stand_j, when)
+    place = np.column_stack([np.interp(s_place, r_j.s, r_j.path[:, 0]), np.interp(s_place, r_j.s, r_j.path[:, 1])])
+    w = np.repeat(place, m, axis=0) - a
+    L2 = np.einsum("qi,qi->q", dvec, dvec)
+    uu = np.clip(np.einsum("qi,qi->q", w, dvec) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+    dist = np.hypot(*(w - uu[:, None] * dvec).T).reshape(len(when), m)
+    sd = np.where(still, STAND_SD, POS_SD)[:, None]
+    return dist, ndtr((r_j.robot.radius - dist) / sd), still, s_place
+
+
 def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: np.ndarray, xy: np.ndarray,
                  eps: float) -> np.ndarray:
     """Probability per marker that another robot hides its line of sight from robot i at arc length(s) ``s``.
@@ -211,16 +241,7 @@ def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: n
                 a, b, some = low_segment(origin, r_i.robot.height, target, ht, r_j.robot.height)
                 segs[j] = (a, b - a, some.reshape(len(s), len(low)))
             a, dvec, some = segs[j]
-            t_j, s_j, stand_j = run[j]
-            s_place, still = _at(t_j, s_j, stand_j, when)
-            place = np.column_stack([np.interp(s_place, r_j.s, r_j.path[:, 0]),
-                                     np.interp(s_place, r_j.s, r_j.path[:, 1])])
-            w = np.repeat(place, len(low), axis=0) - a
-            L2 = np.einsum("qi,qi->q", dvec, dvec)
-            uu = np.clip(np.einsum("qi,qi->q", w, dvec) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
-            dist = np.hypot(*(w - uu[:, None] * dvec).T).reshape(len(s), len(low))
-            sd = np.where(still, STAND_SD, POS_SD)[:, None]
-            cover = ndtr((r_j.robot.radius - dist) / sd)
+            dist, cover, still, s_place = _covers(r_j, run[j], when, a, dvec, len(low))
             band = (g_i + _stand_bound(r_j, drives.bounds[j], s_place))[:, None]
             cover = np.where(still[:, None] & (np.abs(dist - r_j.robot.radius) < band), 1.0, cover)
             keep *= 1.0 - np.where(some, cover, 0.0)
@@ -276,12 +297,8 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS, timing: Sequ
     undecided = [np.zeros((draws, len(f[0])), bool) for f in fixes]
     for n, runs in enumerate(iter_drives(scenario, robots, timing)):
         starts = timing[n][0]
-        tracks = []
-        for r, (t, s_tl, stand) in zip(robots, runs, strict=True):
-            xy = np.column_stack([np.interp(s_tl, r.s, r.path[:, 0]), np.interp(s_tl, r.s, r.path[:, 1])])
-            tracks.append((t, s_tl, xy, stand))
         for i, (s_f, xy_f, mk, g_i) in enumerate(fixes):
-            t_i, s_i = tracks[i][0], tracks[i][1]
+            t_i, s_i, _ = runs[i]
             # the first time its drive reaches each fix's arc length
             k = np.clip(np.searchsorted(np.maximum.accumulate(s_i), s_f, side="left"), 1, len(s_i) - 1)
             ds = s_i[k] - s_i[k - 1]
@@ -297,21 +314,11 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS, timing: Sequ
             for j in range(n_rob):
                 if j == i:
                     continue
-                t_j, s_j, xy_j, stand_j = tracks[j]
-                s_place, still = _at(t_j, s_j, stand_j, when)
-                r_j = robots[j]
-                place = np.column_stack([np.interp(s_place, r_j.s, r_j.path[:, 0]),
-                                         np.interp(s_place, r_j.s, r_j.path[:, 1])])
                 a, b, some = low_segment(origin, robots[i].robot.height, m_pos[mk.reshape(-1)], h[mk.reshape(-1)],
                                          robots[j].robot.height)
-                p = np.repeat(place, q, axis=0)
-                dvec, w = b - a, p - a
-                L2 = np.einsum("qi,qi->q", dvec, dvec)
-                uu = np.clip(np.einsum("qi,qi->q", w, dvec) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
-                dist = np.hypot(*(w - uu[:, None] * dvec).T).reshape(len(s_f), q)
+                dist, cover, still, s_place = _covers(robots[j], runs[j], when, a, b - a, q)
                 some = some.reshape(len(s_f), q)
-                sd = np.where(still, STAND_SD, POS_SD)[:, None]
-                cover = np.where(some, ndtr((robots[j].robot.radius - dist) / sd), 0.0)
+                cover = np.where(some, cover, 0.0)
                 free_r *= 1.0 - cover
                 free_f *= 1.0 - cover.max(axis=1)
                 band = (g_i + _stand_bound(robots[j], bounds[j], s_place))[:, None]
