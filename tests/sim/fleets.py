@@ -1,27 +1,16 @@
 """The small fleets several test modules drive."""
 
+
+def markers_toml(positions: dict[str, tuple[float, float]]) -> str:
+    """Return the ``[[markers]]`` tables of reflectors 0.3 m high at ``positions`` (id -> (x, y) [m])."""
+    return "".join(f'[[markers]]\nid = "{k}"\nposition = [{x}, {y}]\nheight = 0.3\n' for k, (x, y) in positions.items())
+
 CROSS = """
 name = "cross"
 seed = 3
 [workspace]
 size = [12.0, 12.0]
-[[markers]]
-id = "SW"
-position = [0.0, 0.0]
-height = 0.3
-[[markers]]
-id = "SE"
-position = [12.0, 0.0]
-height = 0.3
-[[markers]]
-id = "NE"
-position = [12.0, 12.0]
-height = 0.3
-[[markers]]
-id = "NW"
-position = [0.0, 12.0]
-height = 0.3
-[sensor]
+""" + markers_toml({"SW": (0.0, 0.0), "SE": (12.0, 0.0), "NE": (12.0, 12.0), "NW": (0.0, 12.0)}) + """[sensor]
 [robot]
 [planning]
 eps_max = 0.05
@@ -61,39 +50,8 @@ size = [16.0, 10.0]
 [[obstacles]]
 center = [8.0, 5.25]
 size = [8.0, 2.5]
-[[markers]]
-id = "SW"
-position = [0.0, 0.0]
-height = 0.3
-[[markers]]
-id = "S"
-position = [8.0, 0.0]
-height = 0.3
-[[markers]]
-id = "SE"
-position = [16.0, 0.0]
-height = 0.3
-[[markers]]
-id = "NE"
-position = [16.0, 10.0]
-height = 0.3
-[[markers]]
-id = "NM"
-position = [5.0, 10.0]
-height = 0.3
-[[markers]]
-id = "NW"
-position = [0.0, 10.0]
-height = 0.3
-[[markers]]
-id = "W"
-position = [0.0, 5.0]
-height = 0.3
-[[markers]]
-id = "E"
-position = [16.0, 5.0]
-height = 0.3
-[sensor]
+""" + markers_toml({"SW": (0.0, 0.0), "S": (8.0, 0.0), "SE": (16.0, 0.0), "NE": (16.0, 10.0), "NM": (5.0, 10.0),
+                "NW": (0.0, 10.0), "W": (0.0, 5.0), "E": (16.0, 5.0)}) + """[sensor]
 [robot]
 [planning]
 eps_max = 0.05
@@ -177,51 +135,9 @@ size = [15.0, 4.5]
 [[obstacles]]
 center = [18.75, 5.75]
 size = [2.5, 4.5]
-[[markers]]
-id = "SW"
-position = [0.0, 0.0]
-height = 0.3
-[[markers]]
-id = "S1"
-position = [7.0, 0.0]
-height = 0.3
-[[markers]]
-id = "S2"
-position = [13.0, 0.0]
-height = 0.3
-[[markers]]
-id = "SE"
-position = [20.0, 0.0]
-height = 0.3
-[[markers]]
-id = "N1"
-position = [4.0, 3.5]
-height = 0.3
-[[markers]]
-id = "N2"
-position = [11.0, 3.5]
-height = 0.3
-[[markers]]
-id = "PW"
-position = [15.0, 6.0]
-height = 0.3
-[[markers]]
-id = "PE"
-position = [17.5, 6.0]
-height = 0.3
-[[markers]]
-id = "PN"
-position = [16.25, 8.0]
-height = 0.3
-[[markers]]
-id = "W"
-position = [0.0, 2.0]
-height = 0.3
-[[markers]]
-id = "E"
-position = [20.0, 2.0]
-height = 0.3
-[sensor]
+""" + markers_toml({"SW": (0.0, 0.0), "S1": (7.0, 0.0), "S2": (13.0, 0.0), "SE": (20.0, 0.0), "N1": (4.0, 3.5),
+                "N2": (11.0, 3.5), "PW": (15.0, 6.0), "PE": (17.5, 6.0), "PN": (16.25, 8.0), "W": (0.0, 2.0),
+                "E": (20.0, 2.0)}) + """[sensor]
 [robot]
 [planning]
 eps_max = 0.05

@@ -8,7 +8,7 @@ import pytest
 from scenarios import loads
 from sim.episode.drive import prepare, run_episode
 from sim.episode.fleet import prepare_fleet, run_fleet_episode
-from tests.sim.fleets import CROSS
+from tests.sim.fleets import CROSS, markers_toml
 
 
 @pytest.fixture(scope="module")
@@ -171,51 +171,9 @@ size = [14.0, 3.0]
 [[obstacles]]
 center = [10.0, 6.5]
 size = [14.0, 3.0]
-[[markers]]
-id = "W"
-position = [0.0, 4.0]
-height = 0.3
-[[markers]]
-id = "E"
-position = [20.0, 4.0]
-height = 0.3
-[[markers]]
-id = "SW"
-position = [0.0, 0.0]
-height = 0.3
-[[markers]]
-id = "NE"
-position = [20.0, 8.0]
-height = 0.3
-[[markers]]
-id = "NW"
-position = [0.0, 8.0]
-height = 0.3
-[[markers]]
-id = "SE"
-position = [20.0, 0.0]
-height = 0.3
-[[markers]]
-id = "M0"
-position = [6.0, 3.0]
-height = 0.3
-[[markers]]
-id = "M1"
-position = [10.0, 5.0]
-height = 0.3
-[[markers]]
-id = "M2"
-position = [14.0, 3.0]
-height = 0.3
-[[markers]]
-id = "M3"
-position = [8.0, 5.0]
-height = 0.3
-[[markers]]
-id = "M4"
-position = [12.0, 3.0]
-height = 0.3
-[sensor]
+""" + markers_toml({"W": (0.0, 4.0), "E": (20.0, 4.0), "SW": (0.0, 0.0), "NE": (20.0, 8.0), "NW": (0.0, 8.0),
+                    "SE": (20.0, 0.0), "M0": (6.0, 3.0), "M1": (10.0, 5.0), "M2": (14.0, 3.0),
+                    "M3": (8.0, 5.0), "M4": (12.0, 3.0)}) + """[sensor]
 [robot]
 [planning]
 eps_max = 0.05
