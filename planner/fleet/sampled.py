@@ -42,7 +42,7 @@ the fix and where the other one stands to the centimetre, i.e. by the path follo
 errors, the same in every run and not known to the plan. A draw leaves a fix undecided when a
 robot stands with the edge of its body within ``g_i + g_j`` of one of the fix's rays: ``g_i`` the
 plan's bound on the measuring robot's offset from its path at the fix (tracking bound plus the
-estimate error it certifies there, :func:`planner.schedule.promise.offset_bound`), ``g_j`` that of
+estimate error it certifies there, :func:`planner.schedule.promise.tracking_bound`), ``g_j`` that of
 the standing robot (the start pose's 3 x 1 mm on its start dock; elsewhere its tracking bound plus
 STAND_BACK, how far its stop may fall along the path). A fix undecided in more than
 :data:`UNDECIDED` of the draws gets no probability the runs could test (``RobotBlocking.undecided``):
@@ -60,7 +60,7 @@ from scipy.special import ndtr
 from planner.fleet.blocking import POS_SD, STAND_BACK, STAND_SD, low_segment
 from planner.fleet.drive import drive_timings, iter_drives
 from planner.fleet.gate import GOAL_TOLERANCE
-from planner.schedule.promise import tracking_bound
+from planner.schedule.promise import tracking_bound, turn_bias
 
 #: Draws of the timing spread. The prediction's own sampling error enters the check as a bias: the
 #: prediction of one run's count is the mean of DRAWS independent draws of a variable whose
@@ -109,7 +109,7 @@ class SampledBlocking:
 
 def _path_bounds(robots: Sequence) -> list[np.ndarray]:
     """Each robot's tracking bound at its path's samples [m] (:func:`planner.schedule.promise.tracking_bound`)."""
-    return [tracking_bound(r.path, r.s, r.speed, np.asarray(r.s, float)) for r in robots]
+    return [tracking_bound(r.path, r.s, r.speed, np.asarray(r.s, float), turn_bias(r.robot)) for r in robots]
 
 
 def _stand_bound(r, bound: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -224,7 +224,7 @@ def sampled_risk(scenario, robots: Sequence, drives: SampledDrives, i: int, s: n
     if len(low) == 0 or len(s) == 0:
         return out
     r_i = robots[i]
-    g_i = tracking_bound(r_i.path, r_i.s, r_i.speed, s) + eps
+    g_i = tracking_bound(r_i.path, r_i.s, r_i.speed, s, turn_bias(r_i.robot)) + eps
     origin = np.repeat(xy, len(low), axis=0)
     target = np.tile(m_pos[low], (len(s), 1))
     ht = np.tile(h[low], len(s))
@@ -287,7 +287,7 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS, timing: Sequ
                 est.append(fx.estimate if np.isfinite(fx.estimate) else 0.0)
         s = np.asarray(s, float)
         mk = np.asarray(mk, int).reshape(len(s), -1) if len(s) else np.zeros((0, 1), int)
-        g = tracking_bound(r.path, r.s, r.speed, s) + np.asarray(est, float)
+        g = tracking_bound(r.path, r.s, r.speed, s, turn_bias(r.robot)) + np.asarray(est, float)
         # a fix within the goal tolerance of a task's end is taken where the robot stops there
         ends = np.append(np.asarray(r.offsets, float)[1:], r.s[-1])
         reach = np.minimum(s, ends[np.clip(np.searchsorted(ends, s, side="left"), 0, len(ends) - 1)] - GOAL_TOLERANCE)

@@ -2,10 +2,10 @@
 
 The planner keeps a disc of ``robot.radius`` (which contains the simulated body,
 :mod:`scenarios.body`) clear of obstacles around each path point; the robot does not drive on the
-path but within :func:`planner.schedule.promise.offset_bound` of it: the follower's tracking
-bound there (corners included: it cuts them and swings wide leaving them; and its departure
-from the dock, whose heading may differ from the path's) plus the estimate's
-error the plan certifies there (the schedule's predicted error). A path is driveable when, at
+path but within a bound of it: the follower's tracking bound there
+(:func:`planner.schedule.promise.tracking_bound`: corners included, it cuts them and swings wide
+leaving them, and the steady offset its wheel radius error holds; and its departure from the dock,
+whose heading may differ from the path's) plus the estimate's error the plan certifies there (the schedule's predicted error). A path is driveable when, at
 every point,
 
     clearance(path(s)) >= radius + tracking(s) + estimate(s)
@@ -119,7 +119,7 @@ def margin(scenario: Scenario, path: np.ndarray, speed: np.ndarray, s_est: np.nd
     idx = np.clip(np.searchsorted(np.asarray(s_est, dtype=float), s, side="right") - 1, 0, len(est) - 1)
     est_s = np.maximum(hi[idx], hi[np.maximum(idx - 1, 0)])
     speed = np.asarray(speed, dtype=float)
-    tracking = promise.tracking_bound(path, s_v, speed, s)
+    tracking = promise.tracking_bound(path, s_v, speed, s, promise.turn_bias(scenario.robot))
     if heading is not None:
         tracking = tracking + promise.departure_bound(path, s_v, speed, s, heading)
     return Margin(s=s, points=pts, clearance=criteria.clearance(pts, scenario), radius=scenario.robot.radius,

@@ -35,20 +35,7 @@ Derived promise
     over the area is bounded by its sagitta, and the parallelogram, or for k > 2 the strip
     polygon, is taken at its worst). :func:`pose_bound` states ``Δ_i`` as the sum of
 
-    - the follower's tracking error on the path, :func:`tracking_bound`: pure pursuit steers
-      towards the path point one lookahead ``L = max(LOOKAHEAD_MIN, LOOKAHEAD_GAIN v)`` (plus one
-      vertex spacing) ahead, so it drives on the chords of the path of arc length ``L``: its
-      distance from the path is taken as the largest distance of ``path(s)`` from a chord of
-      arc length ``L`` over it (0 on a straight; in a corner it grows with the heading change
-      within ``L``, so the heading change of a fix taken in a corner enters here). Leaving a
-      corner it swings wide and settles back over a few lookaheads (its yaw rate and yaw
-      acceleration are limited), by no more than it cut the turn: the bound at ``s`` is the
-      largest chord bound over the :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``.
-      That factor is measured on the follower (corridor world: 9.5 cm wide at a 90 deg corner,
-      back within 1.5 cm 2.5 m later, every fix's true offset at most 0.46 of its bound): the
-      tracking bound is the part of this list that is argued from the follower's geometry and
-      checked on it, not proved (a closed-loop simulation of the follower in the planner would
-      replace it);
+    - the follower's tracking error on the path, :func:`tracking_bound` (below, "Tracking");
     - the estimate's error the follower steers by, and that decides when a fix starts: the
       error the plan itself certifies while the fix is taken, i.e. the previous fix's promise
       (the largest of its fallbacks' where it has any; with redundancy also the fix before it,
@@ -73,6 +60,51 @@ Derived promise
     ``planning.heading_std_deg`` (a larger one is a broken promise the check reports), noise
     within its declared bound, the follower :mod:`sim.episode.follower` with this module's
     lookahead and acceleration (it reads them from here).
+
+Tracking
+    Pure pursuit steers towards the path point one lookahead ``L = max(LOOKAHEAD_MIN,
+    LOOKAHEAD_GAIN v)`` (plus one vertex spacing) ahead. :func:`tracking_bound` sums three parts.
+
+    - *The turn it cuts.* It drives on the chords of the path of arc length ``L``: its distance
+      from the path is taken as the largest distance of ``path(s)`` from a chord of arc length
+      ``L`` over it (0 on a straight; in a corner it grows with the heading change within ``L``,
+      so the heading change of a fix taken in a corner enters here). Leaving a corner it swings
+      wide and settles back, by no more than it cut the turn: the bound at ``s`` is the largest
+      chord bound over the :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``. That window is
+      measured on the follower (corridor world: 9.5 cm wide at a 90 deg corner, back within
+      1.5 cm 2.5 m later).
+    - *The swing's tail.* Linearised about a straight (lateral offset ``y``, arc length
+      ``sigma``), pure pursuit commands the curvature ``-2 (y + L y') / L^2``, so
+      ``y'' + 2 y' / L + 2 y / L^2 = kappa``, ``kappa`` what turns the robot besides the command:
+      a damping ratio of ``1 / sqrt(2)`` whatever the speed, the roots ``(-1 +- i) / L``. A swing
+      of amplitude ``A`` leaving a corner decays within ``sqrt(2) A exp(-sigma / L)`` and
+      crosses the path every ``pi L`` (random world 38 at 1.4 m/s: out 6.5-10 cm at the
+      corner's end, back across 3.4 m later, out 1-2 cm again after 3.5 m more). Beyond the
+      window the bound adds :data:`TAIL_WEIGHT` (that envelope summed over the windows of
+      :data:`SETTLE_LOOKAHEADS` behind it) times the largest chord bound over the
+      :data:`TAIL_LOOKAHEADS` before the window.
+    - *The wheels' systematic error.* The declared wheel radius error ``e`` turns a robot
+      commanded straight at ``kappa = 2 |e| / b`` (:func:`turn_bias`), which the odometry does
+      not see; the fixes move the estimate back to the truth, so the follower steers by an
+      estimate that drifts the same way, and the equation above settles at
+      ``y = kappa L_d^2 / 2``, ``L_d`` the distance to its target (at most one lookahead and
+      one and a half vertex spacings: the target is the first vertex one lookahead past the
+      vertex nearest the robot). The follower does not answer the turn directly: it answers
+      the estimate, whose heading the filter corrects only as the fixes show the drift, so
+      the offset is reached as the response to a step through a second loop that is lightly
+      damped (corner world at 1.4 m/s, ``e = 0.004``, ``b = 0.33 m``: 19.5 mm final, 33.6 mm
+      at its first peak after the dock, swinging about the final value with half the
+      amplitude 6-7 m later). No second-order response to a step exceeds twice its final
+      value, whatever its damping: the part is :data:`STEP_PEAK` ``= 2`` times
+      ``kappa L_d^2 / 2``. On random world 38 (``e = 0.0034``, ``b = 0.33 m``, 1.4 m/s) the
+      robot runs 1.4-2.2 cm to its left on the straights, both ways (bound 3.3 cm); on
+      ``warehouse`` (0.002, 0.5 m, 1 m/s) 2.6-3.4 mm (bound 7.2 mm).
+
+    The linear model leaves out the follower's yaw rate and yaw acceleration limits and the
+    filter, which delay its answer; the window of the first part is measured with them, and the
+    bound is checked against episodes at every control step (``tests/sim/episode/test_offset_bound.py``:
+    corners at 1 m/s, and a long straight after a corner at 1.4 m/s with the largest wheel
+    radius error random worlds draw). Argued from the follower and checked on it, not proved.
 
 Polygon tolerance
     The simulation's fault area is a polygon reaching up to ``tol = DEFAULT_TOLERANCE_FRACTION
@@ -141,6 +173,17 @@ SETTLE_LOOKAHEADS = 3.0
 """Length, in lookaheads, over which the follower settles back onto the path after a turn: it
 leaves a 90 deg corner of the corridor world (lookahead 0.8 m + 0.1 m vertex spacing) 9.5 cm
 wide and is back within 1.5 cm 2.5 m later. Measured on the follower, not derived (below)."""
+TAIL_LOOKAHEADS = 9.0
+"""Length, in lookaheads, of the stretch before the settle window whose corners' tails count
+(module docstring, "Tracking"): beyond it they weigh under ``1e-5 L``."""
+TAIL_WEIGHT = math.sqrt(2.0) * math.exp(-SETTLE_LOOKAHEADS) / (1.0 - math.exp(-SETTLE_LOOKAHEADS))
+"""Weight of a corner's chord bound more than :data:`SETTLE_LOOKAHEADS` lookaheads behind
+(module docstring, "Tracking"): the linearised follower's free response decays within the
+envelope ``sqrt(2) exp(-sigma / L)``, summed over the windows of 3 lookaheads behind."""
+STEP_PEAK = 2.0
+"""Peak of the steady offset's step response over its final value: no second-order response to
+a step overshoots by more than its final value, whatever its damping (module docstring,
+"Tracking")."""
 ROTATE_ABOVE = math.radians(60.0)
 """The path follower turns on the spot while its target lies more than this off its heading [rad]
 (``sim.episode.follower.PurePursuit`` reads it); below it, it drives an arc towards the target."""
@@ -207,7 +250,22 @@ def speed_reach(s_v: np.ndarray, off: np.ndarray) -> np.ndarray:
     return np.asarray(off, dtype=float) + float(np.max(np.diff(s_v), initial=0.0))
 
 
-def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray) -> np.ndarray:
+def turn_bias(robot) -> float:
+    """Curvature a robot commanded straight drives from its declared wheel radius error [1/m].
+
+    The right wheel is ``r (1 + e)`` and the left ``r (1 - e)``
+    (:mod:`sim.physics.robot`): at equal wheel speeds the robot turns at ``2 |e| / b``.
+
+    Parameters
+    ----------
+    robot : scenarios.schema.RobotSpec
+        The declared robot (``wheel_radius_error`` e, ``wheel_base`` b [m]).
+    """
+    return 2.0 * abs(float(robot.wheel_radius_error)) / float(robot.wheel_base)
+
+
+def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray,
+                   bias: float) -> np.ndarray:
     """Bound on the follower's distance from the path at arc length ``s`` (module docstring) [m].
 
     Parameters
@@ -220,43 +278,30 @@ def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.n
         Planned vertex speeds [m/s].
     s : ndarray, any shape
         Arc lengths [m].
+    bias : float
+        The robot's :func:`turn_bias` [1/m].
 
     Returns
     -------
     numpy.ndarray, same shape as ``s``
-        Largest distance of ``path(s)`` from a chord ``path(a) path(a + L)`` with
-        ``a <= s <= a + L``, ``L`` the lookahead at the local speed plus one vertex spacing [m].
+        The sum of three parts (module docstring, "Tracking"), ``L`` the lookahead at the local
+        speed plus one vertex spacing [m]: the largest distance of ``path(a)`` from a chord
+        ``path(b) path(b + L)`` with ``b <= a <= b + L`` over ``a`` in the
+        :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``; :data:`TAIL_WEIGHT` times the same over the
+        :data:`TAIL_LOOKAHEADS` ``L`` before those (plus the tail beyond, under ``1e-5 L``); and
+        the offset the wheel radius error holds, :data:`STEP_PEAK` ``bias (L + spacing / 2)^2
+        / 2``.
     """
     s = np.asarray(s, dtype=float)
     spacing = float(np.max(np.diff(s_v), initial=0.0))
     reach = LOOKAHEAD_MIN + LOOKAHEAD_GAIN * float(np.max(speed, initial=0.0)) + spacing
     look = np.maximum(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * local_speed(s_v, speed, s, reach)) + spacing
-    return settle_bound(path, s_v, s, look)
-
-
-def offset_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray, estimate) -> np.ndarray:
-    """Bound on the true position's distance from ``path(s)`` when the robot drives past ``s`` [m].
-
-    The follower keeps its *estimate* within :func:`tracking_bound` of the path, and the truth
-    is within the estimate's error of the estimate: the sum bounds the true pose's offset
-    (the module docstring's ``Delta_i`` without the start lag and the speed terms, which move a
-    measurement along the path, not away from it). The body's clearance check
-    (:mod:`planner.schedule.clearance`) adds the same two terms, kept apart to name them.
-
-    Parameters
-    ----------
-    path, s_v, speed : ndarray, shape (N, 2), (N,), (N,)
-        Path vertices [m], their arc length [m] and planned speeds [m/s].
-    s : ndarray, any shape
-        Arc lengths [m].
-    estimate : float or ndarray, shape of ``s``
-        Bound on the estimate's error there (what the plan certifies) [m].
-
-    Returns
-    -------
-    numpy.ndarray, shape of ``s``
-    """
-    return tracking_bound(path, s_v, speed, s) + np.asarray(estimate, dtype=float)
+    out = settle_bound(path, s_v, s, look)
+    tail = _chords(path, s_v, s - SETTLE_LOOKAHEADS * look, look, TAIL_LOOKAHEADS, np.linspace(0.0, 1.0, 73))
+    out = out + TAIL_WEIGHT * tail + 5e-6 * look
+    if bias > 0.0:
+        out = out + STEP_PEAK * 0.5 * float(bias) * (look + 0.5 * spacing) ** 2
+    return out
 
 
 def departure_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.ndarray,
@@ -577,7 +622,7 @@ def pose_bound(scenario: Scenario, path: np.ndarray, s_v: np.ndarray, speed: np.
     k = s_m.shape[-1]
     mt = scenario.sensor.measurement_time
     est = np.broadcast_to(np.asarray(estimate, dtype=float), s_m.shape[:-1])[..., None]
-    track = tracking_bound(path, s_v, speed, s_m)
+    track = tracking_bound(path, s_v, speed, s_m, turn_bias(scenario.robot))
     v = local_speed(s_v, speed, s_m, speed_reach(s_v, est + track)) + FOLLOWER_MAX_ACCEL * START_LAG
     t_rel = mt * np.arange(1, k + 1)
     delta = track + est + v * START_LAG + 0.5 * FOLLOWER_MAX_ACCEL * t_rel**2

@@ -14,8 +14,8 @@ from scenarios.schema import Scenario
 def excess_offset(scenario: Scenario, plan: Plan, xy: np.ndarray, tracking: bool = True) -> np.ndarray:
     """How far each true position lies beyond the plan's offset bound [m], shape (T,): <= 0 inside.
 
-    The bound (:func:`planner.schedule.promise.offset_bound`, as the clearance check takes it:
-    :func:`planner.schedule.clearance.margin`) says the true position lies within
+    The bound (:func:`planner.schedule.promise.tracking_bound` plus the certified estimate error,
+    as the clearance check takes them: :func:`planner.schedule.clearance.margin`) says the true position lies within
     ``tracking(s) + estimate(s)`` of the path point ``path(s)`` the robot is passing; the robot
     is inside it when some path sample is that close, up to half the samples' spacing (the
     departure from the dock's heading included). With ``tracking`` False the follower's tracking
