@@ -5,7 +5,8 @@ The planner keeps a disc of ``robot.radius`` (which contains the simulated body,
 path but within a bound of it: the follower's tracking bound there
 (:func:`planner.schedule.promise.tracking_bound`: corners included, it cuts them and swings wide
 leaving them, and the steady offset its wheel radius error holds; and its departure from the dock,
-whose heading may differ from the path's) plus the estimate's error the plan certifies there (the schedule's predicted error). A path is driveable when, at
+whose heading may differ from the path's) plus the estimate's error the plan certifies there (the
+schedule's predicted error). A path is driveable when, at
 every point,
 
     clearance(path(s)) >= radius + tracking(s) + estimate(s)

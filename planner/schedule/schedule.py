@@ -637,7 +637,8 @@ def _attempt(scenario, pef, path, v, spacing, k, gap, policy, switch_tolerance, 
     # the map sees with the smallest pose bound the plan can certify (planner.pef.sight); the search
     # counts a subset at a sample only where it stays in sight within the pose bound it assumes
     # there: the tracking bound and eps (the bound searched for) as the estimate's error
-    seen = sightcheck.seen_within(scenario, tr.xy, eps + promise.tracking_bound(path, tr.kin.s_v, v, tr.s, promise.turn_bias(scenario.robot)))
+    bias = promise.turn_bias(scenario.robot)
+    seen = sightcheck.seen_within(scenario, tr.xy, eps + promise.tracking_bound(path, tr.kin.s_v, v, tr.s, bias))
     sub_idx = np.asarray(subsets, dtype=np.int64)
     tau_s = np.where(seen[:, sub_idx].all(axis=2).T, tau_s, np.inf)
     lv = (promise.levels(scenario, subsets, tr, path, tau_s, k, eps) if np.isfinite(tau_s).any()
@@ -859,7 +860,8 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k, est
                 vf = float(lv[fix_level[i]].speed[j])
                 a, b = float(tr.s[j]), float(tr.s[j]) + vf * k * mt * 1.01
                 # the robot's speed follows the planned one near its estimate (promise.speed_reach)
-                off = float(np.max(estimate)) + float(np.max(promise.tracking_bound(path, s_v, v, np.array([a, b]), promise.turn_bias(scenario.robot))))
+                track = promise.tracking_bound(path, s_v, v, np.array([a, b]), promise.turn_bias(scenario.robot))
+                off = float(np.max(estimate)) + float(np.max(track))
                 reach = float(promise.speed_reach(s_v, off))
                 slow.append((a - reach, b + reach, vf))
         v_new = promise.slowed_speeds(s_v, v, slow)
@@ -873,7 +875,8 @@ def _settle(scenario, path, v, tr, lv, chosen, fix_level, subsets, limit, k, est
             if not slower and not np.isfinite(pred[i]):
                 # no promise at any speed: a marker may be hidden (sightcheck)
                 a = float(tr.s[j])
-                off = float(np.max(estimate)) + float(np.max(promise.tracking_bound(path, s_v, v, np.array([a]), promise.turn_bias(scenario.robot))))
+                track = promise.tracking_bound(path, s_v, v, np.array([a]), promise.turn_bias(scenario.robot))
+                off = float(np.max(estimate)) + float(np.max(track))
                 raise _Unseen(j, c, off)
             if not slower:
                 x, y = tr.xy[j]

@@ -28,8 +28,10 @@ def _robot(name, path, start_time, jitter, fixes=(), spread=0.0):
     speed = np.ones(len(path))
     speed[-1] = 0.0
     plan = SimpleNamespace(schedule=SimpleNamespace(fixes=tuple(fixes)))
+    # wheels without radius error: no steady offset, a straight path has no tracking error
+    robot = SimpleNamespace(radius=RADIUS, height=0.5, max_speed=1.0, wheel_radius_error=0.0, wheel_base=0.5)
     return SimpleNamespace(name=name, path=path, s=s, speed=speed, offsets=np.array([0.0]), plans=[plan],
-                           start_time=start_time, robot=SimpleNamespace(radius=RADIUS, height=0.5, max_speed=1.0),
+                           start_time=start_time, robot=robot,
                            declared=SimpleNamespace(start_jitter=jitter, speed_spread=spread, dwell=0.0))
 
 
@@ -73,8 +75,9 @@ def test_a_ray_grazing_a_standing_robot_within_the_tracking_bounds_is_undecided(
     """B stands on its dock the whole time; the ray passes ``clear`` m from its centre.
 
     Undecided when the body's edge lies within the two robots' bounds of it: A's estimate bound of
-    1 cm (a straight path: no tracking error) plus B's start pose bound of 3 mm, 1.3 cm: a ray 1 cm
-    inside the body is, 3 cm and 20 cm inside are not (and are hidden in every draw).
+    1 cm (a straight path and wheels without radius error: no tracking error) plus B's start pose
+    bound of 3 mm, 1.3 cm: a ray 1 cm inside the body is, 3 cm and 20 cm inside are not (and are
+    hidden in every draw).
     """
     # the ray from (0, 0) to (x, 6) passes 3 x / sqrt(x^2 + 36) from B's centre (0, 3)
     scenario, fleet = _fleet(0.0, marker_x=6.0 * clear / math.sqrt(9.0 - clear * clear), b_start=15.0)

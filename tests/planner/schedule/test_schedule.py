@@ -26,6 +26,19 @@ def warehouse():
     return sc, PEF(sc)
 
 
+def straight_driver(sc, odometry_noise=None):
+    """``sc`` with a robot whose wheels have no radius error (and, given, that odometry noise).
+
+    Such a robot holds no steady offset from a straight (:func:`planner.schedule.promise.tracking_bound`),
+    so its tracking bound is the path's geometry alone: the tests of the schedule's own logic use
+    it where a fast drive is needed, at whose lookahead (4.9 m at 6 m/s) the warehouse robot's
+    0.002 holds it ~20 cm off the path.
+    """
+    robot = dataclasses.replace(sc.robot, wheel_radius_error=0.0,
+                                odometry_noise=sc.robot.odometry_noise if odometry_noise is None else odometry_noise)
+    return dataclasses.replace(sc, robot=robot, robot_actual=robot)
+
+
 def route(sc, names):
     return np.array([sc.routes.nodes[n] for n in names], dtype=float)
 
@@ -183,9 +196,16 @@ def test_sparse_uses_fewer_fixes_and_keeping_subsets_fewer_switches(warehouse):
     assert often.worst < sc.planning.eps_max and sparse.worst < sc.planning.eps_max
     eager = make_schedule(sc, pef, path, switch_tolerance=0.0)
     assert sum(f.switch for f in often.fixes) <= sum(f.switch for f in eager.fixes)
-    # with no tolerance every fix uses a subset of least tau over its stretch
-    assert all(f.tau <= g.tau * 1.2 + 1e-12 for f, g in zip(often.fixes, eager.fixes, strict=False)
-               if f.s == g.s)
+    # with no tolerance every fix uses a subset of least tau over its stretch; with it, a kept
+    # subset's promise is within 20 % of that one's, compared as the search compares them (at
+    # eps_max as the estimate's error, the better order: the final promises are recomputed with
+    # each schedule's own certified errors, which differ)
+    pairs = [(f, g) for f, g in zip(often.fixes, eager.fixes, strict=False) if f.s == g.s]
+    starts = [f.s for f, _ in pairs]
+    kept, _, _ = predict(sc, path, often.speed, starts, [f.markers for f, _ in pairs], sc.planning.eps_max)
+    best = np.minimum(*(predict(sc, path, often.speed, starts, [order(g.markers) for _, g in pairs],
+                                sc.planning.eps_max)[0] for order in (tuple, lambda m: tuple(reversed(m)))))
+    assert len(pairs) > 10 and np.all(kept <= best * 1.2 + 1e-12)
 
 
 def test_speed_profile_with_stops(warehouse):
@@ -211,7 +231,8 @@ def parse_stretch(msg):
 
 
 def test_blind_stretch_is_named():
-    sc = scenarios.load("paper-two-markers")
+    # the steady offset of a wheel radius error would leave 3 mm of this eps_max: a robot without
+    sc = straight_driver(scenarios.load("paper-two-markers"))
     sc = dataclasses.replace(sc, sensor=dataclasses.replace(sc.sensor, max_range=4.0),
                              planning=dataclasses.replace(sc.planning, eps_max=0.01))
     pef = PEF(sc)
@@ -240,6 +261,7 @@ def test_blind_stretch_is_named():
 
 def test_drift_limited_stretch_is_named(warehouse):
     sc, pef = warehouse
+    sc = straight_driver(sc, odometry_noise=0.015)  # the drift from noise alone exceeds eps at 6 m/s
     path = route(sc, ["A", "C"])
     fast = np.full(len(path), 6.0)  # 1.2 m between fixes: drift alone exceeds eps
     no_slowing = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, min_fix_speed=6.0))
@@ -314,6 +336,7 @@ def test_a_slow_down_search_gives_up_only_where_its_schedule_would_not_be_taken(
     from planner.schedule import schedule as schedule_module
 
     sc, pef = warehouse
+    sc = straight_driver(sc, odometry_noise=0.015)
     sc = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.03))
     path = route(sc, ["A", "C"])
     fast = np.full(len(path), 6.0)  # slow-downs needed (test_drift_limited_stretch_is_named)
@@ -386,7 +409,7 @@ def test_the_least_slow_down_is_searched_from_the_largest_rung_with_the_same_ans
     """The slow-down searches give the schedule the rungs searched one by one in increasing order give.
 
     The warehouse's A-C at 6 m/s has no schedule at speed; the 20 mm rung's search crawls (a
-    ~476 s slow-down), the 30 mm one slows by ~12 s, the 50 mm one by ~4 s, none within the
+    ~476 s slow-down), the 30 mm one slows by ~28 s, the 50 mm one by ~4 s, none within the
     allowance. Searched from the largest rung down (each cut once it costs more than the least
     so far), the 20 mm rung is cut after a few attempts: the same schedule, compared whole
     (fixes, speeds, errors: exact, no tolerance), from fewer attempts.
@@ -395,6 +418,7 @@ def test_the_least_slow_down_is_searched_from_the_largest_rung_with_the_same_ans
     the least-slow-down rule returns) differs from the one chosen, so the comparison can fail.
     """
     sc, pef = warehouse
+    sc = straight_driver(sc, odometry_noise=0.015)
     sc = dataclasses.replace(sc, planning=dataclasses.replace(sc.planning, eps_max=0.05))
     path = route(sc, ["A", "C"])
     fast = np.full(len(path), 6.0)

@@ -61,8 +61,10 @@ def test_without_the_tracking_bound_the_corners_break_it(driven):
 
 @pytest.fixture(scope="module")
 def biased():
-    """The corner world driven at 1.4 m/s by a narrow robot with the largest wheel radius error
-    ``pefsim worlds`` draws (0.004, wheel base 0.33 m: a steady turn of 0.024 / m)."""
+    """Drive the corner world at 1.4 m/s with the largest wheel radius error random worlds draw.
+
+    0.004 on a wheel base of 0.33 m: a robot commanded straight turns at 0.024 / m.
+    """
     sc = scenarios.load(CORNER_WORLD)
     robot = replace(sc.robot, max_speed=1.4, wheel_base=0.33, wheel_radius_error=0.004)
     sc = replace(sc, robot=robot, robot_actual=robot)
