@@ -63,7 +63,7 @@ Derived promise
 
 Tracking
     Pure pursuit steers towards the path point one lookahead ``L = max(LOOKAHEAD_MIN,
-    LOOKAHEAD_GAIN v)`` (plus one vertex spacing) ahead. :func:`tracking_bound` sums three parts.
+    LOOKAHEAD_GAIN v)`` (plus one vertex spacing) ahead. :func:`tracking_bound` sums two parts.
 
     - *The turn it cuts.* It drives on the chords of the path of arc length ``L``: its distance
       from the path is taken as the largest distance of ``path(s)`` from a chord of arc length
@@ -72,39 +72,31 @@ Tracking
       wide and settles back, by no more than it cut the turn: the bound at ``s`` is the largest
       chord bound over the :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``. That window is
       measured on the follower (corridor world: 9.5 cm wide at a 90 deg corner, back within
-      1.5 cm 2.5 m later).
-    - *The swing's tail.* Linearised about a straight (lateral offset ``y``, arc length
-      ``sigma``), pure pursuit commands the curvature ``-2 (y + L y') / L^2``, so
-      ``y'' + 2 y' / L + 2 y / L^2 = kappa``, ``kappa`` what turns the robot besides the command:
-      a damping ratio of ``1 / sqrt(2)`` whatever the speed, the roots ``(-1 +- i) / L``. A swing
-      of amplitude ``A`` leaving a corner decays within ``sqrt(2) A exp(-sigma / L)`` and
-      crosses the path every ``pi L`` (random world 38 at 1.4 m/s: out 6.5-10 cm at the
-      corner's end, back across 3.4 m later, out 1-2 cm again after 3.5 m more). Beyond the
-      window the bound adds :data:`TAIL_WEIGHT` (that envelope summed over the windows of
-      :data:`SETTLE_LOOKAHEADS` behind it) times the largest chord bound over the
-      :data:`TAIL_LOOKAHEADS` before the window.
+      1.5 cm 2.5 m later), not derived: the swing goes on decaying past it (random world 38 at
+      1.4 m/s: out 6.5-10 cm at the corner's end, back across 3.4 m later, out by 1-2 cm again
+      3.5 m after that, slower than the linear model below says), within the second part's
+      headroom in every episode checked.
     - *The wheels' systematic error.* The declared wheel radius error ``e`` turns a robot
-      commanded straight at ``kappa = 2 |e| / b`` (:func:`turn_bias`), which the odometry does
+      commanded straight at ``kappa = 2 |e| / b`` (:func:`turn_bias`), which its odometry does
       not see; the fixes move the estimate back to the truth, so the follower steers by an
-      estimate that drifts the same way, and the equation above settles at
-      ``y = kappa L_d^2 / 2``, ``L_d`` the distance to its target (at most one lookahead and
-      one and a half vertex spacings: the target is the first vertex one lookahead past the
-      vertex nearest the robot). The follower does not answer the turn directly: it answers
-      the estimate, whose heading the filter corrects only as the fixes show the drift, so
-      the offset is reached as the response to a step through a second loop that is lightly
-      damped (corner world at 1.4 m/s, ``e = 0.004``, ``b = 0.33 m``: 19.5 mm final, 33.6 mm
-      at its first peak after the dock, swinging about the final value with half the
-      amplitude 6-7 m later). No second-order response to a step exceeds twice its final
-      value, whatever its damping: the part is :data:`STEP_PEAK` ``= 2`` times
-      ``kappa L_d^2 / 2``. On random world 38 (``e = 0.0034``, ``b = 0.33 m``, 1.4 m/s) the
-      robot runs 1.4-2.2 cm to its left on the straights, both ways (bound 3.3 cm); on
-      ``warehouse`` (0.002, 0.5 m, 1 m/s) 2.6-3.4 mm (bound 7.2 mm).
+      estimate that drifts the same way. Linearised about a straight (lateral offset ``y``,
+      arc length ``sigma``), pure pursuit commands the curvature ``-2 (y + L y') / L^2``, so
+      ``y'' + 2 y' / L + 2 y / L^2 = kappa``, which settles at ``y = kappa L_d^2 / 2``, ``L_d``
+      the distance to its target (at most one lookahead and one and a half vertex spacings:
+      the target is the first vertex one lookahead past the vertex nearest the robot). The
+      follower does not answer the turn directly: it answers the estimate, whose heading the
+      filter corrects only as the fixes show the drift, so the offset is reached as the
+      response to a step through a lightly damped loop (corner world at 1.4 m/s, ``e = 0.004``,
+      ``b = 0.33 m``: 19.5 mm final, 33.6 mm at its first peak after the dock, swinging about
+      the final value with half the amplitude 6-7 m later). No second-order response to a step
+      exceeds twice its final value, whatever its damping: the part is :data:`STEP_PEAK`
+      ``= 2`` times ``kappa L_d^2 / 2``. On random world 38 (``e = 0.0034``, ``b = 0.33 m``,
+      1.4 m/s) the robot runs 1.4-2.2 cm to its left on the straights, both ways (bound
+      3.3 cm); on ``warehouse`` (0.002, 0.5 m, 1 m/s) 2.6-3.4 mm (bound 7.2 mm).
 
-    The linear model leaves out the follower's yaw rate and yaw acceleration limits and the
-    filter, which delay its answer; the window of the first part is measured with them, and the
-    bound is checked against episodes at every control step (``tests/sim/episode/test_offset_bound.py``:
-    corners at 1 m/s, and a long straight after a corner at 1.4 m/s with the largest wheel
-    radius error random worlds draw). Argued from the follower and checked on it, not proved.
+    Argued from the follower and checked on it at every control step, not proved
+    (``tests/sim/episode/test_offset_bound.py``: the corner world's corners at 1 m/s, and the
+    same world at 1.4 m/s with the largest wheel radius error random worlds draw).
 
 Polygon tolerance
     The simulation's fault area is a polygon reaching up to ``tol = DEFAULT_TOLERANCE_FRACTION
@@ -173,13 +165,6 @@ SETTLE_LOOKAHEADS = 3.0
 """Length, in lookaheads, over which the follower settles back onto the path after a turn: it
 leaves a 90 deg corner of the corridor world (lookahead 0.8 m + 0.1 m vertex spacing) 9.5 cm
 wide and is back within 1.5 cm 2.5 m later. Measured on the follower, not derived (below)."""
-TAIL_LOOKAHEADS = 9.0
-"""Length, in lookaheads, of the stretch before the settle window whose corners' tails count
-(module docstring, "Tracking"): beyond it they weigh under ``1e-5 L``."""
-TAIL_WEIGHT = math.sqrt(2.0) * math.exp(-SETTLE_LOOKAHEADS) / (1.0 - math.exp(-SETTLE_LOOKAHEADS))
-"""Weight of a corner's chord bound more than :data:`SETTLE_LOOKAHEADS` lookaheads behind
-(module docstring, "Tracking"): the linearised follower's free response decays within the
-envelope ``sqrt(2) exp(-sigma / L)``, summed over the windows of 3 lookaheads behind."""
 STEP_PEAK = 2.0
 """Peak of the steady offset's step response over its final value: no second-order response to
 a step overshoots by more than its final value, whatever its damping (module docstring,
@@ -284,21 +269,17 @@ def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.n
     Returns
     -------
     numpy.ndarray, same shape as ``s``
-        The sum of three parts (module docstring, "Tracking"), ``L`` the lookahead at the local
+        The sum of two parts (module docstring, "Tracking"), ``L`` the lookahead at the local
         speed plus one vertex spacing [m]: the largest distance of ``path(a)`` from a chord
         ``path(b) path(b + L)`` with ``b <= a <= b + L`` over ``a`` in the
-        :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``; :data:`TAIL_WEIGHT` times the same over the
-        :data:`TAIL_LOOKAHEADS` ``L`` before those (plus the tail beyond, under ``1e-5 L``); and
-        the offset the wheel radius error holds, :data:`STEP_PEAK` ``bias (L + spacing / 2)^2
-        / 2``.
+        :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``; and the offset the wheel radius error
+        holds, :data:`STEP_PEAK` ``bias (L + spacing / 2)^2 / 2``.
     """
     s = np.asarray(s, dtype=float)
     spacing = float(np.max(np.diff(s_v), initial=0.0))
     reach = LOOKAHEAD_MIN + LOOKAHEAD_GAIN * float(np.max(speed, initial=0.0)) + spacing
     look = np.maximum(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * local_speed(s_v, speed, s, reach)) + spacing
     out = settle_bound(path, s_v, s, look)
-    tail = _chords(path, s_v, s - SETTLE_LOOKAHEADS * look, look, TAIL_LOOKAHEADS, np.linspace(0.0, 1.0, 73))
-    out = out + TAIL_WEIGHT * tail + 5e-6 * look
     if bias > 0.0:
         out = out + STEP_PEAK * 0.5 * float(bias) * (look + 0.5 * spacing) ** 2
     return out

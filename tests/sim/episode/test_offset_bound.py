@@ -5,7 +5,7 @@ The plan keeps ``radius + tracking(s) + estimate(s)`` clear around each path poi
 within ``tracking(s) + estimate(s)`` of the path point it is passing. The tracking bound is argued
 from the follower's geometry and its settle factor measured (:mod:`planner.schedule.promise`), not
 proved: these episodes check it where it matters most, at the corner world's 90 deg corners at
-1 m/s, and on a long straight after a corner at 1.4 m/s with the largest wheel radius error
+1 m/s, and on the same world at 1.4 m/s with the largest wheel radius error
 random worlds draw, where the follower holds a steady offset. No tolerance: the bound itself is
 asserted at every control step.
 """
