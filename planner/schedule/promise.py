@@ -90,7 +90,10 @@ Tracking
       ``b = 0.33 m``: 19.5 mm final, 33.6 mm at its first peak after the dock, swinging about
       the final value with half the amplitude 6-7 m later). No second-order response to a step
       exceeds twice its final value, whatever its damping: the part is :data:`STEP_PEAK`
-      ``= 2`` times ``kappa L_d^2 / 2``. On random world 38 (``e = 0.0034``, ``b = 0.33 m``,
+      ``= 2`` times ``kappa L_d^2 / 2``. From the dock, where the robot starts at rest on the
+      path with its estimate calibrated, it is at most ``kappa s^2 / 2`` at arc length ``s``
+      (the turn alone, which the follower's answer only takes back while the offset first
+      grows; past that rise the peak bounds it). On random world 38 (``e = 0.0034``, ``b = 0.33 m``,
       1.4 m/s) the robot runs 1.4-2.2 cm to its left on the straights, both ways (bound
       3.3 cm); on ``warehouse`` (0.002, 0.5 m, 1 m/s) 2.6-3.4 mm (bound 7.2 mm).
 
@@ -273,7 +276,8 @@ def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.n
         speed plus one vertex spacing [m]: the largest distance of ``path(a)`` from a chord
         ``path(b) path(b + L)`` with ``b <= a <= b + L`` over ``a`` in the
         :data:`SETTLE_LOOKAHEADS` ``L`` before ``s``; and the offset the wheel radius error
-        holds, :data:`STEP_PEAK` ``bias (L + spacing / 2)^2 / 2``.
+        holds, :data:`STEP_PEAK` ``bias (L + spacing / 2)^2 / 2``, and at most ``bias s^2 / 2``
+        (the path starts at rest on a dock).
     """
     s = np.asarray(s, dtype=float)
     spacing = float(np.max(np.diff(s_v), initial=0.0))
@@ -281,7 +285,10 @@ def tracking_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.n
     look = np.maximum(LOOKAHEAD_MIN, LOOKAHEAD_GAIN * local_speed(s_v, speed, s, reach)) + spacing
     out = settle_bound(path, s_v, s, look)
     if bias > 0.0:
-        out = out + STEP_PEAK * 0.5 * float(bias) * (look + 0.5 * spacing) ** 2
+        # from the dock, where it starts on the path: the turn alone, kappa s^2 / 2, until the
+        # step's peak (the follower's answer only takes it back towards the path)
+        steady = STEP_PEAK * 0.5 * float(bias) * (look + 0.5 * spacing) ** 2
+        out = out + np.minimum(steady, 0.5 * float(bias) * np.maximum(s, 0.0) ** 2)
     return out
 
 
