@@ -33,7 +33,7 @@ the line-of-sight margin from the plan's certified pose bound, with schedules on
 certified errors (paper-two-markers keeps its schedule; the runs rows carry the outcome columns); the certified
 bound's turning net of the encoders' quantisation (the ``certified`` step column only); the
 tracking bound's steady offset from the declared wheel radius error and its corners' tails (the
-promises only: ``predicted_tau`` and ``certified`` up to 1.6e-6 m on paper-two-markers, 2.3e-5 m
+promises only: ``predicted_tau`` and ``certified`` up to 1.4e-6 m on paper-two-markers, 2.3e-5 m
 on warehouse; the same schedules and episodes).
 """
 
