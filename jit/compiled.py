@@ -357,8 +357,11 @@ def _ours(module: types.ModuleType | None) -> bool:
     numpy's or numba's constants change only with their version, which numba's cache keys on.
     """
     name, path = getattr(module, "__name__", ""), getattr(module, "__file__", None)
-    if not path:
-        return False
+    return bool(path) and _ours_at(name, path)
+
+
+@functools.cache
+def _ours_at(name: str, path: str) -> bool:
     return name.split(".")[0] in _OWN_PACKAGES or not str(Path(path).resolve()).startswith(_installed_roots())
 
 
@@ -393,9 +396,13 @@ def _imported_from(module_name: str) -> dict[str, str]:
 def _constant_sources(fn) -> set[Path]:
     """Files of our modules whose constants ``fn``'s code reads (numba freezes globals)."""
     files = set()
-    imported = _imported_from(fn.__module__)
-    for name in _code_names(fn.__code__):
-        obj = fn.__globals__.get(name)
+    values = {name: fn.__globals__.get(name) for name in _code_names(fn.__code__)}
+    # a module or a kernel is found without the import statements (a kernel's file counts as a
+    # callee's); only another global may be a constant imported from one of our modules
+    imports = any(v is not None and not isinstance(v, (types.ModuleType, Kernel)) and not _is_dispatcher(v)
+                  for v in values.values())
+    imported = _imported_from(fn.__module__) if imports else {}
+    for name, obj in values.items():
         source = None
         if isinstance(obj, types.ModuleType):
             source = obj
