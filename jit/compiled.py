@@ -34,6 +34,7 @@ set), one entry per kernel and argument types. Every command reads the same entr
 that ``place`` compiled is loaded, not compiled, by ``validate`` (each command compiles only the
 kernels no command before it called).
 """
+
 from __future__ import annotations
 
 import atexit
