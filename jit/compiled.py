@@ -10,17 +10,19 @@ Why: importing numba and loading one cached kernel cost 1.4-2.0 s on our hosts (
 type registries, and scipy.linalg for its BLAS check); a command that runs no kernel (``pefsim
 list``, ``--help``, reading a sweep's tables) should not pay it.
 
-numba caches a compiled function beside its own source file (``cache=True``) and throws the
-cache away when that file changes. A kernel that calls kernels of other files compiles their
-code into its own, so after an edit of one of *those* files the caller's cache would still run
-the old code. :func:`keep_fresh`, called at the end of a module that defines cached kernels,
-keys each of them on the sources of every module whose kernels it reaches, or whose constants
-it reads (found from the names its code uses, transitively): when their hash differs from the one
-stored beside the cache, the kernel's cache is flushed, and numba compiles it afresh on first use.
-For a module of :class:`Kernel` objects this happens in :func:`jit`, when they become dispatchers.
-
-It costs one hash of a few source files per module. Where the cache directory cannot be written
-numba does not cache either, and nothing is stored.
+numba caches a compiled function (``cache=True``) under a stamp of its own source file and
+compiles it afresh when that file changes. A kernel that calls kernels of other files compiles
+their code into its own, and a global's value is frozen into the code, so after an edit of one of
+*those* files numba's stamp would still match and the caller run the old code (numba's
+documented limit: "cache invalidation fails to recognize changes in symbols defined in a different
+file"). So each cached kernel is keyed on the sources of every module whose kernels it reaches, or
+whose constants it reads (found from the names its code uses, transitively,
+:func:`inlined_sources`): as it becomes a dispatcher, it gets numba's own cache locators with a
+stamp that also holds the digest of those files (:mod:`jit.locators`, chosen through numba's
+documented ``NUMBA_CACHE_LOCATOR_CLASSES`` setting, for that kernel only). When they change, numba
+finds the stamp differs, compiles the kernel afresh and overwrites its entries in place. It costs
+one hash of a few source files per kernel. :func:`keep_fresh` checks that a module holds no
+``numba.njit`` function that inlines other files (numba alone would key it on its own file).
 
 The first run on a machine compiles every kernel it calls (tens of seconds for a whole episode);
 :func:`announce_compiles` makes a program say so on stderr as the first compilation starts (how
@@ -47,11 +49,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-_STAMP_SUFFIX = ".inlined"
-
 _lock = threading.RLock()
 _kernels: list[Kernel] = []
-_fresh_pending: list[str] = []
 _jitted = False
 #: ids of the dispatchers of kernels with ``cache=True``
 _cached: set[int] = set()
@@ -174,17 +173,27 @@ def jit() -> None:
             for name, value in list(names.items()):
                 if type(value) is Kernel:
                     names[name] = swap[id(value)]
-        for name in _fresh_pending:
-            _flush_stale(name)
-        _fresh_pending.clear()
 
 
 def _dispatch(kernel: Kernel) -> None:
     import numba
 
-    kernel._dispatcher = numba.njit(**kernel.options)(kernel.py_func)
-    if kernel.options.get("cache"):
-        _cached.add(id(kernel._dispatcher))
+    if not kernel.options.get("cache"):
+        kernel._dispatcher = numba.njit(**kernel.options)(kernel.py_func)
+        return
+    from jit import locators
+
+    files = inlined_sources(kernel)
+    if files:
+        locators.inlined[kernel.py_func] = _digest(files)
+    # numba picks the locator as the dispatcher enables caching; only this kernel gets ours
+    configured = numba.config.CACHE_LOCATOR_CLASSES
+    numba.config.CACHE_LOCATOR_CLASSES = locators.classes(configured)
+    try:
+        kernel._dispatcher = numba.njit(**kernel.options)(kernel.py_func)
+    finally:
+        numba.config.CACHE_LOCATOR_CLASSES = configured
+    _cached.add(id(kernel._dispatcher))
 
 
 def _compile_timer():
@@ -349,8 +358,11 @@ def _ours(module: types.ModuleType | None) -> bool:
     numpy's or numba's constants change only with their version, which numba's cache keys on.
     """
     name, path = getattr(module, "__name__", ""), getattr(module, "__file__", None)
-    if not path:
-        return False
+    return bool(path) and _ours_at(name, path)
+
+
+@functools.cache
+def _ours_at(name: str, path: str) -> bool:
     return name.split(".")[0] in _OWN_PACKAGES or not str(Path(path).resolve()).startswith(_installed_roots())
 
 
@@ -385,9 +397,13 @@ def _imported_from(module_name: str) -> dict[str, str]:
 def _constant_sources(fn) -> set[Path]:
     """Files of our modules whose constants ``fn``'s code reads (numba freezes globals)."""
     files = set()
-    imported = _imported_from(fn.__module__)
-    for name in _code_names(fn.__code__):
-        obj = fn.__globals__.get(name)
+    values = {name: fn.__globals__.get(name) for name in _code_names(fn.__code__)}
+    # a module or a kernel is found without the import statements (a kernel's file counts as a
+    # callee's); only another global may be a constant imported from one of our modules
+    imports = any(v is not None and not isinstance(v, (types.ModuleType, Kernel)) and not _is_dispatcher(v)
+                  for v in values.values())
+    imported = _imported_from(fn.__module__) if imports else {}
+    for name, obj in values.items():
         source = None
         if isinstance(obj, types.ModuleType):
             source = obj
@@ -432,44 +448,48 @@ def _digest(files: list[Path]) -> str:
     h = hashlib.sha256()
     for f in files:
         h.update(str(f.name).encode())
-        h.update(f.read_bytes())
+        h.update(_file_hash(f, *_stat(f)))
     return h.hexdigest()
 
 
+def _stat(f: Path) -> tuple[int, int]:
+    st = f.stat()
+    return st.st_mtime_ns, st.st_size
+
+
+@functools.cache
+def _file_hash(f: Path, mtime_ns: int, size: int) -> bytes:
+    # keyed on the stat too: a file edited while the process runs is hashed again
+    return hashlib.sha256(f.read_bytes()).digest()
+
+
 def keep_fresh(module_name: str) -> None:
-    """Flush the cache of every cached kernel of a module whose inlined sources changed.
+    """Check that no ``numba.njit`` function of a module inlines other files.
+
+    Kernels of :func:`njit` are keyed on every source they inline as they become numba
+    dispatchers; a function of ``numba.njit`` itself would be keyed by numba on its own file only.
 
     Parameters
     ----------
     module_name : str
         ``__name__`` of the calling module (call it after the module's kernels are defined).
-        Kernels of :func:`njit` are checked when they become numba dispatchers (:func:`jit`).
+
+    Raises
+    ------
+    TypeError
+        Where a ``numba.njit`` function of the module inlines kernels or constants of other files.
     """
-    with _lock:
-        if not _jitted and any(type(v) is Kernel for v in vars(sys.modules[module_name]).values()):
-            _fresh_pending.append(module_name)
-            return
-    _flush_stale(module_name)
-
-
-def _flush_stale(module_name: str) -> None:
-    module = sys.modules[module_name]
-    for obj in list(vars(module).values()):
-        if not (_is_dispatcher(obj) and obj.__module__ == module_name):
+    for name, obj in list(vars(sys.modules[module_name]).items()):
+        if not (_is_dispatcher(obj) and obj.__module__ == module_name) or id(obj) in _dispatchers():
             continue
-        cache = getattr(obj, "_cache", None)
         files = inlined_sources(obj)
-        if not files or cache is None or not hasattr(cache, "cache_path"):
-            continue  # not cached, or inlines nothing: numba's own key is enough
-        digest = _digest(files)
-        stamp = Path(cache.cache_path) / f"{module_name}.{obj.py_func.__qualname__}{_STAMP_SUFFIX}"
-        try:
-            if stamp.read_text() == digest:
-                continue
-        except OSError:
-            pass
-        cache.flush()
-        try:
-            stamp.write_text(digest)
-        except OSError:
-            pass  # a read-only tree: numba cannot cache here either
+        if files:
+            raise TypeError(f"{module_name}.{name} is a numba.njit function that inlines "
+                            f"{', '.join(f.name for f in files)}; numba keys its cache on its own file only: "
+                            f"define it with jit.compiled.njit")
+
+
+def _dispatchers() -> set[int]:
+    """Return the ids of the numba dispatchers of :func:`njit`'s kernels."""
+    with _lock:
+        return {id(k._dispatcher) for k in _kernels if k._dispatcher is not None}

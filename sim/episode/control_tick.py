@@ -8,8 +8,8 @@ the same compiled kernels the classes use (:func:`sim.physics.odometry.odometry_
 :mod:`estimators.motion_quantised`, :func:`sim.episode.follower.command_step`), so the two paths cannot
 drift apart. The objects stay the owners of their state: the kernel works on their arrays.
 
-numba caches ``_tick`` compiled with those kernels inlined; :func:`jit.compiled.keep_fresh`
-keys that cache on their files too, so an edit of any of them is compiled on the next import.
+numba caches ``_tick`` compiled with those kernels inlined; :func:`jit.compiled.njit` keys
+that cache on their files too, so an edit of any of them is compiled on the next run.
 """
 
 from __future__ import annotations

@@ -13,77 +13,103 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from numba.core.registry import CPUDispatcher
 
 from jit import compiled
 
 ROOT = Path(__file__).resolve().parents[2]
 
-CALLEE = "import numba\n\n\n@numba.njit(cache=True)\ndef f(x):\n    return x + {add}\n"
+CALLEE = "from jit import compiled\n\n\n@compiled.njit(cache=True)\ndef f(x):\n    return x + {add}\n"
 CALLER = textwrap.dedent("""\
-    import numba
-
     import callee
     from jit import compiled
 
 
-    @numba.njit(cache=True)
+    @compiled.njit(cache=True)
     def g(x):
         return 2.0 * callee.f(x)
     """)
 
 
-def _run(tmp: Path, *modules: str) -> list[float]:
+def _plain(caller: str) -> str:
+    """Return the same kernel under ``numba.njit``, which numba keys on its own file only."""
+    # the callee's kernels become numba functions first, as numba.njit needs its callees to be
+    return "import numba\n" + caller.replace("@compiled.njit", "@numba.njit") + "\n\ncompiled.jit()\n"
+
+
+def _run(tmp: Path, *modules: str, **env: str) -> list[float]:
     """``module.g(1.0)`` of each module, in one new process (each caller has its own cache)."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp), str(ROOT)])}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp), str(ROOT)]), **env}
     code = "".join(f"import {m}; print({m}.g(1.0))\n" for m in modules)
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp, env=env, capture_output=True, text=True, timeout=120,
                          check=True)
     return [float(v) for v in out.stdout.split()]
 
 
-@pytest.fixture
-def kernels(tmp_path):
+def test_an_edit_of_an_inlined_kernel_reaches_the_cached_caller(tmp_path):
     (tmp_path / "callee.py").write_text(CALLEE.format(add=1.0))
     (tmp_path / "fresh.py").write_text(CALLER + "\n\ncompiled.keep_fresh(__name__)\n")
-    (tmp_path / "stale.py").write_text(CALLER)  # negative control: numba's own cache key only
-    return tmp_path
+    (tmp_path / "stale.py").write_text(_plain(CALLER))  # negative control: numba's own cache key only
+    assert _run(tmp_path, "fresh", "stale") == [4.0, 4.0]
+    cached = sorted(tmp_path.glob("__pycache__/fresh.g-*"))
+    assert [p.suffix for p in cached] == [".nbc", ".nbi"], cached  # numba's place, one entry
+    (tmp_path / "callee.py").write_text(CALLEE.format(add=2.0))
+    # numba.njit alone runs the caller's stale code: the edit does not reach it
+    assert _run(tmp_path, "fresh", "stale") == [6.0, 4.0]
+    # the new code replaced the old entry in place (nothing piles up) ...
+    assert sorted(tmp_path.glob("__pycache__/fresh.g-*")) == cached
+    # ... and an unchanged tree keeps its cache (no recompile: the stamp matches)
+    before = {p: p.stat().st_mtime_ns for p in cached}
+    assert _run(tmp_path, "fresh") == [6.0]
+    assert {p: p.stat().st_mtime_ns for p in cached} == before
 
 
-def test_an_edit_of_an_inlined_kernel_reaches_the_cached_caller(kernels):
-    assert _run(kernels, "fresh", "stale") == [4.0, 4.0]
-    assert list(kernels.glob("__pycache__/fresh.g-*.nbi")), "the caller was not cached"
-    (kernels / "callee.py").write_text(CALLEE.format(add=2.0))
-    # without keep_fresh numba runs the caller's stale code: the edit does not reach it
-    assert _run(kernels, "fresh", "stale") == [6.0, 4.0]
-    # and an unchanged tree keeps its cache (no recompile: the stamp matches)
-    before = {p: p.stat().st_mtime_ns for p in kernels.glob("__pycache__/fresh.g-*")}
-    assert _run(kernels, "fresh") == [6.0]
-    assert {p: p.stat().st_mtime_ns for p in kernels.glob("__pycache__/fresh.g-*")} == before
+def test_a_numba_njit_function_that_inlines_other_files_is_refused(tmp_path):
+    """keep_fresh refuses what it cannot key: a ``numba.njit`` caller of another file's kernel.
+
+    Negative controls: the same caller under ``jit.compiled.njit``, and a ``numba.njit`` function
+    that inlines nothing, pass.
+    """
+    (tmp_path / "callee.py").write_text(CALLEE.format(add=1.0))
+    (tmp_path / "plain.py").write_text(_plain(CALLER) + "\ncompiled.keep_fresh(__name__)\n")
+    (tmp_path / "ours.py").write_text(CALLER + "\n\ncompiled.keep_fresh(__name__)\n")
+    (tmp_path / "alone.py").write_text("import numba\nfrom jit import compiled\n\n\n@numba.njit(cache=True)\n"
+                                       "def g(x):\n    return x\n\n\ncompiled.keep_fresh(__name__)\n")
+    refused = _python("import plain", tmp_path)
+    assert refused.returncode == 1
+    assert refused.stderr.splitlines()[-1] == (
+        "TypeError: plain.g is a numba.njit function that inlines callee.py; numba keys its cache on its own "
+        "file only: define it with jit.compiled.njit"), refused.stderr
+    assert _run(tmp_path, "ours", "alone") == [4.0, 1.0]
 
 
-LAZY_CALLEE = "from jit import compiled\n\n\n@compiled.njit(cache=True)\ndef f(x):\n    return x + {add}\n"
-LAZY_CALLER = CALLER.replace("import numba\n\n", "").replace("@numba.njit", "@compiled.njit")
+#: where numba puts the cache: beside the source; NUMBA_CACHE_DIR; the per-user folder (a read-only tree)
+WHERE = {"in-tree": {}, "NUMBA_CACHE_DIR": {"NUMBA_CACHE_DIR": "cache"},
+         "user-wide": {"XDG_CACHE_HOME": "xdg", "NUMBA_CACHE_LOCATOR_CLASSES": "UserWideCacheLocator"}}
 
 
 def _edit_reaches_fresh_only(tmp: Path, caller: str, other: str, before: str, after: str,
-                             values: tuple[float, float]) -> None:
+                             values: tuple[float, float], where: str = "in-tree") -> None:
     """Check that an edit of file ``other`` (``before`` -> ``after``) reaches ``fresh`` only.
 
-    ``fresh`` is the caller with keep_fresh; ``stale``, the caller alone (the negative control),
-    keeps running its cached code.
+    ``fresh`` is the kernel of ``jit.compiled.njit``; ``stale``, the same under ``numba.njit`` (the
+    negative control), keeps running its cached code. ``where``: one of :data:`WHERE`.
     """
+    env = {k: str(tmp / v) if k.endswith(("_DIR", "_HOME")) else v for k, v in WHERE[where].items()}
     (tmp / other).write_text(before)
     (tmp / "fresh.py").write_text(caller + "\n\ncompiled.keep_fresh(__name__)\n")
-    (tmp / "stale.py").write_text(caller)
-    assert _run(tmp, "fresh", "stale") == [values[0], values[0]]
+    (tmp / "stale.py").write_text(_plain(caller))
+    assert _run(tmp, "fresh", "stale", **env) == [values[0], values[0]]
     (tmp / other).write_text(after)
-    assert _run(tmp, "fresh", "stale") == [values[1], values[0]]
+    assert _run(tmp, "fresh", "stale", **env) == [values[1], values[0]]
+    # the cache stays where numba puts it (only numba.njit's stale.g would be there otherwise)
+    roots = {p.relative_to(tmp).parts[0] for p in tmp.rglob("fresh.g-*.nbi")}
+    assert roots == {next(iter(WHERE[where].values()), "__pycache__")}, roots
 
 
-def test_kernels_of_compiled_njit_are_kept_fresh_when_they_become_dispatchers(tmp_path):
-    _edit_reaches_fresh_only(tmp_path, LAZY_CALLER, "callee.py", LAZY_CALLEE.format(add=1.0),
-                             LAZY_CALLEE.format(add=2.0), (4.0, 6.0))
+@pytest.mark.parametrize("where", list(WHERE))
+def test_kernels_of_compiled_njit_are_kept_fresh_when_they_become_dispatchers(tmp_path, where):
+    _edit_reaches_fresh_only(tmp_path, CALLER, "callee.py", CALLEE.format(add=1.0), CALLEE.format(add=2.0),
+                             (4.0, 6.0), where)
 
 
 def _our_modules():
@@ -95,17 +121,16 @@ def _our_modules():
             yield info.name
 
 
-def test_every_module_whose_cached_kernels_inline_others_keeps_them_fresh():
+def test_every_cached_kernel_of_ours_is_keyed_on_the_files_it_inlines():
+    from jit import locators
+
     compiled.jit()  # every kernel a numba dispatcher, whichever tests ran before
-    missing = []
     for name in _our_modules():
-        mod = importlib.import_module(name)
-        inlining = [o for o in vars(mod).values() if isinstance(o, CPUDispatcher) and o.__module__ == name
-                    and getattr(o, "_cache", None) is not None and hasattr(o._cache, "cache_path")
-                    and compiled.inlined_sources(o)]
-        if inlining and "compiled.keep_fresh(__name__)" not in Path(mod.__file__).read_text():
-            missing.append(name)
-    assert missing == []
+        importlib.import_module(name)
+        compiled.keep_fresh(name)  # no numba.njit function that inlines other files
+    inlining = [k for k in compiled._kernels if k.options.get("cache") and compiled.inlined_sources(k)]
+    assert len(inlining) > 20  # the PEF's, the estimators', the control tick's
+    assert [k.key for k in inlining if k.py_func not in locators.inlined] == []
 
 
 CONSTANTS = "LIMIT = {value}\n"
