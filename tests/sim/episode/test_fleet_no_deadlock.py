@@ -35,7 +35,10 @@ def test_every_robot_of_the_north_aisle_fleet_arrives(floor):
         assert r.result.summary["reached"], r.name
     assert res.collisions == 0
     waits = {r.name: r.wait_time for r in res.robots}
-    assert waits["r2"] > 10.0      # the floor makes a robot wait (the plan predicts 30.9 s)
+    # the floor makes one of the two aisle crossers wait for the other; which one is a near tie
+    # (both leave at t = 0, the zone goes to the first request): the plan has r2 wait 27.8 s, the
+    # episode r1 26.6 s since the tracking bound's wheel part slowed r1's fixes by about a second
+    assert max(waits["r1"], waits["r2"]) > 10.0 and min(waits["r1"], waits["r2"]) == 0.0
 
 
 @pytest.mark.e2e
