@@ -47,7 +47,10 @@ reflector for a stretch of fixes), so V exceeds E by the mean size of such a str
 power grows with the count of independent blocking events, not of blocked fixes: at 200 runs a
 half-size prediction is failed with probability 0.9 once E / sqrt(V) >= 2 (z_c + 1.28). The check
 reports both powers and the z a prediction scaled by 1/2 and by 2 would have had on the same runs
-(``z_half``, ``z_double``), so that a pass shows what it could have caught.
+(``z_half``, ``z_double``), so that a pass shows what it could have caught. These powers take the
+total as normal, which overstates the power against a prediction too low where most runs hide
+nothing; the prediction states its own before any run by simulating sweeps from its law of a
+run's count (:func:`model_powers`).
 
 A total can hide a prediction that puts its mass on the wrong fixes (the blocked ones predicted
 clear and as many clear ones predicted blocked): the same test is made in each bin of the
