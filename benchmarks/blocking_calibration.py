@@ -8,12 +8,20 @@ sweep's); each fix's prediction (``p_block_robot``) and what happened (a schedul
 hidden by a robot) go through the ``blocking`` check of ``pefsim validate``
 (:mod:`validation.blocking`) at alpha = 0.01, and per robot the runs that lost the guarantee
 (the plan check's single-failure test). Nothing is written.
+
+``--model`` drives no episode: it plans the fleet and prints the power the sampled prediction itself
+states for the ``blocking`` check at ``--runs`` runs (:func:`validation.blocking.model_powers`: one
+run's count of hidden decided fixes, its mean and variance over the declared spread's draws), at
+the check's share ``--alpha`` of the family false-alarm probability (default 0.01 / 7, the seven
+statistical checks that apply to a fleet sweep with every step stored), simulated from the
+model's own law of a run's count, and what the normal law would say.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -21,12 +29,44 @@ HERE = Path(__file__).resolve().parent
 import numpy as np  # noqa: E402
 
 
+def model(name: str, runs: int, alpha: float) -> None:
+    """Print the power the sampled prediction states for the ``blocking`` check at ``runs`` runs."""
+    from planner.fleet.plan import plan_fleet
+    from planner.fleet.sampled import DRAWS, UNDECIDED, predict_sampled
+    from scenarios import load
+    from validation.blocking import critical, model_powers, powers
+
+    sc = load(name)
+    fleet = plan_fleet(sc)
+    pred = predict_sampled(sc, fleet.robots)
+    # the fixes the check tests: decided ones (a sweep's p_block_robot is NaN on the others)
+    p = np.concatenate([pf[u <= UNDECIDED] for pf, u in zip(pred.p_fix, pred.undecided, strict=True)])
+    z_crit = critical(alpha, p)
+    var = runs * pred.count_var * (1.0 + runs / DRAWS)
+    normal = powers(runs * pred.count_mean, var, z_crit)
+    double, half = model_powers(pred.hits, runs, z_crit, np.random.default_rng(sc.seed))
+    reach = runs * pred.count_mean / math.sqrt(var)
+    print(f"{sc.name}: one run's hidden decided fixes {pred.count_mean:.3f} expected, variance {pred.count_var:.3f} "
+          f"({DRAWS} draws); at {runs} runs E / sqrt(V) = {reach:.2f}, |z| <= {z_crit:.3f} at alpha {alpha:.3g}; "
+          f"power against a prediction twice the truth {double:.3f}, half the truth {half:.3f} (simulated; "
+          f"the normal law's {normal[0]:.3f} and {normal[1]:.3f}); traffic note: {fleet.note}")
+    print(json.dumps({"scenario": sc.name, "runs": runs, "alpha": alpha, "count_mean": pred.count_mean,
+                      "count_var": pred.count_var, "draws": DRAWS, "z_crit": z_crit, "reach": reach,
+                      "power_double": double, "power_half": half, "normal_double": normal[0],
+                      "normal_half": normal[1]}))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="warehouse-fleet")
     ap.add_argument("--runs", type=int, default=20)
     ap.add_argument("--alone", action="store_true")
+    ap.add_argument("--model", action="store_true")
+    ap.add_argument("--alpha", type=float, default=0.01 / 7)
     args = ap.parse_args()
+    if args.model:
+        model(args.scenario, args.runs, args.alpha)
+        return
 
     from scenarios import load
     from sim.episode.fleet import prepare_fleet, run_fleet_episode

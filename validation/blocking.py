@@ -47,7 +47,10 @@ reflector for a stretch of fixes), so V exceeds E by the mean size of such a str
 power grows with the count of independent blocking events, not of blocked fixes: at 200 runs a
 half-size prediction is failed with probability 0.9 once E / sqrt(V) >= 2 (z_c + 1.28). The check
 reports both powers and the z a prediction scaled by 1/2 and by 2 would have had on the same runs
-(``z_half``, ``z_double``), so that a pass shows what it could have caught.
+(``z_half``, ``z_double``), so that a pass shows what it could have caught. These powers take the
+total as normal, which overstates the power against a prediction too low where most runs hide
+nothing; the prediction states its own before any run by simulating sweeps from its law of a
+run's count (:func:`model_powers`).
 
 A total can hide a prediction that puts its mass on the wrong fixes (the blocked ones predicted
 clear and as many clear ones predicted blocked): the same test is made in each bin of the
@@ -68,6 +71,10 @@ from validation.data import CheckResult, CheckStatus, SweepData
 
 EDGES = (0.0, 0.02, 0.1, 0.3, 0.7, 0.9, 0.98, 1.0)
 """Bin edges of the predicted probability for the report: fine near 0 and 1, where most fixes are."""
+SIMS = 2000
+"""Sweeps simulated from the prediction's own law to state the check's power (:func:`model_powers`)."""
+POOL = 64
+"""Runs drawn per draw of the spread for the law of one run's count (:func:`model_powers`)."""
 
 
 def blocking_why_not(data: SweepData) -> str | None:
@@ -114,6 +121,73 @@ def _z(d_run: np.ndarray, floor: float) -> tuple[float, float]:
     return total / math.sqrt(v), v
 
 
+def powers(expected: float, variance: float, z_crit: float) -> tuple[float, float]:
+    """Return the test's power against a prediction twice and half the truth (module docstring, **Power**).
+
+    ``expected``: the prediction's total over the runs E; ``variance``: V, the variance of the observed
+    total about it (the runs' own times ``1 + R / N``); ``z_crit``: the test's critical |z|.
+    """
+    reach = expected / math.sqrt(variance) if variance > 0 else math.inf
+    return float(norm.cdf(reach - z_crit)), float(norm.cdf(reach / 2.0 - z_crit))
+
+
+def model_powers(hits: np.ndarray, runs: int, z_crit: float, rng: np.random.Generator,
+                 sims: int = SIMS) -> tuple[float, float]:
+    """Return the power the prediction itself states for a sweep of ``runs`` runs, twice and half the truth.
+
+    The normal law of :func:`powers` overstates the power against a prediction too low where one
+    run's count is skewed (most runs hide nothing, a few a stretch of fixes): a run that hides
+    more also raises the runs' variance, so the total's z grows slower than its sum (the synthetic
+    fleet of ``tests/validation/test_blocking_check.py`` whose robots hide 5 fixes together in 2 %
+    of the runs, 40 runs: the normal law states 0.17 against a prediction half the truth, the
+    check fails 0.10 of such sweeps, this simulation states 0.08). So the sweep is simulated from
+    the prediction's own law of a run's count (the runs hide fixes as the model says), ``sims``
+    times: ``runs`` runs each
+    a draw of the spread and each decided fix hidden with its chance in that draw (independent
+    within the draw, as the model takes them), tested as :func:`blocking` tests the total against
+    the model's prediction scaled by 2 and by 1/2. The bins' tests are left out (they only add
+    failures): a lower bound of the check's power when the model is the truth.
+
+    Parameters
+    ----------
+    hits : ndarray, shape (D, F)
+        Per draw of the spread, each decided fix's chance to be hidden
+        (:attr:`planner.fleet.sampled.SampledBlocking.hits`).
+    runs : int
+        Runs of the sweep.
+    z_crit : float
+        The check's critical |z| (:func:`critical`).
+    rng : numpy.random.Generator
+    sims : int
+        Simulated sweeps: the stated power errs by at most 3 sqrt(0.05 x 0.95 / sims) = 0.015 about
+        0.95 at the default (false alarm 0.3 %).
+
+    Returns
+    -------
+    power_double, power_half : float
+        Share of the simulated sweeps failed against a prediction twice and half the truth.
+    """
+    hits = np.asarray(hits, dtype=float)
+    d, n_fix = hits.shape
+    p = hits.mean(axis=0)
+    # the model's law of one run's count, POOL runs per draw of the spread
+    pool = np.concatenate([(rng.random((POOL, n_fix)) < h).sum(axis=1) for h in hits]).astype(float)
+    counts = pool[rng.integers(0, len(pool), (sims, runs))]
+    total, s2 = counts.sum(axis=1), counts.var(axis=1, ddof=1)
+    out = []
+    for k in (2.0, 0.5):
+        kp = np.clip(k * p, 0.0, 1.0)
+        v = np.maximum(runs * s2, runs * _floor(kp)) * (1.0 + runs / DRAWS)
+        z = (total - runs * kp.sum()) / np.sqrt(np.where(v > 0, v, np.inf))
+        out.append(float(np.mean(np.abs(z) > z_crit)))
+    return out[0], out[1]
+
+
+def critical(alpha: float, p: np.ndarray) -> float:
+    """Return the check's critical |z| at false-alarm probability ``alpha`` on predictions ``p`` (its bins' count)."""
+    return float(norm.ppf(1.0 - alpha / (1 + len(_bins(np.clip(p, 0.0, 1.0)))) / 2.0))
+
+
 def blocking(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckResult:
     """Compare the observed count of robot-blocked fixes with the predicted, runs as the unit (module docstring)."""
     fx = data.fixes
@@ -128,7 +202,7 @@ def blocking(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRe
     z, v = _z(o_run - e_run, floor)
     groups = _bins(p)
     m = 1 + len(groups)
-    z_crit = float(norm.ppf(1.0 - alpha / m / 2.0))
+    z_crit = critical(alpha, p)
     rows = []
     for g in groups:
         d = np.bincount(runs[g], weights=obs[g] - p[g], minlength=n_runs)
@@ -141,9 +215,7 @@ def blocking(data: SweepData, alpha: float, rng: np.random.Generator) -> CheckRe
     # what the same runs say of a prediction half and twice as large (the check's power, shown)
     z_half, z_double = (_z(o_run - k * e_run, _floor(np.clip(k * p, 0.0, 1.0)))[0] for k in (0.5, 2.0))
     total_e, total_s = float(p.sum()), int(obs.sum())
-    # the power against a prediction twice and half the truth (module docstring)
-    reach = total_e / math.sqrt(v) if v > 0 else math.inf
-    power_double, power_half = float(norm.cdf(reach - z_crit)), float(norm.cdf(reach / 2.0 - z_crit))
+    power_double, power_half = powers(total_e, v, z_crit)
     apart = ~ok
     n_apart, hid_apart = int(apart.sum()), int(np.asarray(fx.robot_blocked, bool)[apart].sum())
     per_bin = "; ".join(f"p {r['p_from']:.3g}..{r['p_to']:.3g}: {r['observed']}/{r['expected']:.1f} "

@@ -98,6 +98,10 @@ class SampledBlocking:
         Mean and variance of one run's count of hidden decided fixes (the fleet's, every robot's):
         over the draws, the variance of each draw's expected count plus the mean of its
         ``sum p (1 - p)`` (the fixes' place spreads taken independent within a draw).
+    hits : ndarray, shape (D, F), optional
+        Per draw, the probability that each decided fix is hidden (0 at an undecided one), the
+        robots' fixes one after another: the law of one run's count the moments above summarise
+        (:func:`validation.blocking.model_powers` draws runs from it).
     """
 
     p_robot: list[np.ndarray]
@@ -105,6 +109,7 @@ class SampledBlocking:
     undecided: list[np.ndarray]
     count_mean: float = 0.0
     count_var: float = 0.0
+    hits: np.ndarray | None = None
 
 
 def _path_bounds(robots: Sequence) -> list[np.ndarray]:
@@ -331,4 +336,5 @@ def predict_sampled(scenario, robots: Sequence, draws: int = DRAWS, timing: Sequ
     spread = sum((x * (1.0 - x)).sum(axis=1) for x in hit)
     return SampledBlocking(p_robot=[1.0 - fr.mean(axis=0) for fr in free_ray],
                            p_fix=[1.0 - ff.mean(axis=0) for ff in free_fix], undecided=share,
-                           count_mean=float(per_draw.mean()), count_var=float(per_draw.var() + spread.mean()))
+                           count_mean=float(per_draw.mean()), count_var=float(per_draw.var() + spread.mean()),
+                           hits=np.concatenate(hit, axis=1) if hit else np.zeros((draws, 0)))

@@ -15,7 +15,8 @@ import pytest
 from scipy.stats import binom, norm
 
 import scenarios
-from validation.blocking import blocking, blocking_why_not
+from planner.fleet.sampled import DRAWS
+from validation.blocking import blocking, blocking_why_not, critical, model_powers, powers
 from validation.data import FixTable, RunTable, SweepData
 from validation.suite import validate
 
@@ -196,3 +197,52 @@ def test_the_stated_power_is_how_often_a_prediction_half_the_truth_fails(fleet_s
     assert 0.15 < share < 0.85, share                     # a case where the power is not trivially 0 or 1
     assert abs(np.mean(stated) - share) < tol, (np.mean(stated), share)
     assert abs(np.mean(naive) - share) > tol              # the negative control
+
+
+def _all_or_nothing(scenario, runs: int, scale: float, rng: np.random.Generator, p: float) -> SweepData:
+    """Make a fleet sweep whose robots hide 5 fixes together at each of 6 crossings, with probability ``p``.
+
+    Most runs hide nothing (a skewed count); every fix is predicted ``scale`` x ``p``.
+    """
+    width, crossings = 5, 6
+    n_fix = width * crossings
+    hidden = np.repeat(rng.random((runs, ROBOTS, crossings)) < p, width, axis=2).reshape(-1)
+    n = runs * ROBOTS * n_fix
+    z = np.zeros(n)
+    fixes = FixTable(run=np.repeat(np.arange(runs * ROBOTS), n_fix), fix=np.tile(np.arange(n_fix), runs * ROBOTS),
+                     true_xy=np.zeros((n, 2)), snapshot_xy=np.zeros((n, 2)), snapshot_cov=np.zeros((n, 2, 2)),
+                     snapshot_error=z, predicted_tau=np.ones(n), contained=np.ones(n, bool), fault_diameter=z, nis=z,
+                     n_accepted=np.zeros(n, np.int64), markers=np.zeros((n, 2), np.int64),
+                     p_block_robot=np.full(n, scale * p), robot_blocked=hidden)
+    units = np.arange(runs * ROBOTS)
+    table = RunTable(run=units, ok=np.ones(len(units), bool), succeeded=np.ones(len(units), bool),
+                     mean_nees=np.full(len(units), 3.0))
+    return SweepData(scenario=scenario, runs=table, fixes=fixes)
+
+
+def test_the_power_the_model_states_is_the_rate_the_check_fails_at(fleet_scenario):
+    """The power ``model_powers`` states is the rate the check fails a prediction 2x off at.
+
+    Against the check run on 1000 synthetic sweeps per control whose truth is the model's law: 40
+    runs, 6 crossings a robot hiding 5 fixes together in 2 % of the runs (all predictions in one
+    bin, so the check is the total's test).
+
+    Tolerance: 3 binomial sd of the 1000 sweeps' rate plus 3 of the 5000 simulated (false alarm
+    about 0.5 %). The law is drawn from 4096 draws of the crossings. Negative control: the normal
+    law's power (:func:`powers`) overstates both, beyond the same tolerance (this skewed count is
+    the case it misjudges).
+    """
+    runs, sweeps, sims, p = 40, 1000, 5000, 0.02
+    rng = np.random.default_rng(5)
+    failed = [np.mean([blocking(_all_or_nothing(fleet_scenario, runs, k, rng, p), ALPHA, rng).status.value == "FAIL"
+                       for _ in range(sweeps)]) for k in (2.0, 0.5)]
+    g = np.random.default_rng(6)
+    hits = np.repeat(g.random((4096, ROBOTS * 6)) < p, 5, axis=1).astype(float)
+    z_crit = critical(ALPHA, np.full(3, p))
+    stated = model_powers(hits, runs, z_crit, g, sims=sims)
+    mean, var = ROBOTS * 6 * 5 * p, ROBOTS * 6 * 25 * p * (1 - p)
+    normal = powers(runs * mean, runs * var * (1 + runs / DRAWS), z_crit)
+    for rate, sim, nor in zip(failed, stated, normal, strict=True):
+        tol = 3 * np.sqrt(rate * (1 - rate) / sweeps) + 3 * np.sqrt(rate * (1 - rate) / sims)
+        assert abs(sim - rate) <= tol, (failed, stated)
+        assert nor - rate > tol, (failed, normal)
