@@ -30,17 +30,22 @@ RUNS = 4
 """Episodes per task (each a few seconds)."""
 
 
-@pytest.fixture(scope="module")
-def driven():
-    sc = scenarios.load(CORNER_WORLD)
+def _drive(sc, poses: str) -> list:
+    """Plan each task of ``sc`` and drive it RUNS times: (plan, positions (T, 2) of ``poses``) each."""
     out = []
     for task in range(len(sc.tasks)):
         prep = prepare(sc, task)
         for i in range(RUNS):
             ep = run_episode(sc, task, seed=np.random.SeedSequence(sc.seed, spawn_key=(task, i)), prepared=prep)
             assert ep.summary["reached"]
-            out.append((prep.plan, ep.steps.true_pose[:, :2]))
-    return sc, out
+            out.append((prep.plan, getattr(ep.steps, poses)[:, :2]))
+    return out
+
+
+@pytest.fixture(scope="module")
+def driven():
+    sc = scenarios.load(CORNER_WORLD)
+    return sc, _drive(sc, "true_pose")
 
 
 def test_the_true_position_stays_within_tracking_plus_estimate(driven):
@@ -68,14 +73,7 @@ def biased():
     sc = scenarios.load(CORNER_WORLD)
     robot = replace(sc.robot, max_speed=1.4, wheel_base=0.33, wheel_radius_error=0.004)
     sc = replace(sc, robot=robot, robot_actual=robot)
-    out = []
-    for task in range(len(sc.tasks)):
-        prep = prepare(sc, task)
-        for i in range(RUNS):
-            ep = run_episode(sc, task, seed=np.random.SeedSequence(sc.seed, spawn_key=(task, i)), prepared=prep)
-            assert ep.summary["reached"]
-            out.append((prep.plan, ep.steps.est_pose[:, :2]))
-    return sc, out
+    return sc, _drive(sc, "est_pose")
 
 
 def _estimate_excess(sc, plan, xy, bias: bool) -> float:
