@@ -322,9 +322,9 @@ def _code_names(code: types.CodeType) -> set[str]:
 def _is_dispatcher(obj) -> bool:
     if "numba" not in sys.modules:
         return False
-    from numba.core.registry import CPUDispatcher
+    from numba.extending import is_jitted
 
-    return isinstance(obj, CPUDispatcher)
+    return is_jitted(obj)
 
 
 def _callees(dispatcher) -> list:
@@ -423,7 +423,7 @@ def inlined_sources(dispatcher) -> list[Path]:
 
     Parameters
     ----------
-    dispatcher : numba.core.registry.CPUDispatcher or Kernel
+    dispatcher : numba dispatcher (``numba.extending.is_jitted``) or Kernel
         A ``numba.njit`` function, or a kernel of :func:`njit`.
 
     Returns

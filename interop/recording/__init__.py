@@ -63,7 +63,10 @@ def blueprint() -> rrb.Blueprint:
 
 
 def check_writable(path: str | os.PathLike[str]) -> Path:
-    """Make sure a file can be written at ``path`` (creating or truncating it) before any work.
+    """Make sure a file can be written at ``path`` before any work, leaving the path as it was.
+
+    The recording is written after the work: until then an existing file keeps its content and a
+    new one is not left behind, so work that fails (a task that does not plan) costs no file.
 
     Parameters
     ----------
@@ -87,8 +90,11 @@ def check_writable(path: str | os.PathLike[str]) -> Path:
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise OutputError(f"{path}: cannot write recording: directory {parent} does not exist")
-    with output_errors(path, "write recording"), open(p, "wb"):
+    existed = p.exists()
+    with output_errors(path, "write recording"), open(p, "ab"):
         pass  # an actual open, so that read-only mounts and ACLs are caught too (also as root)
+    if not existed:
+        p.unlink(missing_ok=True)
     return p
 
 

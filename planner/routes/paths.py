@@ -145,7 +145,7 @@ def shortest_simple_paths(adj: dict[str, dict[str, float]], source: str, target:
 
 
 def _bidirectional_dijkstra(adj, source, target, ignore_nodes=None, ignore_edges=None):
-    """Run networkx's ``simple_paths._bidirectional_dijkstra`` on an undirected weight dict: (length, path)."""
+    """Bidirectional Dijkstra on an undirected weight dict, networkx 3's steps and tie-breaks: (length, path)."""
     if ignore_nodes and (source in ignore_nodes or target in ignore_nodes):
         raise NoPath(f"no path between {source} and {target}")
     if source == target:

@@ -338,11 +338,22 @@ def departure_bound(path: np.ndarray, s_v: np.ndarray, speed: np.ndarray, s: np.
 
 
 def settle_bound(path: np.ndarray, s_v: np.ndarray, s: np.ndarray, look: np.ndarray) -> np.ndarray:
-    """Return the follower's tracking bound: its chord bound, or the largest one it settles from [m].
+    """Return the geometric part of the tracking bound: the chord bound, or the largest one it settles from [m].
 
     The largest :func:`chord_bound` over ``[s - SETTLE_LOOKAHEADS look, s]`` (25 points): leaving a
     turn the follower swings out by no more than it cut the turn, and is back within a few
-    lookaheads.
+    lookaheads. :func:`tracking_bound` adds the wheels' part to it.
+
+    Parameters
+    ----------
+    path, s_v : ndarray, shape (N, 2), (N,)
+        Path vertices and their arc length [m].
+    s, look : ndarray, same shape
+        Arc lengths and lookaheads (chord lengths along the path) [m].
+
+    Returns
+    -------
+    numpy.ndarray, same shape as ``s``
     """
     return _chords(path, s_v, s, look, SETTLE_LOOKAHEADS, np.linspace(0.0, 1.0, 25))
 

@@ -803,6 +803,27 @@ def certified_estimate(pl: Windows, starts: np.ndarray, pred: np.ndarray, fb: li
 
     This bounds the estimate's error by induction along the schedule: it holds when the fixes
     before kept their promises and the drift bound held.
+
+    Parameters
+    ----------
+    pl : planner.schedule.search.Windows
+        The sampled track with its drift bound and ``eps`` (``eps_max``) [m].
+    starts : ndarray of int, shape (F,)
+        Sample index of each fix's start.
+    pred : ndarray, shape (F,)
+        Each fix's promise [m].
+    fb : list (F) of tuple (k) of tuple of int
+        Each fix's fallback subset per marker, () where it has none
+        (:func:`planner.schedule.fallback.fallbacks`).
+    fb_tau : list (F) of tuple (k) of float
+        Their promises [m], inf where there is none.
+    redundant : bool
+        ``planning.redundancy > 0``: a fix without a fallback for some marker may be lost.
+
+    Returns
+    -------
+    numpy.ndarray, shape (F,)
+        The bound for each fix [m]; ``eps_max`` for the first.
     """
     n = len(starts)
     out = np.full(n, pl.eps)

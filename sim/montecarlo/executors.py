@@ -10,6 +10,7 @@ run, recorded through ``factory.died(spec, reason)``: the other runs are re-run 
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import multiprocessing.connection
 import multiprocessing.util
@@ -240,13 +241,15 @@ def start_ray(workers: int | None, address: str | None) -> tuple[Any, bool]:
     ray = import_ray()
     if ray.is_initialized():
         return ray, False
+    # Ray's INFO lines ("Started a local Ray instance.") would be stray output on stderr
+    quiet = {"log_to_driver": False, "logging_level": logging.WARNING}
     try:
         if address:
-            ray.init(address=address, log_to_driver=False)
+            ray.init(address=address, **quiet)
         else:
             # A local cluster needs no token; without this Ray writes ~/.ray/auth_token.
             os.environ.setdefault("RAY_AUTH_MODE", "disabled")
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            ray.init(num_cpus=workers, include_dashboard=False, **quiet)
     except (ConnectionError, ValueError, RuntimeError) as exc:
         where = f"the Ray cluster at {address}" if address else "a local Ray cluster"
         raise PefsimError(f"cannot start or reach {where}: {str(exc).splitlines()[0]}") from None

@@ -330,6 +330,16 @@ def test_unwritable_path_raises_output_error_before_any_work(tmp_path, warehouse
     assert not (tmp_path / "missing-dir").exists()
 
 
+def test_the_check_before_the_work_leaves_the_path_as_it_was(tmp_path):
+    # a run whose task does not plan fails after this check: it must not leave an empty recording
+    # where none was, nor empty one the user already had (opening for writing truncates it)
+    new, old = tmp_path / "new.rrd", tmp_path / "old.rrd"
+    old.write_bytes(b"an earlier recording")
+    assert recording.check_writable(new) == new and recording.check_writable(old) == old
+    assert not new.exists()
+    assert old.read_bytes() == b"an earlier recording"
+
+
 # --------------------------------------------------------------------------------------------
 # geometry (independent cross-checks)
 
