@@ -10,6 +10,7 @@ run, recorded through ``factory.died(spec, reason)``: the other runs are re-run 
 
 from __future__ import annotations
 
+import copy
 import logging
 import multiprocessing
 import multiprocessing.connection
@@ -221,7 +222,9 @@ class _RayWorker:
 
     def __init__(self, factory: WorkerFactory, payload: Any) -> None:
         _one_thread_per_worker()
-        self.context = factory(payload)
+        # Ray hands numpy arrays out of its object store read-only (zero-copy); the PEF's
+        # memos grow theirs in place, so the actor works on its own copy.
+        self.context = factory(copy.deepcopy(payload))
 
     def execute(self, spec: Any) -> Any:
         return self.context.execute(spec)

@@ -133,6 +133,41 @@ def test_ray_real_episodes_equal_local_ones(two_tasks, tmp_path):
         _assert_same(local, tmp_path / "other")
 
 
+@pytest.mark.e2e
+def test_ray_runs_a_scenario_whose_plan_carries_the_pefs_memos(tmp_path):
+    """paper-two-markers through Ray equals the local pool (its payload carries the PEF's grown memos).
+
+    Ray hands a payload's numpy arrays out read-only; a worker that grew the memos in them
+    crashed every run ("assignment destination is read-only"). Negative control:
+    :func:`test_a_ray_actor_works_on_a_writable_copy_of_its_payload`.
+    """
+    _require_ray()
+    sc = scenarios.load("paper-two-markers")
+    local, ray_out = tmp_path / "local", tmp_path / "ray"
+    sweep(sc, local, runs=2, workers=1, progress=False)
+    sweep(sc, ray_out, runs=2, workers=2, executor="ray", progress=False)
+    assert results.read_runs(ray_out).column("status").to_pylist() == ["ok", "ok"]
+    _assert_same(local, ray_out)
+
+
+def test_a_ray_actor_works_on_a_writable_copy_of_its_payload():
+    """A payload read-only as Ray's object store hands it out can be grown by the actor's context.
+
+    Negative control: the same factory on the payload itself fails (the payload is read-only).
+    """
+    from sim.montecarlo.executors import _RayWorker
+
+    def grow(payload):
+        payload[0] = 1.0
+        return SimpleNamespace(execute=lambda spec: float(payload[0]) + spec)
+
+    frozen = np.frombuffer(np.zeros(4).tobytes())
+    assert not frozen.flags.writeable
+    assert _RayWorker(grow, frozen).execute(2.0) == 3.0
+    with pytest.raises(ValueError, match="read-only"):
+        grow(frozen)
+
+
 def test_crashing_runs_are_recorded_and_others_continue(tmp_path, two_tasks):
     out = tmp_path / "crashy"
     summary = sweep(two_tasks, out, runs=10, workers=2, api=fe.CRASHY, progress=False)
