@@ -40,10 +40,11 @@ def placed():
 
 
 def test_every_task_plans_with_the_body_clear(placed):
-    for i in range(len(placed.tasks)):
+    for i, task in enumerate(placed.tasks):
         p = plan_task(placed, i)
-        m = clearance.margin(placed, p.path, p.speed, p.schedule.s, p.schedule.predicted_error)
-        assert not m.short.any()
+        m = clearance.margin(placed, p.path, p.speed, p.schedule.s, p.schedule.predicted_error,
+                             placed.dock(task.start).pose[2])
+        assert not m.short.any(), clearance.Shortfall.worst(placed, m).message(task.start, task.goal)
 
 
 def test_a_sweep_reaches_every_goal_without_contact(placed, tmp_path):
@@ -78,13 +79,14 @@ def test_radius_0_3_plans_with_clearance_or_names_the_place(placed):
     robot = dataclasses.replace(placed.robot, radius=0.3)
     sc = dataclasses.replace(placed, robot=robot, robot_actual=dataclasses.replace(placed.robot_actual, radius=0.3))
     planned = 0
-    for i in range(len(sc.tasks)):
+    for i, task in enumerate(sc.tasks):
         try:
             p = plan_task(sc, i)
         except PlanningError as exc:
             assert "from the obstacle at (" in str(exc) and "needs" in str(exc), exc
             continue
-        m = clearance.margin(sc, p.path, p.speed, p.schedule.s, p.schedule.predicted_error)
+        m = clearance.margin(sc, p.path, p.speed, p.schedule.s, p.schedule.predicted_error,
+                             sc.dock(task.start).pose[2])
         assert not m.short.any()
         planned += 1
     assert planned >= 1
