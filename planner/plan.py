@@ -228,7 +228,7 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
     if pef is None:
         pef = PEF(scenario)
     # candidate paths are sampled at most the resolution apart (planner.routes.smoothing)
-    tau_fn = lambda p: tau_along(pef, p, scenario.planning.resolution)
+    tau_fn = lambda p: tau_along(pef, p, scenario.planning.resolution, scenario.planning.eps_max)
     use_free = scenario.routes is None if free is None else free
     if not use_free and scenario.routes is None:
         raise PlanningError(f"scenario {scenario.name!r} has no route network: plan in free space")
