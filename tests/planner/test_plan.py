@@ -30,7 +30,7 @@ class FakePEF:
         return SimpleNamespace(tau=self.fn(p))
 
     def stretch_bound(self, points, widen, target=np.inf):
-        """The field itself: it is given, not a marker geometry whose change over a stretch is bounded."""
+        """Return the field itself: it is given, not a marker geometry whose change over a stretch is bounded."""
         return self.fn(np.asarray(points, float).reshape(-1, 2))
 
     def grid(self, resolution=None):

@@ -78,7 +78,7 @@ def test_negative_control_the_samples_own_tau_is_exceeded_between_samples(monkey
 
 
 def brute_force(pef: PEF, p: np.ndarray, h: float) -> float:
-    """The least g_S τ_S over every subset seen over the stretch at ``p``, one subset at a time."""
+    """Return the least g_S τ_S over every subset seen over the stretch at ``p``, one subset at a time."""
     sensor = pef.sensor
     tan_xi = math.tan(sensor.bearing_error) if sensor.uses_bearing else 0.0
     code = {"gdop": 2, "strips": 1, "parallelogram": 0}[pef.model.value]
