@@ -30,6 +30,11 @@ region at p' lies in the region at p scaled by ``1 + A + B tau'``, ``A = max A_j
   ``tau / r``, as the linearised models themselves; the property test checks it on random floors.
 
 The factor is about ``1 + h / r`` for near markers: 1.01-1.03 at 5 cm and a few metres.
+
+The promise of a moving fix bounds the realised fault area at poses within ``Δ`` of the planned
+ones by the same turning of strips, for annuli with their curvature
+(:mod:`estimators.fault.perturbed`, range fixes); this module bounds each PEF model's own value
+(bearings and the gdop ellipse included) over a path's stretch.
 """
 
 from __future__ import annotations
