@@ -3,7 +3,7 @@
 :func:`plan_route` gathers candidate routes (through the scenario's route network, or by
 free-space grid search; :mod:`planner.routes.candidates`), each turned into a drivable path and
 scored at the PEF resolution, ranks the admissible ones (:mod:`planner.routes.criteria`),
-re-checks the best at a quarter of the resolution and gives it a measurement schedule
+re-checks the best's clearance at a quarter of the resolution and gives it a measurement schedule
 (:mod:`planner.schedule.schedule`); a candidate that fails either is marked inadmissible and the
 next one is taken. τ along a path is the one admissibility's
 (:func:`planner.routes.admissible.tau_along`: each sample stands for its stretch), the same as
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.routes import criteria
-from planner.routes.admissible import judge_paths, tau_along
+from planner.routes.admissible import tau_along
 from planner.routes.candidates import Candidate, free_candidates, network_candidates
 from planner.routes.ranking import Ranking, rank
 from planner.schedule import clearance
@@ -134,18 +134,28 @@ def _reason(scenario: Scenario, cands: list[Candidate], ranking: Ranking, chosen
 
 
 def _fine_check(scenario: Scenario, cand: Candidate, pef) -> str:
-    """Re-check a path at a quarter of the resolution; the reason it fails or ''."""
-    verdict = judge_paths(scenario, pef, [cand.path.points], scenario.planning.resolution * FINE_FRACTION)[0]
-    pts, tau, i = verdict.points, verdict.tau, verdict.worst
-    if not verdict.admissible:
-        cand.max_tau = max(cand.max_tau, float(tau[i]))
-        cand.worst_point = (float(pts[i, 0]), float(pts[i, 1]))
-        return f"{verdict.why_not} on fine re-check"
+    """Re-check a path's clearance at a quarter of the resolution; the reason it fails or ''.
+
+    τ needs no re-check: each sample of the path was judged by the bound of τ over the whole
+    stretch it stands for (:func:`planner.routes.admissible.tau_along`), as ``export`` judges it.
+    """
+    pts, _ = criteria.sample_polyline(np.asarray(cand.path.points, dtype=float),
+                                      scenario.planning.resolution * FINE_FRACTION)
     cl = float(criteria.clearance(pts, scenario).min())
     if cl < scenario.robot.radius:
         cand.min_clearance = min(cand.min_clearance, cl)
         return f"clearance {cl:.3f} m < robot radius {scenario.robot.radius:g} m on fine re-check"
     return ""
+
+
+def route_tau(scenario: Scenario, pef):
+    """Return ``tau_fn(points (N, 2)) -> (N,)`` [m] by which ``plan`` judges its candidate paths.
+
+    The one admissibility (:func:`planner.routes.admissible.tau_along`) at ``planning.resolution``
+    (candidate paths are sampled at most that far apart, :mod:`planner.routes.smoothing`) against
+    ``planning.eps_max``.
+    """
+    return lambda p: tau_along(pef, p, scenario.planning.resolution, scenario.planning.eps_max)
 
 
 class NoRouteError(PlanningError):
@@ -227,8 +237,7 @@ def plan_route(scenario: Scenario, start: str, goal: str, free: bool | None = No
                             "(pefsim place finds where to put reflectors)")
     if pef is None:
         pef = PEF(scenario)
-    # candidate paths are sampled at most the resolution apart (planner.routes.smoothing)
-    tau_fn = lambda p: tau_along(pef, p, scenario.planning.resolution)
+    tau_fn = route_tau(scenario, pef)
     use_free = scenario.routes is None if free is None else free
     if not use_free and scenario.routes is None:
         raise PlanningError(f"scenario {scenario.name!r} has no route network: plan in free space")

@@ -97,7 +97,7 @@ def write_exports(scenario: Scenario, asked: dict[str, Path]) -> Exported:
 
         names = list(sc.routes.nodes)
         # a node's deviation as its segments' end samples are judged (planner.routes.admissible)
-        tau = tau_along(pef, [sc.routes.nodes[n] for n in names], sc.planning.resolution)
+        tau = tau_along(pef, [sc.routes.nodes[n] for n in names], sc.planning.resolution, sc.planning.eps_max)
         written["lif"] = (write_lif(asked["lif"], sc, dict(zip(names, map(float, tau), strict=True))),)
     if "keepout" in asked:
         from interop.export.keepout import write_keepout

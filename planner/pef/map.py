@@ -48,6 +48,7 @@ import numpy as np
 
 from estimators.fault.linearized import chi2_2dof_ppf
 from planner.pef import kernels as pef_kernels
+from planner.pef import stretch as pef_stretch
 from planner.pef.gridtiles import parallelogram_grid
 from planner.pef.pointmemo import PointMemo, point_keys
 from planner.pef.result import PefMap, PefResult, grid_centres
@@ -177,6 +178,110 @@ class PEF:
 
         tau, best, tau_plain, fallback = memo.rows(memo.held(point_keys(pts), compute))
         return PefResult(tau=tau, best=best, tau_plain=tau_plain, fallback=fallback)
+
+    def stretch_bound(self, points: np.ndarray, widen: float, target: float = math.inf) -> np.ndarray:
+        """Bound tau over the stretch within ``widen`` of each point (:mod:`planner.pef.stretch`).
+
+        Parameters
+        ----------
+        points : ndarray, shape (N, 2)
+            Points [m].
+        widen : float
+            The stretch's half-length [m]: markers count only when seen from all of it.
+        target : float
+            Where the bound of the best subset (by tau) reaches ``target`` [m] but its tau does
+            not, every visible subset is tried (the least ``g_S tau_S``): the bound is then under
+            ``target`` exactly when some subset keeps the whole stretch under it. Elsewhere the
+            best subset's bound.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            The bound [m] (tau_r with redundancy r: the worst of the bounds with any r markers
+            blocked); inf where no subset is seen over the stretch.
+        """
+        pts = _points(points)
+        memo = self._memo(f"stretch {float(target)!r}", widen)
+
+        def compute(first: np.ndarray) -> list[np.ndarray]:
+            return [self._stretch_points(pts[first], float(widen), float(target))]
+
+        (bound,) = memo.rows(memo.held(point_keys(pts), compute))
+        return bound
+
+    def _stretch_points(self, pts: np.ndarray, h: float, target: float) -> np.ndarray:
+        """:meth:`stretch_bound` of ``pts`` (N, 2), without the memo."""
+        px, py = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
+        if self.redundancy == 0:  # the plain values are held by at()
+            r = self.at(pts, h)
+            return self._stretched(px, py, PefResult(tau=r.tau, best=r.best), h, target,
+                                   lambda: self._visibility(pts, h)).tau
+        vis = self._visibility(pts, h)
+        # the recursion over blocked markers takes the subset each bound comes from
+        return self._redundant(lambda v: self._stretched(px, py, self._evaluate(px, py, v), h, target, lambda: v),
+                               vis).tau
+
+    def _stretched(self, px: np.ndarray, py: np.ndarray, plain: PefResult, h: float, target: float,
+                   vis_of) -> PefResult:
+        """Return the best subset's bound over the stretch, and the least of every subset's where it decides.
+
+        ``plain``: tau (N,) and best (N, k) at (px, py); ``vis_of()``: the visibility (M, N).
+        """
+        sensor = self.sensor
+        tan_xi = math.tan(sensor.bearing_error) if sensor.uses_bearing else 0.0
+        exact = self.model is PefModel.EXACT
+        code = pef_kernels.STRIPS if exact else _KERNEL_MODEL[self.model]
+        mx, my = np.ascontiguousarray(self.markers[:, 0]), np.ascontiguousarray(self.markers[:, 1])
+        g = np.empty(px.size)
+        pef_stretch.best_stretch(code, px, py, mx, my, np.ascontiguousarray(plain.best), float(sensor.relative_error),
+                                 float(sensor.absolute_error), tan_xi, self.chi2_ppf, h,
+                                 np.ascontiguousarray(plain.tau, dtype=float), not exact, g)
+        bound = plain.tau * g
+        best = plain.best.copy()
+        band = np.flatnonzero((plain.tau < target) & ~(bound < target))
+        if band.size and len(self.subsets):
+            vis = np.ascontiguousarray(vis_of()[:, band])
+            bx, by = np.ascontiguousarray(px[band]), np.ascontiguousarray(py[band])
+            if exact:
+                least, sub = self._exact_stretched(bx, by, vis, h)
+            else:
+                least, sub = np.empty(band.size), np.empty((band.size, self.k), dtype=np.int64)
+                pef_stretch.min_stretched(code, bx, by, mx, my, vis, self.subsets, float(sensor.relative_error),
+                                          float(sensor.absolute_error), tan_xi, self.chi2_ppf, h, least, sub)
+            better = least < bound[band]
+            bound[band[better]] = least[better]
+            best[band[better]] = sub[better]
+        return PefResult(tau=bound, best=best)
+
+    def _exact_stretched(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray, h: float):
+        """Return the least ``g_S tau_S`` (N,) of the exact model and its subsets (N, k), over its candidates."""
+        n, nsub = px.size, len(self.subsets)
+        lin = np.empty((n, nsub))
+        for s in range(nsub):
+            lin[:, s] = self._kernel(px, py, vis, self.subsets[s:s + 1], pef_kernels.STRIPS)[0]
+        cand = np.isfinite(lin) & (lin <= self.exact_margin * lin.min(axis=1, keepdims=True))
+        pts = np.column_stack([px, py])
+        ids = self._exact_ids(pts)
+        self._exact_values()
+        sensor = self.sensor
+        tan_xi = math.tan(sensor.bearing_error) if sensor.uses_bearing else 0.0
+        mx, my = np.ascontiguousarray(self.markers[:, 0]), np.ascontiguousarray(self.markers[:, 1])
+        least, best = np.full(n, np.inf), np.full((n, self.k), -1, dtype=np.int64)
+        for s in range(nsub):
+            rows = np.flatnonzero(cand[:, s] & vis[self.subsets[s]].all(axis=0))
+            if not rows.size:
+                continue
+            tau = self._exact_held(pts, ids, rows, self.subsets[s])
+            g = np.empty(rows.size)
+            pef_stretch.best_stretch(pef_kernels.STRIPS, px[rows], py[rows], mx, my,
+                                     np.repeat(self.subsets[s][None], rows.size, axis=0),
+                                     float(sensor.relative_error), float(sensor.absolute_error), tan_xi,
+                                     self.chi2_ppf, h, np.ascontiguousarray(tau, dtype=float), False, g)
+            v = tau * g
+            better = v < least[rows]
+            least[rows[better]] = v[better]
+            best[rows[better]] = self.subsets[s]
+        return least, best
 
     def _memo(self, name: str, widen: float) -> PointMemo:
         """Return the memo of ``name``'s per-point results at ``widen`` (:mod:`planner.pef.pointmemo`).

@@ -57,6 +57,7 @@ import tomli_w
 
 from jit import compiled
 from planner.pef import kernels as pef_kernels
+from planner.pef import stretch as pef_stretch
 from planner.placement.cover import MILP_TIME_LIMIT, solve_exact
 from planner.placement.facing import site_facings, site_marker
 from planner.placement.pair_cover import PairCover, subset_rows
@@ -204,10 +205,12 @@ def _finite_or_none(v: float) -> float | None:
 
 
 @compiled.njit(parallel=True, cache=True)
-def _good_pairs_kernel(px, py, sx, sy, vis, model, rel, ab, tan_xi, chi2, limit, offsets, out_j, out_l):
+def _good_pairs_kernel(px, py, sx, sy, vis, model, rel, ab, tan_xi, chi2, h, limit, offsets, out_j, out_l):
     """Count (``offsets`` None-like: size 0) or list the good pairs of every point.
 
-    ``vis`` (N, S); pairs ``(j, l)``, j < l, both visible and tau < limit. Returns the counts.
+    ``vis`` (N, S); pairs ``(j, l)``, j < l, both visible and tau under ``limit`` over the whole
+    stretch within ``h`` [m] of the point (:func:`planner.pef.stretch.subset_stretch`). Returns
+    the counts.
     """
     n, s = vis.shape
     counts = np.zeros(n, dtype=np.int64)
@@ -225,6 +228,7 @@ def _good_pairs_kernel(px, py, sx, sy, vis, model, rel, ab, tan_xi, chi2, limit,
             for z in range(a + 1, m):
                 sub[0], sub[1] = seen[a], seen[z]
                 t = pef_kernels.subset_tau(model, px[i], py[i], sx, sy, sub, rel, ab, tan_xi, chi2, nx, ny, b)
+                t = t * pef_stretch.subset_stretch(model, px[i], py[i], sx, sy, sub, rel, ab, tan_xi, chi2, h, t, True)
                 if t < limit:
                     if offsets.size:
                         out_j[offsets[i] + c] = seen[a]
@@ -291,7 +295,7 @@ def build_cover(scenario: Scenario, points: np.ndarray, sites: np.ndarray, eps_m
     chi2 = float(chi2_2dof_ppf(scenario.planning.gdop_level))
     args = (np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]),
             np.ascontiguousarray(sites[:, 0]), np.ascontiguousarray(sites[:, 1]), vis, kernel_model,
-            float(sensor.relative_error), float(sensor.absolute_error), tan_xi, chi2,
+            float(sensor.relative_error), float(sensor.absolute_error), tan_xi, chi2, float(widen),
             float(eps_max) * (1.0 - TAU_MARGIN))
     empty = np.zeros(0, dtype=np.int64)
     counts = _good_pairs_kernel(*args, empty, empty, empty)

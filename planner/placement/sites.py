@@ -162,6 +162,9 @@ class _FlatPEF:
         p = np.asarray(points, dtype=float).reshape(-1, 2)
         return SimpleNamespace(tau=np.zeros(len(p)), best=np.zeros((len(p), 0), dtype=int))
 
+    def stretch_bound(self, points, widen, target=np.inf):
+        return np.zeros(len(np.asarray(points, dtype=float).reshape(-1, 2)))
+
     def grid(self, resolution=None):
         from planner.pef.result import grid_centres
 

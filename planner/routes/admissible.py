@@ -11,10 +11,11 @@ seen from every position within ``spacing / 2`` of the sample as well (the line-
 of :mod:`planner.pef.sight` with its margin widened by ``spacing / 2``,
 :meth:`planner.pef.map.PEF.at`): the subset a sample's τ is taken with stays in sight over the
 whole stretch the sample stands for, so no gap between samples hides a lost line of sight (τ = ∞
-between two finite samples). Between samples τ of that subset varies with the geometry (a few
-per cent over a 0.1 m stretch at the ranges of a floor), which the plan's promise bounds in
-turn (:mod:`planner.schedule.promise`); the schedule judges a path continuously on its own,
-finer, samples.
+between two finite samples). Between samples τ of that subset varies with the geometry (up to
+3 % over 5 cm on random floors): the sample is compared with the target by the bound of τ over
+its whole stretch (:meth:`planner.pef.map.PEF.stretch_bound`, derived in
+:mod:`planner.pef.stretch`), so a path under the target at its samples is under it between them
+too. ``place`` covers a point by the same bound (:mod:`planner.placement.placement`).
 
 The verdict is the first failed condition (:data:`CONDITIONS` order): τ, then whatever other
 condition joins (a clearance condition takes the same points).
@@ -36,25 +37,33 @@ def stretch_widen(spacing: float) -> float:
     return 0.5 * float(spacing)
 
 
-def tau_along(pef, points: np.ndarray, spacing: float) -> np.ndarray:
+def tau_along(pef, points: np.ndarray, spacing: float, target: float) -> np.ndarray:
     """τ at samples of a path ``spacing`` apart, each standing for its stretch (module docstring) [m].
 
     Parameters
     ----------
     pef : planner.pef.map.PEF
-        The PEF (its ``at`` with ``widen``).
+        The PEF (its ``at`` and ``stretch_bound``).
     points : ndarray, shape (N, 2)
         Samples [m], consecutive ones at most ``spacing`` apart.
     spacing : float
         Largest distance between consecutive samples [m].
+    target : float
+        The τ the path must stay under [m].
 
     Returns
     -------
     ndarray, shape (N,)
-        τ [m]: inf where fewer than k markers stay in sight over the sample's stretch.
+        τ [m] at each sample whose whole stretch stays under ``target`` (the bound over the
+        stretch is); elsewhere that bound (>= target): compared with ``target``, the value
+        says whether the stretch does, and the scores of admissible paths stay the PEF's own.
+        inf where fewer than k markers stay in sight over the sample's stretch.
     """
     p = np.asarray(points, dtype=float).reshape(-1, 2)
-    return np.asarray(pef.at(p, widen=stretch_widen(spacing)).tau, dtype=float)
+    h = stretch_widen(spacing)
+    tau = np.asarray(pef.at(p, widen=h).tau, dtype=float)
+    bound = np.asarray(pef.stretch_bound(p, h, target), dtype=float)
+    return np.where(bound < target, tau, bound)
 
 
 @dataclass(frozen=True)
@@ -130,7 +139,7 @@ def judge_paths(scenario: Scenario, pef, polylines: Sequence[np.ndarray], spacin
     if not samples:
         return []
     # one PEF evaluation for every path: the kernels work best on many points
-    tau_all = tau_along(pef, np.vstack([p for p, _ in samples]), spacing)
+    tau_all = tau_along(pef, np.vstack([p for p, _ in samples]), spacing, target)
     out, start = [], 0
     for p, s in samples:
         tau = tau_all[start:start + len(p)]

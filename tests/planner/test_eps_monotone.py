@@ -63,7 +63,7 @@ def outcomes(sc: scenarios.Scenario, eps_values=EPS, tasks: int | None = None) -
     for eps in eps_values:
         s = with_eps(sc, eps)
         pef = PEF(s)
-        tau_fn = lambda p, pef=pef, s=s: tau_along(pef, p, s.planning.resolution)  # noqa: E731
+        tau_fn = lambda p, pef=pef, s=s: tau_along(pef, p, s.planning.resolution, s.planning.eps_max)  # noqa: E731
         got = {}
         for t in list(s.tasks)[:tasks]:
             try:

@@ -29,6 +29,10 @@ class FakePEF:
         p = np.asarray(points, float).reshape(-1, 2)
         return SimpleNamespace(tau=self.fn(p))
 
+    def stretch_bound(self, points, widen, target=np.inf):
+        """Return the field itself: it is given, not a marker geometry whose change over a stretch is bounded."""
+        return self.fn(np.asarray(points, float).reshape(-1, 2))
+
     def grid(self, resolution=None):
         res = resolution or 0.1
         x = (np.arange(int(round(20 / res))) + 0.5) * res
