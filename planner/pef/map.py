@@ -256,10 +256,7 @@ class PEF:
     def _exact_stretched(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray, h: float):
         """Return the least ``g_S tau_S`` (N,) of the exact model and its subsets (N, k), over its candidates."""
         n, nsub = px.size, len(self.subsets)
-        lin = np.empty((n, nsub))
-        for s in range(nsub):
-            lin[:, s] = self._kernel(px, py, vis, self.subsets[s:s + 1], pef_kernels.STRIPS)[0]
-        cand = np.isfinite(lin) & (lin <= self.exact_margin * lin.min(axis=1, keepdims=True))
+        cand = self._exact_candidates(px, py, vis)
         pts = np.column_stack([px, py])
         ids = self._exact_ids(pts)
         self._exact_values()
@@ -569,11 +566,7 @@ class PEF:
         n, nsub = px.size, len(self.subsets)
         if n == 0 or nsub == 0:
             return np.full(n, np.inf), np.full((n, self.k), -1, dtype=np.int64)
-        lin = np.empty((n, nsub))
-        for s in range(nsub):
-            lin[:, s] = self._kernel(px, py, vis, self.subsets[s:s + 1], pef_kernels.STRIPS)[0]
-        best_lin = lin.min(axis=1, keepdims=True)
-        cand = np.isfinite(lin) & (lin <= self.exact_margin * best_lin)
+        cand = self._exact_candidates(px, py, vis)
         pts = np.column_stack([px, py])
         ids = self._exact_ids(pts)
         self._exact_values()  # a call begins: only now may the store drop values (planner.pef.subsetvalues)
@@ -586,6 +579,13 @@ class PEF:
         idx = np.where(np.isfinite(exact).any(axis=1), exact.argmin(axis=1), -1)
         best = np.where(idx[:, None] >= 0, self.subsets[np.maximum(idx, 0)], -1)
         return exact.min(axis=1), best
+
+    def _exact_candidates(self, px: np.ndarray, py: np.ndarray, vis: np.ndarray) -> np.ndarray:
+        """Return (N, C) bool: the subsets worth clipping at each point, by their linearised diameters."""
+        lin = np.empty((px.size, len(self.subsets)))
+        for s in range(len(self.subsets)):
+            lin[:, s] = self._kernel(px, py, vis, self.subsets[s:s + 1], pef_kernels.STRIPS)[0]
+        return np.isfinite(lin) & (lin <= self.exact_margin * lin.min(axis=1, keepdims=True))
 
     def _exact_subset(self, pts: np.ndarray, vis: np.ndarray, subset: np.ndarray,
                       markers: np.ndarray | None = None) -> np.ndarray:
